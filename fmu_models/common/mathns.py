@@ -1,0 +1,35 @@
+"""A tiny math namespace so one formula serves numpy arrays and CasADi expressions.
+
+The physics is written once against CasADi (``ca.sin``, ``ca.vertcat`` ...), which accepts floats too.
+A few formulas (the ANFIS forward pass) must also run vectorised over thousands of samples inside
+identification; they take a namespace ``xp`` from here instead of importing numpy or CasADi directly.
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import casadi as ca
+import numpy as np
+
+#: numpy backend: elementwise over arrays of samples.
+NP = SimpleNamespace(
+    exp=np.exp,
+    fabs=np.abs,
+    fmax=np.maximum,
+    fmin=np.minimum,
+    where=np.where,
+    sqrt=np.sqrt,
+    name="numpy",
+)
+
+#: CasADi backend: symbolic (SX/MX) or numeric (DM / float) scalars.
+CA = SimpleNamespace(
+    exp=ca.exp,
+    fabs=ca.fabs,
+    fmax=ca.fmax,
+    fmin=ca.fmin,
+    where=ca.if_else,
+    sqrt=ca.sqrt,
+    name="casadi",
+)

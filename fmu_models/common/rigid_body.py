@@ -1,0 +1,88 @@
+"""Rigid-body 6-DOF over a flat-earth NED frame (paper 001 eqs. 2-6), written once for CasADi.
+
+Frames: NED world, FRD body. ``quat = [w, x, y, z]`` rotates body vectors into NED. Every function takes
+and returns CasADi column vectors (SX for code generation, DM or floats for numeric use).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+
+
+def quat_to_dcm(q: Any) -> Any:
+    """Rotation matrix ``R_b2n`` (body -> NED) of the unit quaternion ``q = [w, x, y, z]``."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    return ca.vertcat(
+        ca.horzcat(w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)),
+        ca.horzcat(2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)),
+        ca.horzcat(2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z),
+    )
+
+
+def quat_derivative(q: Any, rates_body_rad_s: Any) -> Any:
+    """Euler-Rodrigues kinematics (paper 001 eq. 4): ``q_dot = 0.5 * Omega(P, Q, R) q``."""
+    p, qq, r = rates_body_rad_s[0], rates_body_rad_s[1], rates_body_rad_s[2]
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    return 0.5 * ca.vertcat(
+        -p * x - qq * y - r * z,
+        p * w + r * y - qq * z,
+        qq * w - r * x + p * z,
+        r * w + qq * x - p * y,
+    )
+
+
+def euler_from_quat(q: Any) -> Any:
+    """Roll, pitch, yaw [rad] (3-2-1) from the quaternion (paper 001 eq. 5)."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    roll = ca.atan2(2 * (w * x + y * z), w * w + z * z - x * x - y * y)
+    sin_pitch = ca.fmin(ca.fmax(2 * (w * y - x * z), -1.0), 1.0)
+    pitch = ca.asin(sin_pitch)
+    yaw = ca.atan2(2 * (w * z + x * y), w * w + x * x - y * y - z * z)
+    return ca.vertcat(roll, pitch, yaw)
+
+
+def quat_from_euler(roll_rad: Any, pitch_rad: Any, yaw_rad: Any) -> Any:
+    """Unit quaternion [w, x, y, z] of 3-2-1 Euler angles [rad]."""
+    cr, sr = ca.cos(roll_rad / 2), ca.sin(roll_rad / 2)
+    cp, sp = ca.cos(pitch_rad / 2), ca.sin(pitch_rad / 2)
+    cy, sy = ca.cos(yaw_rad / 2), ca.sin(yaw_rad / 2)
+    return ca.vertcat(
+        cr * cp * cy + sr * sp * sy,
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+    )
+
+
+def inertia_matrix(Jxx: Any, Jyy: Any, Jzz: Any, Jxz: Any = 0.0) -> Any:
+    """Body inertia matrix [kg m^2] of a vehicle symmetric about its x-z plane (only Jxz off-diagonal)."""
+    return ca.vertcat(
+        ca.horzcat(Jxx, 0, -Jxz),
+        ca.horzcat(0, Jyy, 0),
+        ca.horzcat(-Jxz, 0, Jzz),
+    )
+
+
+def rigid_body_derivatives(
+    vel_body_m_s: Any,
+    rates_body_rad_s: Any,
+    quat: Any,
+    force_body_N: Any,
+    moment_body_N_m: Any,
+    gravity_ned_m_s2: Any,
+    mass_kg: Any,
+    J_kg_m2: Any,
+) -> tuple[Any, Any, Any, Any]:
+    """Flat-earth state equations (paper 001 eqs. 2, 3, 4, 6).
+
+    ``force_body_N`` excludes gravity. Returns ``(pos_ned_dot, vel_body_dot, quat_dot, rates_dot)``.
+    """
+    R = quat_to_dcm(quat)
+    g_body = R.T @ gravity_ned_m_s2
+    vel_dot = force_body_N / mass_kg - ca.cross(rates_body_rad_s, vel_body_m_s) + g_body
+    Jw = J_kg_m2 @ rates_body_rad_s
+    rates_dot = ca.solve(J_kg_m2, moment_body_N_m - ca.cross(rates_body_rad_s, Jw))
+    pos_dot = R @ vel_body_m_s
+    return pos_dot, vel_dot, quat_derivative(quat, rates_body_rad_s), rates_dot

@@ -1,0 +1,91 @@
+"""Complete pythonfmu's modelDescription.xml: units, ranges, InitialUnknowns.
+
+pythonfmu's ``Real`` carries no unit and its ModelStructure has no InitialUnknowns; FMPy's validator
+flags both. This rewrites modelDescription.xml inside the .fmu from the model's own variable lists.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+import zipfile
+from pathlib import Path
+from typing import Any
+from xml.etree import ElementTree as ET
+
+from fmu_models.fmi.units import BASES, parse_unit
+
+
+def _fmt(v: float) -> str:
+    return repr(float(v))
+
+
+def complete_model_description(xml_text: bytes, variables: dict[str, dict[str, Any]]) -> bytes:
+    """Return ``xml_text`` with unit definitions, per-variable unit/min/max and InitialUnknowns."""
+    root = ET.fromstring(xml_text)
+    units = sorted({v["unit"] for v in variables.values() if v.get("unit") and not v.get("boolean")})
+    # UnitDefinitions goes right after CoSimulation/ModelExchange and before LogCategories (FMI 2.0 order)
+    unit_defs = ET.Element("UnitDefinitions")
+    for u in units:
+        exps, factor = parse_unit(u)
+        el = ET.SubElement(unit_defs, "Unit", name=u)
+        attrs = {k: str(exps[k]) for k in BASES if k in exps}
+        if factor != 1.0:
+            attrs["factor"] = _fmt(factor)
+        ET.SubElement(el, "BaseUnit", attrs)
+    children = list(root)
+    pos = next(i for i, c in enumerate(children) if c.tag in ("CoSimulation", "ModelExchange")) + 1
+    root.insert(pos, unit_defs)
+
+    index_of: dict[str, int] = {}
+    for i, sv in enumerate(root.find("ModelVariables"), start=1):
+        name = sv.get("name")
+        index_of[name] = i
+        meta = variables.get(name)
+        if meta is None:
+            continue
+        real = sv.find("Real")
+        if real is not None:
+            if meta.get("unit"):
+                real.set("unit", meta["unit"])
+            if meta.get("min") is not None:
+                real.set("min", _fmt(meta["min"]))
+            if meta.get("max") is not None:
+                real.set("max", _fmt(meta["max"]))
+        if meta.get("description"):
+            sv.set("description", meta["description"])
+
+    structure = root.find("ModelStructure")
+    for old in structure.findall("InitialUnknowns"):
+        structure.remove(old)
+    outputs = structure.find("Outputs")
+    if outputs is not None:
+        init = ET.Element("InitialUnknowns")
+        for unk in outputs.findall("Unknown"):
+            ET.SubElement(init, "Unknown", index=unk.get("index"))
+        children = list(structure)
+        structure.insert(children.index(outputs) + 1, init)
+    for el in root.iter():
+        el.tail = None
+        if el.text is not None and not el.text.strip():
+            el.text = None
+    ET.indent(root, "  ")
+    return ('<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n").encode()
+
+
+def rewrite_fmu(
+    fmu: Path, variables: dict[str, dict[str, Any]], files: dict[str, bytes] | None = None
+) -> None:
+    """Complete modelDescription.xml in the ``fmu`` zip; add or replace ``files`` (archive name -> bytes)."""
+    files = dict(files or {})
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / fmu.name
+        with zipfile.ZipFile(fmu) as zin, zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zout:
+            for item in zin.infolist():
+                data = files.pop(item.filename, None) or zin.read(item.filename)
+                if item.filename == "modelDescription.xml":
+                    data = complete_model_description(data, variables)
+                zout.writestr(item.filename, data)
+            for name, data in files.items():
+                zout.writestr(name, data)
+        shutil.move(out, fmu)

@@ -1,0 +1,225 @@
+"""Quadrotor forces, moments and state equations (paper 000 eqs. 5-10 on the shared 6-DOF body).
+
+Frames: NED world, FRD body (paper 000 writes thrust along +z of a z-up body; here it acts along -z).
+Forces (body): thrust ``(0, 0, -sum T_i)`` (eq. 6), linear drag ``-kd * v_body`` (eq. 7), ground contact.
+Moments (body): arm moments ``sum r_i x (0, 0, -T_i) = (-l sin(g_i) T_i, l cos(g_i) T_i, 0)`` (eq. 8, FRD),
+gyroscopic ``-omega x h_rotors`` with ``h_rotors = (0, 0, sum J_m s_i Omega_i)`` (eq. 9), fan torque
+``(0, 0, -sum s_i b Omega_i^2)`` (eq. 10) with spin s_i = +1 clockwise seen from above.
+Thrust: per motor ``T_i = ANFIS(n * pwm_i) / n`` - the map was trained on the sum of n equal-ish PWMs, so
+a motor commanded ``pwm_i`` makes 1/n of what the whole vehicle makes with every motor at ``pwm_i``.
+``Omega_i = sqrt(T_i / k)`` feeds the gyroscopic and fan terms. An optional first-order lag with time
+constant ``tau_motor_s`` acts on each motor's thrust.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import casadi as ca
+
+from fmu_models.common import vehicle
+from fmu_models.common.ground import contact_forces
+from fmu_models.common.mathns import CA as _CA
+from fmu_models.common.model import Layout, Variable
+from fmu_models.common.params import to_variables
+from fmu_models.common.rigid_body import inertia_matrix
+from fmu_models.quadrotor.anfis import AnfisMap
+from fmu_models.quadrotor.params import QuadrotorParams, motor_layout
+from fmu_models.quadrotor.thrust import out_of_band, thrust_sum_ca
+
+N_MOTORS = 4
+PWM_INPUT_MIN_US = 0.0  #: 0 us = no pulse (motor off); below idle thrust is zero anyway
+PWM_INPUT_MAX_US = 2500.0
+
+
+def anfis_param_variables(amap: AnfisMap) -> tuple[Variable, ...]:
+    """FMU parameters holding the values of a one-input thrust map (structure stays fixed at build)."""
+    out: list[Variable] = []
+    for j, (m, s) in enumerate(zip(amap.mf_mean[0], amap.mf_sigma[0], strict=True), start=1):
+        out.append(Variable(f"anfis_mean_{j}_us", "us", f"thrust map: centre of MF {j}, summed PWM", m))
+        out.append(Variable(f"anfis_sigma_{j}_us", "us", f"thrust map: width of MF {j}", s, 1e-6, None))
+        if amap.mf_type == "gbell":
+            b = amap.mf_slope[0][j - 1]  # type: ignore[index]
+            desc = f"thrust map: bell exponent of MF {j}"
+            out.append(Variable(f"anfis_slope_{j}", "1", desc, b, 1e-3, None))
+    for r, row in enumerate(amap.consequents, start=1):
+        if amap.order == 1:
+            out.append(Variable(f"anfis_cons_{r}_p_N_us", "N/us", f"thrust map: rule {r} slope", row[0]))
+        out.append(Variable(f"anfis_cons_{r}_N", "N", f"thrust map: rule {r} constant", row[-1]))
+    lo, hi = amap.input_range[0]
+    out.append(Variable("anfis_band_lo_us", "us", "thrust map: lower edge of the trained band (summed)", lo))
+    out.append(Variable("anfis_band_hi_us", "us", "thrust map: upper edge of the trained band (summed)", hi))
+    return tuple(out)
+
+
+class QuadrotorModel:
+    """Quadrotor of paper 000 as a ``VehicleModel`` (see ``fmu_models.common.model``)."""
+
+    name = "quadrotor"
+    description = (
+        "Quadrotor 6-DOF (Sant'Ana et al. COBEM 2019): ANFIS thrust map of summed motor PWM, linear drag, "
+        "arm, gyroscopic and fan moments; WGS-84 gravity and geodetic position; ground contact."
+    )
+
+    def __init__(self, params: QuadrotorParams | None = None) -> None:
+        self.defaults = params or QuadrotorParams()
+        self.gamma_deg, self.spin = motor_layout(self.defaults.frame)
+        self.gear_points = self._gear_points()
+        self.states = Layout(
+            vehicle.BODY_STATES
+            + tuple(
+                Variable(f"thrust_state_{i}_N", "N", f"motor {i} thrust (lag state)") for i in range(1, 5)
+            )
+        )
+        self.state_limits = vehicle.BODY_STATE_LIMITS + (1e4,) * N_MOTORS
+        self.inputs = Layout(
+            tuple(
+                Variable(
+                    f"pwm_{i}_us", "us", f"motor {i} PWM command", 1000.0, PWM_INPUT_MIN_US, PWM_INPUT_MAX_US
+                )
+                for i in range(1, 5)
+            )
+        )
+        self.params = Layout(
+            vehicle.INIT_PARAMS
+            + vehicle.GROUND_PARAMS
+            + to_variables(self.defaults)
+            + anfis_param_variables(self.defaults.thrust_map)
+        )
+        self.outputs = Layout(
+            vehicle.NAV_OUTPUTS
+            + tuple(Variable(f"thrust_{i}_N", "N", f"motor {i} thrust") for i in range(1, 5))
+            + (Variable("thrust_total_N", "N", "total thrust along -z body"),)
+            + tuple(Variable(f"omega_{i}_rad_s", "rad/s", f"motor {i} speed") for i in range(1, 5))
+            + (
+                Variable(
+                    "thrust_map_out_of_range",
+                    "",
+                    "a motor's PWM x 4 lies outside the thrust map's trained band",
+                    boolean=True,
+                ),
+            )
+        )
+
+    def _gear_points(self) -> list[tuple[float, float, float]]:
+        """Four landing-gear points under the arms, at CG height (the NED origin is the landed CG)."""
+        r = 0.6 * self.defaults.arm_length_m
+        return [
+            (r * math.cos(math.radians(g)), r * math.sin(math.radians(g)), 0.0)
+            for g in (45.0, 135.0, 225.0, 315.0)
+        ]
+
+    # ------------------------------------------------------------------ pieces
+    def _map(self, pv: Any) -> AnfisMap:
+        """The thrust map with its values taken from the parameter vector (symbolic in code generation)."""
+        d = self.defaults.thrust_map
+        n = len(d.mf_mean[0])
+        mean = (tuple(getattr(pv, f"anfis_mean_{j}_us") for j in range(1, n + 1)),)
+        sigma = (tuple(getattr(pv, f"anfis_sigma_{j}_us") for j in range(1, n + 1)),)
+        slope = None
+        if d.mf_type == "gbell":
+            slope = (tuple(getattr(pv, f"anfis_slope_{j}") for j in range(1, n + 1)),)
+        cons = []
+        for r in range(1, d.n_rules + 1):
+            row = (getattr(pv, f"anfis_cons_{r}_N"),)
+            if d.order == 1:
+                row = (getattr(pv, f"anfis_cons_{r}_p_N_us"), *row)
+            cons.append(row)
+        return dataclasses.replace(d, mf_mean=mean, mf_sigma=sigma, mf_slope=slope, consequents=tuple(cons))
+
+    def commanded_thrust(self, u: Any, p: Any) -> list[Any]:
+        """Per-motor thrust [N] the map gives for the PWM inputs (before the motor lag)."""
+        pv = self.params.view(p)
+        amap = self._map(pv)
+        out = []
+        for i in range(N_MOTORS):
+            x_sum = N_MOTORS * u[i]
+            t = thrust_sum_ca(
+                amap, x_sum, N_MOTORS * pv.pwm_idle_us, pv.anfis_band_lo_us, pv.anfis_band_hi_us
+            )
+            out.append(t / N_MOTORS)
+        return out
+
+    def out_of_range(self, u: Any, p: Any) -> Any:
+        pv = self.params.view(p)
+        flag = 0.0
+        for i in range(N_MOTORS):
+            flag = ca.fmax(flag, out_of_band(N_MOTORS * u[i], pv.anfis_band_lo_us, pv.anfis_band_hi_us, _CA))
+        return flag
+
+    def motor_thrust(self, x: Any, u: Any, p: Any) -> list[Any]:
+        """Thrust [N] acting now: the lag states, or the commanded thrust when there is no lag."""
+        pv = self.params.view(p)
+        cmd = self.commanded_thrust(u, p)
+        return [ca.if_else(pv.tau_motor_s > 0, x[16 + i], cmd[i]) for i in range(N_MOTORS)]
+
+    def forces_moments(self, x: Any, u: Any, p: Any) -> tuple[Any, Any, dict[str, Any]]:
+        """Non-gravitational force [N] and moment [N m] in body axes, and intermediate values."""
+        pv = self.params.view(p)
+        _, vel, quat, rates, _ = vehicle.split(x)
+        thrust = self.motor_thrust(x, u, p)
+        omega = [ca.sqrt(ca.fmax(t, 0.0) / pv.k_thrust_N_s2) for t in thrust]
+        total = thrust[0] + thrust[1] + thrust[2] + thrust[3]
+        drag = -ca.vertcat(pv.kd_x_N_s_m * vel[0], pv.kd_y_N_s_m * vel[1], pv.kd_z_N_s_m * vel[2])
+        f_ground, m_ground, on_ground = contact_forces(
+            x[0:3], vel, quat, rates, self.gear_points, pv.mass_kg, pv.ground_wn_rad_s, pv.ground_zeta,
+            pv.ground_mu, pv.ground_mu,
+        )
+        force = ca.vertcat(0, 0, -total) + drag + f_ground
+        l_arm = pv.arm_length_m
+        m_arm_x = 0
+        m_arm_y = 0
+        h_rotor = 0
+        m_fan = 0
+        for i in range(N_MOTORS):
+            g = math.radians(self.gamma_deg[i])
+            m_arm_x = m_arm_x - l_arm * math.sin(g) * thrust[i]
+            m_arm_y = m_arm_y + l_arm * math.cos(g) * thrust[i]
+            h_rotor = h_rotor + pv.J_rotor_kg_m2 * self.spin[i] * omega[i]
+            m_fan = m_fan - self.spin[i] * pv.b_drag_N_m_s2 * omega[i] ** 2
+        m_gyro = ca.vertcat(-rates[1] * h_rotor, rates[0] * h_rotor, 0)
+        moment = ca.vertcat(m_arm_x, m_arm_y, m_fan) + m_gyro + m_ground
+        extras = {"thrust": thrust, "omega": omega, "total": total, "on_ground": on_ground}
+        return force, moment, extras
+
+    # ------------------------------------------------------------------ VehicleModel
+    def inertia(self, p: Any) -> Any:
+        pv = self.params.view(p)
+        return inertia_matrix(pv.Jxx_kg_m2, pv.Jyy_kg_m2, pv.Jzz_kg_m2, 0.0)
+
+    def derivatives(self, t: Any, x: Any, u: Any, p: Any) -> Any:
+        """State derivative: 16 body states (shared 6-DOF) and 4 motor-lag states."""
+        pv = self.params.view(p)
+        force, moment, _ = self.forces_moments(x, u, p)
+        body = vehicle.body_derivatives(x, force, moment, pv.mass_kg, self.inertia(p))
+        cmd = self.commanded_thrust(u, p)
+        lag = [
+            ca.if_else(pv.tau_motor_s > 0, (cmd[i] - x[16 + i]) / ca.fmax(pv.tau_motor_s, 1e-9), 0.0)
+            for i in range(N_MOTORS)
+        ]
+        return ca.vertcat(body, *lag)
+
+    def outputs_fn(self, x: Any, u: Any, p: Any) -> Any:
+        pv = self.params.view(p)
+        force, _, ex = self.forces_moments(x, u, p)
+        nav = vehicle.nav_outputs(x, force, pv.mass_kg, ex["on_ground"])
+        return ca.vertcat(*nav, *ex["thrust"], ex["total"], *ex["omega"], self.out_of_range(u, p))
+
+    def initial_state(self, p: Any, u: Any) -> Any:
+        """Initial state from the ``init_*``/``home_*`` parameters; motor lags at the commanded thrust."""
+        return ca.vertcat(vehicle.initial_body_state(self.params.view(p)), *self.commanded_thrust(u, p))
+
+    def post_step(self, x: Any, u: Any, p: Any) -> Any:
+        """Renormalise the quaternion; without a motor lag, keep the lag states equal to the command."""
+        pv = self.params.view(p)
+        xn = vehicle.normalize_quaternion(x)
+        cmd = self.commanded_thrust(u, p)
+        lag = [ca.if_else(pv.tau_motor_s > 0, xn[16 + i], cmd[i]) for i in range(N_MOTORS)]
+        return ca.vertcat(xn[0:16], *lag)
+
+    def parameter_values(self) -> list[float]:
+        """Default parameter vector (start values of ``params``)."""
+        return self.params.starts()
+

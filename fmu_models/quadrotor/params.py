@@ -1,0 +1,99 @@
+"""Quadrotor parameters: DJI F450 of paper 000 Table 1, literature values where the paper has none."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from fmu_models.common.errors import ParameterError, ProblemList
+from fmu_models.common.params import check_scalars, param, read_json, unknown_keys
+from fmu_models.quadrotor.anfis import AnfisMap, published_map
+
+FRAMES = ("x", "+")
+
+
+@dataclass(frozen=True)
+class QuadrotorParams:
+    """Physical parameters of a quadrotor (SI units).
+
+    Mass, inertia and arm length: paper 000 Table 1 (DJI F450). Paper 000 gives no numbers for k, b,
+    J_m or the drag; the defaults are those of the F450-sized quadrotor in T. Luukkonen, "Modelling and
+    control of quadcopter", Aalto University, 2011, Table 1 (k = 2.980e-6 N s^2, b = 1.140e-7 N m s^2,
+    I_M = 3.357e-5 kg m^2, A_x = A_y = A_z = 0.25 kg/s).
+    """
+
+    mass_kg: float = param(1.14, "kg", 0.05, 50.0, "vehicle mass (paper 000 Table 1)")
+    Jxx_kg_m2: float = param(0.007, "kg.m2", 1e-5, 10.0, "inertia about body x (paper 000 Table 1)")
+    Jyy_kg_m2: float = param(0.007, "kg.m2", 1e-5, 10.0, "inertia about body y (paper 000 Table 1)")
+    Jzz_kg_m2: float = param(0.013, "kg.m2", 1e-5, 10.0, "inertia about body z (paper 000 Table 1)")
+    arm_length_m: float = param(0.220, "m", 0.02, 5.0, "arm length l, CG to motor (paper 000 Table 1)")
+    k_thrust_N_s2: float = param(2.980e-6, "N.s2", 1e-9, 1e-2, "thrust constant k, T_i = k Omega_i^2 (eq. 6)")
+    b_drag_N_m_s2: float = param(1.140e-7, "N.m.s2", 0.0, 1e-3, "fan torque constant b (eq. 10)")
+    J_rotor_kg_m2: float = param(3.357e-5, "kg.m2", 0.0, 1e-2, "rotor moment of inertia J_m (eq. 9)")
+    kd_x_N_s_m: float = param(0.25, "N.s/m", 0.0, 100.0, "linear drag along body x (eq. 7)")
+    kd_y_N_s_m: float = param(0.25, "N.s/m", 0.0, 100.0, "linear drag along body y (eq. 7)")
+    kd_z_N_s_m: float = param(0.25, "N.s/m", 0.0, 100.0, "linear drag along body z (eq. 7)")
+    tau_motor_s: float = param(0.0, "s", 0.0, 2.0, "first-order motor thrust time constant (0: none)")
+    pwm_idle_us: float = param(1100.0, "us", 800.0, 1500.0, "per-motor PWM at and below which thrust is 0")
+    ground_mu: float = param(0.5, "1", 0.0, 2.0, "friction coefficient of the landing gear")
+    step_internal_s: float = param(0.001, "s", 1e-5, 0.05, "largest internal RK4 step")
+    frame: str = "x"
+    thrust_map: AnfisMap = field(default_factory=published_map)
+
+    @property
+    def n_motors(self) -> int:
+        return 4
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any], source: str = "quadrotor parameters") -> QuadrotorParams:
+        """Defaults overridden by ``values``; every problem in ``values`` is reported at once."""
+        probs = ProblemList(source)
+        unknown_keys(cls, values, probs, extra=("k_thrust_source",))
+        scalars = check_scalars(cls, values, probs)
+        frame = values.get("frame", "x")
+        if frame not in FRAMES:
+            probs.add(f"frame = {frame!r}; allowed: {', '.join(FRAMES)}")
+        thrust_map = published_map()
+        if "thrust_map" in values:
+            try:
+                thrust_map = AnfisMap.from_dict(values["thrust_map"], source=f"{source}: thrust_map")
+            except ParameterError as err:
+                probs.items.extend(f"thrust_map: {p}" for p in err.problems)
+        if thrust_map.n_inputs != 1:
+            probs.add(
+                f"thrust_map has inputs {list(thrust_map.inputs)}; the quadrotor model needs exactly one "
+                "input, the summed motor PWM [us]"
+            )
+        if scalars.get("pwm_idle_us", 1100.0) * 4 >= thrust_map.input_range[0][0]:
+            probs.add(
+                f"pwm_idle_us = {scalars.get('pwm_idle_us', 1100.0)} x 4 motors must be below the thrust "
+                f"map's band, which starts at {thrust_map.input_range[0][0]} us summed"
+            )
+        probs.raise_if_any()
+        return dataclasses.replace(cls(), frame=frame, thrust_map=thrust_map, **scalars)
+
+    @classmethod
+    def load(cls, path: str | Path) -> QuadrotorParams:
+        data = read_json(path)
+        return cls.from_dict(data.get("quadrotor", data), source=str(path))
+
+    def to_dict(self) -> dict[str, Any]:
+        d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "thrust_map"}
+        d["thrust_map"] = self.thrust_map.to_dict()
+        return d
+
+
+def motor_layout(frame: str) -> tuple[tuple[float, ...], tuple[int, ...]]:
+    """Arm angles gamma_i [deg, from body x towards body y] and spin directions of motors 1..4.
+
+    Motor numbering of ArduPilot and PX4. Spin is +1 for clockwise seen from above (along +z body, down),
+    -1 for counter-clockwise. Quad X: 1 front-right CCW, 2 rear-left CCW, 3 front-left CW, 4 rear-right CW.
+    Quad +: 1 right CCW, 2 left CCW, 3 front CW, 4 back CW.
+    """
+    if frame == "x":
+        return (45.0, 225.0, 315.0, 135.0), (-1, -1, 1, 1)
+    if frame == "+":
+        return (90.0, 270.0, 0.0, 180.0), (-1, -1, 1, 1)
+    raise ValueError(f"frame = {frame!r}; allowed: {', '.join(FRAMES)}")
