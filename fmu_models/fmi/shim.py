@@ -6,7 +6,9 @@ fmi2Error when a step cannot be computed but the instance may be reset or freed,
 case of a NaN input or a diverging integration. No library offers such a shim, so this generates one:
 ``<id>.so`` loads pythonfmu's library (shipped beside it as ``<id>_pythonfmu.so``) and forwards every call,
 mapping doStep's fmi2Discard (our slave returns False only on an error it has logged) and the
-fmi2Fatal of a failed exitInitializationMode (a parameter out of range) to fmi2Error.
+fmi2Fatal of a failed exitInitializationMode (a parameter out of range) to fmi2Error. pythonfmu forwards
+log messages only when logging is on, so the shim turns it on: the slave logs nothing but warnings and
+errors, which FMI 2.0 expects to reach the importer whatever its debug-logging setting.
 """
 
 from __future__ import annotations
@@ -105,7 +107,8 @@ def shim_source(real_library_name: str) -> str:
         "  fmi2InstantiateTYPE* f = (fmi2InstantiateTYPE*)sym(\"fmi2Instantiate\");",
         "  if (!f) { if (cb && cb->logger) cb->logger(cb->componentEnvironment, n, fmi2Fatal, \"logStatusFatal\",",
         f'        "cannot load {real_library_name}: %s", load_error); return NULL; }}',
-        "  return f(n, t, g, r, cb, v, l);",
+        "  (void)l;  /* always on: our slave logs only warnings and errors, which an importer must see */",
+        "  return f(n, t, g, r, cb, v, fmi2True);",
         "}",
         "void fmi2FreeInstance(fmi2Component c) {",
         "  fmi2FreeInstanceTYPE* f = (fmi2FreeInstanceTYPE*)sym(\"fmi2FreeInstance\");",

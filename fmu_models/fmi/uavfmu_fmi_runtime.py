@@ -129,6 +129,7 @@ class VehicleSlave(Fmi2Slave):
                             if v.get("warning")]
         self._warned: set[str] = set()
         self._engine: Any = None
+        self.engine_note = ""
         self._time = 0.0
         self._params_dirty = True
         self._failed = ""
@@ -189,8 +190,7 @@ class VehicleSlave(Fmi2Slave):
             self._fail(problem)
             raise StepError(problem)
         if self._engine is None:
-            self._engine, note = load_engine(self._res, self._spec)
-            self.log(f"{self.modelName}: physics from {note}", Fmi2Status.ok)
+            self._engine, self.engine_note = load_engine(self._res, self._spec)
         status = self._engine.initialize(self._u, self._p, self._x, self._y)
         if status:
             self._fail(f"initial state is not finite (element {status})")
