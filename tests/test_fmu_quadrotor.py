@@ -211,12 +211,11 @@ def test_diverging_integration_is_an_error_naming_the_state(quadrotor_fmu: Path)
 
 
 def test_parameter_out_of_range_is_reported_at_initialisation(quadrotor_fmu: Path) -> None:
-    fmu = Instance.__new__(Instance)
-    with pytest.raises(FMICallException) as err:
-        Instance.__init__(fmu, quadrotor_fmu, mass_kg=-1.0)
-    assert err.value.status == 3
-    assert "mass_kg = -1.0 is outside its allowed range" in fmu.text()
-    fmu.close()
+    with Instance(quadrotor_fmu, mass_kg=-1.0) as fmu:
+        assert "mass_kg = -1.0 is outside its allowed range [0.05, 50.0]" in fmu.text()
+        with pytest.raises(FMICallException) as err:
+            fmu.step(0.01)
+        assert err.value.status == 3
 
 
 def test_reset_restores_initial_state(quadrotor_fmu: Path) -> None:

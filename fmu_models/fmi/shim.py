@@ -5,8 +5,8 @@ exception, never fmi2Error (see PythonFMU's ``fmi_functions.cpp``). The FMI 2.0 
 fmi2Error when a step cannot be computed but the instance may be reset or freed, which is exactly the
 case of a NaN input or a diverging integration. No library offers such a shim, so this generates one:
 ``<id>.so`` loads pythonfmu's library (shipped beside it as ``<id>_pythonfmu.so``) and forwards every call,
-mapping doStep's fmi2Discard (our slave returns False only on an error it has logged) and the
-fmi2Fatal of a failed exitInitializationMode (a parameter out of range) to fmi2Error. pythonfmu forwards
+mapping doStep's fmi2Discard (our slave returns False only on an error it has logged) to fmi2Error.
+The slave never raises into pythonfmu: pythonfmu's handling of a Python exception corrupts the host. pythonfmu forwards
 log messages only when logging is on, so the shim turns it on: the slave logs nothing but warnings and
 errors, which FMI 2.0 expects to reach the importer whatever its debug-logging setting.
 """
@@ -61,7 +61,6 @@ STATUS_FUNCTIONS: list[tuple[str, str]] = [
 #: status mappings per function: pythonfmu's status -> the one the standard asks for
 REMAP = {
     "fmi2DoStep": "if (s == fmi2Discard) s = fmi2Error;",
-    "fmi2ExitInitializationMode": "if (s == fmi2Fatal) s = fmi2Error;",
 }
 
 

@@ -21,10 +21,6 @@ from pythonfmu.enums import Fmi2Status
 from pythonfmu.variables import Boolean, Real
 
 
-class StepError(RuntimeError):
-    """doStep cannot go on; pythonfmu turns the exception into fmi2Error and logs its message."""
-
-
 class ModelLoadError(RuntimeError):
     """Neither the compiled library nor the serialised CasADi functions could be loaded."""
 
@@ -185,23 +181,34 @@ class VehicleSlave(Fmi2Slave):
 
     # ---------------------------------------------------------------- FMI
     def exit_initialization_mode(self) -> None:
+        """Check the parameters and compute the initial state.
+
+        A failure is logged now (status error) and makes the first ``do_step`` return fmi2Error. It is
+        not raised: pythonfmu's handling of a Python exception corrupts the host interpreter's memory.
+        """
+        self._failed = ""
+        self._warned.clear()
         problem = self._check(self._p, self._p_limits, "parameter")
         if problem:
-            self._fail(problem)
-            raise StepError(problem)
+            self._fail(f"initialisation: {problem}")
+            return
         if self._engine is None:
-            self._engine, self.engine_note = load_engine(self._res, self._spec)
+            try:
+                self._engine, self.engine_note = load_engine(self._res, self._spec)
+            except ModelLoadError as err:
+                self._fail(f"initialisation: {err}")
+                return
         status = self._engine.initialize(self._u, self._p, self._x, self._y)
         if status:
-            self._fail(f"initial state is not finite (element {status})")
-            raise StepError(self._failed)
+            self._fail(f"initialisation: the initial state is not finite ({self._diverged(status)})")
+            return
         self._params_dirty = False
-        self._warned.clear()
-        self._failed = ""
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         if self._failed:
-            return self._fail(f"{self.modelName} stopped earlier: {self._failed}")
+            self.log(f"{self.modelName} cannot step after an error; reset it. The error: {self._failed}",
+                     Fmi2Status.error)
+            return False
         problem = self._check(self._u, self._u_limits, "input")
         if problem:
             return self._fail(f"t = {current_time:.6g} s: {problem}")
