@@ -1,0 +1,171 @@
+"""Scripted closed-loop flights of our FMUs through FMPy (as any importer would), recorded as arrays.
+
+The demo uses them to make its own flight data: no external logs needed. The controllers are deliberately
+plain cascaded PID loops, enough to fly a manoeuvre that excites what identification needs.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+
+@dataclass
+class Recording:
+    """Time series of one flight: FMU inputs and outputs by variable name."""
+
+    t_s: np.ndarray
+    inputs: dict[str, np.ndarray]
+    outputs: dict[str, np.ndarray]
+    start_values: dict[str, float] = field(default_factory=dict)
+
+
+class FmuRunner:
+    """Drives one FMU instance with FMU2Slave; always frees it (use as a context manager)."""
+
+    def __init__(self, fmu: Path, start_values: dict[str, float] | None = None) -> None:
+        self.md = read_model_description(str(fmu))
+        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
+        self.outputs = [v.name for v in self.md.modelVariables if v.causality == "output" and v.type == "Real"]
+        self._unzip = extract(str(fmu))
+        self.slave = FMU2Slave(guid=self.md.guid, unzipDirectory=self._unzip,
+                               modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName="scenario")
+        self.slave.instantiate()
+        self.slave.setupExperiment(startTime=0.0)
+        if start_values:
+            self.slave.setReal([self.vr[k] for k in start_values], list(start_values.values()))
+        self.slave.enterInitializationMode()
+        self.slave.exitInitializationMode()
+        self._out_vr = [self.vr[n] for n in self.outputs]
+
+    def __enter__(self) -> FmuRunner:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.slave.terminate()
+        self.slave.freeInstance()
+
+    def read(self) -> dict[str, float]:
+        return dict(zip(self.outputs, self.slave.getReal(self._out_vr), strict=True))
+
+    def step(self, t: float, h: float, inputs: dict[str, float]) -> dict[str, float]:
+        self.slave.setReal([self.vr[k] for k in inputs], list(inputs.values()))
+        self.slave.doStep(t, h)
+        return self.read()
+
+
+def fly(fmu: Path, controller: Callable[[float, dict[str, float]], dict[str, float]], duration_s: float,
+        dt_s: float = 0.01, start_values: dict[str, float] | None = None) -> Recording:
+    """Fly ``fmu`` for ``duration_s`` with ``controller(t, outputs) -> inputs`` at ``dt_s``."""
+    n = int(round(duration_s / dt_s))
+    with FmuRunner(fmu, start_values) as run:
+        y = run.read()
+        ts, us, ys = [], [], []
+        for k in range(n):
+            t = k * dt_s
+            u = controller(t, y)
+            ts.append(t)
+            us.append(u)
+            ys.append(y)
+            y = run.step(t, dt_s, u)
+    return Recording(
+        t_s=np.array(ts),
+        inputs={k: np.array([u[k] for u in us]) for k in us[0]},
+        outputs={k: np.array([y[k] for y in ys]) for k in ys[0]},
+        start_values=dict(start_values or {}),
+    )
+
+
+class ThrustInverse:
+    """PWM per motor [us] for a wanted thrust per motor [N] on the rising envelope of a thrust curve.
+
+    Where a map is not monotonic (the published one dips between 5800 and 5900 us summed), the lowest PWM
+    reaching a thrust is used, so the controller never works on a branch where more PWM gives less thrust.
+    """
+
+    def __init__(self, thrust_per_motor_N: Callable[[np.ndarray], np.ndarray], lo_us: float = 1000.0,
+                 hi_us: float = 2000.0) -> None:
+        self.pwm_us = np.linspace(lo_us, hi_us, 4001)
+        envelope = np.maximum.accumulate(thrust_per_motor_N(self.pwm_us))
+        keep = np.concatenate([[True], np.diff(envelope) > 1e-9])
+        self.pwm_us, self.thrust_N = self.pwm_us[keep], envelope[keep]
+
+    def __call__(self, thrust_N: float) -> float:
+        return float(np.interp(thrust_N, self.thrust_N, self.pwm_us))
+
+
+def published_thrust_inverse() -> ThrustInverse:
+    """Inverse of the default quadrotor's per-motor thrust (published map with its physical extension)."""
+    from fmu_models.quadrotor.params import QuadrotorParams
+    from fmu_models.quadrotor.thrust import thrust_sum
+
+    p = QuadrotorParams()
+    lo, hi = p.thrust_map.input_range[0]
+    return ThrustInverse(lambda pwm: thrust_sum(p.thrust_map, 4 * pwm, 4 * p.pwm_idle_us, lo, hi) / 4)
+
+
+@dataclass
+class QuadrotorAutopilot:
+    """Altitude, attitude and velocity loops mixed to Quad X PWM (motor order 1 FR, 2 RL, 3 FL, 4 RR).
+
+    The altitude loop asks for a vertical acceleration, turned into thrust with the vehicle's mass and tilt
+    and into PWM through the thrust curve's inverse; attitude loops add PWM differentials. ``altitude_m(t)``
+    and ``yaw_rad(t)`` give the references; horizontal velocity is held at zero.
+    """
+
+    altitude_m: Callable[[float], float]
+    thrust_inverse: ThrustInverse
+    mass_kg: float = 1.14
+    gravity_m_s2: float = 9.80665
+    yaw_rad: Callable[[float], float] = lambda t: 0.0  # noqa: E731
+    kp_alt: float = 1.2
+    kd_alt: float = 1.8
+    ki_alt: float = 0.15
+    kp_att: float = 5.0
+    kp_rate: float = 12.0
+    kp_yaw: float = 2.0
+    kp_yaw_rate: float = 40.0
+    kp_vel: float = 0.08
+    integral: float = 0.0
+    last_t: float = 0.0
+
+    def __call__(self, t: float, y: dict[str, float]) -> dict[str, float]:
+        dt = max(t - self.last_t, 0.0)
+        self.last_t = t
+        alt_err = self.altitude_m(t) - y["altitude_m"]
+        self.integral = min(max(self.integral + alt_err * dt, -10.0), 10.0)
+        climb_m_s = -y["vel_down_m_s"]
+        accel_up = self.kp_alt * alt_err - self.kd_alt * climb_m_s + self.ki_alt * self.integral
+        accel_up = min(max(accel_up, -4.0), 4.0)
+        tilt = max(math.cos(y["roll_rad"]) * math.cos(y["pitch_rad"]), 0.5)
+        base = self.thrust_inverse(self.mass_kg * (self.gravity_m_s2 + accel_up) / tilt / 4.0)
+        # hold horizontal velocity at zero: body-frame velocity error -> attitude reference
+        roll_ref = max(min(-self.kp_vel * y["vel_body_y_m_s"], 0.3), -0.3)
+        pitch_ref = max(min(self.kp_vel * y["vel_body_x_m_s"], 0.3), -0.3)
+        roll_cmd = self.kp_rate * (self.kp_att * (roll_ref - y["roll_rad"]) - y["rate_body_x_rad_s"])
+        pitch_cmd = self.kp_rate * (self.kp_att * (pitch_ref - y["pitch_rad"]) - y["rate_body_y_rad_s"])
+        yaw_err = math.remainder(self.yaw_rad(t) - y["yaw_rad"], 2 * math.pi)
+        yaw_cmd = self.kp_yaw_rate * (self.kp_yaw * yaw_err - y["rate_body_z_rad_s"])
+        pwm = [
+            base - roll_cmd + pitch_cmd + yaw_cmd,  # 1 front-right CCW
+            base + roll_cmd - pitch_cmd + yaw_cmd,  # 2 rear-left CCW
+            base + roll_cmd + pitch_cmd - yaw_cmd,  # 3 front-left CW
+            base - roll_cmd - pitch_cmd - yaw_cmd,  # 4 rear-right CW
+        ]
+        return {f"pwm_{i + 1}_us": min(max(p, 1000.0), 2000.0) for i, p in enumerate(pwm)}
+
+
+def quadrotor_profile(t: float) -> float:
+    """Altitude reference [m] of the demo flight: climb, hover, a staircase up and down, land-ish."""
+    steps = [(0.0, 0.0), (2.0, 10.0), (15.0, 14.0), (22.0, 6.0), (29.0, 12.0), (36.0, 3.0), (43.0, 10.0)]
+    ref = 0.0
+    for t0, h in steps:
+        if t >= t0:
+            ref = h
+    return ref
