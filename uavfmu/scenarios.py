@@ -63,7 +63,7 @@ class FmuRunner:
 def fly(fmu: Path, controller: Callable[[float, dict[str, float]], dict[str, float]], duration_s: float,
         dt_s: float = 0.01, start_values: dict[str, float] | None = None) -> Recording:
     """Fly ``fmu`` for ``duration_s`` with ``controller(t, outputs) -> inputs`` at ``dt_s``."""
-    n = int(round(duration_s / dt_s))
+    n = round(duration_s / dt_s)
     with FmuRunner(fmu, start_values) as run:
         y = run.read()
         ts, us, ys = [], [], []
@@ -123,7 +123,7 @@ class QuadrotorAutopilot:
     thrust_inverse: ThrustInverse
     mass_kg: float = 1.14
     gravity_m_s2: float = 9.80665
-    yaw_rad: Callable[[float], float] = lambda t: 0.0  # noqa: E731
+    yaw_rad: Callable[[float], float] = lambda t: 0.0
     kp_alt: float = 1.2
     kd_alt: float = 1.8
     ki_alt: float = 0.15
