@@ -1,0 +1,481 @@
+"""Thrust data set from a flight log (paper 000 section 4), the Pearson gate, and k of eq. 6.
+
+Measured thrust: on a quadrotor the rotors push along body -z, so ``F_z = -accel_body_z_m_s2 * mass_kg``
+[N, positive up] is the summed rotor thrust minus the body-z drag (small at hover speeds). The
+accelerometer (50-1000 Hz) is averaged over each motor-PWM sample interval ``[t_k + lag, t_{k+1} + lag)``
+(10-50 Hz), so every PWM sample gets the mean specific force while that command was applied. The lag (the
+accelerometer's delay behind the command: motor/ESC response plus logging skew) is estimated as the one
+that maximises the Pearson correlation of summed PWM with F_z, and reported.
+
+Only airborne samples enter: armed, every motor above ``motor_min_pwm_us`` and, when the log has
+``altitude_m``, higher than ``min_altitude_m`` above home. On the ground the accelerometer reads 1 g
+whatever the motors do; those samples would flatten the map (on the ArduCopter log of ../shared/data the
+Pearson correlation is 0.38 with the ground run-up included and 0.75 without).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import signal
+
+from fmu_models.quadrotor.anfis import AnfisMap
+
+PAPER_MIN_PEARSON = 0.85  #: paper 000 section 4: correlation needed "to proceed a good training"
+GAP_FACTOR = 3.0  #: a PWM sample interval longer than this many median intervals starts a new segment
+LOWPASS_ORDER = 2  #: Butterworth order of the optional zero-phase low-pass filter
+RAD_S_PER_RPM = 2.0 * math.pi / 60.0
+MOTOR_SIGNAL = "motor_{k}_pwm_us"
+EXTRA_INPUTS = ("climb_rate_m_s", "battery_voltage_V")
+
+
+class ThrustDataError(ValueError):
+    """The log cannot give a thrust data set (the message names the log, signal and values)."""
+
+
+class CorrelationGateError(ValueError):
+    """The training inputs correlate too weakly with F_z for the paper's gate; ``correlations`` has r."""
+
+    def __init__(self, message: str, correlations: dict[str, float]) -> None:
+        super().__init__(message)
+        self.correlations = dict(correlations)
+
+
+@dataclass(frozen=True)
+class ThrustDatasetConfig:
+    """How to cut a thrust data set from a log (checked at construction).
+
+    ``lag_s``: accelerometer delay behind the PWM command [s]; ``None`` estimates it within
+    ``+-max_lag_s``. ``lowpass_hz``: cut-off of a zero-phase Butterworth filter applied to every aligned
+    series per segment (``None``: no filter). ``extra_inputs``: more candidate inputs, used when logged.
+    """
+
+    mass_kg: float
+    n_motors: int = 4
+    motor_min_pwm_us: float = 1150.0
+    min_altitude_m: float = 0.5
+    min_segment_s: float = 2.0
+    lag_s: float | None = None
+    max_lag_s: float = 0.3
+    lowpass_hz: float | None = None
+    extra_inputs: tuple[str, ...] = EXTRA_INPUTS
+    pwm_idle_us: float = 1100.0
+
+    def __post_init__(self) -> None:
+        problems = []
+        checks = (
+            ("mass_kg", self.mass_kg, 0.05, 50.0),
+            ("motor_min_pwm_us", self.motor_min_pwm_us, 800.0, 2200.0),
+            ("min_altitude_m", self.min_altitude_m, -100.0, 1000.0),
+            ("min_segment_s", self.min_segment_s, 0.0, 3600.0),
+            ("max_lag_s", self.max_lag_s, 0.0, 5.0),
+            ("pwm_idle_us", self.pwm_idle_us, 800.0, 1500.0),
+        )
+        for name, value, lo, hi in checks:
+            if not (isinstance(value, int | float) and math.isfinite(value) and lo <= value <= hi):
+                problems.append(f"{name} = {value!r}; allowed range [{lo}, {hi}]")
+        if not (isinstance(self.n_motors, int) and 1 <= self.n_motors <= 12):
+            problems.append(f"n_motors = {self.n_motors!r}; allowed 1..12")
+        if self.lag_s is not None and not (math.isfinite(self.lag_s) and abs(self.lag_s) <= 5.0):
+            problems.append(f"lag_s = {self.lag_s!r}; allowed None (estimate) or [-5, 5] s")
+        if self.lowpass_hz is not None and not (math.isfinite(self.lowpass_hz) and self.lowpass_hz > 0.0):
+            problems.append(f"lowpass_hz = {self.lowpass_hz!r}; must be > 0 (or None for no filter)")
+        for name in self.extra_inputs:
+            if name not in EXTRA_INPUTS:
+                problems.append(f"extra input {name!r} is not supported; allowed: {', '.join(EXTRA_INPUTS)}")
+        if problems:
+            raise ThrustDataError("thrust data set options: " + "; ".join(problems))
+
+
+@dataclass(frozen=True)
+class ThrustDataset:
+    """Aligned airborne samples, one per motor-PWM sample, in time order.
+
+    ``inputs`` maps candidate input names to arrays: ``pwm_sum_us``, ``motor_<k>_pwm_us`` and, when
+    logged, the extra inputs. ``fz_N``: measured thrust [N, up]. ``segment``: index of the airborne
+    segment of each sample. ``lag_curve``: (lags [s], Pearson r) of the lag search (empty if fixed).
+    """
+
+    time_s: np.ndarray
+    inputs: dict[str, np.ndarray]
+    fz_N: np.ndarray
+    segment: np.ndarray
+    lag_s: float
+    lag_estimated: bool
+    lag_curve: tuple[tuple[float, ...], tuple[float, ...]]
+    sample_period_s: float
+    notes: tuple[str, ...] = field(default=())
+    source: str = ""
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.fz_N.size)
+
+    @property
+    def pwm_sum_us(self) -> np.ndarray:
+        return self.inputs["pwm_sum_us"]
+
+    def subset(self, mask: np.ndarray) -> ThrustDataset:
+        """The samples where ``mask`` (bool, or index array) selects."""
+        return ThrustDataset(
+            time_s=self.time_s[mask],
+            inputs={k: v[mask] for k, v in self.inputs.items()},
+            fz_N=self.fz_N[mask],
+            segment=self.segment[mask],
+            lag_s=self.lag_s,
+            lag_estimated=self.lag_estimated,
+            lag_curve=self.lag_curve,
+            sample_period_s=self.sample_period_s,
+            notes=self.notes,
+            source=self.source,
+        )
+
+    def split(self, train_fraction: float) -> tuple[ThrustDataset, ThrustDataset]:
+        """First ``train_fraction`` of the samples (time order) and the rest."""
+        if not 0.0 < train_fraction < 1.0:
+            raise ThrustDataError(f"train fraction = {train_fraction}; allowed (0, 1)")
+        n_train = round(train_fraction * self.n_samples)
+        idx = np.arange(self.n_samples)
+        return self.subset(idx < n_train), self.subset(idx >= n_train)
+
+    def correlations(self) -> dict[str, float]:
+        """Pearson r of every candidate input with F_z (NaN for a constant input)."""
+        return {name: pearson(x, self.fz_N) for name, x in self.inputs.items()}
+
+
+# --------------------------------------------------------------------------- small numeric helpers
+def pearson(x: np.ndarray, y: np.ndarray) -> float:
+    """Pearson correlation coefficient; NaN when either series is constant or there are < 3 samples."""
+    x = np.asarray(x, float)
+    y = np.asarray(y, float)
+    if x.size < 3 or np.ptp(x) == 0.0 or np.ptp(y) == 0.0:
+        return float("nan")
+    return float(np.corrcoef(x, y)[0, 1])
+
+
+def interval_means(t_s: np.ndarray, v: np.ndarray, edges_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean of samples ``v(t_s)`` in each ``[edges_s[k], edges_s[k+1])`` and their count (NaN if none).
+
+    ``t_s`` must be sorted. Vectorised with a cumulative sum and two binary searches.
+    """
+    csum = np.concatenate([[0.0], np.cumsum(v)])
+    i0 = np.searchsorted(t_s, edges_s[:-1], side="left")
+    i1 = np.searchsorted(t_s, edges_s[1:], side="left")
+    count = i1 - i0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(count > 0, (csum[i1] - csum[i0]) / np.maximum(count, 1), np.nan)
+    return mean, count
+
+
+def interleaved_blocks(n: int, block_len: int, every: int = 5) -> np.ndarray:
+    """Bool mask picking every ``every``-th block of ``block_len`` consecutive samples (checking data).
+
+    Blocks rather than single samples, so neighbouring (correlated) samples do not sit on both sides.
+    """
+    if block_len < 1 or every < 2:
+        raise ValueError(f"block_len = {block_len} (>= 1) and every = {every} (>= 2) are required")
+    return (np.arange(n) // block_len) % every == every - 1
+
+
+# --------------------------------------------------------------------------- log access
+def _series(log: Any, name: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(t_s, values)`` of signal ``name`` of a FlightLog, sorted by time, or None when not logged."""
+    try:
+        sig = log.signal(name)
+    except KeyError:
+        return None
+    if isinstance(sig, tuple) and len(sig) == 2:
+        t, v = sig
+    else:
+        t = next((getattr(sig, a) for a in ("t_s", "time_s", "t") if hasattr(sig, a)), None)
+        v = next((getattr(sig, a) for a in ("values", "value", "v", "data") if hasattr(sig, a)), None)
+        if t is None or v is None:
+            raise ThrustDataError(f"signal {name!r}: unexpected type {type(sig).__name__} (no time/values)")
+    t = np.asarray(t, float).ravel()
+    v = np.asarray(v, float).ravel()
+    ok = np.isfinite(t) & np.isfinite(v)
+    t, v = t[ok], v[ok]
+    order = np.argsort(t, kind="stable")
+    return t[order], v[order]
+
+
+def _hold(t_s: np.ndarray, v: np.ndarray, at_s: np.ndarray) -> np.ndarray:
+    """Zero-order hold of ``v(t_s)`` at times ``at_s`` (value before the first sample: the first)."""
+    i = np.searchsorted(t_s, at_s, side="right") - 1
+    return v[np.clip(i, 0, v.size - 1)]
+
+
+def _segments(mask: np.ndarray, gap: np.ndarray) -> np.ndarray:
+    """Segment id per sample: runs of ``mask`` not interrupted by a gap; -1 where mask is False."""
+    start = mask & ~np.concatenate([[False], mask[:-1] & ~gap[:-1]])
+    seg = np.cumsum(start) - 1
+    return np.where(mask, seg, -1)
+
+
+def _lowpass(x: np.ndarray, seg: np.ndarray, fs_hz: float, cutoff_hz: float) -> np.ndarray:
+    """Zero-phase Butterworth low-pass (scipy ``filtfilt``) of ``x`` within each segment."""
+    if cutoff_hz >= fs_hz / 2.0:
+        raise ThrustDataError(
+            f"lowpass_hz = {cutoff_hz} must be below the Nyquist frequency {fs_hz / 2.0:.3g} Hz "
+            "of the PWM log"
+        )
+    b, a = signal.butter(LOWPASS_ORDER, cutoff_hz, fs=fs_hz)
+    out = x.copy()
+    for s in np.unique(seg):
+        idx = seg == s
+        out[idx] = signal.filtfilt(b, a, x[idx], padlen=min(3 * max(len(a), len(b)), int(idx.sum()) - 1))
+    return out
+
+
+def build_thrust_dataset(log: Any, config: ThrustDatasetConfig, source: str = "") -> ThrustDataset:
+    """Airborne, aligned (PWM, F_z) samples of ``log`` (a ``FlightLog``); see the module docstring."""
+    src = source or str(getattr(log, "path", "") or "flight log")
+    notes: list[str] = []
+    motors = []
+    for k in range(1, config.n_motors + 1):
+        s = _series(log, MOTOR_SIGNAL.format(k=k))
+        if s is None:
+            raise ThrustDataError(
+                f"{src}: signal {MOTOR_SIGNAL.format(k=k)!r} is not in the log; a thrust data set needs the "
+                f"PWM of all {config.n_motors} motors"
+            )
+        motors.append(s)
+    acc = _series(log, "accel_body_z_m_s2")
+    if acc is None or acc[0].size < 2:
+        raise ThrustDataError(f"{src}: signal 'accel_body_z_m_s2' (IMU specific force) is not in the log")
+    t_pwm = motors[0][0]
+    if t_pwm.size < 3:
+        raise ThrustDataError(f"{src}: only {t_pwm.size} motor PWM samples")
+    pwm = np.stack([_hold(t, v, t_pwm) if t is not t_pwm else v for t, v in motors], axis=1)
+    dt = np.diff(t_pwm)
+    period = float(np.median(dt))
+    if not period > 0.0:
+        raise ThrustDataError(f"{src}: motor PWM timestamps do not increase (median step {period} s)")
+    dt_next = np.concatenate([dt, [period]])
+    gap = dt_next > GAP_FACTOR * period
+    dt_next = np.where(gap, period, dt_next)
+    edges_lo = t_pwm
+    edges_hi = t_pwm + dt_next
+
+    # airborne mask
+    mask = np.all(pwm > config.motor_min_pwm_us, axis=1)
+    armed = _series(log, "armed")
+    if armed is None:
+        notes.append("no 'armed' signal: airborne samples found from motor PWM (and altitude) only")
+    else:
+        mask &= _hold(*armed, t_pwm) > 0.5
+    alt = _series(log, "altitude_m")
+    if alt is None:
+        notes.append(
+            "no 'altitude_m' signal: ground samples with spinning motors cannot be excluded; F_z there is "
+            "the weight, not the thrust"
+        )
+    else:
+        mask &= np.interp(t_pwm, *alt) > config.min_altitude_m
+
+    fz_of_lag = _fz_aligner(acc, edges_lo, edges_hi, config.mass_kg)
+    pwm_sum = pwm.sum(axis=1)
+    if config.lag_s is None:
+        step = float(np.median(np.diff(acc[0])))
+        n_steps = round(config.max_lag_s / step) if step > 0 else 0
+        lags = np.arange(-n_steps, n_steps + 1) * step
+        rs = []
+        for lag in lags:  # a few dozen candidate lags, each one vectorised over all samples
+            fz = fz_of_lag(lag)
+            ok = mask & np.isfinite(fz)
+            rs.append(pearson(pwm_sum[ok], fz[ok]))
+        r_arr = np.nan_to_num(np.array(rs), nan=-np.inf)
+        lag_s = float(lags[int(np.argmax(r_arr))])
+        lag_curve = (tuple(float(v) for v in lags), tuple(float(v) for v in rs))
+        estimated = True
+    else:
+        lag_s, lag_curve, estimated = float(config.lag_s), ((), ()), False
+    fz = fz_of_lag(lag_s)
+    mask &= np.isfinite(fz)
+
+    seg = _segments(mask, gap)
+    # drop segments shorter than min_segment_s
+    if mask.any():
+        ids, counts = np.unique(seg[mask], return_counts=True)
+        short = ids[counts * period < max(config.min_segment_s, 4 * period)]
+        if short.size:
+            notes.append(f"dropped {short.size} airborne segment(s) shorter than {config.min_segment_s} s")
+            mask &= ~np.isin(seg, short)
+            seg = _segments(mask, gap)
+    if mask.sum() < 10:
+        raise ThrustDataError(
+            f"{src}: only {int(mask.sum())} airborne samples (armed, all motors > "
+            f"{config.motor_min_pwm_us} us"
+            f"{', altitude > ' + str(config.min_altitude_m) + ' m' if alt is not None else ''}); "
+            "nothing to train on"
+        )
+
+    inputs: dict[str, np.ndarray] = {"pwm_sum_us": pwm_sum[mask]}
+    for k in range(config.n_motors):
+        inputs[MOTOR_SIGNAL.format(k=k + 1)] = pwm[mask, k]
+    mid = (edges_lo + edges_hi)[mask] / 2.0
+    for name in config.extra_inputs:
+        s = _series(log, name)
+        if s is None or s[0].size < 2:
+            notes.append(f"candidate input {name!r} is not logged; left out")
+            continue
+        inputs[name] = np.interp(mid, *s)
+    out_fz = fz[mask]
+    out_seg = seg[mask]
+    if config.lowpass_hz is not None:
+        fs = 1.0 / period
+        inputs = {k: _lowpass(v, out_seg, fs, config.lowpass_hz) for k, v in inputs.items()}
+        out_fz = _lowpass(out_fz, out_seg, fs, config.lowpass_hz)
+    return ThrustDataset(
+        time_s=t_pwm[mask],
+        inputs=inputs,
+        fz_N=out_fz,
+        segment=out_seg,
+        lag_s=lag_s,
+        lag_estimated=estimated,
+        lag_curve=lag_curve,
+        sample_period_s=period,
+        notes=tuple(notes),
+        source=src,
+    )
+
+
+def _fz_aligner(
+    acc: tuple[np.ndarray, np.ndarray], lo_s: np.ndarray, hi_s: np.ndarray, mass_kg: float
+) -> Callable[[float], np.ndarray]:
+    """``lag -> F_z`` [N] per PWM interval: -mass * mean accel_body_z over ``[lo + lag, hi + lag)``."""
+    t_acc, a_z = acc
+
+    def fz(lag_s: float) -> np.ndarray:
+        edges = np.empty(lo_s.size * 2)
+        edges[0::2] = lo_s + lag_s
+        edges[1::2] = hi_s + lag_s
+        # intervals may have gaps between them (log gaps): evaluate every [lo, hi) pair, drop the gaps
+        mean, _ = interval_means(t_acc, a_z, edges)
+        return -mass_kg * mean[0::2]
+
+    return fz
+
+
+# --------------------------------------------------------------------------- the paper's gate
+def check_gate(
+    correlations: dict[str, float],
+    inputs: tuple[str, ...],
+    threshold: float = PAPER_MIN_PEARSON,
+    force: bool = False,
+    source: str = "",
+) -> list[str]:
+    """Refuse (``CorrelationGateError``) when a training input's Pearson r with F_z is below ``threshold``.
+
+    With ``force`` the refusal becomes a returned warning (and a ``UserWarning``). Returns the warnings.
+    """
+    weak = {n: correlations.get(n, float("nan")) for n in inputs}
+    weak = {n: r for n, r in weak.items() if not (r >= threshold)}
+    if not weak:
+        return []
+    listing = ", ".join(f"r({n}, F_z) = {r:.3f}" for n, r in weak.items())
+    better = sorted(
+        ((n, r) for n, r in correlations.items() if n not in inputs and r == r), key=lambda p: -p[1]
+    )
+    hint = f" The best other candidate is {better[0][0]} (r = {better[0][1]:.3f})." if better else ""
+    message = (
+        f"{source + ': ' if source else ''}{listing}, below the gate of {threshold:.2f} "
+        "(paper 000 section 4: "
+        "the input-output Pearson correlation must exceed 0.85 before ANFIS training). A map trained on this "
+        "data would mostly fit noise. Usual causes on real logs: vibration on the accelerometer (try "
+        "--lowpass-hz 1), ground samples (check altitude_m is logged), battery sag with no voltage logged "
+        "(the PWM needed for a given thrust drifts during the flight), and a hover-only flight with little "
+        f"thrust variation.{hint} Pass --force to train anyway (the metrics file records the override)."
+    )
+    if not force:
+        raise CorrelationGateError(message, correlations)
+    warnings.warn(message, UserWarning, stacklevel=2)
+    return [message]
+
+
+# --------------------------------------------------------------------------- k of eq. 6
+@dataclass(frozen=True)
+class MotorSpeedModel:
+    """Assumed motor speed: ``Omega = Kv * V * (pwm - pwm_idle) / (pwm_max - pwm_idle)`` [rad/s].
+
+    An ESC maps PWM from idle to full linearly to the duty cycle, and a brushless motor's speed is
+    ~ Kv times the applied voltage (no-load; under propeller load it is lower, so k comes out low).
+    """
+
+    kv_rpm_per_V: float = 920.0  #: DJI E310/2212-class motors of an F450
+    battery_V: float = 11.1  #: 3S LiPo, nominal
+    pwm_idle_us: float = 1100.0
+    pwm_max_us: float = 1900.0
+
+    def __post_init__(self) -> None:
+        problems = []
+        if not (math.isfinite(self.kv_rpm_per_V) and 10.0 <= self.kv_rpm_per_V <= 50_000.0):
+            problems.append(f"kv_rpm_per_V = {self.kv_rpm_per_V}; allowed [10, 50000] rpm/V")
+        if not (math.isfinite(self.battery_V) and 1.0 <= self.battery_V <= 100.0):
+            problems.append(f"battery_V = {self.battery_V}; allowed [1, 100] V")
+        if not (800.0 <= self.pwm_idle_us < self.pwm_max_us <= 2500.0):
+            problems.append(
+                f"pwm_idle_us = {self.pwm_idle_us}, pwm_max_us = {self.pwm_max_us}; "
+                "need 800 <= idle < max <= 2500"
+            )
+        if problems:
+            raise ThrustDataError("motor speed model: " + "; ".join(problems))
+
+    @property
+    def omega_per_us(self) -> float:
+        """dOmega/dpwm [rad/s per us] of one motor."""
+        return self.kv_rpm_per_V * self.battery_V * RAD_S_PER_RPM / (self.pwm_max_us - self.pwm_idle_us)
+
+
+@dataclass(frozen=True)
+class ThrustConstant:
+    """k of eq. 6 from the slope of the trained curve, with the level-based value as a consistency check."""
+
+    k_N_s2: float
+    k_from_level_N_s2: float
+    mean_slope_N_per_us: float
+    hover_omega_rad_s: float
+    description: str
+
+
+def k_thrust_from_curve(amap: AnfisMap, pwm_sum_us: np.ndarray, motor: MotorSpeedModel) -> ThrustConstant:
+    """k [N s^2] such that T_i = k Omega_i^2 matches the slope of the trained map (paper 000, Fig. 6).
+
+    Per motor T_i = F(4 pwm_i)/4 (the FMU's convention), so dT_i/dpwm_i = F'(S) at S = 4 pwm_i. With
+    Omega_i = K (pwm_i - idle), dT_i/dpwm_i = 2 k K^2 (pwm_i - idle); k is the least-squares fit of that
+    line to F'(S) over the training samples ``pwm_sum_us`` (so it weights the flown operating points).
+    """
+    s = np.asarray(pwm_sum_us, float)
+    step_us = 0.5
+    slope = (np.asarray(amap.evaluate([s + step_us])) - np.asarray(amap.evaluate([s - step_us]))) / (
+        2 * step_us
+    )
+    excess = s / 4.0 - motor.pwm_idle_us
+    if np.any(excess <= 0.0):
+        raise ThrustDataError(
+            f"pwm_idle_us = {motor.pwm_idle_us} is not below every per-motor PWM of the data "
+            f"(min {s.min() / 4.0:.0f} us); k cannot be derived"
+        )
+    K = motor.omega_per_us
+    g = 2.0 * K * K * excess
+    k = float(np.sum(slope * g) / np.sum(g * g))
+    h = (K * excess) ** 2
+    level = np.asarray(amap.evaluate([s])) / 4.0
+    k_level = float(np.sum(level * h) / np.sum(h * h))
+    if not k > 0.0:
+        raise ThrustDataError(
+            f"the trained curve falls with PWM on average (mean slope {slope.mean():.3g} N/us), so k from "
+            f"its slope is {k:.3g} <= 0; give k explicitly (--k-thrust-N-s2)"
+        )
+    desc = (
+        f"slope of the ANFIS curve dF/dS (mean {slope.mean():.4g} N/us) with "
+        "Omega = Kv V (pwm - idle)/(max - "
+        f"idle), Kv = {motor.kv_rpm_per_V} rpm/V, V = {motor.battery_V} V, idle {motor.pwm_idle_us} us, max "
+        f"{motor.pwm_max_us} us; level-based k = {k_level:.3g}"
+    )
+    return ThrustConstant(k, k_level, float(slope.mean()), float(K * np.median(excess)), desc)

@@ -1,0 +1,197 @@
+"""``uavfmu identify thrust`` end to end on synthetic logs, and the parameter file it writes."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import identification.cli as icli
+from fmu_models.quadrotor.params import QuadrotorParams
+from identification.anfis_train import predict
+from tests.test_thrust_dataset import K_TRUE_N_S2, MASS_KG, SyntheticLog, true_thrust_N
+from uavfmu.cli import main
+
+
+@pytest.fixture
+def logs(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> dict[str, Path]:
+    """Log files whose names pick a synthetic log (the reader is replaced; files need only exist)."""
+    made = {
+        "good.bin": SyntheticLog(accel_noise_m_s2=0.3, seed=1),
+        "good2.bin": SyntheticLog(accel_noise_m_s2=0.3, seed=2),
+        "noisy.bin": SyntheticLog(accel_noise_m_s2=4.0, pwm_swing_us=10.0, seed=3),
+    }
+    paths = {}
+    for name in made:
+        paths[name] = tmp_path / name
+        paths[name].write_bytes(b"synthetic")
+    monkeypatch.setattr(icli, "_read", lambda p: made[Path(p).name])
+    return paths
+
+
+def test_gate_refuses_and_explains(logs: dict[str, Path], tmp_path: Path, capsys) -> None:
+    out = tmp_path / "params.json"
+    rc = main(
+        [
+            "identify",
+            "thrust",
+            str(logs["noisy.bin"]),
+            "--mass",
+            "1.14",
+            "--out",
+            str(out),
+            "--plots",
+            str(tmp_path / "plots"),
+        ]
+    )
+    err = capsys.readouterr().err
+    assert rc == icli.EXIT_GATE_REFUSED
+    assert "refused" in err and "below the gate of 0.85" in err and "--force" in err
+    assert not out.exists()
+    metrics = json.loads(out.with_suffix(".metrics.json").read_text())
+    assert metrics["refused"] is True and metrics["pearson"]["pwm_sum_us"] < 0.85
+    assert (tmp_path / "plots" / "fig3_correlation.png").stat().st_size > 10_000
+
+
+def test_force_trains_anyway_and_records_it(logs: dict[str, Path], tmp_path: Path, capsys) -> None:
+    out = tmp_path / "params.json"
+    rc = main(
+        [
+            "identify",
+            "thrust",
+            str(logs["noisy.bin"]),
+            "--mass",
+            "1.14",
+            "--out",
+            str(out),
+            "--force",
+            "--epochs",
+            "5",
+        ]
+    )
+    assert rc == 0 and "--force given" in capsys.readouterr().err
+    assert json.loads(out.with_suffix(".metrics.json").read_text())["gate_forced"] is True
+
+
+def test_identify_writes_params_metrics_and_plots(logs: dict[str, Path], tmp_path: Path, capsys) -> None:
+    out = tmp_path / "id" / "params.json"
+    plots = tmp_path / "plots"
+    rc = main(
+        [
+            "identify",
+            "thrust",
+            str(logs["good.bin"]),
+            "--mass",
+            str(MASS_KG),
+            "--out",
+            str(out),
+            "--validate",
+            str(logs["good2.bin"]),
+            "--plots",
+            str(plots),
+            "--epochs",
+            "40",
+        ]
+    )
+    printed = capsys.readouterr().out
+    assert rc == 0
+    assert "pwm_sum_us" in printed and "validation RMSE" in printed and "k_thrust" in printed
+    params = QuadrotorParams.load(out)
+    train = SyntheticLog(seed=1)
+    assert params.mass_kg == MASS_KG
+    assert params.k_thrust_N_s2 == pytest.approx(K_TRUE_N_S2, rel=0.05)
+    lo, hi = params.thrust_map.input_range[0]
+    sums = sum(train.signals[f"motor_{k}_pwm_us"][1] for k in range(1, 5))
+    assert 6000 < lo < hi < 8000 and lo >= sums.min() and hi <= sums.max()
+    grid = np.linspace(lo, hi, 50)
+    assert np.max(np.abs(predict(params.thrust_map, grid) - true_thrust_N(grid))) < 0.15
+    metrics = json.loads(out.with_suffix(".metrics.json").read_text())
+    noise = MASS_KG * 0.3 / np.sqrt(5)  # accelerometer noise averaged over one PWM interval
+    assert metrics["validation_rmse_N"] < 1.1 * noise
+    assert metrics["validation_r2"] > 0.95 and metrics["n_validation"] > 800
+    assert metrics["epochs"] == 40 and len(metrics["train_rmse_per_epoch_N"]) == 40
+    for key in ("pearson", "polynomial_validation_rmse_N", "lag_s", "n_train", "validation_pearson"):
+        assert key in metrics
+    assert metrics["lag_s"] == pytest.approx(0.1, abs=0.021)
+    for fig in ("fig3_correlation", "fig4_training", "fig5_validation", "fig6_thrust_curve"):
+        assert (plots / f"{fig}.png").stat().st_size > 10_000
+
+
+def test_params_build_a_quadrotor_fmu_with_that_map(logs: dict[str, Path], tmp_path: Path) -> None:
+    from fmpy import read_model_description
+
+    from build_fmus import build
+
+    out = tmp_path / "params.json"
+    assert (
+        main(
+            [
+                "identify",
+                "thrust",
+                str(logs["good.bin"]),
+                "--mass",
+                "1.14",
+                "--out",
+                str(out),
+                "--epochs",
+                "10",
+            ]
+        )
+        == 0
+    )
+    amap = QuadrotorParams.load(out).thrust_map
+    (fmu,) = build(out, tmp_path / "dist", ["quadrotor"])
+    starts = {v.name: v.start for v in read_model_description(str(fmu)).modelVariables}
+    assert float(starts["anfis_band_lo_us"]) == pytest.approx(amap.input_range[0][0])
+    assert float(starts["k_thrust_N_s2"]) == pytest.approx(
+        json.loads(out.read_text())["quadrotor"]["k_thrust_N_s2"]
+    )
+
+
+def test_bad_input_is_named(logs: dict[str, Path], tmp_path: Path, capsys) -> None:
+    out = str(tmp_path / "p.json")
+    assert main(["identify", "thrust", str(tmp_path / "missing.bin"), "--mass", "1", "--out", out]) == 2
+    assert "missing.bin: log file not found" in capsys.readouterr().err
+    assert main(["identify", "thrust", str(logs["good.bin"]), "--mass", "-3", "--out", out]) == 2
+    assert "mass_kg = -3.0" in capsys.readouterr().err
+    assert main(["identify", "thrust", str(logs["good.bin"]), "--mass", "1", "--out", out, "--mfs", "0"]) == 2
+    assert "n_mfs = 0" in capsys.readouterr().err
+    assert (
+        main(
+            [
+                "identify",
+                "thrust",
+                str(logs["good.bin"]),
+                "--mass",
+                "1",
+                "--out",
+                out,
+                "--train-fraction",
+                "1.5",
+            ]
+        )
+        == 2
+    )
+    assert "--train-fraction = 1.5" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("identification.aero_cli") is not None,
+    reason="identification.aero_cli exists; its own tests cover it",
+)
+def test_aero_reports_missing_module(capsys) -> None:
+    assert main(["identify", "aero", "--anything", "x"]) == 2
+    assert "identification/aero_cli.py" in capsys.readouterr().err
+
+
+def test_given_k_overrides_the_derivation(logs: dict[str, Path], tmp_path: Path) -> None:
+    out = tmp_path / "params.json"
+    argv = ["identify", "thrust", str(logs["good.bin"]), "--mass", "1.14", "--out", str(out), "--epochs", "5"]
+    assert main([*argv, "--k-thrust-N-s2", "3e-6"]) == 0
+    section = json.loads(out.read_text())["quadrotor"]
+    assert section["k_thrust_N_s2"] == 3e-6 and "--k-thrust-N-s2" in section["k_thrust_source"]
+    assert main(argv) == 0
+    assert json.loads(out.read_text())["quadrotor"]["k_thrust_N_s2"] != 3e-6
