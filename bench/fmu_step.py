@@ -121,7 +121,7 @@ def main() -> int:
 
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
-        fmus = {p.stem: p for p in build(None, out, ["quadrotor"])}
+        fmus = {p.stem: p for p in build(None, out)}
         cases = {
             "quadrotor": {f"pwm_{i}_us": 1530.0 for i in range(1, 5)},
             "fixed_wing": {"aileron_rad": 0.0, "elevator_rad": -0.1, "rudder_rad": 0.0, "throttle": 0.6},
