@@ -22,7 +22,9 @@ def fly_quadrotor(fmu: Path) -> dict[str, float]:
     from fmu_models.quadrotor.anfis import published_map
 
     amap = published_map()
-    g = simulate_fmu(str(fmu), stop_time=0.01, output=["gravity_m_s2"])["gravity_m_s2"][0]
+    in_band = {f"pwm_{i}_us": 1520.0 for i in range(1, 5)}
+    g = simulate_fmu(str(fmu), stop_time=0.01, start_values={"init_pos_down_m": -10.0, **in_band},
+                     output=["gravity_m_s2"])["gravity_m_s2"][0]
     pwm = brentq(lambda x: amap.evaluate([np.array([x])])[0] - 1.14 * g, 6000.0, 6217.3) / 4
     res = simulate_fmu(str(fmu), stop_time=10.0, output_interval=0.01,
                        start_values={"init_pos_down_m": -10.0, **{f"pwm_{i}_us": pwm for i in range(1, 5)}},
