@@ -1,0 +1,43 @@
+"""build_fmus.py: parameter files are embedded as the FMUs' start values; bad files give clear errors."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from fmpy import read_model_description
+
+from build_fmus import main
+
+
+def start_values(fmu: Path) -> dict[str, float]:
+    return {v.name: float(v.start) for v in read_model_description(str(fmu)).modelVariables
+            if v.causality == "parameter"}
+
+
+def test_params_file_is_embedded_in_both_fmus(tmp_path: Path) -> None:
+    params = {"quadrotor": {"mass_kg": 1.5, "thrust_map": {"type": "anfis", "inputs": ["pwm_sum_us"],
+                                                           "mf_mean": [[5000.0, 7000.0]], "mf_sigma": [[800.0, 800.0]],
+                                                           "order": 0, "consequents": [[6.0], [16.0]],
+                                                           "input_range": [[4800.0, 7200.0]]}},
+              "fixed_wing": {"C_ell_p": -0.42, "propulsion": {"D_prop_m": 0.45}}}
+    f = tmp_path / "p.json"
+    f.write_text(json.dumps(params))
+    assert main(["--params", str(f), "--out", str(tmp_path / "out")]) == 0
+    quad = start_values(tmp_path / "out" / "quadrotor.fmu")
+    assert quad["mass_kg"] == 1.5 and quad["anfis_cons_2_N"] == 16.0 and quad["anfis_band_hi_us"] == 7200.0
+    assert "anfis_mean_3_us" not in quad  # the map's structure (2 MFs) is built in
+    fw = start_values(tmp_path / "out" / "fixed_wing.fmu")
+    assert fw["C_ell_p"] == -0.42 and fw["D_prop_m"] == 0.45 and fw["C_ell_delta_a"] == 0.17
+
+
+def test_bad_params_file_gives_a_clear_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    f = tmp_path / "bad.json"
+    f.write_text('{"fixed_wing": {"C_ell_p": "abc", "mass_kgg": 3}}')
+    assert main(["--params", str(f), "--out", str(tmp_path), "--only", "fixed_wing"]) == 2
+    err = capsys.readouterr().err
+    assert str(f) in err and "C_ell_p = 'abc' is not a number" in err and "mass_kgg is not a parameter" in err
+    f.write_text("{not json")
+    assert main(["--params", str(f), "--out", str(tmp_path)]) == 2
+    assert "not valid JSON" in capsys.readouterr().err
