@@ -96,9 +96,8 @@ class OutputError:
             for k, i in enumerate(self.i_free):
                 p[i] = theta[k]
             acc = self._step.mapaccum("sim", n)
-            X, Y = acc(x0, U, p, dt)
+            _X, Y = acc(x0, U, p, dt)
             Ysel = Y[self.i_out, :]
-            # first sample: outputs at x0 are not produced by the step; align: model output k is after step k
             Yv = ca.vec(Ysel)
             self._funcs[n] = ca.Function("sens", [theta, x0, U, dt], [Yv, ca.jacobian(Yv, theta)])
         return self._funcs[n]
@@ -121,8 +120,9 @@ class OutputError:
             jacs.append(j)
         return np.vstack(res), jacs
 
-    def estimate(self, data: Sequence[Manoeuvre], theta0: Sequence[float] | None = None, weight: np.ndarray | None = None,
-                 max_iter: int = 30, tol: float = 1e-9, progress: bool = False) -> Estimate:
+    def estimate(self, data: Sequence[Manoeuvre], theta0: Sequence[float] | None = None,
+                 weight: np.ndarray | None = None, max_iter: int = 30, tol: float = 1e-9,
+                 progress: bool = False) -> Estimate:
         """Levenberg-Marquardt on the weighted output error; returns the estimate with its CR bounds."""
         theta = np.array(theta0 if theta0 is not None else self.p_nominal[self.i_free], dtype=float)
         ny = len(self.outputs)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -20,7 +22,7 @@ def three_two_one_one(t: np.ndarray, t0: float, unit_s: float, amp: float) -> np
     """The 3-2-1-1 multistep: +3, -2, +1, -1 units long."""
     edges = t0 + unit_s * np.cumsum([0, 3, 2, 1, 1])
     out = np.zeros_like(t)
-    for (a, b), s in zip(zip(edges[:-1], edges[1:], strict=True), (1, -1, 1, -1), strict=True):
+    for (a, b), s in zip(itertools.pairwise(edges), (1, -1, 1, -1), strict=True):
         out[(t >= a) & (t < b)] = s * amp
     return out
 
