@@ -85,21 +85,34 @@ class OutputError:
         self._step = step_function(model)
         self._funcs: dict[int, ca.Function] = {}
 
+    def _augmented_step(self) -> ca.Function:
+        """One step of the state and its forward sensitivity ``S = dx/dtheta`` (SX, built once).
+
+        ``S_{k+1} = (dx_{k+1}/dx_k) S_k + dx_{k+1}/dtheta`` and ``dy/dtheta = (dy/dx) S + dy/dtheta``: the
+        forward sensitivity equations of the discrete RK4 map, so the derivatives are exact for the very
+        simulation that is fitted.
+        """
+        nx, nth = len(self.model.states), len(self.free)
+        x = ca.SX.sym("x", nx)
+        S = ca.SX.sym("S", nx, nth)
+        u = ca.SX.sym("u", len(self.model.inputs))
+        p = ca.SX.sym("p", len(self.model.params))
+        dt = ca.SX.sym("dt")
+        x1, y1 = self._step(x, u, p, dt)
+        y1 = y1[self.i_out]
+        th = ca.vertcat(*[p[i] for i in self.i_free])
+        S1 = ca.jacobian(x1, x) @ S + ca.jacobian(x1, th)
+        dy = ca.jacobian(y1, x) @ S + ca.jacobian(y1, th)
+        xa = ca.vertcat(x, ca.vec(S))
+        xa1 = ca.vertcat(x1, ca.vec(S1))
+        return ca.Function("aug", [xa, u, p, dt], [xa1, ca.vertcat(y1, ca.vec(dy))])
+
     def _sim_function(self, n: int) -> ca.Function:
-        """``(theta, x0, U, dt) -> (Y, dY/dtheta)`` over ``n`` samples, built once per record length."""
+        """``(xa0, U, p, dt) -> (Xa, [Y; dY/dtheta])`` over ``n`` samples, built once per record length."""
         if n not in self._funcs:
-            theta = ca.MX.sym("theta", len(self.free))
-            x0 = ca.MX.sym("x0", len(self.model.states))
-            U = ca.MX.sym("U", len(self.model.inputs), n)
-            dt = ca.MX.sym("dt")
-            p = ca.MX(ca.DM(self.p_nominal))
-            for k, i in enumerate(self.i_free):
-                p[i] = theta[k]
-            acc = self._step.mapaccum("sim", n)
-            _X, Y = acc(x0, U, p, dt)
-            Ysel = Y[self.i_out, :]
-            Yv = ca.vec(Ysel)
-            self._funcs[n] = ca.Function("sens", [theta, x0, U, dt], [Yv, ca.jacobian(Yv, theta)])
+            if not hasattr(self, "_aug"):
+                self._aug = self._augmented_step()
+            self._funcs[n] = self._aug.mapaccum("sens", n)
         return self._funcs[n]
 
     def simulate(self, theta: np.ndarray, m: Manoeuvre) -> tuple[np.ndarray, np.ndarray]:
@@ -108,9 +121,16 @@ class OutputError:
         Output row k is the model's output after k+1 steps, so ``m.y[k]`` is the measurement at t_{k+1}.
         """
         n = m.u.shape[0]
-        yv, jac = self._sim_function(n)(theta, m.x0, m.u.T, m.dt_s)
-        ny = len(self.outputs)
-        return np.asarray(yv).reshape(n, ny), np.asarray(jac)
+        ny, nth = len(self.outputs), len(self.free)
+        p = self.p_nominal.copy()
+        p[self.i_free] = theta
+        xa0 = np.concatenate([np.asarray(m.x0, dtype=float), np.zeros(len(self.model.states) * nth)])
+        _, out = self._sim_function(n)(xa0, m.u.T, p, m.dt_s)
+        out = np.asarray(out)  # (ny + ny*nth) x n
+        y = out[:ny].T
+        # dy/dtheta per sample is column-major (ny x nth); stack samples as rows k*ny + i
+        jac = out[ny:].T.reshape(n, nth, ny).transpose(0, 2, 1).reshape(n * ny, nth)
+        return y, jac
 
     def _residuals(self, theta: np.ndarray, data: Sequence[Manoeuvre]) -> tuple[np.ndarray, list[np.ndarray]]:
         res, jacs = [], []
