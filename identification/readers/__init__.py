@@ -1,0 +1,22 @@
+"""Flight-log readers: ``read_log(path)`` picks the reader by the file's suffix."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from identification.flightlog import FlightLog, LogError
+
+
+def read_log(path: str | Path, *, channel_map: dict[str, int] | None = None, fmt: str | None = None) -> FlightLog:
+    """Read a flight log into a :class:`FlightLog` (ArduPilot DataFlash ``.bin``/``.log``)."""
+    p = Path(path)
+    if not p.exists():
+        raise LogError(f"{p}: no such file")
+    if p.stat().st_size == 0:
+        raise LogError(f"{p}: the file is empty")
+    kind = fmt or p.suffix.lower().lstrip(".")
+    if kind in ("bin", "log", "dataflash"):
+        from identification.readers.dataflash import read_dataflash
+
+        return read_dataflash(p, channel_map=channel_map)
+    raise LogError(f"{p}: unsupported log format {kind!r}; supported: .bin, .log (ArduPilot DataFlash)")

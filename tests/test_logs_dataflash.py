@@ -1,0 +1,65 @@
+"""DataFlash reader: canonical signals from the shared logs, bad files give clear errors, damaged tails."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from identification.flightlog import LogError, MissingSignalError
+from identification.readers import read_log
+from tests.conftest import shared_data
+
+
+def test_old_format_copter_log_canonical_signals() -> None:
+    log = read_log(shared_data("quadrotor", "arducopter_x_quad_real_218.BIN"))
+    assert log.vehicle == "quadrotor" and log.warnings == []
+    assert log.duration_s == pytest.approx(335.0, abs=1.0)  # data README: 335 s
+    acc = log.signal("accel_body_z_m_s2").values
+    assert np.mean(acc) == pytest.approx(-9.99, abs=0.05)  # data README: AccZ averages about -9.99
+    assert log.signals["BARO.Alt"].values.max() == pytest.approx(14.6, abs=0.1)  # data README: up to 14.6 m
+    assert 10.0 < log.signal("altitude_m").values.max() < 15.0  # CTUN.Alt, the autopilot's altitude
+    for k in range(1, 5):
+        assert log.signal(f"motor_{k}_pwm_us").unit == "us"
+    assert "FRAME" in log.params
+    assert log.signal("lat_deg").t_s[0] < 335.0  # GPS time of week is not mistaken for boot time
+
+
+def test_plane_log_maps_surfaces_from_servo_functions() -> None:
+    log = read_log(shared_data("fixed_wing", "arduplane_sitl_takeoff_00000012.BIN"))
+    assert log.vehicle == "fixed_wing"
+    for name in ("aileron_pwm_us", "elevator_pwm_us", "throttle_pwm_us", "rudder_pwm_us", "airspeed_m_s"):
+        assert log.has(name), name
+    assert log.duration_s == pytest.approx(44.0, abs=3.0)
+
+
+def test_truncated_log_returns_the_intact_part_with_a_warning(tmp_path: Path) -> None:
+    src = shared_data("quadrotor", "arducopter_x_quad_real_218.BIN").read_bytes()
+    cut = tmp_path / "cut.bin"
+    cut.write_bytes(src[: len(src) // 2] + bytes(range(256)) * 20)
+    log = read_log(cut)
+    assert 100.0 < log.duration_s < 300.0
+    assert any("could not be parsed" in w or "damaged" in w for w in log.warnings), log.warnings
+
+
+def test_empty_missing_and_garbage_files_are_clear_errors(tmp_path: Path) -> None:
+    empty = tmp_path / "empty.bin"
+    empty.write_bytes(b"")
+    with pytest.raises(LogError, match="empty"):
+        read_log(empty)
+    with pytest.raises(LogError, match="no such file"):
+        read_log(tmp_path / "nope.bin")
+    junk = tmp_path / "junk.bin"
+    junk.write_bytes(bytes(np.random.default_rng(0).integers(0, 256, 5000, dtype=np.uint8)))
+    with pytest.raises(LogError, match=r"junk\.bin"):
+        read_log(junk)
+    with pytest.raises(LogError, match="unsupported log format"):
+        read_log(tmp_path.joinpath("x.xyz").resolve() if (tmp_path / "x.xyz").write_text("a") else None)
+
+
+def test_missing_signal_names_file_and_what_is_there() -> None:
+    log = read_log(shared_data("quadrotor", "arducopter_x_quad_real_218.BIN"))
+    with pytest.raises(MissingSignalError) as err:
+        log.signal("airspeed_m_s")
+    assert "arducopter_x_quad_real_218.BIN" in str(err.value) and "accel_body_z_m_s2" in str(err.value)
