@@ -7,8 +7,13 @@ from pathlib import Path
 from identification.flightlog import FlightLog, LogError
 
 
-def read_log(path: str | Path, *, channel_map: dict[str, int] | None = None, fmt: str | None = None) -> FlightLog:
-    """Read a flight log into a :class:`FlightLog` (ArduPilot DataFlash ``.bin``/``.log``)."""
+def read_log(path: str | Path, *, channel_map: dict | None = None, fmt: str | None = None) -> FlightLog:
+    """Read a flight log into a :class:`FlightLog`.
+
+    ArduPilot DataFlash ``.bin``/``.log``, PX4 ``.ulg``, CSV (``channel_map`` renames columns to canonical
+    names). For DataFlash, ``channel_map`` maps canonical names to output channels (``{"motor_1_pwm_us": 3}``)
+    and overrides the log's SERVOn_FUNCTION mapping.
+    """
     p = Path(path)
     if not p.exists():
         raise LogError(f"{p}: no such file")
@@ -19,4 +24,12 @@ def read_log(path: str | Path, *, channel_map: dict[str, int] | None = None, fmt
         from identification.readers.dataflash import read_dataflash
 
         return read_dataflash(p, channel_map=channel_map)
-    raise LogError(f"{p}: unsupported log format {kind!r}; supported: .bin, .log (ArduPilot DataFlash)")
+    if kind in ("ulg", "ulog"):
+        from identification.readers.ulog import read_ulog
+
+        return read_ulog(p)
+    if kind == "csv":
+        from identification.readers.csv_log import read_csv
+
+        return read_csv(p, column_map=channel_map)
+    raise LogError(f"{p}: unsupported log format {kind!r}; supported: .bin, .log (ArduPilot DataFlash), .ulg, .csv")

@@ -63,3 +63,31 @@ def test_missing_signal_names_file_and_what_is_there() -> None:
     with pytest.raises(MissingSignalError) as err:
         log.signal("airspeed_m_s")
     assert "arducopter_x_quad_real_218.BIN" in str(err.value) and "accel_body_z_m_s2" in str(err.value)
+
+
+def test_px4_ulog_canonical_signals() -> None:
+    log = read_log(shared_data("quadrotor", "px4_sitl_quad_takeoff.ulg"))
+    assert log.vehicle == "quadrotor" and log.duration_s == pytest.approx(31.0, abs=1.0)
+    pwm = log.signal("motor_1_pwm_us").values
+    assert 850 <= pwm.min() and pwm.max() <= 1560  # data README: PWM 900-1556
+    assert log.signal("altitude_m").values.max() == pytest.approx(2.0, abs=0.5)  # takeoff to ~2 m
+    assert np.mean(log.signal("accel_body_z_m_s2").values) == pytest.approx(-9.8, abs=0.2)
+    assert log.signal("armed").values.max() == 1.0
+
+
+def test_csv_with_column_map_and_truncated_last_line(tmp_path: Path) -> None:
+    f = tmp_path / "flight.csv"
+    f.write_text("time_s,az,pwm1\n0.0,-9.8,1500\n0.1,-9.7,1510\n0.2,-9.")
+    log = read_log(f, channel_map={"accel_body_z_m_s2": "az", "motor_1_pwm_us": "pwm1"})
+    np.testing.assert_array_equal(log.signal("accel_body_z_m_s2").values, [-9.8, -9.7])
+    assert log.signal("motor_1_pwm_us").t_s.tolist() == [0.0, 0.1]
+    assert "1 incomplete line(s) at the end were dropped" in log.warnings[0]
+    with pytest.raises(LogError, match="mapped column"):
+        read_log(f, channel_map={"airspeed_m_s": "ias"})
+
+
+def test_corrupt_ulog_is_a_clear_error(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.ulg"
+    bad.write_bytes(b"not a ulog at all" * 10)
+    with pytest.raises(LogError, match=r"bad\.ulg"):
+        read_log(bad)

@@ -1,0 +1,76 @@
+"""PX4 ULog through pyulog: canonical signals from sensor_combined, vehicle_attitude, actuator_outputs,
+vehicle_gps_position, vehicle_local_position and vehicle_status; parameters kept."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from pyulog import ULog
+
+from identification.flightlog import FlightLog, LogError, Signal
+
+ARMING_STATE_ARMED = 2  #: vehicle_status.arming_state value for armed
+
+
+def read_ulog(path: Path) -> FlightLog:
+    try:
+        ulog = ULog(str(path))
+    except Exception as err:  # pyulog raises bare Exceptions and struct errors on bad files
+        raise LogError(f"{path}: not a readable ULog file ({type(err).__name__}: {err})") from err
+    if not ulog.data_list:
+        raise LogError(f"{path}: the ULog holds no data messages")
+    t0 = ulog.start_timestamp
+    signals: dict[str, Signal] = {}
+    for d in ulog.data_list:
+        t = (np.asarray(d.data["timestamp"], dtype=float) - t0) * 1e-6
+        prefix = d.name if d.multi_id == 0 else f"{d.name}_{d.multi_id}"
+        for fld, vals in d.data.items():
+            if fld != "timestamp":
+                key = f"{prefix}.{fld}"
+                signals[key] = Signal(key, t, np.asarray(vals, dtype=float), "", f"raw {key}")
+
+    def alias(name: str, key: str, unit: str, scale: float = 1.0, offset: float = 0.0) -> None:
+        if key in signals and name not in signals:
+            s = signals[key]
+            signals[name] = Signal(name, s.t_s, s.values * scale + offset, unit, f"from {key}")
+
+    for i, a in enumerate("xyz"):
+        alias(f"accel_body_{a}_m_s2", f"sensor_combined.accelerometer_m_s2[{i}]", "m/s2")
+        alias(f"gyro_body_{a}_rad_s", f"sensor_combined.gyro_rad[{i}]", "rad/s")
+    if "vehicle_attitude.q[0]" in signals:
+        qs = [signals[f"vehicle_attitude.q[{i}]"].values for i in range(4)]
+        t = signals["vehicle_attitude.q[0]"].t_s
+        w, x, y, z = qs
+        euler = {
+            "roll_rad": np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
+            "pitch_rad": np.arcsin(np.clip(2 * (w * y - x * z), -1, 1)),
+            "yaw_rad": np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)),
+        }
+        for n, v in euler.items():
+            signals[n] = Signal(n, t, v, "rad", "from vehicle_attitude.q")
+    alias("lat_deg", "vehicle_gps_position.latitude_deg", "deg")
+    alias("lon_deg", "vehicle_gps_position.longitude_deg", "deg")
+    alias("height_m", "vehicle_gps_position.altitude_msl_m", "m")
+    alias("lat_deg", "vehicle_gps_position.lat", "deg", 1e-7)
+    alias("lon_deg", "vehicle_gps_position.lon", "deg", 1e-7)
+    alias("height_m", "vehicle_gps_position.alt", "m", 1e-3)
+    for a in ("n", "e", "d"):
+        full = {"n": "north", "e": "east", "d": "down"}[a]
+        alias(f"vel_{full}_m_s", f"vehicle_gps_position.vel_{a}_m_s", "m/s")
+    alias("altitude_m", "vehicle_local_position.z", "m", -1.0)
+    alias("climb_rate_m_s", "vehicle_local_position.vz", "m/s", -1.0)
+    alias("battery_voltage_V", "battery_status.voltage_v", "V")
+    for n in range(16):
+        alias(f"servo_{n + 1}_pwm_us", f"actuator_outputs.output[{n}]", "us")
+    for k in range(1, 5):  # PX4 quadrotor: motors on the first four actuator outputs
+        alias(f"motor_{k}_pwm_us", f"servo_{k}_pwm_us", "us")
+    if "vehicle_status.arming_state" in signals:
+        s = signals["vehicle_status.arming_state"]
+        signals["armed"] = Signal("armed", s.t_s, (s.values == ARMING_STATE_ARMED).astype(float), "1",
+                                  "from vehicle_status.arming_state")
+    warnings: list[str] = []
+    if getattr(ulog, "file_corruption", False):
+        warnings.append(f"{path}: pyulog reports a corrupt section; the readable messages were kept")
+    return FlightLog(str(path), "ulog", signals, {k: float(v) for k, v in ulog.initial_parameters.items()},
+                     "quadrotor" if "motor_1_pwm_us" in signals else None, warnings)
