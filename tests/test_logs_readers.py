@@ -91,3 +91,31 @@ def test_corrupt_ulog_is_a_clear_error(tmp_path: Path) -> None:
     bad.write_bytes(b"not a ulog at all" * 10)
     with pytest.raises(LogError, match=r"bad\.ulg"):
         read_log(bad)
+
+
+def test_channel_map_file_overrides_the_log_mapping(tmp_path: Path) -> None:
+    cfg = tmp_path / "map.toml"
+    cfg.write_text("[channels]\nmotor_1_pwm_us = 3\n")
+    log = read_log(shared_data("quadrotor", "arducopter_x_quad_real_218.BIN"), channel_map=cfg)
+    np.testing.assert_array_equal(log.signal("motor_1_pwm_us").values, log.signal("servo_3_pwm_us").values)
+    cfg.write_text("[channels]\nmotor_1_pwm_us = 99\n")
+    with pytest.raises(LogError, match=r"channels\.motor_1_pwm_us = 99"):
+        read_log(shared_data("quadrotor", "arducopter_x_quad_real_218.BIN"), channel_map=cfg)
+
+
+def test_tlog_round_trip_written_with_pymavlink(tmp_path: Path) -> None:
+    from pymavlink.dialects.v20 import ardupilotmega as mav
+
+    f = tmp_path / "flight.tlog"
+    link = mav.MAVLink(None, srcSystem=1)
+    with f.open("wb") as fh:
+        for k in range(5):
+            t_us = int((1_700_000_000 + 0.1 * k) * 1e6)
+            for msg in (mav.MAVLink_attitude_message(100 * k, 0.1 * k, 0.0, 0.0, 0.0, 0.0, 0.0),
+                        mav.MAVLink_servo_output_raw_message(100 * k, 0, 1500 + k, 1500, 1500, 1500, 0, 0, 0, 0),
+                        mav.MAVLink_heartbeat_message(2, 3, 128, 0, 4, 3)):
+                fh.write(t_us.to_bytes(8, "big") + msg.pack(link))
+    log = read_log(f)
+    np.testing.assert_allclose(log.signal("roll_rad").values, [0.0, 0.1, 0.2, 0.3, 0.4], atol=1e-6)
+    np.testing.assert_array_equal(log.signal("servo_1_pwm_us").values, [1500, 1501, 1502, 1503, 1504])
+    assert log.signal("armed").values.min() == 1.0

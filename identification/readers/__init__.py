@@ -7,13 +7,17 @@ from pathlib import Path
 from identification.flightlog import FlightLog, LogError
 
 
-def read_log(path: str | Path, *, channel_map: dict | None = None, fmt: str | None = None) -> FlightLog:
+def read_log(path: str | Path, *, channel_map: dict | str | Path | None = None, fmt: str | None = None) -> FlightLog:
     """Read a flight log into a :class:`FlightLog`.
 
     ArduPilot DataFlash ``.bin``/``.log``, PX4 ``.ulg``, CSV (``channel_map`` renames columns to canonical
     names). For DataFlash, ``channel_map`` maps canonical names to output channels (``{"motor_1_pwm_us": 3}``)
     and overrides the log's SERVOn_FUNCTION mapping.
     """
+    if isinstance(channel_map, str | Path):
+        from identification.channel_map import load_channel_map
+
+        channel_map = load_channel_map(channel_map)
     p = Path(path)
     if not p.exists():
         raise LogError(f"{p}: no such file")
@@ -28,8 +32,14 @@ def read_log(path: str | Path, *, channel_map: dict | None = None, fmt: str | No
         from identification.readers.ulog import read_ulog
 
         return read_ulog(p)
+    if kind == "tlog":
+        from identification.readers.tlog import read_tlog
+
+        return read_tlog(p)
     if kind == "csv":
         from identification.readers.csv_log import read_csv
 
         return read_csv(p, column_map=channel_map)
-    raise LogError(f"{p}: unsupported log format {kind!r}; supported: .bin, .log (ArduPilot DataFlash), .ulg, .csv")
+    raise LogError(
+        f"{p}: unsupported log format {kind!r}; supported: .bin, .log (ArduPilot DataFlash), .ulg, .tlog, .csv"
+    )
