@@ -63,6 +63,7 @@ def _thrust_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, required=True, help="parameter JSON to write")
     p.add_argument("--validate", type=Path, help="second log for validation (default: the last part of LOG)")
     p.add_argument("--plots", type=Path, help="folder for the PNG figures (paper 000 Figs. 3-6)")
+    p.add_argument("--channel-map", type=Path, help="TOML/JSON [channels] overriding the log's motor mapping")
     p.add_argument("--metrics", type=Path, help="metrics JSON (default: OUT with suffix .metrics.json)")
     g = p.add_argument_group("data set")
     g.add_argument(
@@ -157,11 +158,11 @@ def _error(message: str) -> int:
     return EXIT_BAD_INPUT
 
 
-def _read(path: Path) -> Any:
+def _read(path: Path, channel_map: Path | None = None) -> Any:
     """The ``FlightLog`` of ``path`` (``identification.readers.read_log``)."""
     from identification.readers import read_log
 
-    return read_log(path)
+    return read_log(path, channel_map=channel_map)
 
 
 def run_thrust(args: argparse.Namespace) -> int:
@@ -170,6 +171,7 @@ def run_thrust(args: argparse.Namespace) -> int:
 
     from fmu_models.common.errors import ParameterError
     from identification.anfis_train import AnfisTrainConfig, AnfisTrainingError
+    from identification.flightlog import LogError
     from identification.thrust_dataset import (
         CorrelationGateError,
         ThrustDataError,
@@ -204,7 +206,7 @@ def run_thrust(args: argparse.Namespace) -> int:
     except CorrelationGateError as err:
         print(f"uavfmu identify thrust: refused: {err}", file=sys.stderr)
         return EXIT_GATE_REFUSED
-    except (ThrustDataError, AnfisTrainingError, ParameterError, FileNotFoundError) as err:
+    except (ThrustDataError, AnfisTrainingError, ParameterError, FileNotFoundError, LogError) as err:
         return _error(str(err))
 
 
@@ -228,14 +230,14 @@ def _thrust(args: argparse.Namespace, ds_cfg: Any, train_cfg: Any, np: Any) -> i
     for path in (args.log, args.validate):
         if path is not None and not path.is_file():
             raise FileNotFoundError(f"{path}: log file not found")
-    log = _read(args.log)
+    log = _read(args.log, args.channel_map)
     full = build_thrust_dataset(log, ds_cfg, source=str(args.log))
     for note in full.notes:
         print(f"note: {note}", file=sys.stderr)
     if args.validate is not None:
         train = full
         vcfg = dataclasses.replace(ds_cfg, lag_s=full.lag_s)
-        val = build_thrust_dataset(_read(args.validate), vcfg, source=str(args.validate))
+        val = build_thrust_dataset(_read(args.validate, args.channel_map), vcfg, source=str(args.validate))
         val_name = str(args.validate)
     else:
         train, val = full.split(args.train_fraction)

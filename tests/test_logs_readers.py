@@ -119,3 +119,13 @@ def test_tlog_round_trip_written_with_pymavlink(tmp_path: Path) -> None:
     np.testing.assert_allclose(log.signal("roll_rad").values, [0.0, 0.1, 0.2, 0.3, 0.4], atol=1e-6)
     np.testing.assert_array_equal(log.signal("servo_1_pwm_us").values, [1500, 1501, 1502, 1503, 1504])
     assert log.signal("armed").values.min() == 1.0
+
+
+def test_identify_thrust_reports_a_corrupt_log_without_traceback(tmp_path: Path, capsys) -> None:
+    from uavfmu.cli import main
+
+    bad = tmp_path / "bad.bin"
+    bad.write_bytes(b"\x00" * 100)
+    rc = main(["identify", "thrust", str(bad), "--mass", "1.14", "--out", str(tmp_path / "p.json")])
+    err = capsys.readouterr().err
+    assert rc != 0 and "bad.bin" in err and "Traceback" not in err

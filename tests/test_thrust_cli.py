@@ -28,7 +28,7 @@ def logs(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> dict[str, Path]:
     for name in made:
         paths[name] = tmp_path / name
         paths[name].write_bytes(b"synthetic")
-    monkeypatch.setattr(icli, "_read", lambda p: made[Path(p).name])
+    monkeypatch.setattr(icli, "_read", lambda p, channel_map=None: made[Path(p).name])
     return paths
 
 
