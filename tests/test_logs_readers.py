@@ -129,3 +129,19 @@ def test_identify_thrust_reports_a_corrupt_log_without_traceback(tmp_path: Path,
     rc = main(["identify", "thrust", str(bad), "--mass", "1.14", "--out", str(tmp_path / "p.json")])
     err = capsys.readouterr().err
     assert rc != 0 and "bad.bin" in err and "Traceback" not in err
+
+
+def test_text_dataflash_log(tmp_path: Path) -> None:
+    f = tmp_path / "flight.log"
+    f.write_text(
+        "FMT, 128, 89, FMT, BBnNZ, Type,Length,Name,Format,Columns\n"
+        "FMT, 129, 31, IMU, Qffffff, TimeUS,GyrX,GyrY,GyrZ,AccX,AccY,AccZ\n"
+        "FMT, 130, 40, PARM, QNf, TimeUS,Name,Value\n"
+        "PARM, 1000, FRAME, 1\n"
+        "IMU, 1000000, 0.01, 0.02, 0.03, 0.1, 0.2, -9.8\n"
+        "IMU, 1020000, 0.01, 0.02, 0.03, 0.1, 0.2, -9.7\n"
+    )
+    log = read_log(f)
+    np.testing.assert_allclose(log.signal("accel_body_z_m_s2").values, [-9.8, -9.7])
+    np.testing.assert_allclose(log.signal("accel_body_z_m_s2").t_s, [0.0, 0.02])
+    assert log.params == {"FRAME": 1.0} and log.fmt == "dataflash"
