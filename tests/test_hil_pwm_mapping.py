@@ -1,0 +1,52 @@
+"""PWM mapping: trim/min/max, reversal, deadband, throttle, ArduPilot params, bad configs and pulses."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from hil_adapter.pwm_mapping import Channel, MappingError, PwmMapping
+from tests.conftest import shared_data
+
+
+def test_surface_trim_min_max_reversed_and_deadband() -> None:
+    ail = Channel("aileron_rad", 1, 1100, 1500, 1900, -0.35, 0.35, deadband_us=5)
+    assert ail.to_input(1500) == 0.0 and ail.to_input(1504) == 0.0
+    assert ail.to_input(1900) == pytest.approx(0.35) and ail.to_input(1100) == pytest.approx(-0.35)
+    assert ail.to_input(1700) == pytest.approx(0.175) and ail.to_input(2100) == pytest.approx(0.35)
+    rev = Channel("aileron_rad", 1, 1100, 1500, 1900, -0.35, 0.35, reversed=True)
+    assert rev.to_input(1900) == pytest.approx(-0.35)
+
+
+def test_throttle_is_one_sided() -> None:
+    thr = Channel("throttle", 3, 1000, 1000, 2000, 0.0, 1.0)
+    assert thr.to_input(1000) == 0.0 and thr.to_input(1500) == 0.5 and thr.to_input(2000) == 1.0
+
+
+def test_nan_and_implausible_pulses_are_errors() -> None:
+    ch = Channel("throttle", 3, 1000, 1000, 2000, 0.0, 1.0)
+    for bad in (math.nan, 0.0, 3000.0):
+        with pytest.raises(MappingError, match="channel 3 \\(throttle\\)"):
+            ch.to_input(bad)
+
+
+def test_config_errors_list_every_problem(tmp_path) -> None:
+    f = tmp_path / "m.toml"
+    f.write_text("[channels.aileron_rad]\nsource = 40\nmin_us = 1900\ntrim_us = 1500\nmax_us = 1100\n"
+                 "[channels.throttle]\nsource = 3\nout_min = 1.0\nout_max = 0.0\n")
+    with pytest.raises(MappingError) as err:
+        PwmMapping.load(f)
+    text = str(err.value)
+    assert str(f) in text and "source = 40" in text and "min_us <= trim_us" in text and "out_min 1.0" in text
+
+
+def test_from_ardupilot_params_of_the_sitl_plane_log() -> None:
+    from identification.readers import read_log
+
+    log = read_log(shared_data("fixed_wing", "arduplane_sitl_takeoff_00000012.BIN"))
+    m = PwmMapping.from_ardupilot(log.params)
+    assert {c.target for c in m.channels} == {"aileron_rad", "elevator_rad", "rudder_rad", "throttle"}
+    trims = {c.source: c.trim_us for c in m.channels}
+    out = m.apply({n: trims[n] for n in trims})
+    assert out["aileron_rad"] == 0.0 and out["throttle"] == 0.0
