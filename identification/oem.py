@@ -1,11 +1,15 @@
 """Output-error estimation of model parameters (Maine & Iliff, NASA RP-1168; Jategaonkar; Morelli's ``oe.m``).
 
 The model is simulated with the recorded inputs over each manoeuvre, and its outputs are fitted to the
-measured ones by Gauss-Newton with Levenberg-Marquardt damping. Output sensitivities are CasADi's exact
-forward derivatives of the same step function the FMU compiles (``fmu_models.common.model.step_function``),
-evaluated over the whole record by one ``mapaccum`` function: no second copy of the physics, no finite
-differences. The weighting is the inverse of the residual covariance re-estimated every iteration (the
-maximum-likelihood form) or a fixed matrix B (paper 001 eq. 9).
+measured ones by Gauss-Newton with Levenberg-Marquardt damping. Output sensitivities are exact derivatives,
+by CasADi, of the same model equations the FMU compiles: the classical RK4 scheme applied to the state and
+to its forward-sensitivity equations, which for an explicit Runge-Kutta method is exactly the derivative of
+the discrete step the FMU takes. No second copy of the physics, no finite differences. The weighting is the
+inverse residual covariance re-estimated every iteration (maximum likelihood) or a given matrix B (paper 001
+eq. 9). Cramér-Rao bounds carry Morelli & Klein's correction for coloured residuals.
+
+Parameter vector: the free model parameters, then per manoeuvre the estimated initial states and output
+biases (``m<j>.x0.<state>``, ``m<j>.bias.<output>``).
 """
 
 from __future__ import annotations
@@ -13,13 +17,21 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import casadi as ca
 import numpy as np
+from tqdm import tqdm
 
 from fmu_models.common.model import VehicleModel, step_function
+from identification.jit import compiled
 
 log = logging.getLogger(__name__)
+
+#: |correlation| above which two estimates are reported as not separable by the data
+CORRELATION_WARN = 0.95
+#: Cramér-Rao std above this fraction of |estimate| is reported as poorly identified
+RELATIVE_STD_WARN = 0.5
 
 
 class EstimationError(ValueError):
@@ -28,15 +40,19 @@ class EstimationError(ValueError):
 
 @dataclass(frozen=True)
 class Manoeuvre:
-    """One record: initial state, inputs (N x nu) and measured outputs (N x ny) at a fixed sample time."""
+    """One record at a fixed sample time: initial state x0 (nx), inputs u (N x nu), measured outputs y (N x ny).
+
+    ``y[k]`` is the measurement at ``t0 + (k+1) dt_s``, after the input ``u[k]`` has acted for one step.
+    """
 
     x0: np.ndarray
     u: np.ndarray
     y: np.ndarray
     dt_s: float
+    name: str = ""
 
 
-@dataclass
+@dataclass(frozen=True)
 class Iteration:
     cost: float
     step_norm: float
@@ -45,172 +61,415 @@ class Iteration:
 
 @dataclass
 class Estimate:
-    """Result: values of the free parameters, Cramér-Rao bounds, correlations, convergence history."""
+    """Result: estimates, Cramér-Rao bounds (coloured-residual corrected), correlations, convergence history."""
 
     names: list[str]
     values: np.ndarray
     crb_std: np.ndarray
+    crb_std_white: np.ndarray
     correlation: np.ndarray
     residual_cov: np.ndarray
     history: list[Iteration] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    converged: bool = False
 
     def table(self) -> str:
-        rows = [f"{'parameter':<16} {'estimate':>12} {'CR std':>10} {'std/|est| %':>12}"]
-        for n, v, s in zip(self.names, self.values, self.crb_std, strict=True):
-            rows.append(f"{n:<16} {v:12.5g} {s:10.3g} {100 * s / max(abs(v), 1e-12):12.2f}")
+        rows = [f"{'parameter':<28} {'estimate':>12} {'CR std':>10} {'white std':>10} {'std/|est| %':>12}"]
+        for n, v, s, w in zip(self.names, self.values, self.crb_std, self.crb_std_white, strict=True):
+            rows.append(f"{n:<28} {v:12.5g} {s:10.3g} {w:10.3g} {100 * s / max(abs(v), 1e-12):12.2f}")
         return "\n".join(rows)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "parameters": {n: {"value": float(v), "crb_std": float(s), "crb_std_white": float(w)}
+                           for n, v, s, w in zip(self.names, self.values, self.crb_std, self.crb_std_white,
+                                                 strict=True)},
+            "correlation": np.round(self.correlation, 6).tolist(),
+            "iterations": [vars(h) for h in self.history],
+            "converged": self.converged,
+            "warnings": self.warnings,
+        }
+
+
+def correlation_lags(r: np.ndarray) -> int:
+    """Lag window length for :func:`coloured_covariance`: twice the longest lag at which any output's residual
+    autocorrelation is still above the 95 % band of white noise (2/sqrt(N)), at most N/2."""
+    n = r.shape[0]
+    size = 1 << (2 * n - 1).bit_length()
+    rf = np.fft.rfft(r - r.mean(axis=0), n=size, axis=0)
+    acf = np.fft.irfft(np.abs(rf) ** 2, n=size, axis=0)[:n]
+    rho = acf / np.maximum(acf[0], 1e-300)
+    below = np.abs(rho) < 2.0 / np.sqrt(n)
+    first = [int(np.argmax(below[:, i])) if below[:, i].any() else n for i in range(r.shape[1])]
+    return int(min(2 * max(first), n // 2))
+
+
+def coloured_covariance(G: np.ndarray, r: np.ndarray, lags: int | None = None) -> np.ndarray:
+    """One manoeuvre's middle term of Morelli & Klein's (1997) covariance for coloured residuals.
+
+    ``G`` (N x ny x np) holds the weighted sensitivities ``W dy/dθ`` per sample, ``r`` (N x ny) the residuals.
+    Returns ``Σ_i Σ_j G_iᵀ R(j-i) G_j`` with the residual autocorrelation ``R`` (biased estimate) tapered by a
+    Bartlett window of ``lags`` lags (default :func:`correlation_lags`); the covariance is
+    ``M⁻¹ (Σ over manoeuvres) M⁻¹``. The taper keeps the estimate positive semi-definite and stops the
+    noisy far lags from shaking the bounds of white residuals. Evaluated in the frequency domain with the
+    residual cross-spectrum: O(N log N) instead of O(N L) sums of np x np products.
+    """
+    n = r.shape[0]
+    lags = correlation_lags(r) if lags is None else int(lags)
+    size = 1 << (2 * n - 1).bit_length()
+    rf = np.fft.rfft(r, n=size, axis=0)  # (F, ny)
+    R = np.fft.irfft(np.conj(rf)[:, :, None] * rf[:, None, :], n=size, axis=0) / n  # R[τ] = E[r_t r_{t+τ}ᵀ]
+    tau = np.minimum(np.arange(size), size - np.arange(size))
+    R *= np.clip(1.0 - tau / (lags + 1.0), 0.0, None)[:, None, None]
+    P = np.fft.rfft(R, axis=0)  # cross-spectral density, (F, ny, ny)
+    Gf = np.fft.rfft(G, n=size, axis=0)  # (F, ny, np)
+    w = np.full(P.shape[0], 2.0)  # rfft bins other than DC and Nyquist stand for a conjugate pair
+    w[0] = 1.0
+    if size % 2 == 0:
+        w[-1] = 1.0
+    S = np.einsum("f,fya,fyz,fzb->ab", w, Gf, P, np.conj(Gf), optimize=True).real / size
+    return 0.5 * (S + S.T)
 
 
 class OutputError:
-    """Output-error problem for ``model`` with free parameters ``free`` and fitted outputs ``outputs``."""
+    """Output-error problem for ``model``: free parameters ``free`` fitted to the outputs ``outputs``.
+
+    ``estimate_states`` names states whose initial value is estimated per manoeuvre; ``estimate_biases``
+    names outputs that get a constant bias per manoeuvre. ``constraints`` are predicates on the dict of
+    free parameters; a trial step that breaks one, or makes the simulation diverge, is rejected.
+    """
 
     def __init__(self, model: VehicleModel, p_nominal: Sequence[float], free: Sequence[str],
                  outputs: Sequence[str], bounds: dict[str, tuple[float, float]] | None = None,
-                 constraints: Sequence[Callable[[dict[str, float]], bool]] = ()) -> None:
-        unknown = [n for n in free if n not in model.params.index]
-        unknown += [n for n in outputs if n not in model.outputs.index]
+                 constraints: Sequence[Callable[[dict[str, float]], bool]] = (),
+                 estimate_states: Sequence[str] = (), estimate_biases: Sequence[str] = (),
+                 compile: bool = True) -> None:
+        unknown = [f"parameter {n!r}" for n in free if n not in model.params.index]
+        unknown += [f"output {n!r}" for n in outputs if n not in model.outputs.index]
+        unknown += [f"state {n!r}" for n in estimate_states if n not in model.states.index]
+        unknown += [f"biased output {n!r} (not among the fitted outputs)" for n in estimate_biases
+                    if n not in outputs]
         if unknown:
-            raise EstimationError(f"not parameters/outputs of {model.name}: {', '.join(unknown)}")
+            raise EstimationError(f"not known to the {model.name} model: {', '.join(unknown)}")
+        if len(set(free)) != len(free):
+            raise EstimationError(f"free parameters listed twice: {sorted(n for n in free if list(free).count(n) > 1)}")
+        bad_bounds = [n for n in (bounds or {}) if n not in free]
+        if bad_bounds:
+            raise EstimationError(f"bounds given for parameters that are not free: {', '.join(bad_bounds)}")
         self.model = model
         self.p_nominal = np.asarray(p_nominal, dtype=float)
         self.free = list(free)
         self.outputs = list(outputs)
+        self.states_est = list(estimate_states)
+        self.biases = list(estimate_biases)
         self.i_free = [model.params.index[n] for n in free]
         self.i_out = [model.outputs.index[n] for n in outputs]
+        self.i_x0 = [model.states.index[n] for n in estimate_states]
+        self.i_bias = [self.outputs.index(n) for n in estimate_biases]
         b = bounds or {}
         self.lower = np.array([b.get(n, (-np.inf, np.inf))[0] for n in free])
         self.upper = np.array([b.get(n, (-np.inf, np.inf))[1] for n in free])
+        if np.any(self.lower > self.upper):
+            raise EstimationError("a lower bound exceeds its upper bound")
         self.constraints = list(constraints)
-        self._step = step_function(model)
-        self._funcs: dict[int, ca.Function] = {}
+        self.state_limits = np.asarray(model.state_limits, dtype=float)
+        plain = self._plain_step()
+        sens = self._sensitivity_step()
+        if compile:
+            plain, sens = compiled([plain, sens], f"oem_{model.name}")
+        self._step, self._sens = plain, sens
+        self._maps: dict[tuple[str, int], ca.Function] = {}
 
-    def _augmented_step(self) -> ca.Function:
-        """One step of the state and its forward sensitivity ``S = dx/dtheta`` (SX, built once).
+    # ---------------------------------------------------------------- symbolic functions
+    @property
+    def n_local(self) -> int:
+        """Per-manoeuvre parameters: estimated initial states, then output biases."""
+        return len(self.i_x0) + len(self.i_bias)
 
-        ``S_{k+1} = (dx_{k+1}/dx_k) S_k + dx_{k+1}/dtheta`` and ``dy/dtheta = (dy/dx) S + dy/dtheta``: the
-        forward sensitivity equations of the discrete RK4 map, so the derivatives are exact for the very
-        simulation that is fitted.
+    def _plain_step(self) -> ca.Function:
+        step = step_function(self.model)
+        x, u = self.model.states.sym("x"), self.model.inputs.sym("u")
+        p, dt = self.model.params.sym("p"), ca.SX.sym("dt")
+        x1, y1 = step(x, u, p, dt)
+        return ca.Function("oem_step", [x, u, p, dt], [x1, y1[self.i_out]])
+
+    def _sensitivity_step(self) -> ca.Function:
+        """``(xa, u, p, dt) -> (xa_next, [y; vec(dy/dθ)])`` with ``xa = [x; vec(S)]``, ``S = dx/dθ``.
+
+        θ is the free parameters followed by the estimated initial states (whose sensitivity enters only
+        through ``S0``). RK4 on ``ẋ = f``, ``Ṡ = f_x S + f_θ`` with shared stages equals the Jacobian of the
+        RK4 map, at a fraction of the cost of differentiating the composed step symbolically.
         """
-        nx, nth = len(self.model.states), len(self.free)
-        x = ca.SX.sym("x", nx)
-        S = ca.SX.sym("S", nx, nth)
-        u = ca.SX.sym("u", len(self.model.inputs))
-        p = ca.SX.sym("p", len(self.model.params))
-        dt = ca.SX.sym("dt")
-        x1, y1 = self._step(x, u, p, dt)
-        y1 = y1[self.i_out]
-        th = ca.vertcat(*[p[i] for i in self.i_free])
-        S1 = ca.jacobian(x1, x) @ S + ca.jacobian(x1, th)
-        dy = ca.jacobian(y1, x) @ S + ca.jacobian(y1, th)
-        xa = ca.vertcat(x, ca.vec(S))
-        xa1 = ca.vertcat(x1, ca.vec(S1))
-        return ca.Function("aug", [xa, u, p, dt], [xa1, ca.vertcat(y1, ca.vec(dy))])
+        m = self.model
+        nx, nth, ns = len(m.states), len(self.free), len(self.free) + len(self.i_x0)
+        x, u = m.states.sym("x"), m.inputs.sym("u")
+        p, dt = m.params.sym("p"), ca.SX.sym("dt")
+        S = ca.SX.sym("S", nx, ns)
+        th = ca.vertcat(*[p[i] for i in self.i_free]) if nth else ca.SX(0, 1)
+        xs = ca.SX.sym("xs", nx)
+        fx = m.derivatives(0.0, xs, u, p)
+        jac = ca.Function("fjac", [xs, u, p], [fx, ca.jacobian(fx, xs), ca.jacobian(fx, th)])
+        pad = ca.SX(nx, ns - nth)
 
-    def _sim_function(self, n: int) -> ca.Function:
-        """``(xa0, U, p, dt) -> (Xa, [Y; dY/dtheta])`` over ``n`` samples, built once per record length."""
-        if n not in self._funcs:
-            if not hasattr(self, "_aug"):
-                self._aug = self._augmented_step()
-            self._funcs[n] = self._aug.mapaccum("sens", n)
-        return self._funcs[n]
+        def stage(xx: Any, SS: Any) -> tuple[Any, Any]:
+            k, A, B = jac(xx, u, p)
+            return k, A @ SS + ca.horzcat(B, pad)
 
-    def simulate(self, theta: np.ndarray, m: Manoeuvre) -> tuple[np.ndarray, np.ndarray]:
-        """Model outputs (N x ny) and sensitivities (N*ny x n_free) for manoeuvre ``m``.
+        k1, K1 = stage(x, S)
+        k2, K2 = stage(x + dt / 2 * k1, S + dt / 2 * K1)
+        k3, K3 = stage(x + dt / 2 * k2, S + dt / 2 * K2)
+        k4, K4 = stage(x + dt * k3, S + dt * K3)
+        xr = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        Sr = S + dt / 6 * (K1 + 2 * K2 + 2 * K3 + K4)
+        post = m.post_step(xs, u, p)
+        post_f = ca.Function("post", [xs, u, p], [post, ca.jacobian(post, xs), ca.jacobian(post, th)])
+        x1, Px, Pth = post_f(xr, u, p)
+        S1 = Px @ Sr + ca.horzcat(Pth, pad)
+        y = m.outputs_fn(xs, u, p)[self.i_out]
+        out_f = ca.Function("out", [xs, u, p], [y, ca.jacobian(y, xs), ca.jacobian(y, th)])
+        y1, Hx, Hth = out_f(x1, u, p)
+        dy = Hx @ S1 + ca.horzcat(Hth, ca.SX(len(self.i_out), ns - nth))
+        xa1, ya = ca.cse([ca.vertcat(x1, ca.vec(S1)), ca.vertcat(y1, ca.vec(dy))])
+        return ca.Function("oem_sens", [ca.vertcat(x, ca.vec(S)), u, p, dt], [xa1, ya])
 
-        Output row k is the model's output after k+1 steps, so ``m.y[k]`` is the measurement at t_{k+1}.
-        """
-        n = m.u.shape[0]
-        ny, nth = len(self.outputs), len(self.free)
+    def _map(self, kind: str, n: int) -> ca.Function:
+        key = (kind, n)
+        if key not in self._maps:
+            self._maps[key] = (self._step if kind == "plain" else self._sens).mapaccum(f"{kind}_{n}", n)
+        return self._maps[key]
+
+    # ---------------------------------------------------------------- simulation
+    def names(self, data: Sequence[Manoeuvre]) -> list[str]:
+        """Names of all estimated quantities, in the order of the parameter vector."""
+        out = list(self.free)
+        for j in range(len(data)):
+            out += [f"m{j}.x0.{n}" for n in self.states_est]
+            out += [f"m{j}.bias.{n}" for n in self.biases]
+        return out
+
+    def _split(self, theta: np.ndarray, j: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Model parameters, x0 overrides and biases of manoeuvre ``j`` from the full vector."""
+        nth, nl = len(self.free), self.n_local
+        if len(theta) == nth:  # model parameters only: the manoeuvre's own x0, no biases
+            return theta, np.empty(0), np.zeros(len(self.i_bias))
+        local = theta[nth + j * nl: nth + (j + 1) * nl]
+        return theta[:nth], local[:len(self.i_x0)], local[len(self.i_x0):]
+
+    def _setup(self, theta: np.ndarray, j: int, m: Manoeuvre) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        glob, x0e, bias = self._split(theta, j)
         p = self.p_nominal.copy()
-        p[self.i_free] = theta
-        xa0 = np.concatenate([np.asarray(m.x0, dtype=float), np.zeros(len(self.model.states) * nth)])
-        _, out = self._sim_function(n)(xa0, m.u.T, p, m.dt_s)
-        out = np.asarray(out)  # (ny + ny*nth) x n
-        y = out[:ny].T
-        # dy/dtheta per sample is column-major (ny x nth); stack samples as rows k*ny + i
-        jac = out[ny:].T.reshape(n, nth, ny).transpose(0, 2, 1).reshape(n * ny, nth)
-        return y, jac
+        p[self.i_free] = glob
+        x0 = np.array(m.x0, dtype=float)
+        if len(x0e):
+            x0[self.i_x0] = x0e
+        b = np.zeros(len(self.outputs))
+        b[self.i_bias] = bias
+        return p, x0, b
 
-    def _residuals(self, theta: np.ndarray, data: Sequence[Manoeuvre]) -> tuple[np.ndarray, list[np.ndarray]]:
-        res, jacs = [], []
-        for m in data:
-            y, j = self.simulate(theta, m)
-            res.append(m.y - y)
-            jacs.append(j)
-        return np.vstack(res), jacs
+    def simulate(self, theta: np.ndarray, m: Manoeuvre, j: int = 0, sensitivities: bool = True
+                 ) -> tuple[np.ndarray, np.ndarray | None, bool]:
+        """Outputs (N x ny), sensitivities (N x ny x n_global+n_local or None) and a divergence flag.
 
+        Row k is the output after k+1 steps, matched to ``m.y[k]``. ``j`` is the manoeuvre's index in the
+        parameter vector (selects its initial states and biases).
+        """
+        n, ny = m.u.shape[0], len(self.outputs)
+        nth, nxe = len(self.free), len(self.i_x0)
+        p, x0, b = self._setup(theta, j, m)
+        if not sensitivities:
+            X, Y = self._map("plain", n)(x0, m.u.T, p, m.dt_s)
+            X, y = np.asarray(X).T, np.asarray(Y).T + b
+            return y, None, self._diverged(X, y)
+        nx = len(x0)
+        S0 = np.zeros((nx, nth + nxe))
+        S0[self.i_x0, nth + np.arange(nxe)] = 1.0
+        Xa, out = self._sens_map(n)(np.concatenate([x0, S0.ravel(order="F")]), m.u.T, p, m.dt_s)
+        out = np.asarray(out).T  # N x (ny + ny*ns), dy/dθ column-major (ny x ns)
+        y = out[:, :ny] + b
+        dy = out[:, ny:].reshape(n, nth + nxe, ny).transpose(0, 2, 1)
+        jac = np.zeros((n, ny, nth + self.n_local))
+        jac[:, :, :nth + nxe] = dy
+        for k, i in enumerate(self.i_bias):
+            jac[:, i, nth + nxe + k] = 1.0
+        return y, jac, self._diverged(np.asarray(Xa)[:nx].T, y)
+
+    def _sens_map(self, n: int) -> ca.Function:
+        return self._map("sens", n)
+
+    def _diverged(self, X: np.ndarray, y: np.ndarray) -> bool:
+        if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
+            return True
+        return bool(np.any(np.abs(X) > self.state_limits))
+
+    def _local_index(self, j: int) -> np.ndarray:
+        """Columns of the full parameter vector that manoeuvre ``j``'s sensitivities fill."""
+        nth, nl = len(self.free), self.n_local
+        return np.concatenate([np.arange(nth), nth + j * nl + np.arange(nl)]).astype(int)
+
+    # ---------------------------------------------------------------- estimation
     def estimate(self, data: Sequence[Manoeuvre], theta0: Sequence[float] | None = None,
                  weight: np.ndarray | None = None, max_iter: int = 30, tol: float = 1e-9,
-                 progress: bool = False) -> Estimate:
-        """Levenberg-Marquardt on the weighted output error; returns the estimate with its CR bounds."""
-        theta = np.array(theta0 if theta0 is not None else self.p_nominal[self.i_free], dtype=float)
-        ny = len(self.outputs)
-        r, jacs = self._residuals(theta, data)
-        if not np.all(np.isfinite(r)):
-            raise EstimationError("the model diverges at the initial parameters; start closer or fix parameters")
+                 progress: bool = False, horizon_s: float | None = None) -> Estimate:
+        """Levenberg-Marquardt on the weighted output error; returns the estimate with its CR bounds.
 
-        def weight_of(res: np.ndarray) -> np.ndarray:
+        ``theta0`` covers the free parameters only (default: their nominal values) or the full vector.
+        Initial states start from each manoeuvre's ``x0`` and biases from zero. ``horizon_s`` turns on
+        continuation in record length: fit the first ``horizon_s`` seconds of every manoeuvre, then twice
+        that, and so on up to the whole record. A start far from the truth makes long records strongly
+        nonlinear in the parameters (slow modes drift apart); the short fits walk it into the basin first.
+        """
+        data = list(data)
+        self._check(data, weight)
+        names = self.names(data)
+        theta = self._start(data, theta0)
+        history: list[Iteration] = []
+        n_max = max(m.u.shape[0] for m in data)
+        horizons = []
+        if horizon_s is not None:
+            n_h = max(round(horizon_s / data[0].dt_s), 10)
+            while n_h < n_max:
+                horizons.append(n_h)
+                n_h *= 2
+        bar = tqdm(total=max_iter, desc="output error", unit="it", disable=not progress, leave=False)
+        for n_h in horizons:
+            short = [Manoeuvre(m.x0, m.u[:n_h], m.y[:n_h], m.dt_s, m.name) for m in data]
+            bar.set_description(f"output error, first {n_h * data[0].dt_s:g} s")
+            theta, *_ = self._solve(short, theta, weight, max_iter, 1e-4, history, bar)
+        bar.set_description("output error")
+        theta, res, jacs, W, converged = self._solve(data, theta, weight, max_iter, tol, history, bar)
+        bar.close()
+        return self._statistics(data, names, theta, res, jacs, W, history, converged)
+
+    def _solve(self, data: list[Manoeuvre], theta: np.ndarray, weight: np.ndarray | None, max_iter: int,
+               tol: float, history: list[Iteration], bar: tqdm) -> tuple[np.ndarray, list[np.ndarray],
+                                                                          list[Any], np.ndarray, bool]:
+        """The LM iterations on one set of records; appends to ``history``."""
+        sims = [self.simulate(theta, m, j) for j, m in enumerate(data)]
+        if any(s[2] for s in sims):
+            raise EstimationError("the model diverges at the start values: start closer or fix more parameters")
+
+        def weight_of(res: list[np.ndarray]) -> np.ndarray:
             if weight is not None:
                 return np.asarray(weight, dtype=float)
-            cov = np.diag(np.maximum(np.mean(res**2, axis=0), 1e-300))
-            return np.linalg.inv(cov)
+            var = np.mean(np.vstack(res) ** 2, axis=0)
+            return np.diag(1.0 / np.maximum(var, 1e-300))
 
-        W = weight_of(r)
-        cost = 0.5 * float(np.sum((r @ W) * r))
+        def cost_of(res: list[np.ndarray], W: np.ndarray) -> float:
+            return 0.5 * sum(float(np.sum((r @ W) * r)) for r in res)
+
+        res = [m.y - s[0] for m, s in zip(data, sims, strict=True)]
+        jacs = [s[1] for s in sims]
+        W = weight_of(res)
+        cost = cost_of(res, W)
         lam = 1e-3
-        history: list[Iteration] = []
-        for it in range(max_iter):
-            M = np.zeros((len(theta), len(theta)))
-            g = np.zeros(len(theta))
-            row = 0
-            for m, j in zip(data, jacs, strict=True):
-                n = m.u.shape[0]
-                # vec(Y) is column-major over (ny, n): sample k's outputs are rows k*ny .. k*ny+ny-1
-                J3 = j.reshape(n, ny, -1)
-                rk = r[row:row + n]
-                M += np.einsum("kia,ij,kjb->ab", J3, W, J3)
-                g += np.einsum("kia,ij,kj->a", J3, W, rk)
-                row += n
+        converged = False
+        lower = np.concatenate([self.lower, np.full(len(theta) - len(self.free), -np.inf)])
+        upper = np.concatenate([self.upper, np.full(len(theta) - len(self.free), np.inf)])
+        for _ in range(max_iter):
+            M, g = self._normal_equations(res, jacs, W, len(theta))
+            scale = np.maximum(np.diag(M), 1e-12 * max(np.max(np.diag(M)), 1e-300))
             accepted = False
-            while lam < 1e10:
-                step = np.linalg.solve(M + lam * np.diag(np.diag(M)), g)
-                trial = np.clip(theta + step, self.lower, self.upper)
-                named = dict(zip(self.free, trial, strict=True))
+            while lam < 1e12:
+                step = np.linalg.solve(M + lam * np.diag(scale), g)
+                trial = np.clip(theta + step, lower, upper)
+                named = dict(zip(self.free, trial[:len(self.free)], strict=True))
                 if all(c(named) for c in self.constraints):
-                    r_t, j_t = self._residuals(trial, data)
-                    if np.all(np.isfinite(r_t)):
-                        cost_t = 0.5 * float(np.sum((r_t @ W) * r_t))
+                    plain = [self.simulate(trial, m, j, sensitivities=False) for j, m in enumerate(data)]
+                    if not any(s[2] for s in plain):
+                        res_t = [m.y - s[0] for m, s in zip(data, plain, strict=True)]
+                        cost_t = cost_of(res_t, W)
                         if cost_t <= cost:
                             accepted = True
                             break
                 lam *= 10.0
             if not accepted:
+                converged = True  # no descent direction left at machine precision: a minimum
                 break
-            rel = abs(cost - cost_t) / max(cost, 1e-300)
+            rel = (cost - cost_t) / max(cost, 1e-300)
             step_norm = float(np.linalg.norm(trial - theta) / max(np.linalg.norm(theta), 1e-12))
-            theta, r, jacs, cost = trial, r_t, j_t, cost_t
-            W = weight_of(r)
-            cost = 0.5 * float(np.sum((r @ W) * r))
+            theta = trial
+            sims = [self.simulate(theta, m, j) for j, m in enumerate(data)]
+            res = [m.y - s[0] for m, s in zip(data, sims, strict=True)]
+            jacs = [s[1] for s in sims]
+            W = weight_of(res)
+            cost = cost_of(res, W)
             history.append(Iteration(cost, step_norm, lam))
-            if progress:
-                print(f"  iteration {it + 1:2d}: cost {cost:.6g}  step {step_norm:.3g}  damping {lam:.1e}")
+            log.info("iteration %d: cost %.6g, relative step %.3g, damping %.1e", len(history), cost, step_norm, lam)
+            bar.update(1)
+            bar.set_postfix(cost=f"{cost:.4g}", step=f"{step_norm:.2g}", damping=f"{lam:.0e}")
             lam = max(lam / 10.0, 1e-9)
-            if rel < tol and step_norm < 1e-8:
+            if (rel < tol and step_norm < 1e-6) or step_norm < 1e-10:
+                converged = True
                 break
-        # Cramér-Rao bounds from the information matrix at the solution
-        M = np.zeros((len(theta), len(theta)))
-        for m, j in zip(data, jacs, strict=True):
-            J3 = j.reshape(m.u.shape[0], ny, -1)
-            M += np.einsum("kia,ij,kjb->ab", J3, W, J3)
-        cov = np.linalg.pinv(M)
+        return theta, res, jacs, W, converged
+
+    def _check(self, data: list[Manoeuvre], weight: np.ndarray | None) -> None:
+        if not data:
+            raise EstimationError("no manoeuvres given")
+        nu, ny, nx = len(self.model.inputs), len(self.outputs), len(self.model.states)
+        for j, m in enumerate(data):
+            label = m.name or f"manoeuvre {j}"
+            if m.u.ndim != 2 or m.u.shape[1] != nu:
+                raise EstimationError(f"{label}: inputs must be N x {nu}, got {m.u.shape}")
+            if m.y.shape != (m.u.shape[0], ny):
+                raise EstimationError(f"{label}: outputs must be {m.u.shape[0]} x {ny}, got {m.y.shape}")
+            if np.shape(m.x0) != (nx,):
+                raise EstimationError(f"{label}: x0 must have {nx} states, got {np.shape(m.x0)}")
+            if not (np.all(np.isfinite(m.u)) and np.all(np.isfinite(m.y))):
+                raise EstimationError(f"{label}: inputs or outputs contain NaN or inf")
+            if not m.dt_s > 0:
+                raise EstimationError(f"{label}: sample time {m.dt_s} s must be positive")
+        if weight is not None and np.shape(weight) != (ny, ny):
+            raise EstimationError(f"weight matrix must be {ny} x {ny}, got {np.shape(weight)}")
+
+    def _start(self, data: list[Manoeuvre], theta0: Sequence[float] | None) -> np.ndarray:
+        n_total = len(self.free) + len(data) * self.n_local
+        if theta0 is not None and len(theta0) == n_total:
+            return np.array(theta0, dtype=float)
+        glob = np.array(theta0 if theta0 is not None else self.p_nominal[self.i_free], dtype=float)
+        if glob.shape != (len(self.free),):
+            raise EstimationError(f"theta0 must have {len(self.free)} or {n_total} entries, got {glob.shape}")
+        local = [np.concatenate([np.asarray(m.x0, dtype=float)[self.i_x0], np.zeros(len(self.i_bias))])
+                 for m in data]
+        return np.concatenate([glob, *local]) if local else glob
+
+    def _normal_equations(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray,
+                          n_total: int) -> tuple[np.ndarray, np.ndarray]:
+        M = np.zeros((n_total, n_total))
+        g = np.zeros(n_total)
+        for j, (r, J) in enumerate(zip(res, jacs, strict=True)):
+            idx = self._local_index(j)
+            JW = np.einsum("kia,ij->kja", J, W)
+            M[np.ix_(idx, idx)] += np.einsum("kja,kjb->ab", JW, J)
+            g[idx] += np.einsum("kja,kj->a", JW, r)
+        return M, g
+
+    def _statistics(self, data: list[Manoeuvre], names: list[str], theta: np.ndarray, res: list[np.ndarray],
+                    jacs: list[Any], W: np.ndarray, history: list[Iteration], converged: bool) -> Estimate:
+        """Cramér-Rao bounds (white and coloured-residual), correlation matrix, identifiability warnings."""
+        n_total = len(theta)
+        M, _ = self._normal_equations(res, jacs, W, n_total)
+        M_inv = np.linalg.pinv(M)
+        std_white = np.sqrt(np.maximum(np.diag(M_inv), 0.0))
+        middle = np.zeros_like(M)
+        for j, (r, J) in enumerate(zip(res, jacs, strict=True)):
+            idx = self._local_index(j)
+            G = np.einsum("ij,kia->kja", W, J)
+            middle[np.ix_(idx, idx)] += coloured_covariance(G, r)
+        cov = M_inv @ middle @ M_inv
         std = np.sqrt(np.maximum(np.diag(cov), 0.0))
-        corr = cov / np.outer(np.maximum(std, 1e-300), np.maximum(std, 1e-300))
+        d = np.maximum(std, 1e-300)
+        corr = cov / np.outer(d, d)
         warnings = []
-        for i, n in enumerate(self.free):
-            if std[i] > 0.5 * abs(theta[i]):
-                warnings.append(f"{n}: Cramér-Rao std {std[i]:.3g} exceeds half the estimate - poorly identified")
-            for k in range(i + 1, len(self.free)):
-                if abs(corr[i, k]) > 0.95:
-                    warnings.append(f"{n} and {self.free[k]} are correlated ({corr[i, k]:+.3f})")
-        return Estimate(self.free, theta, std, corr, np.linalg.inv(W), history, warnings)
+        for i, n in enumerate(names):
+            if std[i] > RELATIVE_STD_WARN * abs(theta[i]):
+                warnings.append(f"{n}: Cramér-Rao std {std[i]:.3g} exceeds {RELATIVE_STD_WARN:.0%} of the estimate "
+                                f"{theta[i]:.4g} - the data hardly identify it")
+            for k in range(i + 1, n_total):
+                if abs(corr[i, k]) > CORRELATION_WARN:
+                    warnings.append(f"{n} and {names[k]} are correlated ({corr[i, k]:+.3f}): the data cannot "
+                                    "separate them")
+        for w in warnings:
+            log.warning(w)
+        resid_cov = np.cov(np.vstack(res).T, bias=True).reshape(len(self.outputs), len(self.outputs))
+        return Estimate(names, theta, std, std_white, corr, resid_cov, history, warnings, converged)

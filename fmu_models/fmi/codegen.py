@@ -99,9 +99,10 @@ def find_compiler() -> str | None:
     return None
 
 
-def compile_library(c_file: Path, library: Path, compiler: str, extra: list[str] | None = None) -> None:
+def compile_library(c_file: Path, library: Path, compiler: str, extra: list[str] | None = None,
+                    optimisation: str = "-O2") -> None:
     """Compile generated C into a shared library; raise ``CompileError`` with the compiler's output."""
-    cmd = [compiler, "-O2", "-fPIC", "-shared", "-o", str(library), str(c_file), "-lm", *(extra or [])]
+    cmd = [compiler, optimisation, "-fPIC", "-shared", "-o", str(library), str(c_file), "-lm", *(extra or [])]
     proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
     if proc.returncode != 0:
         raise CompileError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-4000:]}")
