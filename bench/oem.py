@@ -106,7 +106,7 @@ def main() -> int:
         n_h = min(n_h, data[0].u.shape[0])
         records = [Manoeuvre(m.x0, m.u[:n_h], m.y[:n_h], m.dt_s) for m in data]
         last = n_h == data[0].u.shape[0]
-        tol = 1e-10 if last else 1e-4
+        tol = 1e-9 if last else 1e-4  # ours: relative cost change 1e-9, then 1e-4
         ref = least_squares(residual, x, method="trf", jac="2-point", x_scale="jac", xtol=tol, ftol=tol,
                             max_nfev=2000, args=(records,))
         x, nfev, njev = ref.x, nfev + ref.nfev, njev + ref.njev

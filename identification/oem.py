@@ -232,11 +232,34 @@ class OutputError:
         xa1, ya = ca.cse([ca.vertcat(x1, ca.vec(S1)), ca.vertcat(y1, ca.vec(dy))])
         return ca.Function("oem_sens", [ca.vertcat(x, ca.vec(S)), u, p, dt], [xa1, ya])
 
-    def _map(self, kind: str, n: int) -> ca.Function:
+    def _run(self, kind: str, xa0: np.ndarray, u: np.ndarray, p: np.ndarray, dt: float
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """Evaluate the plain or sensitivity step over the record; returns states and outputs, one row per step.
+
+        CasADi's buffer interface writes straight into numpy arrays: converting a DM result element by
+        element costs more than the compiled simulation itself.
+        """
+        n = u.shape[0]
         key = (kind, n)
         if key not in self._maps:
-            self._maps[key] = (self._step if kind == "plain" else self._sens).mapaccum(f"{kind}_{n}", n)
-        return self._maps[key]
+            step = self._step if kind == "plain" else self._sens
+            acc = step.mapaccum(f"{kind}_{n}_acc", n)
+            # wrap so p and dt are single columns (mapaccum maps every non-accumulated input)
+            sym = [ca.MX.sym(step.name_in(i), step.size1_in(i), n if i == 1 else 1) for i in range(4)]
+            self._maps[key] = ca.Function(f"{kind}_{n}", sym, acc(*sym))
+        f = self._maps[key]
+        # C-order (n, rows) arrays are CasADi's column-major (rows, n) matrices
+        args = [np.ascontiguousarray(xa0, dtype=float), np.ascontiguousarray(u, dtype=float),
+                np.ascontiguousarray(p, dtype=float), np.array([dt], dtype=float)]
+        X = np.empty((n, f.size1_out(0)))
+        Y = np.empty((n, f.size1_out(1)))
+        buf, evaluate = f.buffer()
+        for i, a in enumerate(args):
+            buf.set_arg(i, memoryview(a))
+        buf.set_res(0, memoryview(X))
+        buf.set_res(1, memoryview(Y))
+        evaluate()
+        return X, Y
 
     # ---------------------------------------------------------------- simulation
     def names(self, data: Sequence[Manoeuvre]) -> list[str]:
@@ -277,24 +300,21 @@ class OutputError:
         nth, nxe = len(self.free), len(self.i_x0)
         p, x0, b = self._setup(theta, j, m)
         if not sensitivities:
-            X, Y = self._map("plain", n)(x0, m.u.T, p, m.dt_s)
-            X, y = np.asarray(X).T, np.asarray(Y).T + b
+            X, Y = self._run("plain", x0, m.u, p, m.dt_s)
+            y = Y + b
             return y, None, self._diverged(X, y)
         nx = len(x0)
         S0 = np.zeros((nx, nth + nxe))
         S0[self.i_x0, nth + np.arange(nxe)] = 1.0
-        Xa, out = self._sens_map(n)(np.concatenate([x0, S0.ravel(order="F")]), m.u.T, p, m.dt_s)
-        out = np.asarray(out).T  # N x (ny + ny*ns), dy/dθ column-major (ny x ns)
+        Xa, out = self._run("sens", np.concatenate([x0, S0.ravel(order="F")]), m.u, p, m.dt_s)
+        # out: N x (ny + ny*ns), dy/dθ column-major (ny x ns)
         y = out[:, :ny] + b
         dy = out[:, ny:].reshape(n, nth + nxe, ny).transpose(0, 2, 1)
         jac = np.zeros((n, ny, nth + self.n_local))
         jac[:, :, :nth + nxe] = dy
         for k, i in enumerate(self.i_bias):
             jac[:, i, nth + nxe + k] = 1.0
-        return y, jac, self._diverged(np.asarray(Xa)[:nx].T, y)
-
-    def _sens_map(self, n: int) -> ca.Function:
-        return self._map("sens", n)
+        return y, jac, self._diverged(Xa[:, :nx], y)
 
     def _diverged(self, X: np.ndarray, y: np.ndarray) -> bool:
         if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
@@ -398,7 +418,7 @@ class OutputError:
             bar.update(1)
             bar.set_postfix(cost=f"{cost:.4g}", step=f"{step_norm:.2g}", damping=f"{lam:.0e}")
             lam = max(lam / 10.0, 1e-9)
-            if (rel < tol and step_norm < 1e-6) or step_norm < 1e-10:
+            if rel < tol or step_norm < 1e-10:  # cost settled (flat valleys of unidentifiable sets crawl on)
                 converged = True
                 break
         return theta, res, jacs, W, converged
@@ -437,11 +457,12 @@ class OutputError:
                           n_total: int) -> tuple[np.ndarray, np.ndarray]:
         M = np.zeros((n_total, n_total))
         g = np.zeros(n_total)
+        L = np.linalg.cholesky(W).T  # W = Lᵀ L: whiten, then one BLAS product per manoeuvre
         for j, (r, J) in enumerate(zip(res, jacs, strict=True)):
             idx = self._local_index(j)
-            JW = np.einsum("kia,ij->kja", J, W)
-            M[np.ix_(idx, idx)] += np.einsum("kja,kjb->ab", JW, J)
-            g[idx] += np.einsum("kja,kj->a", JW, r)
+            Jw = np.matmul(L, J).reshape(-1, J.shape[2])
+            M[np.ix_(idx, idx)] += Jw.T @ Jw
+            g[idx] += Jw.T @ (r @ L.T).ravel()
         return M, g
 
     def _statistics(self, data: list[Manoeuvre], names: list[str], theta: np.ndarray, res: list[np.ndarray],
