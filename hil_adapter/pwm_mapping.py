@@ -58,6 +58,20 @@ class Channel:
         half = self.out_max if frac >= 0 else -self.out_min
         return frac * half
 
+    def to_pwm(self, value: float) -> float:
+        """The pulse width [us] that :meth:`to_input` maps to ``value`` (clipped to the channel's range);
+        used to write synthetic logs as an autopilot would have logged its outputs."""
+        v = min(max(value, self.out_min), self.out_max)
+        if self.out_min >= 0.0 or self.trim_us <= self.min_us:
+            full = (v - self.out_min) / (self.out_max - self.out_min)
+            if self.reversed:
+                full = 1.0 - full
+            return self.min_us + full * (self.max_us - self.min_us)
+        frac = v / self.out_max if v >= 0 else v / -self.out_min
+        if self.reversed:
+            frac = -frac
+        return self.trim_us + frac * ((self.max_us - self.trim_us) if frac >= 0 else (self.trim_us - self.min_us))
+
 
 @dataclass(frozen=True)
 class PwmMapping:

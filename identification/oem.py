@@ -350,7 +350,7 @@ class OutputError:
             while n_h < n_max:
                 horizons.append(n_h)
                 n_h *= 2
-        bar = tqdm(total=max_iter, desc="output error", unit="it", disable=not progress, leave=False)
+        bar = tqdm(desc="output error", unit="it", disable=not progress, leave=False)
         for n_h in horizons:
             short = [Manoeuvre(m.x0, m.u[:n_h], m.y[:n_h], m.dt_s, m.name) for m in data]
             bar.set_description(f"output error, first {n_h * data[0].dt_s:g} s")
@@ -412,13 +412,14 @@ class OutputError:
             res = [m.y - s[0] for m, s in zip(data, sims, strict=True)]
             jacs = [s[1] for s in sims]
             W = weight_of(res)
-            cost = cost_of(res, W)
-            history.append(Iteration(cost, step_norm, lam))
-            log.info("iteration %d: cost %.6g, relative step %.3g, damping %.1e", len(history), cost, step_norm, lam)
+            cost = cost_of(res, W)  # with ML weighting this is N*ny/2 by construction: report the fitted cost
+            history.append(Iteration(cost_t, step_norm, lam))
+            log.info("iteration %d: cost %.6g, relative step %.3g, damping %.1e", len(history), cost_t, step_norm, lam)
             bar.update(1)
-            bar.set_postfix(cost=f"{cost:.4g}", step=f"{step_norm:.2g}", damping=f"{lam:.0e}")
+            bar.set_postfix(cost=f"{cost_t:.6g}", step=f"{step_norm:.2g}", damping=f"{lam:.0e}")
             lam = max(lam / 10.0, 1e-9)
-            if rel < tol or step_norm < 1e-10:  # cost settled (flat valleys of unidentifiable sets crawl on)
+            # cost settled, or parameters settled (flat valleys of unidentifiable sets crawl on otherwise)
+            if rel < tol or step_norm < 1e-8:
                 converged = True
                 break
         return theta, res, jacs, W, converged

@@ -168,3 +168,60 @@ def thrust_curve(
     ax.set_ylabel("F_z [N]")
     ax.set_title("thrust versus PWM (paper 000 Fig. 6)")
     return save(fig, path)
+
+
+# --------------------------------------------------------------------------- paper 001 (output error)
+def aero_overlay(path: str | Path, title: str, t_s: np.ndarray, measured: np.ndarray, model: np.ndarray,
+                 outputs: Sequence[str], period_s: float, theil: dict[str, float] | None = None) -> Path:
+    """Measured vs model per output over concatenated segments (paper 001 Fig. 1 is the roll angle)."""
+    fig, axes = figure(len(outputs), 1, sharex=True, squeeze=False,
+                       figsize=(FIGSIZE_IN[0], 1.0 + 1.7 * len(outputs)))
+    for i, (ax, name) in enumerate(zip(axes[:, 0], outputs, strict=True)):
+        tm, ym = _with_gaps(t_s, measured[:, i], period_s)
+        _, yp = _with_gaps(t_s, model[:, i], period_s)
+        ax.plot(tm, ym, lw=1.0, color="0.3", label="log")
+        ax.plot(tm, yp, lw=1.2, color="tab:red", label="model")
+        u = f"  (Theil U {theil[name]:.3f})" if theil and name in theil else ""
+        ax.set_ylabel(name, fontsize=8)
+        ax.set_title(f"{name}{u}", fontsize=9)
+        ax.grid(True, alpha=0.3)
+    axes[0, 0].legend(loc="best", fontsize=8)
+    axes[-1, 0].set_xlabel("log time [s]")
+    fig.suptitle(title, fontsize=10)
+    return save(fig, path)
+
+
+def aero_residuals(path: str | Path, t_s: np.ndarray, residuals: np.ndarray, outputs: Sequence[str],
+                   period_s: float) -> Path:
+    """Output residuals (log - model) per output, over the fit segments."""
+    fig, axes = figure(len(outputs), 1, sharex=True, squeeze=False,
+                       figsize=(FIGSIZE_IN[0], 1.0 + 1.4 * len(outputs)))
+    for i, (ax, name) in enumerate(zip(axes[:, 0], outputs, strict=True)):
+        tm, r = _with_gaps(t_s, residuals[:, i], period_s)
+        ax.plot(tm, r, lw=0.8, color="tab:purple")
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_ylabel(name, fontsize=8)
+        ax.grid(True, alpha=0.3)
+    axes[-1, 0].set_xlabel("log time [s]")
+    fig.suptitle("residuals on the fit segments", fontsize=10)
+    return save(fig, path)
+
+
+def aero_parameters(path: str | Path, names: Sequence[str], start: np.ndarray, estimate: np.ndarray,
+                    crb_std: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> Path:
+    """Each estimate with its 2-sigma Cramér-Rao bar, its start value and its bounds, scaled by |start|."""
+    scale = np.where(np.abs(start) > 1e-12, np.abs(start), 1.0)
+    y = np.arange(len(names))
+    fig, ax = figure(figsize=(FIGSIZE_IN[0], 1.2 + 0.35 * len(names)))
+    ax.errorbar(estimate / scale, y, xerr=2 * crb_std / scale, fmt="o", color="tab:blue", capsize=3,
+                label="estimate ± 2 CR std")
+    ax.plot(start / scale, y, "x", color="0.4", label="start")
+    for k in range(len(names)):
+        for b in (lower[k], upper[k]):
+            if np.isfinite(b):
+                ax.plot([b / scale[k]] * 2, [k - 0.3, k + 0.3], color="tab:red", lw=2)
+    ax.set_yticks(y, names, fontsize=8)
+    ax.set_xlabel("value / |start value|  (red: bounds)")
+    ax.grid(True, axis="x", alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    return save(fig, path)

@@ -1,0 +1,172 @@
+"""From a fixed-wing flight log to output-error manoeuvres, and back to scored model outputs.
+
+Inputs come from the log's servo PWM through :mod:`hil_adapter.pwm_mapping` (the same mapping the HIL
+adapter drives the FMU with; ArduPilot ``SERVOn_*`` parameters in the log fill it). Measured outputs are
+the log's canonical signals (``identification.flightlog``), resampled onto a uniform grid. Each segment
+starts from the log's own state at its first sample: attitude, body rates, altitude, and the body velocity
+from GPS velocity where logged, else the airspeed along body x.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from fmu_models.common.model import VehicleModel, init_function
+from fmu_models.common.rigid_body import quat_from_euler, quat_to_dcm
+from hil_adapter.pwm_mapping import MappingError, PwmMapping
+from identification.flightlog import FlightLog, LogError
+from identification.metrics import FitMetrics, fit_metrics
+from identification.oem import Manoeuvre
+
+#: model output -> canonical log signal
+LOG_SIGNAL = {
+    "roll_rad": "roll_rad", "pitch_rad": "pitch_rad", "yaw_rad": "yaw_rad",
+    "rate_body_x_rad_s": "gyro_body_x_rad_s", "rate_body_y_rad_s": "gyro_body_y_rad_s",
+    "rate_body_z_rad_s": "gyro_body_z_rad_s",
+    "accel_body_x_m_s2": "accel_body_x_m_s2", "accel_body_y_m_s2": "accel_body_y_m_s2",
+    "accel_body_z_m_s2": "accel_body_z_m_s2", "airspeed_m_s": "airspeed_m_s", "altitude_m": "altitude_m",
+}
+#: outputs fitted by default: attitude, body rates, specific force, airspeed (issue 4)
+DEFAULT_OUTPUTS = ("roll_rad", "pitch_rad", "rate_body_x_rad_s", "rate_body_y_rad_s", "rate_body_z_rad_s",
+                   "accel_body_x_m_s2", "accel_body_y_m_s2", "accel_body_z_m_s2", "airspeed_m_s")
+#: the roll-axis subset of paper 001's Fig. 1
+ROLL_OUTPUTS = ("roll_rad", "rate_body_x_rad_s")
+
+
+class SegmentError(ValueError):
+    """A segment specification that does not parse or lies outside the log."""
+
+
+@dataclass(frozen=True)
+class Segment:
+    t0_s: float
+    t1_s: float
+
+    def __str__(self) -> str:
+        return f"{self.t0_s:g}:{self.t1_s:g}"
+
+
+def parse_segments(text: str, option: str = "--segments") -> list[Segment]:
+    """``"t0:t1,t0:t1"`` (seconds from log start) into segments; errors name the option and the item."""
+    out = []
+    for item in filter(None, (s.strip() for s in text.split(","))):
+        try:
+            a, b = (float(v) for v in item.split(":"))
+        except ValueError:
+            raise SegmentError(f"{option}: {item!r} is not t0:t1 in seconds") from None
+        if not (math.isfinite(a) and math.isfinite(b) and b > a >= 0):
+            raise SegmentError(f"{option}: {item!r} needs 0 <= t0 < t1")
+        out.append(Segment(a, b))
+    if not out:
+        raise SegmentError(f"{option}: no segment in {text!r}")
+    return out
+
+
+def airborne_segments(log: FlightLog, length_s: float = 2.0, min_altitude_m: float = 10.0,
+                      min_airspeed_m_s: float = 12.0) -> list[Segment]:
+    """Consecutive windows of ``length_s`` where the aircraft is above ``min_altitude_m`` and flying."""
+    alt, vas = log.signal("altitude_m"), log.signal("airspeed_m_s")
+    t = np.arange(max(alt.t_s[0], vas.t_s[0]), min(alt.t_s[-1], vas.t_s[-1]), 0.1)
+    ok = (alt.resample(t) > min_altitude_m) & (vas.resample(t) > min_airspeed_m_s)
+    out, start = [], None
+    for ti, flag in zip(t, ok, strict=True):
+        if flag and start is None:
+            start = ti
+        if start is not None and (not flag or ti == t[-1]):
+            n = int((ti - start) // length_s)
+            out += [Segment(start + k * length_s, start + (k + 1) * length_s) for k in range(n)]
+            start = None
+    return out
+
+
+def grid(segment: Segment, rate_hz: float) -> np.ndarray:
+    """Sample times of a segment: ``t0, t0 + dt, ...`` up to ``t1``."""
+    n = math.floor((segment.t1_s - segment.t0_s) * rate_hz + 1e-9)
+    return segment.t0_s + np.arange(n + 1) / rate_hz
+
+
+def log_inputs(model: VehicleModel, log: FlightLog, mapping: PwmMapping, t_s: np.ndarray) -> np.ndarray:
+    """Model inputs (len(t) x nu) from the servo PWM at times ``t_s`` (zero-order hold: servo outputs are
+    commanded values that hold between log samples)."""
+    by_target = {c.target: c for c in mapping.channels}
+    missing = [n for n in model.inputs.index if n not in by_target]
+    if missing:
+        raise MappingError(f"the PWM mapping has no channel for the model inputs {', '.join(missing)}")
+    u = np.empty((len(t_s), len(model.inputs)))
+    for name, i in model.inputs.index.items():
+        ch = by_target[name]
+        sig = log.signal(f"servo_{ch.source}_pwm_us")
+        idx = np.clip(np.searchsorted(sig.t_s, t_s, side="right") - 1, 0, len(sig.t_s) - 1)
+        pwm = sig.values[idx]
+        try:
+            u[:, i] = [ch.to_input(float(v)) for v in pwm]
+        except MappingError as err:
+            raise MappingError(f"{log.source}: servo_{ch.source}_pwm_us: {err}") from None
+    return u
+
+
+def log_outputs(log: FlightLog, outputs: Sequence[str], t_s: np.ndarray) -> np.ndarray:
+    """Measured outputs (len(t) x ny) at ``t_s``, linearly interpolated."""
+    unknown = [n for n in outputs if n not in LOG_SIGNAL]
+    if unknown:
+        raise LogError(f"no log signal is known for the outputs {', '.join(unknown)}; "
+                       f"choose from {', '.join(LOG_SIGNAL)}")
+    return np.column_stack([log.signal(LOG_SIGNAL[n]).resample(t_s) for n in outputs])
+
+
+def initial_state(model: VehicleModel, p: np.ndarray, log: FlightLog, t0_s: float, u0: np.ndarray) -> np.ndarray:
+    """The model state at ``t0_s`` from the log, through the model's own initial-state function."""
+    p = p.copy()
+    at = np.array([t0_s])
+
+    def val(name: str) -> float:
+        return float(log.signal(name).resample(at)[0])
+
+    idx = model.params.index
+    roll, pitch, yaw = val("roll_rad"), val("pitch_rad"), val("yaw_rad")
+    p[idx["init_roll_rad"]], p[idx["init_pitch_rad"]], p[idx["init_yaw_rad"]] = roll, pitch, yaw
+    for axis in "xyz":
+        p[idx[f"init_rate_body_{axis}_rad_s"]] = val(f"gyro_body_{axis}_rad_s")
+    if all(log.has(f"vel_{a}_m_s") for a in ("north", "east", "down")):
+        v_ned = np.array([val(f"vel_{a}_m_s") for a in ("north", "east", "down")])
+        r_b2n = np.asarray(ca.DM(quat_to_dcm(quat_from_euler(roll, pitch, yaw))))
+        v_body = r_b2n.T @ v_ned
+    else:  # calm air, flying straight along body x: ground velocity = airspeed
+        v_body = np.array([val("airspeed_m_s"), 0.0, 0.0])
+    for axis, v in zip("xyz", v_body, strict=True):
+        p[idx[f"init_vel_body_{axis}_m_s"]] = v
+    if log.has("altitude_m"):
+        p[idx["init_pos_down_m"]] = -val("altitude_m")
+    x0, _ = init_function(model)(u0, p)
+    return np.asarray(x0).ravel()
+
+
+def manoeuvres(model: VehicleModel, p: np.ndarray, log: FlightLog, mapping: PwmMapping,
+               segments: Sequence[Segment], outputs: Sequence[str], rate_hz: float) -> list[Manoeuvre]:
+    """One :class:`Manoeuvre` per segment: inputs at ``t_k``, measurements at ``t_{k+1}``."""
+    out = []
+    end = log.duration_s
+    for seg in segments:
+        if seg.t1_s > end + 1e-6:
+            raise SegmentError(f"{log.source}: segment {seg} ends after the log ({end:.2f} s)")
+        t = grid(seg, rate_hz)
+        if len(t) < 3:
+            raise SegmentError(f"segment {seg} holds fewer than 3 samples at {rate_hz:g} Hz")
+        u = log_inputs(model, log, mapping, t[:-1])
+        y = log_outputs(log, outputs, t[1:])
+        if not np.all(np.isfinite(y)):
+            bad = [outputs[i] for i in range(len(outputs)) if not np.all(np.isfinite(y[:, i]))]
+            raise LogError(f"{log.source}: segment {seg}: {', '.join(bad)} not finite (gap in the log?)")
+        x0 = initial_state(model, p, log, seg.t0_s, u[0])
+        out.append(Manoeuvre(x0, u, y, 1.0 / rate_hz, str(seg)))
+    return out
+
+
+def score(measured: np.ndarray, model: np.ndarray, outputs: Sequence[str]) -> dict[str, FitMetrics]:
+    """Fit metrics per output over all given samples."""
+    return {n: fit_metrics(measured[:, i], model[:, i]) for i, n in enumerate(outputs)}

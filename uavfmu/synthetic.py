@@ -1,0 +1,118 @@
+"""Synthetic flight logs of the fixed-wing model: the project makes its own data (demo, tests, benchmarks).
+
+The aircraft is flown open loop from trim with 3-2-1-1 multisteps on the surfaces and a throttle step,
+simulated with the same compiled-equation RK4 step as the FMU, and written as a CSV log in the canonical
+signal names of ``identification.flightlog`` with the servo PWM an autopilot would have logged.
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+from pathlib import Path
+
+import numpy as np
+
+from fmu_models.common.simulate import Simulator
+from fmu_models.fixed_wing.model import FixedWingModel
+from fmu_models.fixed_wing.params import FixedWingParams
+from fmu_models.fixed_wing.trim import trim
+from hil_adapter.pwm_mapping import PwmMapping
+
+#: ArduPlane's default outputs: SERVO1 aileron, SERVO2 elevator, SERVO3 throttle, SERVO4 rudder
+MAPPING = PwmMapping.from_dict({"channels": {
+    "aileron_rad": {"source": 1, "min_us": 1100, "trim_us": 1500, "max_us": 1900, "out_min": -0.35,
+                    "out_max": 0.35},
+    "elevator_rad": {"source": 2, "min_us": 1100, "trim_us": 1500, "max_us": 1900, "out_min": -0.35,
+                     "out_max": 0.35},
+    "throttle": {"source": 3, "min_us": 1000, "trim_us": 1000, "max_us": 2000, "out_min": 0.0, "out_max": 1.0},
+    "rudder_rad": {"source": 4, "min_us": 1100, "trim_us": 1500, "max_us": 1900, "out_min": -0.35,
+                   "out_max": 0.35},
+}}, source="uavfmu.synthetic.MAPPING")
+
+#: model output -> canonical log column
+LOG_COLUMNS = {
+    "roll_rad": "roll_rad", "pitch_rad": "pitch_rad", "yaw_rad": "yaw_rad",
+    "rate_body_x_rad_s": "gyro_body_x_rad_s", "rate_body_y_rad_s": "gyro_body_y_rad_s",
+    "rate_body_z_rad_s": "gyro_body_z_rad_s", "accel_body_x_m_s2": "accel_body_x_m_s2",
+    "accel_body_y_m_s2": "accel_body_y_m_s2", "accel_body_z_m_s2": "accel_body_z_m_s2",
+    "airspeed_m_s": "airspeed_m_s", "altitude_m": "altitude_m", "vel_north_m_s": "vel_north_m_s",
+    "vel_east_m_s": "vel_east_m_s", "vel_down_m_s": "vel_down_m_s", "lat_deg": "lat_deg", "lon_deg": "lon_deg",
+}
+#: white sensor noise (1 sigma) per log column when ``noise=True``
+NOISE = {"roll_rad": 0.003, "pitch_rad": 0.003, "yaw_rad": 0.003, "gyro_body_x_rad_s": 0.005,
+         "gyro_body_y_rad_s": 0.005, "gyro_body_z_rad_s": 0.005, "accel_body_x_m_s2": 0.05,
+         "accel_body_y_m_s2": 0.05, "accel_body_z_m_s2": 0.05, "airspeed_m_s": 0.1}
+
+
+def multistep(t_s: np.ndarray, t0_s: float, unit_s: float, amp: float) -> np.ndarray:
+    """The 3-2-1-1 multistep: +amp for 3 units, -amp for 2, +amp for 1, -amp for 1, from ``t0_s``."""
+    edges = t0_s + unit_s * np.cumsum([0, 3, 2, 1, 1])
+    out = np.zeros_like(t_s, dtype=float)
+    for (a, b), s in zip(itertools.pairwise(edges), (1, -1, 1, -1), strict=True):
+        out[(t_s >= a) & (t_s < b)] = s * amp
+    return out
+
+
+def fixed_wing_flight(params: FixedWingParams | None = None, seconds: float = 40.0, rate_hz: float = 50.0,
+                      airspeed_m_s: float = 25.0, noise: bool = False, seed: int = 0
+                      ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Times [s] and canonical log signals of an open-loop identification flight from trim at 100 m.
+
+    Aileron, rudder and elevator 3-2-1-1 inputs repeat every 20 s; throttle steps +0.1 in the second
+    half of each 20 s block.
+    """
+    sim = Simulator(FixedWingModel(params or FixedWingParams()))
+    p = sim.params()
+    tr = trim(sim.model, p, airspeed_m_s)
+    dt = 1.0 / rate_hz
+    n = round(seconds * rate_hz)
+    t = np.arange(n + 1) * dt
+    u = np.tile(tr.u, (n + 1, 1))
+    for block in np.arange(0.0, seconds, 20.0):
+        u[:, 0] += multistep(t, block + 1.0, 0.5, 0.05)
+        u[:, 2] += multistep(t, block + 6.0, 0.5, 0.05)
+        u[:, 1] += multistep(t, block + 11.0, 0.4, 0.03)
+        u[:, 3] += np.where((t > block + 10.0) & (t < block + 18.0), 0.1, 0.0)
+    idx = sim.model.outputs.index
+    x = tr.x.copy()
+    rows = [np.asarray(sim.h(x, u[0], p)).ravel()]
+    for k in range(n):
+        x1, y1 = sim.step(x, u[k], p, dt)
+        x = np.asarray(x1).ravel()
+        rows.append(np.asarray(y1).ravel())
+    y = np.array(rows)
+    signals = {col: y[:, idx[name]].copy() for name, col in LOG_COLUMNS.items()}
+    if noise:
+        rng = np.random.default_rng(seed)
+        for col, sigma in NOISE.items():
+            signals[col] += rng.normal(0.0, sigma, n + 1)
+    for ch in MAPPING.channels:
+        values = u[:, sim.model.inputs.index[ch.target]]
+        signals[f"servo_{ch.source}_pwm_us"] = np.array([ch.to_pwm(v) for v in values])
+    return t, signals
+
+
+def write_csv_log(path: str | Path, t_s: np.ndarray, signals: dict[str, np.ndarray]) -> Path:
+    """A CSV log (``time_s`` + one column per signal) that ``identification.readers`` reads."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    names = list(signals)
+    with p.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["time_s", *names])
+        for k in range(len(t_s)):
+            w.writerow([repr(float(t_s[k])), *(repr(float(signals[n][k])) for n in names)])
+    return p
+
+
+def write_mapping_toml(path: str | Path, mapping: PwmMapping = MAPPING) -> Path:
+    """The PWM mapping as the TOML file ``--mapping`` options read."""
+    lines = []
+    for c in mapping.channels:
+        lines += [f"[channels.{c.target}]", f"source = {c.source}", f"min_us = {c.min_us}",
+                  f"trim_us = {c.trim_us}", f"max_us = {c.max_us}", f"out_min = {c.out_min}", f"out_max = {c.out_max}",
+                  f"reversed = {str(c.reversed).lower()}", ""]
+    p = Path(path)
+    p.write_text("\n".join(lines))
+    return p
