@@ -13,7 +13,6 @@ Run: ``.venv/bin/python bench/oem.py [--seconds-each 10] [--count 6] [--rate 100
 from __future__ import annotations
 
 import argparse
-import itertools
 import sys
 import time
 from pathlib import Path
@@ -25,52 +24,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fmu_models.common.simulate import Simulator
 from fmu_models.fixed_wing.model import FixedWingModel
-from fmu_models.fixed_wing.trim import trim
 from identification.oem import Manoeuvre, OutputError
-
-FREE = ["C_ell_p", "C_ell_delta_a", "C_ell_beta", "C_ell_r", "C_n_beta", "C_n_r", "C_n_p", "C_n_delta_r",
-        "C_n_delta_a", "C_Y_beta", "C_Y_delta_r", "C_m_alpha", "C_m_q", "C_m_delta_e", "C_m_0", "C_L_alpha",
-        "C_L_0", "C_L_delta_e", "C_L_q", "C_ell_delta_r", "C_Y_delta_a", "C_D_delta_e", "e_oswald", "Jxz_kg_m2",
-        "C_T0"]
-OUTPUTS = ["roll_rad", "pitch_rad", "rate_body_x_rad_s", "rate_body_y_rad_s", "rate_body_z_rad_s",
-           "accel_body_x_m_s2", "accel_body_y_m_s2", "accel_body_z_m_s2", "airspeed_m_s", "beta_rad"]
-SIGMA = np.array([0.003, 0.003, 0.005, 0.005, 0.005, 0.05, 0.05, 0.05, 0.1, 0.003])
-
-
-def multistep(t: np.ndarray, t0: float, unit: float, amp: float) -> np.ndarray:
-    """3-2-1-1 multistep starting at ``t0`` with unit length ``unit`` (s) and amplitude ``amp``."""
-    edges = t0 + unit * np.cumsum([0, 3, 2, 1, 1])
-    out = np.zeros_like(t)
-    for (a, b), s in zip(itertools.pairwise(edges), (1, -1, 1, -1), strict=True):
-        out[(t >= a) & (t < b)] = s * amp
-    return out
-
-
-def manoeuvres(sim: Simulator, p: np.ndarray, oe: OutputError, seconds: float, rate: float, count: int,
-               rng: np.random.Generator) -> list[Manoeuvre]:
-    """``count`` noisy manoeuvres cycling through four designs, from trims between 22 and 28 m/s."""
-    dt = 1.0 / rate
-    n = int(seconds * rate)
-    t = np.arange(n) * dt
-    out = []
-    for i in range(count):
-        j, va = i % 4, float(np.linspace(22.0, 28.0, count)[i])
-        tr = trim(sim.model, p, va)
-        u = np.tile(tr.u, (n, 1))
-        if j in (0, 3):
-            u[:, 0] += multistep(t, 1.0, 0.5, 0.05)
-            u[:, 2] += multistep(t, 6.0, 0.5, 0.05)
-        if j in (1, 3):
-            u[:, 1] += multistep(t, 1.0 + 9 * (j == 3), 0.4, 0.03)
-        if j == 2:
-            u[:, 0] += multistep(t, 1.0, 0.4, 0.04)
-            u[:, 1] += multistep(t, 5.0, 0.5, 0.02)
-            u[:, 2] += multistep(t, 9.0, 0.4, 0.04)
-        u[:, 3] += np.where((t > 0.6 * seconds) & (t < 0.9 * seconds), 0.1, 0.0)
-        y, _, _ = oe.simulate(p[oe.i_free], Manoeuvre(tr.x, u, np.zeros((n, len(OUTPUTS))), dt),
-                              sensitivities=False)
-        out.append(Manoeuvre(tr.x, u, y + rng.normal(0.0, SIGMA, y.shape), dt, f"trim {va:g} m/s"))
-    return out
+from uavfmu.synthetic import OEM_FREE, OEM_OUTPUTS, OEM_SIGMA, identification_manoeuvres
 
 
 def main() -> int:
@@ -82,12 +37,12 @@ def main() -> int:
     args = parser.parse_args()
     sim = Simulator(FixedWingModel())
     p = sim.params(density_altitude_scaling=0.0)
-    oe = OutputError(sim.model, p, FREE, OUTPUTS)  # compiles (once, cached) before any timing
+    oe = OutputError(sim.model, p, OEM_FREE, OEM_OUTPUTS)  # compiles (once, cached) before any timing
     true = p[oe.i_free].copy()
     rng = np.random.default_rng(0)
-    data = manoeuvres(sim, p, oe, args.seconds_each, args.rate, args.count, rng)
-    start = true * (1 + 0.3 * rng.choice([-1.0, 1.0], size=len(FREE)))
-    W = np.diag(1 / SIGMA**2)
+    data = identification_manoeuvres(oe, p, args.seconds_each, args.rate, args.count, rng, OEM_SIGMA)
+    start = true * (1 + 0.3 * rng.choice([-1.0, 1.0], size=len(OEM_FREE)))
+    W = np.diag(1 / OEM_SIGMA**2)
     oe.simulate(start, data[0])  # warm the compiled functions
 
     t0 = time.perf_counter()
@@ -96,7 +51,7 @@ def main() -> int:
 
     def residual(theta: np.ndarray, records: list[Manoeuvre]) -> np.ndarray:
         # the same compiled RK4 step as ours, simulated without sensitivities
-        return np.concatenate([((m.y - oe.simulate(theta, m, j, sensitivities=False)[0]) / SIGMA).ravel()
+        return np.concatenate([((m.y - oe.simulate(theta, m, j, sensitivities=False)[0]) / OEM_SIGMA).ravel()
                                for j, m in enumerate(records)])
 
     t0 = time.perf_counter()
@@ -127,8 +82,8 @@ def main() -> int:
         return float(np.sqrt(np.mean(((v - true) / true)[good] ** 2)))
 
     n_samples = sum(m.u.shape[0] for m in data)
-    print(f"problem: {len(FREE)} free parameters, {len(data)} manoeuvres, {n_samples} samples "
-          f"({n_samples / args.rate:.0f} s at {args.rate:.0f} Hz), {len(OUTPUTS)} outputs")
+    print(f"problem: {len(OEM_FREE)} free parameters, {len(data)} manoeuvres, {n_samples} samples "
+          f"({n_samples / args.rate:.0f} s at {args.rate:.0f} Hz), {len(OEM_OUTPUTS)} outputs")
     print(f"ours (LM, exact sensitivities): {t_ours:7.2f} s, {len(est.history)} iterations, rms relative "
           f"error {rms_rel(est.values):.2e} ({rms_good(est.values):.2e} over the {good.sum()} identifiable), "
           f"worst {max_crb(est.values):.2f} CR std")

@@ -56,6 +56,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--estimate-initial", help="states whose initial value is estimated per segment")
     p.add_argument("--biases", help="outputs given a constant bias per segment")
     p.add_argument("--bounds", help="bounds name=lo:hi,... on free parameters")
+    p.add_argument("--sigma", help="fixed weighting B = diag(sigma^2): output=sigma,... for every fitted output "
+                   "(default: maximum likelihood, residual covariance re-estimated each iteration)")
     p.add_argument("--no-stability-constraints", action="store_true",
                    help=f"allow sign changes of {', '.join(STABILITY_SIGNS)}")
     p.add_argument("--max-iter", type=int, default=40)
@@ -81,6 +83,22 @@ def _bounds(text: str | None) -> dict[str, tuple[float, float]]:
             raise ValueError(f"--bounds: {item!r} is not name=lo:hi") from None
         out[name.strip()] = (lo, hi)
     return out
+
+
+def _weight(text: str | None, outputs: list[str]) -> np.ndarray | None:
+    """``--sigma`` into the weighting matrix W = B^-1 (eq. 9 of paper 001)."""
+    if not text:
+        return None
+    sig: dict[str, float] = {}
+    for item in _names(text):
+        try:
+            name, value = item.split("=")
+            sig[name.strip()] = float(value)
+        except ValueError:
+            raise ValueError(f"--sigma: {item!r} is not output=value") from None
+    if set(sig) != set(outputs) or not all(v > 0 for v in sig.values()):
+        raise ValueError(f"--sigma needs a positive value for each fitted output ({', '.join(outputs)}), got {text!r}")
+    return np.diag([1.0 / sig[n] ** 2 for n in outputs])
 
 
 def run(args: argparse.Namespace) -> int:
@@ -122,6 +140,7 @@ def run(args: argparse.Namespace) -> int:
                     constraints.append(lambda th, n=name, s=sign: s * th[n] > 0)
         oe = OutputError(model, p, free, outputs, bounds=bounds, constraints=constraints,
                          estimate_states=_names(args.estimate_initial), estimate_biases=_names(args.biases))
+        weight = _weight(args.sigma, outputs)
         fit = aero.manoeuvres(model, p, log, mapping, fit_segs, outputs, args.rate)
         val = aero.manoeuvres(model, p, log, mapping, val_segs, outputs, args.rate)
     except (OSError, ValueError, KeyError, ParameterError) as err:  # LogError, MappingError, ... are ValueErrors
@@ -129,7 +148,7 @@ def run(args: argparse.Namespace) -> int:
 
     start = p[oe.i_free].copy()
     try:
-        est = oe.estimate(fit, max_iter=args.max_iter, progress=not args.quiet, horizon_s=args.horizon)
+        est = oe.estimate(fit, weight=weight, max_iter=args.max_iter, progress=not args.quiet, horizon_s=args.horizon)
     except EstimationError as err:
         print(f"uavfmu identify aero: estimation failed: {err}", file=sys.stderr)
         return EXIT_FAILED

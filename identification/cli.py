@@ -137,17 +137,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run_aero(argv: list[str]) -> int:
-    try:
-        module = importlib.import_module("identification.aero_cli")
-    except ModuleNotFoundError as err:
-        if err.name != "identification.aero_cli":
-            raise
-        print(
-            "uavfmu identify aero: not available in this installation (identification/aero_cli.py, the "
-            "fixed-wing output-error identification, is missing)",
-            file=sys.stderr,
-        )
-        return EXIT_BAD_INPUT
+    module = importlib.import_module("identification.aero_cli")
     parser = argparse.ArgumentParser(prog="uavfmu identify aero")
     module.add_arguments(parser)
     return int(module.run(parser.parse_args(argv)) or 0)

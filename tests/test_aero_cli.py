@@ -43,7 +43,8 @@ def test_noise_free_log_gives_back_the_truth(synthetic_log, capsys) -> None:
     out = d / "identified.json"
     rc = run_cli(synthetic_log["log"], "--init", synthetic_log["init"], "--mapping", synthetic_log["mapping"],
                  "--free", ",".join(FREE), "--outputs", "roll_rad,rate_body_x_rad_s,rate_body_z_rad_s",
-                 "--segments", "0:9,20:29", "--validate-segments", "10:19,30:39", "--out", out, "--plots", d / "plots")
+                 "--segments", "0:9,20:29", "--validate-segments", "10:19,30:39", "--out", out, "--plots", d / "plots",
+                 "--sigma", "roll_rad=0.01,rate_body_x_rad_s=0.01,rate_body_z_rad_s=0.01")
     assert rc == EXIT_OK, capsys.readouterr().err
     identified = FixedWingParams.load(out)  # the file loads as the FMU build loads it
     assert set(split_params(json.loads(out.read_text()))) == {"fixed_wing"}
@@ -71,6 +72,9 @@ def test_bad_input_is_named(synthetic_log, capsys) -> None:
     assert "ends after the log" in capsys.readouterr().err
     assert run_cli(*base, "--free", "C_ell_p", "--segments", "0:5", "--outputs", "roll_deg") == EXIT_BAD_INPUT
     assert "roll_deg" in capsys.readouterr().err
+    assert run_cli(*base, "--free", "C_ell_p", "--segments", "0:5", "--outputs", "roll_rad",
+                   "--sigma", "pitch_rad=0.1") == EXIT_BAD_INPUT
+    assert "--sigma needs" in capsys.readouterr().err
     assert run_cli(d / "missing.bin", "--free", "C_ell_p", "--out", d / "x.json") == EXIT_BAD_INPUT
     assert not (d / "x.json").exists()
 

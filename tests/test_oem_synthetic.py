@@ -3,8 +3,6 @@ exact sensitivities, several manoeuvres with initial states and biases, coloured
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 import pytest
 from scipy.signal import lfilter
@@ -13,6 +11,7 @@ from fmu_models.common.simulate import Simulator
 from fmu_models.fixed_wing.model import FixedWingModel
 from fmu_models.fixed_wing.trim import trim
 from identification.oem import EstimationError, Manoeuvre, OutputError, coloured_covariance
+from uavfmu.synthetic import OEM_FREE, OEM_OUTPUTS, OEM_SIGMA, identification_manoeuvres, multistep
 
 FREE = ["C_ell_p", "C_ell_delta_a", "C_ell_beta", "C_ell_r", "C_n_beta", "C_n_r", "C_n_delta_r", "C_Y_beta"]
 OUTPUTS = ["roll_rad", "rate_body_x_rad_s", "rate_body_z_rad_s", "accel_body_y_m_s2", "beta_rad"]
@@ -21,22 +20,14 @@ DT = 0.02
 N = 600  # 12 s
 
 
-def three_two_one_one(t: np.ndarray, t0: float, unit_s: float, amp: float) -> np.ndarray:
-    """The 3-2-1-1 multistep: +3, -2, +1, -1 units long."""
-    edges = t0 + unit_s * np.cumsum([0, 3, 2, 1, 1])
-    out = np.zeros_like(t)
-    for (a, b), s in zip(itertools.pairwise(edges), (1, -1, 1, -1), strict=True):
-        out[(t >= a) & (t < b)] = s * amp
-    return out
-
 
 def lateral_manoeuvre(sim: Simulator, p: np.ndarray, va: float, t_a: float,
                       t_r: float) -> tuple[np.ndarray, np.ndarray]:
     tr = trim(sim.model, p, va)
     t = np.arange(N) * DT
     u = np.tile(tr.u, (N, 1))
-    u[:, 0] += three_two_one_one(t, t_a, 0.5, 0.05)
-    u[:, 2] += three_two_one_one(t, t_r, 0.5, 0.05)
+    u[:, 0] += multistep(t, t_a, 0.5, 0.05)
+    u[:, 2] += multistep(t, t_r, 0.5, 0.05)
     return tr.x, u
 
 
@@ -200,3 +191,27 @@ def test_coloured_covariance_equals_the_double_sum_over_lags() -> None:
             R = (r[:n - tau].T @ r[tau:] if tau >= 0 else (r[:n + tau].T @ r[-tau:]).T) / n
             expected += (1 - abs(tau) / (lags + 1)) * G[i].T @ R @ G[j]
     np.testing.assert_allclose(coloured_covariance(G, r, lags), 0.5 * (expected + expected.T), rtol=1e-10)
+
+
+@pytest.fixture(scope="module")
+def all_axes() -> tuple[OutputError, np.ndarray, list[Manoeuvre]]:
+    """Issue 4's synthetic problem, shortened: 25 derivatives of all axes, 3-2-1-1 on all surfaces and throttle
+    steps, four 8 s manoeuvres at 50 Hz from trims between 22 and 28 m/s, noise-free."""
+    sim = Simulator(FixedWingModel())
+    p = sim.params(density_altitude_scaling=0.0)
+    oe = OutputError(sim.model, p, OEM_FREE, OEM_OUTPUTS)
+    return oe, p, identification_manoeuvres(oe, p, 8.0, 50.0, 4, None)
+
+
+def test_all_axes_from_30_percent_off(all_axes) -> None:
+    oe, p, clean = all_axes
+    true = p[oe.i_free]
+    start = true * (1 + 0.3 * np.random.default_rng(11).choice([-1.0, 1.0], size=len(true)))
+    rng = np.random.default_rng(12)
+    noisy = [Manoeuvre(m.x0, m.u, m.y + rng.normal(0.0, OEM_SIGMA, m.y.shape), m.dt_s) for m in clean]
+    est = oe.estimate(noisy, theta0=start, max_iter=60, horizon_s=1.0)
+    identifiable = est.crb_std < 0.1 * np.abs(true)
+    assert identifiable.sum() >= 18, est.table()
+    assert np.all(np.abs(est.values - true)[identifiable] <= 3 * est.crb_std[identifiable]), est.table()
+    exact = oe.estimate(clean, theta0=start, weight=np.diag(1 / OEM_SIGMA**2), max_iter=80, horizon_s=1.0)
+    np.testing.assert_allclose(exact.values[identifiable], true[identifiable], rtol=1e-4)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
@@ -176,15 +175,6 @@ def test_bad_input_is_named(logs: dict[str, Path], tmp_path: Path, capsys) -> No
         == 2
     )
     assert "--train-fraction = 1.5" in capsys.readouterr().err
-
-
-@pytest.mark.skipif(
-    importlib.util.find_spec("identification.aero_cli") is not None,
-    reason="identification.aero_cli exists; its own tests cover it",
-)
-def test_aero_reports_missing_module(capsys) -> None:
-    assert main(["identify", "aero", "--anything", "x"]) == 2
-    assert "identification/aero_cli.py" in capsys.readouterr().err
 
 
 def test_given_k_overrides_the_derivation(logs: dict[str, Path], tmp_path: Path) -> None:

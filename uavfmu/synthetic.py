@@ -18,6 +18,7 @@ from fmu_models.fixed_wing.model import FixedWingModel
 from fmu_models.fixed_wing.params import FixedWingParams
 from fmu_models.fixed_wing.trim import trim
 from hil_adapter.pwm_mapping import PwmMapping
+from identification.oem import Manoeuvre, OutputError
 
 #: ArduPlane's default outputs: SERVO1 aileron, SERVO2 elevator, SERVO3 throttle, SERVO4 rudder
 MAPPING = PwmMapping.from_dict({"channels": {
@@ -116,3 +117,44 @@ def write_mapping_toml(path: str | Path, mapping: PwmMapping = MAPPING) -> Path:
     p = Path(path)
     p.write_text("\n".join(lines))
     return p
+
+
+#: the benchmark problem of issue 4: derivatives of all axes, outputs of all axes, sensor noise (1 sigma)
+OEM_FREE = ["C_ell_p", "C_ell_delta_a", "C_ell_beta", "C_ell_r", "C_n_beta", "C_n_r", "C_n_p", "C_n_delta_r",
+        "C_n_delta_a", "C_Y_beta", "C_Y_delta_r", "C_m_alpha", "C_m_q", "C_m_delta_e", "C_m_0", "C_L_alpha",
+        "C_L_0", "C_L_delta_e", "C_L_q", "C_ell_delta_r", "C_Y_delta_a", "C_D_delta_e", "e_oswald", "Jxz_kg_m2",
+        "C_T0"]
+OEM_OUTPUTS = ["roll_rad", "pitch_rad", "rate_body_x_rad_s", "rate_body_y_rad_s", "rate_body_z_rad_s",
+           "accel_body_x_m_s2", "accel_body_y_m_s2", "accel_body_z_m_s2", "airspeed_m_s", "beta_rad"]
+OEM_SIGMA = np.array([0.003, 0.003, 0.005, 0.005, 0.005, 0.05, 0.05, 0.05, 0.1, 0.003])
+
+
+def identification_manoeuvres(oe: OutputError, p: np.ndarray, seconds: float, rate: float, count: int,
+                              rng: np.random.Generator | None, sigma: np.ndarray | None = None) -> list[Manoeuvre]:
+    """``count`` manoeuvres of ``seconds`` at ``rate`` Hz cycling through four designs (lateral, longitudinal,
+    all three surfaces, lateral + longitudinal), each from a trim between 22 and 28 m/s with a throttle step,
+    simulated by ``oe`` with the parameters ``p``; noise of std ``sigma`` (per output of ``oe``) from ``rng``."""
+    dt = 1.0 / rate
+    n = int(seconds * rate)
+    t = np.arange(n) * dt
+    out = []
+    for i in range(count):
+        j, va = i % 4, float(np.linspace(22.0, 28.0, count)[i])
+        tr = trim(oe.model, p, va)
+        u = np.tile(tr.u, (n, 1))
+        if j in (0, 3):
+            u[:, 0] += multistep(t, 1.0, 0.5, 0.05)
+            u[:, 2] += multistep(t, 6.0, 0.5, 0.05)
+        if j in (1, 3):
+            u[:, 1] += multistep(t, 1.0 + 9 * (j == 3), 0.4, 0.03)
+        if j == 2:
+            u[:, 0] += multistep(t, 1.0, 0.4, 0.04)
+            u[:, 1] += multistep(t, 5.0, 0.5, 0.02)
+            u[:, 2] += multistep(t, 9.0, 0.4, 0.04)
+        u[:, 3] += np.where((t > 0.6 * seconds) & (t < 0.9 * seconds), 0.1, 0.0)
+        y, _, _ = oe.simulate(p[oe.i_free], Manoeuvre(tr.x, u, np.zeros((n, len(oe.outputs))), dt),
+                              sensitivities=False)
+        if rng is not None and sigma is not None:
+            y = y + rng.normal(0.0, sigma, y.shape)
+        out.append(Manoeuvre(tr.x, u, y, dt, f"trim {va:g} m/s"))
+    return out
