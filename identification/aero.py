@@ -13,13 +13,12 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import casadi as ca
 import numpy as np
 
 from fmu_models.common.model import VehicleModel, init_function
-from fmu_models.common.rigid_body import quat_from_euler, quat_to_dcm
-from hil_adapter.pwm_mapping import MappingError, PwmMapping
+from hil_adapter.pwm_mapping import PwmMapping
 from identification.flightlog import FlightLog, LogError
+from identification.log_state import initial_values, mapped_inputs
 from identification.metrics import FitMetrics, fit_metrics
 from identification.oem import Manoeuvre
 
@@ -91,23 +90,8 @@ def grid(segment: Segment, rate_hz: float) -> np.ndarray:
 
 
 def log_inputs(model: VehicleModel, log: FlightLog, mapping: PwmMapping, t_s: np.ndarray) -> np.ndarray:
-    """Model inputs (len(t) x nu) from the servo PWM at times ``t_s`` (zero-order hold: servo outputs are
-    commanded values that hold between log samples)."""
-    by_target = {c.target: c for c in mapping.channels}
-    missing = [n for n in model.inputs.index if n not in by_target]
-    if missing:
-        raise MappingError(f"the PWM mapping has no channel for the model inputs {', '.join(missing)}")
-    u = np.empty((len(t_s), len(model.inputs)))
-    for name, i in model.inputs.index.items():
-        ch = by_target[name]
-        sig = log.signal(f"servo_{ch.source}_pwm_us")
-        idx = np.clip(np.searchsorted(sig.t_s, t_s, side="right") - 1, 0, len(sig.t_s) - 1)
-        pwm = sig.values[idx]
-        try:
-            u[:, i] = [ch.to_input(float(v)) for v in pwm]
-        except MappingError as err:
-            raise MappingError(f"{log.source}: servo_{ch.source}_pwm_us: {err}") from None
-    return u
+    """Model inputs (len(t) x nu) from the servo PWM at times ``t_s`` (zero-order hold)."""
+    return mapped_inputs(list(model.inputs.index), log, mapping, t_s)
 
 
 def log_outputs(log: FlightLog, outputs: Sequence[str], t_s: np.ndarray) -> np.ndarray:
@@ -122,26 +106,8 @@ def log_outputs(log: FlightLog, outputs: Sequence[str], t_s: np.ndarray) -> np.n
 def initial_state(model: VehicleModel, p: np.ndarray, log: FlightLog, t0_s: float, u0: np.ndarray) -> np.ndarray:
     """The model state at ``t0_s`` from the log, through the model's own initial-state function."""
     p = p.copy()
-    at = np.array([t0_s])
-
-    def val(name: str) -> float:
-        return float(log.signal(name).resample(at)[0])
-
-    idx = model.params.index
-    roll, pitch, yaw = val("roll_rad"), val("pitch_rad"), val("yaw_rad")
-    p[idx["init_roll_rad"]], p[idx["init_pitch_rad"]], p[idx["init_yaw_rad"]] = roll, pitch, yaw
-    for axis in "xyz":
-        p[idx[f"init_rate_body_{axis}_rad_s"]] = val(f"gyro_body_{axis}_rad_s")
-    if all(log.has(f"vel_{a}_m_s") for a in ("north", "east", "down")):
-        v_ned = np.array([val(f"vel_{a}_m_s") for a in ("north", "east", "down")])
-        r_b2n = np.asarray(ca.DM(quat_to_dcm(quat_from_euler(roll, pitch, yaw))))
-        v_body = r_b2n.T @ v_ned
-    else:  # calm air, flying straight along body x: ground velocity = airspeed
-        v_body = np.array([val("airspeed_m_s"), 0.0, 0.0])
-    for axis, v in zip("xyz", v_body, strict=True):
-        p[idx[f"init_vel_body_{axis}_m_s"]] = v
-    if log.has("altitude_m"):
-        p[idx["init_pos_down_m"]] = -val("altitude_m")
+    for name, value in initial_values(log, t0_s, forward_from_airspeed=True).items():
+        p[model.params.index[name]] = value
     x0, _ = init_function(model)(u0, p)
     return np.asarray(x0).ravel()
 

@@ -1,122 +1,222 @@
-"""``uavfmu validate FMU LOG``: replay a quadrotor log's motor PWM through an FMU with FMPy and score it.
+"""``uavfmu validate``: replay flight logs through FMUs with FMPy and score them against the logs.
 
-Signals compared (FMU output <- log signal): altitude_m <- altitude_m, roll/pitch/yaw_rad <- same,
-rate_body_*_rad_s <- gyro_body_*_rad_s; plus paper 000's Fig. 5 check, the FMU's ``thrust_total_N``
-against the measured ``F_z = -mass * accel_body_z``. Each window starts from the logged state.
-Exit status: 0 all signals pass (Theil U below the threshold), 1 some fail, 2 bad input.
+``uavfmu validate FMU LOG [--map FILE.toml] [--report DIR]`` or ``uavfmu validate --batch manifest.toml``.
+
+Inputs: quadrotor motor PWM, or fixed-wing surface and throttle commands through the HIL adapter's PWM
+mapping (``--mapping FILE.toml``, else the log's ArduPilot ``SERVOn_*`` parameters). Compared signals come
+from the output map (``--map``; defaults per vehicle in ``identification.output_map``, including paper
+000's Fig. 5 thrust check for the quadrotor). Windows of ``--window-s`` seconds are each re-initialised
+from the logged state (0: one full-length replay).
+
+Batch manifest (TOML; paths relative to it; ``fmu`` and ``log`` may be lists: every pair runs)::
+
+    [defaults]
+    window_s = 2.0
+    [[job]]
+    fmu = ["dist/quadrotor.fmu", "dist/quadrotor_identified.fmu"]
+    log = "flight.bin"
+    set = { mass_kg = 1.2 }
+
+Exit status: 0 every signal of every run passes, 1 a signal fails or a batch run errors, 2 bad input.
 """
 
 from __future__ import annotations
 
 import argparse
-import base64
-import html
-import io
 import json
+import os
 import sys
+import tomllib
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
+from typing import Any
 
-import numpy as np
-
-OUTPUT_MAP = {
-    "altitude_m": "altitude_m", "roll_rad": "roll_rad", "pitch_rad": "pitch_rad", "yaw_rad": "yaw_rad",
-    "rate_body_x_rad_s": "gyro_body_x_rad_s", "rate_body_y_rad_s": "gyro_body_y_rad_s",
-    "rate_body_z_rad_s": "gyro_body_z_rad_s",
-}
+EXIT_PASS, EXIT_FAIL, EXIT_BAD_INPUT = 0, 1, 2
+JOB_KEYS = {"fmu", "log", "map", "mapping", "set", "window_s", "rate_hz", "max_theil", "channel_map"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("fmu", type=Path)
-    parser.add_argument("log", type=Path)
+    parser.description = __doc__.split("\n\n")[0]
+    parser.add_argument("fmu", type=Path, nargs="?", help="the FMU to validate")
+    parser.add_argument("log", type=Path, nargs="?", help="flight log (.bin/.log, .tlog, .ulg, .csv)")
+    parser.add_argument("--batch", type=Path, help="manifest TOML of FMU x log runs (instead of FMU LOG)")
+    parser.add_argument("--map", type=Path, help="output map TOML (FMU output <- log signal, units, thresholds)")
+    parser.add_argument("--mapping", type=Path, help="PWM mapping TOML for fixed-wing surfaces and throttle")
     parser.add_argument("--window-s", type=float, default=2.0, help="replay windows [s] (0: full length)")
     parser.add_argument("--rate-hz", type=float, default=50.0, help="replay sample rate [Hz]")
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="override a parameter")
-    parser.add_argument("--max-theil", type=float, default=0.3, help="pass threshold on Theil's U (0.3)")
+    parser.add_argument("--max-theil", type=float, help="pass threshold on Theil's U for every signal")
     parser.add_argument("--report", type=Path, help="folder for report.html and metrics.json")
-    parser.add_argument("--channel-map", type=Path, help="TOML/JSON [channels] for the log's motor outputs")
+    parser.add_argument("--channel-map", type=Path, help="TOML/JSON [channels] for the log's outputs")
+    parser.add_argument("--jobs", type=int, default=min(4, os.cpu_count() or 1), help="batch worker processes")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-def _grid(log: object, names: list[str], t: np.ndarray) -> dict[str, np.ndarray]:
-    return {n: log.signal(n).resample(t) for n in names}  # type: ignore[attr-defined]
+def _parse_set(items: list[str]) -> dict[str, float]:
+    out = {}
+    for item in items:
+        name, _, value = item.partition("=")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise ValueError(f"--set {item!r}: expected NAME=NUMBER") from None
+    return out
+
+
+def validate_one(job: dict[str, Any]) -> dict[str, Any]:
+    """One FMU against one log; never raises for bad input or a failing FMU (the batch must go on).
+
+    Returns ``{"fmu", "log", "status": pass|fail|error, "signals", "failed", "worst_theil", "error", "report"}``.
+    """
+    from dataclasses import replace
+
+    from hil_adapter.pwm_mapping import PwmMapping
+    from identification import output_map, report
+    from identification.readers import read_log
+    from identification.validation import replay, vehicle_of
+    from uavfmu.fmu_host import FmuHost, FmuRunError
+
+    fmu, log_path = Path(job["fmu"]), Path(job["log"])
+    out: dict[str, Any] = {"fmu": str(fmu), "log": str(log_path), "status": "error", "failed": [], "error": ""}
+    try:
+        log = read_log(log_path, channel_map=job.get("channel_map"))
+        with FmuHost(fmu) as host:
+            maps = output_map.load(job.get("map"), vehicle_of(host))
+            if job.get("max_theil") is not None:
+                maps = tuple(replace(m, max_theil=float(job["max_theil"])) for m in maps)
+            mapping = PwmMapping.load(job["mapping"]) if job.get("mapping") else None
+            res = replay(host, log, log_path, maps, rate_hz=float(job.get("rate_hz", 50.0)),
+                         window_s=float(job.get("window_s", 2.0)) or None, start_values=job.get("set") or {},
+                         mapping=mapping)
+    except (FmuRunError, OSError, ValueError, KeyError) as err:  # LogError, MappingError, ... are ValueErrors
+        out["error"] = str(err).strip("'\"")
+        return out
+    out["signals"] = {m.fmu: {**res.overall[m.fmu].as_dict(), "max_theil": m.max_theil, "log_signal": m.log}
+                      for m in res.maps}
+    out["failed"] = res.failed
+    out["status"] = "fail" if res.failed else "pass"
+    out["worst_theil"] = max(r.theil_u for r in res.overall.values())
+    if job.get("report"):
+        rdir = Path(job["report"])
+        rdir.mkdir(parents=True, exist_ok=True)
+        (rdir / "report.html").write_text(report.validation_page(res))
+        (rdir / "metrics.json").write_text(json.dumps(
+            {"fmu": res.fmu, "log": res.log, "window_s": job.get("window_s"), "rate_hz": job.get("rate_hz"),
+             "windows": res.windows, "signals": out["signals"], "failed": res.failed,
+             "per_window": [{k: v.as_dict() for k, v in w.items()} for w in res.window_metrics]}, indent=2))
+        out["report"] = str(rdir / "report.html")
+    return out
+
+
+def _table(results: list[dict[str, Any]]) -> str:
+    lines = []
+    for r in results:
+        if r["status"] == "error":
+            lines.append(f"{Path(r['fmu']).name} x {Path(r['log']).name}: ERROR {r['error']}")
+            continue
+        lines.append(f"{Path(r['fmu']).name} x {Path(r['log']).name}: {r['status'].upper()}")
+        lines.append(f"  {'signal':<20} {'RMSE':>10} {'Theil U':>8} {'limit':>6} {'fit %':>8} {'R^2':>8}")
+        for s, m in r["signals"].items():
+            flag = "" if s not in r["failed"] else "  FAIL"
+            lines.append(f"  {s:<20} {m['rmse']:10.4g} {m['theil_u']:8.3f} {m['max_theil']:6.2f} "
+                         f"{m['fit_percent']:8.1f} {m['r2']:8.3f}{flag}")
+    return "\n".join(lines)
+
+
+def _jobs_from_manifest(path: Path, args: argparse.Namespace) -> list[dict[str, Any]]:
+    try:
+        data = tomllib.loads(path.read_text())
+    except (OSError, tomllib.TOMLDecodeError) as err:
+        raise ValueError(f"{path}: cannot read the manifest ({err})") from err
+    base = path.parent
+    defaults = data.get("defaults", {})
+    problems, jobs = [], []
+    for i, raw in enumerate(data.get("job", [])):
+        entry = {**defaults, **raw}
+        unknown = sorted(set(entry) - JOB_KEYS)
+        if unknown:
+            problems.append(f"job[{i}]: unknown key(s) {', '.join(unknown)} (known: {', '.join(sorted(JOB_KEYS))})")
+        if "fmu" not in entry or "log" not in entry:
+            problems.append(f"job[{i}]: needs 'fmu' and 'log'")
+            continue
+        fmus = entry["fmu"] if isinstance(entry["fmu"], list) else [entry["fmu"]]
+        logs = entry["log"] if isinstance(entry["log"], list) else [entry["log"]]
+        for f in fmus:
+            for lg in logs:
+                job = {k: v for k, v in entry.items() if k not in ("fmu", "log")}
+                job.update(fmu=str(base / f), log=str(base / lg))
+                for key in ("map", "mapping", "channel_map"):
+                    if job.get(key):
+                        job[key] = str(base / job[key])
+                job.setdefault("window_s", args.window_s)
+                job.setdefault("rate_hz", args.rate_hz)
+                if args.max_theil is not None:
+                    job["max_theil"] = args.max_theil
+                jobs.append(job)
+    if problems:
+        raise ValueError(f"{path}: " + "; ".join(problems))
+    if not jobs:
+        raise ValueError(f"{path}: no [[job]] entries")
+    return jobs
 
 
 def run(args: argparse.Namespace) -> int:
-    from identification.flightlog import LogError
-    from identification.readers import read_log
-    from identification.validation import ValidationError, replay
-
     try:
-        overrides = {}
-        for item in args.set:
-            name, _, value = item.partition("=")
-            try:
-                overrides[name.strip()] = float(value)
-            except ValueError as err:
-                raise ValidationError(f"--set {item!r}: expected NAME=NUMBER") from err
-        if not args.fmu.is_file():
-            raise ValidationError(f"{args.fmu}: FMU not found")
-        log = read_log(args.log, channel_map=args.channel_map)
-        needed = [f"motor_{k}_pwm_us" for k in range(1, 5)] + list(OUTPUT_MAP.values())
-        absent = [n for n in needed if not log.has(n)]
-        if absent:
-            raise ValidationError(
-                f"{args.log}: signal(s) needed for a quadrotor replay are missing: {', '.join(absent)}"
-            )
-        pwm = log.signal("motor_1_pwm_us")
-        t = np.arange(pwm.t_s[0], pwm.t_s[-1], 1.0 / args.rate_hz)
-        inputs = {f"pwm_{k}_us": v for k, v in enumerate(_grid(log, needed[:4], t).values(), start=1)}
-        logged = _grid(log, list(OUTPUT_MAP.values()), t)
-        measured = {fmu_name: logged[log_name] for fmu_name, log_name in OUTPUT_MAP.items()}
-        measured.update(pos_north_m=np.zeros_like(t), pos_east_m=np.zeros_like(t),
-                        pos_down_m=-measured["altitude_m"])
-        for a in "xyz":  # body velocity is not logged as such: windows start at rest relative to the air
-            measured[f"vel_body_{a}_m_s"] = np.zeros_like(t)
-        res = replay(args.fmu, t - t[0], inputs, measured, list(OUTPUT_MAP), window_s=args.window_s or None,
-                     start_values=overrides)
-    except (ValidationError, LogError, FileNotFoundError) as err:
+        overrides = _parse_set(args.set)
+        if args.batch:
+            jobs = _jobs_from_manifest(args.batch, args)
+        elif args.fmu is None or args.log is None:
+            raise ValueError("give FMU and LOG, or --batch manifest.toml")
+        else:
+            jobs = [{"fmu": str(args.fmu), "log": str(args.log), "map": args.map, "mapping": args.mapping,
+                     "set": overrides, "window_s": args.window_s, "rate_hz": args.rate_hz,
+                     "max_theil": args.max_theil, "channel_map": args.channel_map, "report": args.report}]
+    except ValueError as err:
         print(f"uavfmu validate: error: {err}", file=sys.stderr)
-        return 2
-    rows = {s: res.overall(s) for s in OUTPUT_MAP}
-    failed = [s for s, m in rows.items() if not m.theil_u < args.max_theil]
-    print(f"{'signal':<20} {'RMSE':>10} {'Theil U':>8} {'fit %':>8} {'R^2':>8}  pass")
-    for s, m in rows.items():
-        print(f"{s:<20} {m.rmse:10.4g} {m.theil_u:8.3f} {m.fit_percent:8.1f} {m.r2:8.3f}  "
-              f"{'yes' if s not in failed else 'NO'}")
-    if args.report:
-        args.report.mkdir(parents=True, exist_ok=True)
-        (args.report / "metrics.json").write_text(json.dumps(
-            {"fmu": str(args.fmu), "log": str(args.log), "window_s": args.window_s, "overrides": overrides,
-             "signals": {s: m.as_dict() for s, m in rows.items()}, "failed": failed}, indent=2))
-        page = _html(res, rows, args)
-        (args.report / "report.html").write_text(page)
-        print(f"report: {args.report / 'report.html'}")
-    return 1 if failed else 0
+        return EXIT_BAD_INPUT
+    if args.batch:
+        return _run_batch(jobs, args)
+    res = validate_one(jobs[0])
+    if res["status"] == "error":
+        print(f"uavfmu validate: error: {res['error']}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    print(_table([res]))
+    if res.get("report"):
+        print(f"report: {res['report']}")
+    return EXIT_FAIL if res["failed"] else EXIT_PASS
 
 
-def _html(res: object, rows: dict, args: argparse.Namespace) -> str:
-    """A self-contained page: metrics table and measured-vs-FMU overlays as embedded PNGs."""
-    import matplotlib
+def _run_batch(jobs: list[dict[str, Any]], args: argparse.Namespace) -> int:
+    from tqdm import tqdm
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from identification import report
 
-    parts = [f"<html><head><meta charset='utf-8'><title>uavfmu validation</title></head><body>"
-             f"<h1>{html.escape(args.fmu.name)} against {html.escape(args.log.name)}</h1><table border=1>"
-             "<tr><th>signal</th><th>RMSE</th><th>Theil U</th><th>fit %</th><th>R^2</th></tr>"]
-    for s, m in rows.items():
-        parts.append(f"<tr><td>{s}</td><td>{m.rmse:.4g}</td><td>{m.theil_u:.3f}</td>"
-                     f"<td>{m.fit_percent:.1f}</td><td>{m.r2:.3f}</td></tr>")
-    parts.append("</table>")
-    for s in rows:
-        fig, ax = plt.subplots(figsize=(9, 2.6))
-        for w in res.windows:  # type: ignore[attr-defined]
-            tt = np.linspace(w.t0_s, w.t1_s, len(w.model[s]))
-            ax.plot(tt, w.model[f"_measured_{s}"], "k", lw=0.8)
-            ax.plot(tt, w.model[s], "r", lw=0.8)
-        ax.set_title(f"{s}: measured (black) vs FMU (red)")
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=80, bbox_inches="tight")
-        plt.close(fig)
-        parts.append(f"<img src='data:image/png;base64,{base64.b64encode(buf.getvalue()).decode()}'/>")
-    parts.append("</body></html>")
-    return "\n".join(parts)
+    root = args.report
+    for k, job in enumerate(jobs):
+        if root:
+            job["report"] = str(root / f"{k:03d}_{Path(job['fmu']).stem}__{Path(job['log']).stem}")
+    results: list[dict[str, Any]] = [{}] * len(jobs)
+    # each run in its own process: FMUs are native code and one that misbehaves must not take the batch down
+    with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+        futures = {pool.submit(validate_one, job): k for k, job in enumerate(jobs)}
+        for fut in tqdm(as_completed(futures), total=len(jobs), desc="validate", disable=args.quiet):
+            k = futures[fut]
+            try:
+                results[k] = fut.result()
+            except Exception as err:  # a worker that died (segfault in an FMU) raises BrokenProcessPool here
+                results[k] = {"fmu": jobs[k]["fmu"], "log": jobs[k]["log"], "status": "error", "failed": [],
+                              "error": f"worker process failed: {type(err).__name__}: {err}"}
+    print(_table(results))
+    bad = [r for r in results if r["status"] != "pass"]
+    print(f"{len(results)} runs: {len(results) - len(bad)} pass, "
+          f"{sum(r['status'] == 'fail' for r in results)} fail, {sum(r['status'] == 'error' for r in results)} error")
+    if root:
+        root.mkdir(parents=True, exist_ok=True)
+        for r in results:
+            if r.get("report"):
+                r["report"] = str(Path(r["report"]).relative_to(root.resolve()) if Path(r["report"]).is_absolute()
+                                  else Path(r["report"]).relative_to(root))
+        (root / "index.html").write_text(report.index_page(results))
+        (root / "results.json").write_text(json.dumps(results, indent=2))
+        print(f"report: {root / 'index.html'}")
+    return EXIT_FAIL if bad else EXIT_PASS

@@ -1,30 +1,31 @@
-"""Replay recorded inputs through an FMU with FMPy and score its outputs against the record.
+"""Replay a flight log's inputs through an FMU with FMPy and score its outputs against the log.
 
-Nothing of the Python model is imported: the FMU is driven through FMPy's FMU2Slave exactly as any FMI
-importer would (``uavfmu.scenarios.FmuRunner``). Supports a full-length replay and segment-wise replay
-(windows re-initialised from the recorded state), the usual way open-loop-unstable vehicles are judged.
+Nothing of the Python model is imported: ``fmpy.simulate_fmu`` drives the FMU (``uavfmu.fmu_host``) with
+the recorded inputs as a structured input array. Full-length replay, or segment-wise replay in windows each
+re-initialised from the logged state (the usual way open-loop-unstable vehicles are judged), scored per
+window and over all windows together.
 """
 
 from __future__ import annotations
 
+import hashlib
 import itertools
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from hil_adapter.pwm_mapping import PwmMapping
+from identification.flightlog import FlightLog, LogError
+from identification.log_state import hold, initial_values, mapped_inputs
 from identification.metrics import FitMetrics, fit_metrics
-from uavfmu.scenarios import FmuRunner
+from identification.output_map import SignalMap
+from uavfmu.fmu_host import FmuHost
 
-#: FMU start parameter <- recorded output used to re-initialise a window (names of docs/interfaces.md)
-INIT_FROM_OUTPUTS = {
-    "init_pos_north_m": "pos_north_m", "init_pos_east_m": "pos_east_m", "init_pos_down_m": "pos_down_m",
-    "init_vel_body_x_m_s": "vel_body_x_m_s", "init_vel_body_y_m_s": "vel_body_y_m_s",
-    "init_vel_body_z_m_s": "vel_body_z_m_s", "init_roll_rad": "roll_rad", "init_pitch_rad": "pitch_rad",
-    "init_yaw_rad": "yaw_rad", "init_rate_body_x_rad_s": "rate_body_x_rad_s",
-    "init_rate_body_y_rad_s": "rate_body_y_rad_s", "init_rate_body_z_rad_s": "rate_body_z_rad_s",
-}
+QUAD_INPUTS = tuple(f"pwm_{k}_us" for k in range(1, 5))
+WING_INPUTS = ("aileron_rad", "elevator_rad", "rudder_rad", "throttle")
 
 
 class ValidationError(ValueError):
@@ -32,60 +33,108 @@ class ValidationError(ValueError):
 
 
 @dataclass
-class WindowResult:
-    t0_s: float
-    t1_s: float
+class ReplayResult:
+    """Scored replay: per-signal model and measured values over the scored samples, metrics, identities."""
+
+    fmu: dict[str, Any]
+    log: dict[str, Any]
+    t_s: np.ndarray
     model: dict[str, np.ndarray]
-    metrics: dict[str, FitMetrics]
+    measured: dict[str, np.ndarray]
+    windows: list[tuple[float, float]]
+    window_metrics: list[dict[str, FitMetrics]]
+    overall: dict[str, FitMetrics]
+    maps: tuple[SignalMap, ...]
+    start_values: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def failed(self) -> list[str]:
+        return [m.fmu for m in self.maps if not self.overall[m.fmu].theil_u < m.max_theil]
 
 
-@dataclass
-class ValidationResult:
-    fmu: str
-    windows: list[WindowResult] = field(default_factory=list)
-
-    def overall(self, signal: str) -> FitMetrics:
-        """Metrics of one signal over all windows together."""
-        meas = np.concatenate([w.model[f"_measured_{signal}"] for w in self.windows])
-        mod = np.concatenate([w.model[signal] for w in self.windows])
-        return fit_metrics(meas, mod)
+def vehicle_of(host: FmuHost) -> str:
+    """``quadrotor`` or ``fixed_wing`` from the FMU's inputs."""
+    names = set(host.variables)
+    if set(QUAD_INPUTS) <= names:
+        return "quadrotor"
+    if set(WING_INPUTS) <= names:
+        return "fixed_wing"
+    raise ValidationError(f"{host.path}: neither motor PWM inputs {QUAD_INPUTS} nor surface inputs {WING_INPUTS}")
 
 
-def replay(fmu: Path, t_s: np.ndarray, inputs: Mapping[str, np.ndarray], measured: Mapping[str, np.ndarray],
-           signals: list[str], window_s: float | None = None, start_values: Mapping[str, float] | None = None,
-           ) -> ValidationResult:
-    """Replay ``inputs`` (sampled at ``t_s``, held over each interval) and score ``signals``.
+def log_identity(log: FlightLog, path: Path) -> dict[str, Any]:
+    digest = hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else ""
+    return {"path": str(path), "format": log.fmt, "vehicle": log.vehicle, "duration_s": round(log.duration_s, 3),
+            "sha256": digest, "warnings": list(log.warnings)}
 
-    ``measured`` holds the recorded signals at ``t_s`` (FMU output names); each window starts from the
-    recorded state at its first sample (``INIT_FROM_OUTPUTS``), so ``measured`` must contain those too.
-    """
-    t_s = np.asarray(t_s, dtype=float)
-    missing = [n for n in list(INIT_FROM_OUTPUTS.values()) + signals if n not in measured]
-    if missing:
-        raise ValidationError(f"recorded signal(s) missing: {', '.join(sorted(set(missing)))}")
-    for name, v in list(inputs.items()) + list(measured.items()):
-        if len(v) != len(t_s):
-            raise ValidationError(f"{name} has {len(v)} samples, time has {len(t_s)}")
-    dt = np.diff(t_s)
-    if np.any(dt <= 0):
-        raise ValidationError("time must increase strictly")
-    n = len(t_s)
-    edges = [0, n - 1] if window_s is None else [*list(range(0, n - 1, max(1, round(window_s / dt.mean())))), n - 1]
-    result = ValidationResult(str(fmu))
-    for a, b in itertools.pairwise(edges):
-        start = dict(start_values or {})
-        start.update({p: float(measured[o][a]) for p, o in INIT_FROM_OUTPUTS.items()})
-        model = {s: np.empty(b - a + 1) for s in signals}
-        with FmuRunner(fmu, start) as run:
-            y = run.read()
-            for s in signals:
-                model[s][0] = y[s]
-            for k in range(a, b):
-                y = run.step(t_s[k] - t_s[a], t_s[k + 1] - t_s[k], {n_: float(v[k]) for n_, v in inputs.items()})
-                for s in signals:
-                    model[s][k - a + 1] = y[s]
-        metrics = {s: fit_metrics(measured[s][a:b + 1], model[s]) for s in signals}
-        for s in signals:
-            model[f"_measured_{s}"] = np.asarray(measured[s][a:b + 1], dtype=float)
-        result.windows.append(WindowResult(float(t_s[a]), float(t_s[b]), model, metrics))
-    return result
+
+def fmu_identity(host: FmuHost, start_values: Mapping[str, float]) -> dict[str, Any]:
+    params = {v.name: (float(start_values[v.name]) if v.name in start_values else float(v.start))
+              for v in host.md.modelVariables
+              if v.causality == "parameter" and v.type == "Real" and v.start is not None}
+    return {"path": str(host.path), "model_name": host.md.modelName, "guid": host.md.guid,
+            "generation_tool": host.md.generationTool, "generated": host.md.generationDateAndTime,
+            "parameters": params, "overrides": dict(start_values)}
+
+
+def log_inputs(vehicle: str, log: FlightLog, t_s: np.ndarray, mapping: PwmMapping | None) -> dict[str, np.ndarray]:
+    """FMU inputs at ``t_s``: motor PWM for the quadrotor, mapped surface and throttle commands for the wing."""
+    if vehicle == "quadrotor":
+        return {f"pwm_{k}_us": hold(log.signal(f"motor_{k}_pwm_us"), t_s) for k in range(1, 5)}
+    if mapping is None:
+        mapping = PwmMapping.from_ardupilot(log.params)
+    u = mapped_inputs(WING_INPUTS, log, mapping, t_s)
+    return {n: u[:, i] for i, n in enumerate(WING_INPUTS)}
+
+
+def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalMap], rate_hz: float = 50.0,
+           window_s: float | None = 2.0, start_values: Mapping[str, float] | None = None,
+           mapping: PwmMapping | None = None, t_range: tuple[float, float] | None = None,
+           progress: Callable[[int, int], None] | None = None) -> ReplayResult:
+    """Replay ``log`` through the FMU of ``host`` on a ``rate_hz`` grid and score the signals of ``maps``."""
+    vehicle = vehicle_of(host)
+    overrides = dict(start_values or {})
+    unknown = [n for n in overrides if n not in host.variables]
+    if unknown:
+        raise ValidationError(f"--set: {', '.join(unknown)} not variables of {host.path.name}")
+    missing_out = [m.fmu for m in maps if m.fmu not in host.variables]
+    if missing_out:
+        raise ValidationError(f"output map: {', '.join(missing_out)} not outputs of {host.path.name}")
+    absent = [m.log for m in maps if not log.has(m.log)]
+    motors = [f"motor_{k}_pwm_us" for k in range(1, 5)] if vehicle == "quadrotor" else []
+    absent_in = [n for n in motors if not log.has(n)]
+    if absent or absent_in:
+        what = [f"inputs {', '.join(absent_in)}"] if absent_in else []
+        what += [f"output-map signals {', '.join(absent)}"] if absent else []
+        raise ValidationError(f"{log_path}: missing logged {'; '.join(what)}")
+    first = log.signal("motor_1_pwm_us" if vehicle == "quadrotor" else "roll_rad")
+    t0, t1 = (first.t_s[0], first.t_s[-1]) if t_range is None else t_range
+    t = np.arange(t0, t1, 1.0 / rate_hz)
+    if len(t) < 3:
+        raise ValidationError(f"{log_path}: fewer than 3 samples at {rate_hz:g} Hz between {t0:g} and {t1:g} s")
+    try:
+        inputs = log_inputs(vehicle, log, t, mapping)
+    except LogError as err:
+        raise ValidationError(str(err)) from err
+    params = {n: host.start_value(n) for n, v in host.variables.items() if v.causality == "parameter"}
+    params.update(overrides)
+    measured = {m.fmu: m.convert(log.signal(m.log).resample(t), host.unit(m.fmu), params) for m in maps}
+    n = len(t)
+    step = n - 1 if not window_s else max(1, round(window_s * rate_hz))
+    edges = [*range(0, n - 1, step), n - 1]
+    model = {m.fmu: np.full(n, np.nan) for m in maps}
+    windows, per_window = [], []
+    for i, (a, b) in enumerate(itertools.pairwise(edges)):
+        start = {**initial_values(log, float(t[a]), forward_from_airspeed=vehicle == "fixed_wing"), **overrides}
+        res = host.simulate(t[a:b + 1], {k: v[a:b + 1] for k, v in inputs.items()}, [m.fmu for m in maps], start)
+        for m in maps:  # sample a is the re-initialisation itself: score the predicted samples a+1..b
+            model[m.fmu][a + 1:b + 1] = m.align(res[m.fmu][1:], measured[m.fmu][a + 1:b + 1])
+        windows.append((float(t[a]), float(t[b])))
+        per_window.append({m.fmu: fit_metrics(measured[m.fmu][a + 1:b + 1], model[m.fmu][a + 1:b + 1]) for m in maps})
+        if progress:
+            progress(i + 1, len(edges) - 1)
+    keep = slice(1, n)
+    overall = {m.fmu: fit_metrics(measured[m.fmu][keep], model[m.fmu][keep]) for m in maps}
+    return ReplayResult(fmu_identity(host, overrides), log_identity(log, log_path), t[keep],
+                        {k: v[keep] for k, v in model.items()}, {k: v[keep] for k, v in measured.items()},
+                        windows, per_window, overall, tuple(maps), overrides)

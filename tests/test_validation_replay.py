@@ -1,45 +1,91 @@
-"""Replay of a recorded closed-loop flight through the quadrotor FMU: near-perfect with the same model,
-worse with a wrong mass; windows re-initialise from the recorded state."""
+"""FMPy replay of logged flights through our FMUs: a log of the same model replays exactly, a wrong mass
+scores worse, windows limit drift, angles wrap, and bad input is named."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from identification import output_map
+from identification.readers import read_log
 from identification.validation import ValidationError, replay
+from uavfmu import synthetic
+from uavfmu.fmu_host import FmuHost, FmuRunError
 from uavfmu.scenarios import QuadrotorAutopilot, fly, published_thrust_inverse
-
-SIGNALS = ["altitude_m", "roll_rad", "pitch_rad", "yaw_rad"]
 
 
 @pytest.fixture(scope="module")
-def flight(quadrotor_fmu: Path):
+def quad_log(quadrotor_fmu: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A 12 s closed-loop climb to 6 m with a yaw step, flown by the FMU, as a CSV log at 50 Hz."""
     ap = QuadrotorAutopilot(lambda t: 0.0 if t < 1 else 6.0, published_thrust_inverse(), gravity_m_s2=9.8069,
                             yaw_rad=lambda t: 0.3 if t > 5 else 0.0)
-    return fly(quadrotor_fmu, ap, 12.0, 0.02)
+    rec = fly(quadrotor_fmu, ap, 12.0, 0.02)
+    assert rec.outputs["altitude_m"].max() > 4.0  # the flight went somewhere
+    path = tmp_path_factory.mktemp("val") / "quad.csv"
+    return synthetic.write_csv_log(path, rec.t_s, synthetic.recording_signals(rec))
 
 
-def test_same_model_replays_the_flight(quadrotor_fmu: Path, flight) -> None:
-    res = replay(quadrotor_fmu, flight.t_s, flight.inputs, flight.outputs, SIGNALS)
-    m = res.windows[0].metrics["altitude_m"]
-    assert m.rmse < 1e-6 and m.theil_u < 1e-6
-    assert flight.outputs["altitude_m"].max() > 4.0  # the flight went somewhere
+def test_same_model_replays_its_own_log(quadrotor_fmu: Path, quad_log: Path) -> None:
+    with FmuHost(quadrotor_fmu) as host:
+        res = replay(host, read_log(quad_log), quad_log, output_map.QUADROTOR, rate_hz=50.0, window_s=None)
+    for name in ("altitude_m", "roll_rad", "pitch_rad", "yaw_rad", "rate_body_z_rad_s"):
+        assert res.overall[name].rmse < 1e-6, name
+    # paper 000 Fig. 5: in a recorded flight F_z = -m a_z equals the thrust up to drag
+    assert res.overall["thrust_total_N"].theil_u < 0.02
+    assert not res.failed
+    assert res.fmu["guid"] and res.log["sha256"] and res.fmu["parameters"]["mass_kg"] == pytest.approx(1.14)
 
 
-def test_wrong_mass_scores_worse_and_windows_limit_the_drift(quadrotor_fmu: Path, flight) -> None:
-    full = replay(quadrotor_fmu, flight.t_s, flight.inputs, flight.outputs, SIGNALS, start_values={"mass_kg": 1.3})
-    windows = replay(quadrotor_fmu, flight.t_s, flight.inputs, flight.outputs, SIGNALS, window_s=2.0,
-                     start_values={"mass_kg": 1.3})
-    rmse_full = full.windows[0].metrics["altitude_m"].rmse
-    assert rmse_full > 0.5
-    assert len(windows.windows) == 6
-    assert windows.overall("altitude_m").rmse < rmse_full
+def test_wrong_mass_scores_worse_and_windows_limit_the_drift(quadrotor_fmu: Path, quad_log: Path) -> None:
+    log = read_log(quad_log)
+    with FmuHost(quadrotor_fmu) as host:
+        full = replay(host, log, quad_log, output_map.QUADROTOR, window_s=None, start_values={"mass_kg": 1.3})
+        win = replay(host, log, quad_log, output_map.QUADROTOR, window_s=2.0, start_values={"mass_kg": 1.3})
+    assert full.overall["altitude_m"].rmse > 0.5
+    assert len(win.windows) == 6
+    assert win.overall["altitude_m"].rmse < full.overall["altitude_m"].rmse
 
 
-def test_missing_signal_is_named(quadrotor_fmu: Path, flight) -> None:
-    measured = {k: v for k, v in flight.outputs.items() if k != "yaw_rad"}
-    with pytest.raises(ValidationError, match="yaw_rad"):
-        replay(quadrotor_fmu, flight.t_s, flight.inputs, measured, SIGNALS)
-    assert np.all(np.isfinite(flight.outputs["altitude_m"]))
+def test_yaw_is_compared_modulo_two_pi() -> None:
+    m = replace(output_map.QUADROTOR[3])
+    assert m.wrap
+    measured = np.array([3.1, -3.1, 0.0])
+    model = np.array([-3.15, 3.15, 2 * np.pi])
+    np.testing.assert_allclose(m.align(model, measured) - measured, [-6.25 + 2 * np.pi, 6.25 - 2 * np.pi, 0.0],
+                               atol=1e-12)
+
+
+def test_missing_signal_and_unit_mismatch_are_named(quadrotor_fmu: Path, quad_log: Path) -> None:
+    log = read_log(quad_log)
+    del log.signals["yaw_rad"]
+    with FmuHost(quadrotor_fmu) as host, pytest.raises(ValidationError, match="yaw_rad"):
+        replay(host, log, quad_log, output_map.QUADROTOR)
+    maps = output_map.from_dict({"signals": {"altitude_m": {"log": "altitude_m", "log_unit": "deg"}}}, "quadrotor")
+    with FmuHost(quadrotor_fmu) as host, pytest.raises(output_map.OutputMapError, match=r"deg.*rad.*'m'"):
+        replay(host, read_log(quad_log), quad_log, maps)
+
+
+def test_output_map_config_is_checked() -> None:
+    with pytest.raises(output_map.OutputMapError) as err:
+        output_map.from_dict({"thresholds": {"max_theil": -1},
+                              "signals": {"roll_rad": {"log": "roll_rad", "scle": 2}, "x": {"scale": 1.0}}},
+                             "fixed_wing", "map.toml")
+    text = str(err.value)
+    assert "map.toml" in text and "max_theil = -1" in text and "scle" in text and "'log'" in text
+    extra = output_map.from_dict({"signals_extra": {"altitude_m": {"log": "BARO.Alt", "log_unit": "cm"}}},
+                                 "quadrotor")
+    assert [m.fmu for m in extra] == [m.fmu for m in output_map.QUADROTOR]  # replaced in place
+    alt = next(m for m in extra if m.fmu == "altitude_m")
+    np.testing.assert_allclose(alt.convert(np.array([250.0]), "m", {}), [2.5])
+
+
+def test_fmu_errors_become_messages(tmp_path: Path) -> None:
+    bad = tmp_path / "broken.fmu"
+    bad.write_bytes(b"not a zip")
+    with pytest.raises(FmuRunError, match=r"broken\.fmu"):
+        FmuHost(bad)
+    with pytest.raises(FmuRunError, match="not found"):
+        FmuHost(tmp_path / "absent.fmu")

@@ -19,6 +19,7 @@ from fmu_models.fixed_wing.params import FixedWingParams
 from fmu_models.fixed_wing.trim import trim
 from hil_adapter.pwm_mapping import PwmMapping
 from identification.oem import Manoeuvre, OutputError
+from uavfmu.scenarios import Recording
 
 #: ArduPlane's default outputs: SERVO1 aileron, SERVO2 elevator, SERVO3 throttle, SERVO4 rudder
 MAPPING = PwmMapping.from_dict({"channels": {
@@ -92,6 +93,27 @@ def fixed_wing_flight(params: FixedWingParams | None = None, seconds: float = 40
         values = u[:, sim.model.inputs.index[ch.target]]
         signals[f"servo_{ch.source}_pwm_us"] = np.array([ch.to_pwm(v) for v in values])
     return t, signals
+
+
+def recording_signals(rec: Recording, noise: bool = False, seed: int = 0) -> dict[str, np.ndarray]:
+    """Canonical log signals of an FMU flight (``uavfmu.scenarios.fly``): outputs under their log names and
+    the inputs as the servo PWM an autopilot logs (quadrotor ``motor_k``/``servo_k``; wing via ``MAPPING``)."""
+    signals = {col: np.asarray(rec.outputs[name], dtype=float).copy()
+               for name, col in LOG_COLUMNS.items() if name in rec.outputs}
+    if noise:
+        rng = np.random.default_rng(seed)
+        for col, sigma in NOISE.items():
+            if col in signals:
+                signals[col] = signals[col] + rng.normal(0.0, sigma, len(rec.t_s))
+    if "pwm_1_us" in rec.inputs:
+        for k in range(1, 5):
+            pwm = np.asarray(rec.inputs[f"pwm_{k}_us"], dtype=float)
+            signals[f"servo_{k}_pwm_us"] = pwm
+            signals[f"motor_{k}_pwm_us"] = pwm
+    else:
+        for ch in MAPPING.channels:
+            signals[f"servo_{ch.source}_pwm_us"] = np.array([ch.to_pwm(v) for v in rec.inputs[ch.target]])
+    return signals
 
 
 def write_csv_log(path: str | Path, t_s: np.ndarray, signals: dict[str, np.ndarray]) -> Path:

@@ -1,0 +1,118 @@
+"""Self-contained HTML validation reports (plots embedded as PNG data URIs) and the batch index page."""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from identification import plots
+from identification.validation import ReplayResult
+
+STYLE = ("body{font-family:sans-serif;margin:2em;max-width:1100px}table{border-collapse:collapse;margin:1em 0}"
+         "td,th{border:1px solid #bbb;padding:3px 8px;font-size:90%;text-align:right}th{background:#eee}"
+         "td:first-child{text-align:left}.fail{color:#b00;font-weight:bold}.pass{color:#070}img{max-width:100%}")
+
+
+def _png(fig: Any) -> str:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=plots.DPI)
+    plots.plt.close(fig)
+    return f"<img src='data:image/png;base64,{base64.b64encode(buf.getvalue()).decode()}'/>"
+
+
+def _table(header: Sequence[str], rows: Sequence[Sequence[str]], raw: bool = False) -> str:
+    esc = (lambda s: s) if raw else html.escape
+    out = ["<table><tr>", *(f"<th>{html.escape(h)}</th>" for h in header), "</tr>"]
+    for r in rows:
+        out.append("<tr>" + "".join(f"<td>{esc(str(c))}</td>" for c in r) + "</tr>")
+    out.append("</table>")
+    return "".join(out)
+
+
+def _signal_figures(res: ReplayResult) -> list[str]:
+    parts = []
+    edges = [w[0] for w in res.windows[1:]]
+    for m in res.maps:
+        meas, mod = res.measured[m.fmu], res.model[m.fmu]
+        fig, (ax, axr) = plots.figure(2, 1, sharex=True, figsize=(9.0, 4.2), height_ratios=[2, 1])
+        ax.plot(res.t_s, meas, color="0.25", lw=0.9, label=f"log: {m.log}")
+        ax.plot(res.t_s, mod, color="tab:red", lw=0.9, label=f"FMU: {m.fmu}")
+        for e in edges:
+            ax.axvline(e, color="tab:blue", lw=0.4, alpha=0.4)
+        ax.set_title(f"{m.fmu}  (Theil U {res.overall[m.fmu].theil_u:.3f}, limit {m.max_theil:g})", fontsize=9)
+        ax.legend(loc="best", fontsize=8)
+        ax.grid(True, alpha=0.3)
+        axr.plot(res.t_s, meas - mod, color="tab:purple", lw=0.7)
+        axr.axhline(0.0, color="k", lw=0.5)
+        axr.set_ylabel("residual", fontsize=8)
+        axr.set_xlabel("log time [s]")
+        axr.grid(True, alpha=0.3)
+        parts.append(_png(fig))
+        if m.fmu == "thrust_total_N":  # paper 000 Fig. 5: modelled thrust against the measured force
+            parts.append("<h3>Thrust map against the measured force F_z = -m a_z (paper 000 Fig. 5)</h3>")
+            fig, ax = plots.figure(figsize=(5.0, 4.5))
+            ax.plot(meas, mod, ".", ms=2, alpha=0.4)
+            lim = [float(np.nanmin([meas, mod])), float(np.nanmax([meas, mod]))]
+            ax.plot(lim, lim, "k--", lw=1, label="ideal")
+            ax.set_xlabel("measured F_z = -m a_z [N]")
+            ax.set_ylabel("FMU thrust_total_N [N]")
+            ax.set_title("thrust map against measured force (paper 000 Fig. 5)", fontsize=9)
+            ax.legend(fontsize=8)
+            ax.grid(True, alpha=0.3)
+            parts.append(_png(fig))
+    return parts
+
+
+def validation_page(res: ReplayResult) -> str:
+    """One FMU against one log: identities, metrics with pass/fail, overlays, residuals."""
+    fmu, log = res.fmu, res.log
+    rows = []
+    for m in res.maps:
+        r = res.overall[m.fmu]
+        ok = r.theil_u < m.max_theil
+        rows.append([m.fmu, m.log, f"{r.rmse:.4g}", f"{r.nrmse:.4f}", f"{r.theil_u:.3f}", f"{m.max_theil:g}",
+                     f"{r.fit_percent:.1f}", f"{r.r2:.3f}", f"{r.max_error:.4g}",
+                     f"<span class='{'pass' if ok else 'fail'}'>{'pass' if ok else 'FAIL'}</span>"])
+    params = _table(["parameter", "value"], [[k, f"{v:.6g}"] for k, v in fmu["parameters"].items()])
+    verdict = "all signals pass" if not res.failed else f"FAILED: {', '.join(res.failed)}"
+    parts = [
+        f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>uavfmu validation</title><style>{STYLE}</style>"
+        "</head><body>",
+        f"<h1>{html.escape(fmu['model_name'])} against {html.escape(log['path'])}</h1>",
+        f"<p class='{'fail' if res.failed else 'pass'}'>{html.escape(verdict)}</p>",
+        "<h2>Metrics</h2>",
+        _table(["FMU output", "log signal", "RMSE", "NRMSE", "Theil U", "limit", "fit %", "R²", "max error",
+                "result"], rows, raw=True),
+        f"<p>{len(res.windows)} replay window(s), each re-initialised from the logged state; the first sample of "
+        "each window is the initial condition and is not scored.</p>",
+        "<h2>FMU</h2>",
+        _table(["field", "value"], [[k, fmu[k]] for k in ("path", "model_name", "guid", "generation_tool",
+                                                           "generated")] + [["overrides", fmu["overrides"]]]),
+        f"<details><summary>parameters used ({len(fmu['parameters'])})</summary>{params}</details>",
+        "<h2>Log</h2>",
+        _table(["field", "value"], [[k, log[k]] for k in ("path", "format", "vehicle", "duration_s", "sha256")]),
+        *(f"<p>reader warning: {html.escape(w)}</p>" for w in log["warnings"]),
+        "<h2>Signals</h2>", *_signal_figures(res), "</body></html>",
+    ]
+    return "\n".join(parts)
+
+
+def index_page(results: Sequence[dict[str, Any]]) -> str:
+    """Batch summary: one row per FMU x log, failures with their messages, links to the job reports."""
+    rows = []
+    for r in results:
+        link = f"<a href='{html.escape(r['report'])}'>report</a>" if r.get("report") else ""
+        cls = {"pass": "pass"}.get(r["status"], "fail")
+        worst = f"{r['worst_theil']:.3f}" if r.get("worst_theil") is not None else ""
+        rows.append([html.escape(r["fmu"]), html.escape(r["log"]), f"<span class='{cls}'>{r['status']}</span>",
+                     worst, html.escape(", ".join(r.get("failed", []))), html.escape(r.get("error", "")), link])
+    n_bad = sum(r["status"] != "pass" for r in results)
+    return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>uavfmu batch validation</title>"
+            f"<style>{STYLE}</style></head><body><h1>Batch validation: {len(results)} runs, {n_bad} not passing"
+            "</h1>" + _table(["FMU", "log", "status", "worst Theil U", "failed signals", "error", ""], rows, raw=True)
+            + "</body></html>")

@@ -1,0 +1,117 @@
+"""Hosting an FMU with FMPy as any importer would, without leaking instances or losing its messages.
+
+``fmpy.simulate_fmu`` instantiates, and frees, its own instance; when a step fails it raises before freeing,
+and an instance left holding a logger callback that Python has collected crashes the host later. Here the
+instance and its logger callback belong to one object whose ``close()`` always frees the instance, and
+``simulate_fmu`` runs on it (``fmu_instance=``), so validation uses FMPy's own simulation loop with a
+structured input array, and an FMU error becomes a message instead of a crash.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from ctypes import c_char_p, c_int, c_void_p
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from fmpy import extract, read_model_description, simulate_fmu
+from fmpy.fmi2 import (
+    FMU2Slave,
+    calloc,
+    fmi2CallbackAllocateMemoryTYPE,
+    fmi2CallbackFreeMemoryTYPE,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+    free,
+)
+
+STATUS_NAMES = ("ok", "warning", "discard", "error", "fatal", "pending")
+
+
+class FmuRunError(RuntimeError):
+    """The FMU failed to load or returned an error; the message carries the FMU's own log lines."""
+
+
+class FmuHost:
+    """One FMI 2.0 co-simulation instance of ``fmu`` driven through FMPy; use as a context manager."""
+
+    def __init__(self, fmu: str | Path, instance_name: str = "uavfmu") -> None:
+        self.path = Path(fmu)
+        if not self.path.is_file():
+            raise FmuRunError(f"{fmu}: FMU not found")
+        try:
+            self.md = read_model_description(str(fmu))
+            self.unzip = extract(str(fmu))
+        except Exception as err:  # zipfile, lxml and FMPy each raise their own types for a broken FMU
+            raise FmuRunError(f"{fmu}: cannot read the FMU ({type(err).__name__}: {err})") from err
+        if self.md.coSimulation is None:
+            raise FmuRunError(f"{fmu}: not a co-simulation FMU")
+        self.variables = {v.name: v for v in self.md.modelVariables}
+        self.messages: list[tuple[str, str]] = []
+        self._callbacks = fmi2CallbackFunctions()
+        self._callbacks.logger = fmi2CallbackLoggerTYPE(self._on_log)
+        self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        try:
+            self.slave = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzip,
+                                   modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=instance_name)
+            self.slave.instantiate(callbacks=self._callbacks, loggingOn=False)
+        except Exception as err:  # FMPy raises plain Exception for a missing binary or failed instantiate
+            raise FmuRunError(f"{fmu}: cannot instantiate ({err}){self._tail()}") from err
+        self._used = False
+
+    def _on_log(self, env: c_void_p, name: c_char_p, status: c_int, category: c_char_p, message: c_char_p) -> None:
+        text = message.decode(errors="replace") if isinstance(message, bytes) else str(message)
+        self.messages.append((STATUS_NAMES[int(status)] if 0 <= int(status) < 6 else str(status), text))
+
+    def _tail(self, n: int = 5) -> str:
+        lines = [f"[{s}] {m}" for s, m in self.messages[-n:]]
+        return (": " + " | ".join(lines)) if lines else ""
+
+    def __enter__(self) -> FmuHost:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        if getattr(self, "slave", None) is not None:
+            self.slave.freeInstance()
+            self.slave = None
+
+    def start_value(self, name: str) -> float:
+        """The modelDescription start value of a variable (KeyError naming it when absent)."""
+        v = self.variables[name]
+        return float(v.start) if v.start is not None else float("nan")
+
+    def unit(self, name: str) -> str | None:
+        v = self.variables[name]
+        return v.unit or (v.declaredType.unit if v.declaredType is not None else None)
+
+    def simulate(self, t_s: np.ndarray, inputs: Mapping[str, np.ndarray], outputs: Sequence[str],
+                 start_values: Mapping[str, float] | None = None) -> np.ndarray:
+        """``fmpy.simulate_fmu`` over the uniform grid ``t_s`` (first sample is time 0 for the FMU).
+
+        ``inputs`` (by FMU input name, sampled at ``t_s``) go in as FMPy's structured input array; the
+        result has a row per sample of ``t_s``. Raises ``FmuRunError`` with the FMU's messages on failure.
+        """
+        dt = float(t_s[1] - t_s[0])
+        rows = np.zeros(len(t_s), dtype=[("time", np.float64)] + [(n, np.float64) for n in inputs])
+        rows["time"] = t_s - t_s[0]
+        for n, v in inputs.items():
+            rows[n] = v
+        if self._used:
+            self.slave.reset()
+        self._used = True
+        self.messages.clear()
+        try:
+            res: Any = simulate_fmu(self.unzip, model_description=self.md, fmu_instance=self.slave,
+                                    start_values=dict(start_values or {}), input=rows, output=list(outputs),
+                                    step_size=dt, output_interval=dt, stop_time=float(rows["time"][-1]),
+                                    validate=False)
+        except Exception as err:  # FMPy raises plain Exception (FMICallException) for fmi2Error/fmi2Fatal
+            raise FmuRunError(f"{self.path.name}: {err}{self._tail()}") from err
+        if len(res) != len(t_s):
+            raise FmuRunError(f"{self.path.name}: {len(res)} result rows for {len(t_s)} samples")
+        return res
