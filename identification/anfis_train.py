@@ -337,7 +337,7 @@ def train_anfis(
         )
     centre, half_span = (hi + lo) / 2.0, (hi - lo) / 2.0
     z = (x - centre) / half_span
-    has_check = x_check is not None and y_check is not None
+    has_check = x_check is not None and y_check is not None and len(x_check) > 0
     if has_check:
         xc, yc = _check_xy(x_check, y_check, "checking data")  # type: ignore[arg-type]
         if xc.shape[1] != n_inputs:
@@ -386,6 +386,8 @@ def train_anfis(
         if prem.slope is not None:
             prem.slope = np.maximum(prem.slope - eta * grads[2], MIN_BELL_SLOPE)
     bar.close()
+    if best[1] < 0:
+        raise AnfisTrainingError(f"no epoch gave a finite error (training RMSE {train_hist[-1] if train_hist else 'n/a'})")
     _, best_epoch, best_prem, best_cons = best
     amap = _to_map(best_prem, best_cons, centre, half_span, cfg, input_names, (lo, hi), output, source)
     return TrainResult(

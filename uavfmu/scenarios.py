@@ -10,6 +10,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from fmpy import extract, read_model_description
@@ -169,3 +170,74 @@ def quadrotor_profile(t: float) -> float:
         if t >= t0:
             ref = h
     return ref
+
+
+@dataclass
+class FixedWingAutopilot:
+    """Bank-angle, pitch/altitude, yaw-damper and airspeed loops around a trim (Beard & McLain sign conventions:
+    positive aileron rolls right, positive elevator pitches nose down, positive rudder yaws left).
+
+    ``bank_rad(t)`` is the bank reference; ``aileron_excitation(t)`` is added to the aileron command (3-2-1-1
+    inputs for identification ride on top of the closed loop, as in flight test).
+    """
+
+    trim_inputs: dict[str, float]
+    trim_pitch_rad: float
+    bank_rad: Callable[[float], float]
+    aileron_excitation: Callable[[float], float] = lambda t: 0.0
+    altitude_m: float = 100.0
+    airspeed_m_s: float = 25.0
+    k_bank: float = 0.6
+    k_roll_rate: float = 0.08
+    k_pitch: float = 1.5
+    k_pitch_rate: float = 0.15
+    k_alt: float = 0.02
+    k_yaw_damper: float = 0.3
+    k_airspeed: float = 0.05
+
+    def __call__(self, t: float, y: dict[str, float]) -> dict[str, float]:
+        u = self.trim_inputs
+        pitch_ref = self.trim_pitch_rad + max(min(self.k_alt * (self.altitude_m - y["altitude_m"]), 0.15), -0.15)
+        aileron = (u["aileron_rad"] + self.k_bank * (self.bank_rad(t) - y["roll_rad"])
+                   - self.k_roll_rate * y["rate_body_x_rad_s"] + self.aileron_excitation(t))
+        elevator = (u["elevator_rad"] - self.k_pitch * (pitch_ref - y["pitch_rad"])
+                    + self.k_pitch_rate * y["rate_body_y_rad_s"])
+        rudder = u["rudder_rad"] + self.k_yaw_damper * y["rate_body_z_rad_s"]
+        throttle = u["throttle"] + self.k_airspeed * (self.airspeed_m_s - y["airspeed_m_s"])
+        lim = 0.35
+        return {"aileron_rad": min(max(aileron, -lim), lim), "elevator_rad": min(max(elevator, -lim), lim),
+                "rudder_rad": min(max(rudder, -lim), lim), "throttle": min(max(throttle, 0.0), 1.0)}
+
+
+def fixed_wing_bank_profile(t: float) -> float:
+    """Bank reference [rad] of the demo flight: level, 25 deg right, 25 deg left, level, repeated every 40 s."""
+    tt = t % 40.0
+    return math.radians(25.0) if 5 <= tt < 12 else math.radians(-25.0) if 17 <= tt < 24 else 0.0
+
+
+def fixed_wing_excitation(t: float) -> float:
+    """Aileron 3-2-1-1 multisteps [rad] at 1, 13 and 27 s of every 40 s block (0.4 s unit, 0.04 rad)."""
+    tt = t % 40.0
+    out = 0.0
+    for t0 in (1.0, 13.0, 27.0):
+        k = (tt - t0) / 0.4
+        if 0 <= k < 7:
+            out = 0.04 * (1 if k < 3 else -1 if k < 5 else 1 if k < 6 else -1)
+    return out
+
+
+def fixed_wing_start(params: Any = None, airspeed_m_s: float = 25.0, altitude_m: float = 100.0
+                     ) -> tuple[dict[str, float], dict[str, float], float]:
+    """Start values (trimmed state at ``altitude_m``), trim inputs and trim pitch [rad] of the fixed wing."""
+    from fmu_models.common.rigid_body import euler_from_quat
+    from fmu_models.common.simulate import Simulator
+    from fmu_models.fixed_wing.model import FixedWingModel
+    from fmu_models.fixed_wing.trim import trim
+
+    sim = Simulator(FixedWingModel(params))
+    tr = trim(sim.model, sim.params(), airspeed_m_s)
+    pitch = float(np.asarray(euler_from_quat(tr.x[6:10])).ravel()[1])
+    inputs = {n: float(tr.u[i]) for n, i in sim.model.inputs.index.items()}
+    start = {"init_pos_down_m": -altitude_m, "init_vel_body_x_m_s": float(tr.x[3]),
+             "init_vel_body_z_m_s": float(tr.x[5]), "init_pitch_rad": pitch, **inputs}
+    return start, inputs, pitch

@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import itertools
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -180,3 +181,55 @@ def identification_manoeuvres(oe: OutputError, p: np.ndarray, seconds: float, ra
             y = y + rng.normal(0.0, sigma, y.shape)
         out.append(Manoeuvre(tr.x, u, y, dt, f"trim {va:g} m/s"))
     return out
+
+
+def ardupilot_params(vehicle: str) -> dict[str, float]:
+    """The ArduPilot parameters a log of ``vehicle`` carries for its output mapping (``SERVOn_*``)."""
+    if vehicle == "quadrotor":
+        out = {"FRAME_CLASS": 1.0, "FRAME_TYPE": 1.0}
+        for k in range(1, 5):
+            out |= {f"SERVO{k}_FUNCTION": 32.0 + k, f"SERVO{k}_MIN": 1000.0, f"SERVO{k}_MAX": 2000.0}
+        return out
+    functions = {"aileron_rad": 4, "elevator_rad": 19, "throttle": 70, "rudder_rad": 21}
+    out = {}
+    for ch in MAPPING.channels:
+        n = ch.source
+        out |= {f"SERVO{n}_FUNCTION": float(functions[ch.target]), f"SERVO{n}_MIN": ch.min_us,
+                f"SERVO{n}_TRIM": ch.trim_us, f"SERVO{n}_MAX": ch.max_us, f"SERVO{n}_REVERSED": float(ch.reversed)}
+    return out
+
+
+#: every how many recording samples each message is logged (a 100 Hz recording: IMU 100 Hz, ATT 50 Hz,
+#: RCOU 25 Hz, GPS 5 Hz), like ArduPilot's default rates
+LOG_DECIMATION = {"IMU": 1, "ATT": 2, "RCOU": 4, "GPS": 20, "CTUN": 4, "BARO": 2, "ARSP": 4}
+
+
+def write_log(path: str | Path, rec: Recording, noise: bool = False, seed: int = 0) -> Path:
+    """An ArduPilot DataFlash ``.bin`` log of an FMU flight, as the autopilot would have written it: IMU, ATT
+    (degrees), RCOU (integer PWM), CTUN/BARO altitude, GPS, ARSP for the wing, at the rates of
+    ``LOG_DECIMATION``, the ``SERVOn_*`` parameters, and seeded white sensor noise when ``noise``."""
+    from identification.dataflash_writer import write_log as write_dataflash
+
+    sig = recording_signals(rec, noise=noise, seed=seed)
+    t = np.asarray(rec.t_s, dtype=float)
+    vehicle = "quadrotor" if "pwm_1_us" in rec.inputs else "fixed_wing"
+    deg = 180.0 / np.pi
+    columns: dict[str, dict[str, Any]] = {
+        "IMU": {"I": 0, "GyrX": sig["gyro_body_x_rad_s"], "GyrY": sig["gyro_body_y_rad_s"],
+                "GyrZ": sig["gyro_body_z_rad_s"], "AccX": sig["accel_body_x_m_s2"],
+                "AccY": sig["accel_body_y_m_s2"], "AccZ": sig["accel_body_z_m_s2"]},
+        "ATT": {"DesRoll": 0.0, "Roll": sig["roll_rad"] * deg, "DesPitch": 0.0, "Pitch": sig["pitch_rad"] * deg,
+                "DesYaw": 0.0, "Yaw": np.mod(sig["yaw_rad"] * deg, 360.0)},
+        "RCOU": {f"C{k}": np.round(sig[f"servo_{k}_pwm_us"]) for k in range(1, 15) if f"servo_{k}_pwm_us" in sig},
+        "GPS": {"I": 0, "Status": 3, "NSats": 14, "HDop": 0.7, "Lat": sig["lat_deg"], "Lng": sig["lon_deg"],
+                "Alt": sig["altitude_m"]},
+        ("CTUN" if vehicle == "quadrotor" else "BARO"): {"Alt": sig["altitude_m"]},
+    }
+    if vehicle == "fixed_wing":
+        columns["ARSP"] = {"I": 0, "Airspeed": sig["airspeed_m_s"], "U": 1, "H": 1}
+    streams: dict[str, Any] = {}
+    for name, cols in columns.items():
+        k = LOG_DECIMATION[name]
+        streams[name] = (t[::k], {c: (v[::k] if isinstance(v, np.ndarray) else v) for c, v in cols.items()})
+    streams["EV"] = (t[:1], {"Id": 10})  # armed at the start
+    return write_dataflash(path, streams, ardupilot_params(vehicle))

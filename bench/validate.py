@@ -1,0 +1,67 @@
+"""Cost of validating one FMU on a 300 s log at 100 Hz: FMU stepping (FMPy's simulate_fmu loop and the FMU)
+against our own overhead (reading the log, mapping inputs, initial states, metrics, report with plots).
+
+Target (issue 5): our overhead below 25 % of the total. The log is a closed-loop flight of the quadrotor FMU,
+made (untimed) before the measurement.
+
+Run: ``.venv/bin/python bench/validate.py [--seconds 300] [--rate 100] [--window 2]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from build_fmus import build
+from identification.validate_cli import validate_one
+from uavfmu import fmu_host, synthetic
+from uavfmu.scenarios import QuadrotorAutopilot, fly, published_thrust_inverse, quadrotor_profile
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=300.0)
+    parser.add_argument("--rate", type=float, default=100.0)
+    parser.add_argument("--window", type=float, default=2.0)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        d = Path(tmp)
+        fmu = build(None, d, ["quadrotor"])[0]
+        ap = QuadrotorAutopilot(lambda t: quadrotor_profile(t % 50.0), published_thrust_inverse())
+        rec = fly(fmu, ap, args.seconds, 1.0 / args.rate)
+        log = synthetic.write_log(d / "flight.bin", rec, noise=True, seed=1)
+
+        stepping = 0.0
+        original = fmu_host.FmuHost.simulate
+
+        def timed(self: fmu_host.FmuHost, *a: object, **k: object) -> object:
+            nonlocal stepping
+            t0 = time.perf_counter()
+            try:
+                return original(self, *a, **k)
+            finally:
+                stepping += time.perf_counter() - t0
+
+        fmu_host.FmuHost.simulate = timed  # type: ignore[method-assign]
+        t0 = time.perf_counter()
+        res = validate_one({"fmu": str(fmu), "log": str(log), "window_s": args.window, "rate_hz": args.rate,
+                            "report": str(d / "report")})
+        total = time.perf_counter() - t0
+        fmu_host.FmuHost.simulate = original  # type: ignore[method-assign]
+    if res["status"] == "error":
+        print(f"validation failed: {res['error']}")
+        return 1
+    overhead = total - stepping
+    print(f"log: {args.seconds:.0f} s at {args.rate:.0f} Hz, windows of {args.window:g} s, {len(res['signals'])} signals")
+    print(f"total {total:.2f} s = FMU stepping {stepping:.2f} s + our overhead {overhead:.2f} s")
+    print(f"overhead share: {100 * overhead / total:.1f} % (target < 25 %)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
