@@ -57,7 +57,8 @@ def main() -> int:
         print(f"validation failed: {res['error']}")
         return 1
     overhead = total - stepping
-    print(f"log: {args.seconds:.0f} s at {args.rate:.0f} Hz, windows of {args.window:g} s, {len(res['signals'])} signals")
+    print(f"log: {args.seconds:.0f} s at {args.rate:.0f} Hz, windows of {args.window:g} s, "
+          f"{len(res['signals'])} signals")
     print(f"total {total:.2f} s = FMU stepping {stepping:.2f} s + our overhead {overhead:.2f} s")
     print(f"overhead share: {100 * overhead / total:.1f} % (target < 25 %)")
     return 0

@@ -387,7 +387,8 @@ def train_anfis(
             prem.slope = np.maximum(prem.slope - eta * grads[2], MIN_BELL_SLOPE)
     bar.close()
     if best[1] < 0:
-        raise AnfisTrainingError(f"no epoch gave a finite error (training RMSE {train_hist[-1] if train_hist else 'n/a'})")
+        last = train_hist[-1] if train_hist else "n/a"
+        raise AnfisTrainingError(f"no epoch gave a finite error (last training RMSE {last})")
     _, best_epoch, best_prem, best_cons = best
     amap = _to_map(best_prem, best_cons, centre, half_span, cfg, input_names, (lo, hi), output, source)
     return TrainResult(

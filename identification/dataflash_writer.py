@@ -59,7 +59,7 @@ class FormatCode:
 #: DataFlash format characters, as DFReader.FORMAT_TO_STRUCT unpacks them (``M`` is ArduPilot's uint8 flight mode;
 #: pymavlink unpacks it as int8, so modes above 127 read back negative).
 FORMAT_CODES: dict[str, FormatCode] = {
-    "a": FormatCode(f"{ARRAY_LEN}h", "array"),
+    "a": FormatCode(f"{2 * ARRAY_LEN}s", "array"),  # int16[32], packed by _array_bytes
     "b": FormatCode("b", "int"),
     "B": FormatCode("B", "int"),
     "g": FormatCode("e", "float"),  # IEEE half

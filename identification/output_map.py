@@ -12,6 +12,8 @@ scale_by_param = ""              # multiply by an FMU parameter too (e.g. mass_k
 offset = 0.0
 wrap = true                      # angle: compare modulo 2 pi
 max_theil = 0.5                  # per-signal threshold
+max_rmse = 0.02                  # also passes when the RMSE is below this (signal units): Theil's U means
+                                 # little for a signal that barely moves (attitude of a hovering quadrotor)
 ```
 A ``[signals]`` table replaces the vehicle's default map; ``[signals_extra]`` adds to it.
 """
@@ -53,6 +55,11 @@ class SignalMap:
     offset: float = 0.0
     wrap: bool = False
     max_theil: float = DEFAULT_MAX_THEIL
+    max_rmse: float | None = None
+
+    def passes(self, theil_u: float, rmse: float) -> bool:
+        """Theil's U below ``max_theil``, or the RMSE within the absolute tolerance ``max_rmse``."""
+        return bool(theil_u < self.max_theil or (self.max_rmse is not None and rmse < self.max_rmse))
 
     def convert(self, values: np.ndarray, fmu_unit: str | None, params: Mapping[str, float]) -> np.ndarray:
         """Log values in the FMU output's unit and frame."""
@@ -77,25 +84,33 @@ class SignalMap:
         return measured + (model - measured + math.pi) % (2 * math.pi) - math.pi
 
 
+#: absolute tolerances of the default maps: ~1 deg of attitude, ~2 deg/s of body rate (a few sensor sigmas)
+ANGLE_TOL_RAD, RATE_TOL_RAD_S = 0.02, 0.035
+
+
 def _gyro(axis: str) -> SignalMap:
-    return SignalMap(f"rate_body_{axis}_rad_s", f"gyro_body_{axis}_rad_s")
+    return SignalMap(f"rate_body_{axis}_rad_s", f"gyro_body_{axis}_rad_s", max_rmse=RATE_TOL_RAD_S)
+
+
+def _angle(name: str, wrap: bool = False) -> SignalMap:
+    return SignalMap(name, name, wrap=wrap, max_rmse=ANGLE_TOL_RAD)
 
 
 QUADROTOR = (
-    SignalMap("altitude_m", "altitude_m"), SignalMap("roll_rad", "roll_rad"), SignalMap("pitch_rad", "pitch_rad"),
-    SignalMap("yaw_rad", "yaw_rad", wrap=True), _gyro("x"), _gyro("y"), _gyro("z"),
+    SignalMap("altitude_m", "altitude_m"), _angle("roll_rad"), _angle("pitch_rad"), _angle("yaw_rad", wrap=True),
+    _gyro("x"), _gyro("y"), _gyro("z"),
     # paper 000 Fig. 5: the thrust map's force against the measured F_z = -m a_z (specific force, FRD)
     SignalMap("thrust_total_N", "accel_body_z_m_s2", scale=-1.0, scale_by_param="mass_kg"),
 )
 FIXED_WING = (
-    SignalMap("roll_rad", "roll_rad"), SignalMap("pitch_rad", "pitch_rad"), SignalMap("yaw_rad", "yaw_rad", wrap=True),
-    _gyro("x"), _gyro("y"), _gyro("z"), SignalMap("airspeed_m_s", "airspeed_m_s"),
+    _angle("roll_rad"), _angle("pitch_rad"), _angle("yaw_rad", wrap=True), _gyro("x"), _gyro("y"), _gyro("z"),
+    SignalMap("airspeed_m_s", "airspeed_m_s"),
     SignalMap("accel_body_x_m_s2", "accel_body_x_m_s2"), SignalMap("accel_body_y_m_s2", "accel_body_y_m_s2"),
     SignalMap("accel_body_z_m_s2", "accel_body_z_m_s2"), SignalMap("altitude_m", "altitude_m"),
 )
 DEFAULTS = {"quadrotor": QUADROTOR, "fixed_wing": FIXED_WING}
 FIELDS = {"log": str, "log_unit": str, "scale": (int, float), "scale_by_param": str, "offset": (int, float),
-          "wrap": bool, "max_theil": (int, float)}
+          "wrap": bool, "max_theil": (int, float), "max_rmse": (int, float)}
 
 
 def load(path: str | Path | None, vehicle: str) -> tuple[SignalMap, ...]:
@@ -138,8 +153,9 @@ def from_dict(data: Mapping[str, Any], vehicle: str, source: str = "output map")
                     and raw["log_unit"] not in ("m", "rad", "m/s", "m/s2", "rad/s", "N", "1", "s"):
                 problems.append(f"{table}.{fmu}.log_unit = {raw['log_unit']!r}; known: "
                                 f"{', '.join(UNIT_CONVERSIONS)} or an SI unit")
-            if "max_theil" in raw and not raw["max_theil"] > 0:
-                problems.append(f"{table}.{fmu}.max_theil = {raw['max_theil']!r}; allowed: > 0")
+            for key in ("max_theil", "max_rmse"):
+                if key in raw and not raw[key] > 0:
+                    problems.append(f"{table}.{fmu}.{key} = {raw[key]!r}; allowed: > 0")
             base[fmu] = SignalMap(fmu=fmu, **{"max_theil": limit, **raw})
     if problems:
         raise OutputMapError(f"{source}: " + "; ".join(problems))

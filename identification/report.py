@@ -74,8 +74,9 @@ def validation_page(res: ReplayResult) -> str:
     rows = []
     for m in res.maps:
         r = res.overall[m.fmu]
-        ok = r.theil_u < m.max_theil
-        rows.append([m.fmu, m.log, f"{r.rmse:.4g}", f"{r.nrmse:.4f}", f"{r.theil_u:.3f}", f"{m.max_theil:g}",
+        ok = m.passes(r.theil_u, r.rmse)
+        limit = f"U < {m.max_theil:g}" + (f" or RMSE < {m.max_rmse:g}" if m.max_rmse is not None else "")
+        rows.append([m.fmu, m.log, f"{r.rmse:.4g}", f"{r.nrmse:.4f}", f"{r.theil_u:.3f}", limit,
                      f"{r.fit_percent:.1f}", f"{r.r2:.3f}", f"{r.max_error:.4g}",
                      f"<span class='{'pass' if ok else 'fail'}'>{'pass' if ok else 'FAIL'}</span>"])
     params = _table(["parameter", "value"], [[k, f"{v:.6g}"] for k, v in fmu["parameters"].items()])
@@ -86,7 +87,7 @@ def validation_page(res: ReplayResult) -> str:
         f"<h1>{html.escape(fmu['model_name'])} against {html.escape(log['path'])}</h1>",
         f"<p class='{'fail' if res.failed else 'pass'}'>{html.escape(verdict)}</p>",
         "<h2>Metrics</h2>",
-        _table(["FMU output", "log signal", "RMSE", "NRMSE", "Theil U", "limit", "fit %", "R²", "max error",
+        _table(["FMU output", "log signal", "RMSE", "NRMSE", "Theil U", "pass when", "fit %", "R²", "max error",
                 "result"], rows, raw=True),
         f"<p>{len(res.windows)} replay window(s), each re-initialised from the logged state; the first sample of "
         "each window is the initial condition and is not scored.</p>",

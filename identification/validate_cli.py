@@ -91,7 +91,8 @@ def validate_one(job: dict[str, Any]) -> dict[str, Any]:
     except (FmuRunError, OSError, ValueError, KeyError) as err:  # LogError, MappingError, ... are ValueErrors
         out["error"] = str(err).strip("'\"")
         return out
-    out["signals"] = {m.fmu: {**res.overall[m.fmu].as_dict(), "max_theil": m.max_theil, "log_signal": m.log}
+    out["signals"] = {m.fmu: {**res.overall[m.fmu].as_dict(), "max_theil": m.max_theil, "max_rmse": m.max_rmse,
+                              "log_signal": m.log}
                       for m in res.maps}
     out["failed"] = res.failed
     out["status"] = "fail" if res.failed else "pass"
@@ -115,11 +116,12 @@ def _table(results: list[dict[str, Any]]) -> str:
             lines.append(f"{Path(r['fmu']).name} x {Path(r['log']).name}: ERROR {r['error']}")
             continue
         lines.append(f"{Path(r['fmu']).name} x {Path(r['log']).name}: {r['status'].upper()}")
-        lines.append(f"  {'signal':<20} {'RMSE':>10} {'Theil U':>8} {'limit':>6} {'fit %':>8} {'R^2':>8}")
+        lines.append(f"  {'signal':<20} {'RMSE':>10} {'Theil U':>8} {'fit %':>8} {'R^2':>8}  pass when")
         for s, m in r["signals"].items():
             flag = "" if s not in r["failed"] else "  FAIL"
-            lines.append(f"  {s:<20} {m['rmse']:10.4g} {m['theil_u']:8.3f} {m['max_theil']:6.2f} "
-                         f"{m['fit_percent']:8.1f} {m['r2']:8.3f}{flag}")
+            rule = f"U < {m['max_theil']:g}" + (f" or RMSE < {m['max_rmse']:g}" if m.get("max_rmse") else "")
+            lines.append(f"  {s:<20} {m['rmse']:10.4g} {m['theil_u']:8.3f} {m['fit_percent']:8.1f} {m['r2']:8.3f}  "
+                         f"{rule}{flag}")
     return "\n".join(lines)
 
 

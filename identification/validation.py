@@ -49,7 +49,7 @@ class ReplayResult:
 
     @property
     def failed(self) -> list[str]:
-        return [m.fmu for m in self.maps if not self.overall[m.fmu].theil_u < m.max_theil]
+        return [m.fmu for m in self.maps if not m.passes(self.overall[m.fmu].theil_u, self.overall[m.fmu].rmse)]
 
 
 def vehicle_of(host: FmuHost) -> str:

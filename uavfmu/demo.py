@@ -1,20 +1,41 @@
-"""`uavfmu demo`: build both FMUs with the papers' parameters and fly them through FMPy; print a summary."""
+"""``uavfmu demo``: the whole tool chain on data the project makes itself, then a summary.
+
+1. Build both FMUs with the papers' parameters; check the published hover and trim.
+2. Fly each FMU through FMPy in closed loop (simple controllers): the quadrotor over an altitude profile, the
+   fixed wing through bank-angle steps with aileron 3-2-1-1 inputs; record ArduPilot DataFlash logs with
+   seeded sensor noise.
+3. Identify the thrust map (ANFIS, paper 000) and the roll derivatives (output error, paper 001) from the logs.
+4. Rebuild both FMUs with the identified parameters.
+5. Validate them against the recorded logs with FMPy (``uavfmu validate --batch``); print the summary and the
+   path of the HTML report.
+
+``--real`` (``make demo-real``) runs steps 3-5 on the real quadrotor log in ``../shared/data`` instead.
+"""
 
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+REAL_QUAD_LOG = ("quadrotor", "arducopter_x_quad_real_218.BIN")
+ROLL_FREE = "C_ell_p,C_ell_delta_a"
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", type=Path, default=Path("dist"), help="where the FMUs go (default: dist)")
-    parser.add_argument("--real", action="store_true", help="also use the real logs in ../shared/data")
+    parser.add_argument("--out", type=Path, default=Path("dist"), help="output folder (default: dist)")
+    parser.add_argument("--real", action="store_true", help="identify and validate on ../shared/data's real log")
+    parser.add_argument("--shared", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data",
+                        help="the shared data folder (default: ../shared/data beside the checkout)")
+    parser.add_argument("--seed", type=int, default=1, help="sensor-noise seed of the recorded logs")
 
 
-def fly_quadrotor(fmu: Path) -> dict[str, float]:
+def hover_check(fmu: Path) -> dict[str, float]:
     """Hover at the published map's hover PWM from 10 m for 10 s; return the height excursion."""
     from fmpy import simulate_fmu
     from scipy.optimize import brentq
@@ -28,47 +49,144 @@ def fly_quadrotor(fmu: Path) -> dict[str, float]:
     pwm = brentq(lambda x: amap.evaluate([np.array([x])])[0] - 1.14 * g, 6000.0, 6217.3) / 4
     res = simulate_fmu(str(fmu), stop_time=10.0, output_interval=0.01,
                        start_values={"init_pos_down_m": -10.0, **{f"pwm_{i}_us": pwm for i in range(1, 5)}},
-                       output=["altitude_m", "accel_body_z_m_s2"])
-    return {"hover PWM [us]": pwm, "max |altitude - 10 m| [mm]": 1e3 * float(np.max(np.abs(res["altitude_m"] - 10))),
-            "accel z [m/s2]": float(res["accel_body_z_m_s2"][-1])}
+                       output=["altitude_m"])
+    return {"hover PWM [us]": pwm, "max |altitude - 10 m| [mm]": 1e3 * float(np.max(np.abs(res["altitude_m"] - 10)))}
 
 
-def fly_fixed_wing(fmu: Path) -> dict[str, float]:
-    """Trim at 25 m/s (uavbook method), fly 20 s from the trim through FMPy, then roll with the aileron."""
+def trim_check(fmu: Path) -> dict[str, float]:
+    """Trim at 25 m/s (uavbook method) and fly 20 s from it through FMPy."""
     from fmpy import simulate_fmu
 
-    from fmu_models.common.rigid_body import euler_from_quat
-    from fmu_models.common.simulate import Simulator
-    from fmu_models.fixed_wing.model import FixedWingModel
-    from fmu_models.fixed_wing.trim import trim
+    from uavfmu.scenarios import fixed_wing_start
 
-    sim = Simulator(FixedWingModel())
-    p = sim.params()
-    t = trim(sim.model, p, 25.0)
-    pitch = float(np.asarray(euler_from_quat(t.x[6:10])).ravel()[1])
-    start = {"init_pos_down_m": -100.0, "init_vel_body_x_m_s": float(t.x[3]), "init_vel_body_z_m_s": float(t.x[5]),
-             "init_pitch_rad": pitch, "aileron_rad": float(t.u[0]), "elevator_rad": float(t.u[1]),
-             "rudder_rad": float(t.u[2]), "throttle": float(t.u[3])}
+    start, inputs, pitch = fixed_wing_start()
     res = simulate_fmu(str(fmu), stop_time=20.0, output_interval=0.01, start_values=start,
-                       output=["airspeed_m_s", "altitude_m", "roll_rad"])
-    return {"trim alpha [deg]": np.degrees(t.alpha_rad), "trim elevator [deg]": np.degrees(t.elevator_rad),
-            "trim throttle [-]": t.throttle,
-            "max |Va - 25| over 20 s [m/s]": float(np.max(np.abs(res["airspeed_m_s"] - 25))),
-            "max |altitude - 100| [m]": float(np.max(np.abs(res["altitude_m"] - 100)))}
+                       output=["airspeed_m_s", "altitude_m"])
+    return {"trim pitch [deg]": math.degrees(pitch), "trim elevator [deg]": math.degrees(inputs["elevator_rad"]),
+            "trim throttle [-]": inputs["throttle"],
+            "max |Va - 25| over 20 s [m/s]": float(np.max(np.abs(res["airspeed_m_s"] - 25)))}
+
+
+def quadrotor_altitude(t: float) -> float:
+    """Altitude reference [m]: climb to 10 m, then two sines (9 s and 3.1 s) that sweep the thrust band."""
+    if t < 4.0:
+        return 10.0 * t / 4.0
+    return 10.0 + 2.5 * math.sin(2 * math.pi * (t - 4.0) / 9.0) + 1.0 * math.sin(2 * math.pi * (t - 4.0) / 3.1)
+
+
+def record_flights(fmus: dict[str, Path], logs_dir: Path, seed: int) -> dict[str, Path]:
+    """Closed-loop flights of both FMUs at 100 Hz, written as DataFlash logs with seeded sensor noise."""
+    from uavfmu import synthetic
+    from uavfmu.scenarios import (
+        FixedWingAutopilot,
+        QuadrotorAutopilot,
+        SampleHold,
+        fixed_wing_bank_profile,
+        fixed_wing_excitation,
+        fixed_wing_start,
+        fly,
+        published_thrust_inverse,
+    )
+
+    # FMUs step at 100 Hz (IMU rate); the controllers update the servos at 50 Hz, the rate RCOU is logged at
+    quad_ap = SampleHold(QuadrotorAutopilot(quadrotor_altitude, published_thrust_inverse()), 0.02)
+    quad = fly(fmus["quadrotor"], quad_ap, 60.0, 0.01)
+    start, inputs, pitch = fixed_wing_start()
+    wing_ap = SampleHold(FixedWingAutopilot(inputs, pitch, fixed_wing_bank_profile, fixed_wing_excitation), 0.02)
+    wing = fly(fmus["fixed_wing"], wing_ap, 80.0, 0.01, start)
+    logs_dir.mkdir(parents=True, exist_ok=True)
+    return {"quadrotor": synthetic.write_log(logs_dir / "quadrotor_flight.bin", quad, noise=True, seed=seed),
+            "fixed_wing": synthetic.write_log(logs_dir / "fixed_wing_flight.bin", wing, noise=True, seed=seed + 1)}
+
+
+def identify(logs: dict[str, Path], work: Path) -> tuple[Path, dict[str, Any]]:
+    """Thrust map and roll derivatives from the logs, merged into one parameter file for ``build_fmus``."""
+    from uavfmu.cli import main
+
+    merged: dict[str, Any] = {}
+    found: dict[str, Any] = {}
+    if "quadrotor" in logs:
+        out = work / "quadrotor_identified.json"
+        rc = main(["identify", "thrust", str(logs["quadrotor"]), "--mass", "1.14", "--out", str(out),
+                   "--plots", str(work / "plots" / "thrust")])
+        if rc != 0:
+            raise SystemExit(f"demo: thrust identification failed (exit {rc})")
+        merged.update(json.loads(out.read_text()))
+        found["thrust"] = json.loads(out.with_suffix(".metrics.json").read_text())
+    if "fixed_wing" in logs:
+        out = work / "fixed_wing_identified.json"
+        rc = main(["identify", "aero", str(logs["fixed_wing"]), "--free", ROLL_FREE, "--outputs",
+                   "roll_rad,rate_body_x_rad_s", "--out", str(out), "--plots", str(work / "plots" / "aero"),
+                   "--quiet"])
+        if rc != 0:
+            raise SystemExit(f"demo: roll-derivative identification failed (exit {rc})")
+        merged["fixed_wing"] = json.loads(out.read_text())["fixed_wing"]
+        found["aero"] = json.loads(out.with_suffix(".metrics.json").read_text())
+    params = work / "identified.json"
+    params.write_text(json.dumps(merged, indent=2) + "\n")
+    return params, found
 
 
 def run(args: argparse.Namespace) -> int:
     from build_fmus import build
+    from fmu_models.fixed_wing.params import FixedWingParams
+    from uavfmu.cli import main
 
-    t0 = time.perf_counter()
-    paths = {p.stem: p for p in build(None, args.out)}
-    print(f"built {', '.join(str(p) for p in paths.values())} in {time.perf_counter() - t0:.1f} s")
-    rows = fly_quadrotor(paths["quadrotor"])
-    print("\nquadrotor.fmu, hover (paper 000 published ANFIS map, DJI F450)")
-    for k, v in rows.items():
-        print(f"  {k:<34} {v:10.4f}")
-    rows = fly_fixed_wing(paths["fixed_wing"])
-    print("\nfixed_wing.fmu, wings-level trim at 25 m/s (Aerosonde, Beard & McLain)")
-    for k, v in rows.items():
-        print(f"  {k:<34} {v:10.4f}")
-    return 0
+    t_start = time.perf_counter()
+    out: Path = args.out
+    work = out / "demo"
+    paths = {p.stem: p for p in build(None, out)}
+    print(f"[{time.perf_counter() - t_start:5.1f} s] built {', '.join(str(p) for p in paths.values())}")
+    checks = {"quadrotor hover (published ANFIS map, DJI F450)": hover_check(paths["quadrotor"]),
+              "fixed wing trim at 25 m/s (Aerosonde)": trim_check(paths["fixed_wing"])}
+    if args.real:
+        real = args.shared.joinpath(*REAL_QUAD_LOG)
+        if not real.exists():
+            print(f"demo --real: {real} not found (it needs ../shared beside the checkout)")
+            return 2
+        logs = {"quadrotor": real}
+    else:
+        logs = record_flights(paths, work / "logs", args.seed)
+    print(f"[{time.perf_counter() - t_start:5.1f} s] logs: {', '.join(str(p) for p in logs.values())}")
+    params, found = identify(logs, work)
+    only = list(logs)
+    rebuilt = {p.stem: p for p in build(params, work / "identified_fmus", only)}
+    print(f"[{time.perf_counter() - t_start:5.1f} s] rebuilt with the identified parameters: "
+          f"{', '.join(str(p) for p in rebuilt.values())}")
+    manifest = work / "validate.toml"
+    jobs = [f"[[job]]\nfmu = '{rebuilt[v].resolve()}'\nlog = '{Path(logs[v]).resolve()}'\n" for v in only]
+    manifest.write_text("[defaults]\nwindow_s = 2.0\nrate_hz = 50.0\n" + "".join(jobs))
+    report_dir = work / "report"
+    rc = main(["validate", "--batch", str(manifest), "--report", str(report_dir), "--jobs", "2", "--quiet"])
+    results = json.loads((report_dir / "results.json").read_text())
+
+    print("\n=== uavfmu demo summary ===")
+    for title, rows in checks.items():
+        print(f"{title}")
+        for k, v in rows.items():
+            print(f"  {k:<36} {v:10.4f}")
+    if "thrust" in found:
+        m = found["thrust"]
+        print("thrust map identified from the quadrotor log (ANFIS, paper 000)")
+        print(f"  {'validation RMSE [N], R^2':<36} {m['validation_rmse_N']:10.4f} {m['validation_r2']:8.3f}")
+        print(f"  {'trained band [us summed]':<36} {m['band_us'][0]:10.0f} {m['band_us'][1]:8.0f}")
+    if "aero" in found:
+        truth = FixedWingParams()
+        est = found["aero"]["estimate"]["parameters"]
+        print("roll derivatives identified from the fixed-wing log (output error, paper 001)")
+        for name in ROLL_FREE.split(","):
+            e = est[name]
+            print(f"  {name:<16} {e['value']:10.4f} +- {e['crb_std']:.4f} (CR)   truth {getattr(truth, name):8.4f}")
+        theil = found["aero"]["metrics"]["validation"]["roll_rad"]["theil_u"]
+        print(f"  {'held-out roll angle Theil U':<36} {theil:10.4f}")
+    print("validation of the rebuilt FMUs against the logs (FMPy, 2 s windows)")
+    for r in results:
+        if r["status"] == "error":
+            print(f"  {Path(r['fmu']).name:<16} ERROR {r['error']}")
+            continue
+        worst = max(r["signals"], key=lambda s: r["signals"][s]["theil_u"])
+        print(f"  {Path(r['fmu']).name:<16} {r['status'].upper():<5} {len(r['signals'])} signals, worst Theil U "
+              f"{r['signals'][worst]['theil_u']:.3f} ({worst})")
+    print(f"report: {report_dir / 'index.html'}")
+    print(f"total time {time.perf_counter() - t_start:.1f} s")
+    return 0 if rc in (0, 1) else rc

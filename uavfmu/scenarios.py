@@ -83,6 +83,23 @@ def fly(fmu: Path, controller: Callable[[float, dict[str, float]], dict[str, flo
     )
 
 
+@dataclass
+class SampleHold:
+    """Run ``controller`` every ``period_s`` and hold its command in between, like an autopilot's servo loop
+    (outputs logged at that rate then reproduce the inputs exactly under zero-order hold)."""
+
+    controller: Callable[[float, dict[str, float]], dict[str, float]]
+    period_s: float
+    _next_s: float = 0.0
+    _held: dict[str, float] = field(default_factory=dict)
+
+    def __call__(self, t: float, y: dict[str, float]) -> dict[str, float]:
+        if not self._held or t >= self._next_s - 1e-9:
+            self._held = self.controller(t, y)
+            self._next_s = t + self.period_s
+        return self._held
+
+
 class ThrustInverse:
     """PWM per motor [us] for a wanted thrust per motor [N] on the rising envelope of a thrust curve.
 

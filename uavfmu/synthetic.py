@@ -199,9 +199,9 @@ def ardupilot_params(vehicle: str) -> dict[str, float]:
     return out
 
 
-#: every how many recording samples each message is logged (a 100 Hz recording: IMU 100 Hz, ATT 50 Hz,
-#: RCOU 25 Hz, GPS 5 Hz), like ArduPilot's default rates
-LOG_DECIMATION = {"IMU": 1, "ATT": 2, "RCOU": 4, "GPS": 20, "CTUN": 4, "BARO": 2, "ARSP": 4}
+#: every how many recording samples each message is logged (a 100 Hz recording: IMU 100 Hz, ATT and RCOU
+#: 50 Hz, GPS 5 Hz), like ArduPilot's default rates
+LOG_DECIMATION = {"IMU": 1, "ATT": 2, "RCOU": 2, "GPS": 20, "CTUN": 4, "BARO": 2, "ARSP": 4}
 
 
 def write_log(path: str | Path, rec: Recording, noise: bool = False, seed: int = 0) -> Path:
@@ -222,7 +222,9 @@ def write_log(path: str | Path, rec: Recording, noise: bool = False, seed: int =
                 "DesYaw": 0.0, "Yaw": np.mod(sig["yaw_rad"] * deg, 360.0)},
         "RCOU": {f"C{k}": np.round(sig[f"servo_{k}_pwm_us"]) for k in range(1, 15) if f"servo_{k}_pwm_us" in sig},
         "GPS": {"I": 0, "Status": 3, "NSats": 14, "HDop": 0.7, "Lat": sig["lat_deg"], "Lng": sig["lon_deg"],
-                "Alt": sig["altitude_m"]},
+                "Alt": sig["altitude_m"], "Spd": np.hypot(sig["vel_north_m_s"], sig["vel_east_m_s"]),
+                "GCrs": np.mod(np.degrees(np.arctan2(sig["vel_east_m_s"], sig["vel_north_m_s"])), 360.0),
+                "VZ": sig["vel_down_m_s"]},
         ("CTUN" if vehicle == "quadrotor" else "BARO"): {"Alt": sig["altitude_m"]},
     }
     if vehicle == "fixed_wing":

@@ -90,7 +90,7 @@ def read_dataflash(path: Path, channel_map: dict[str, int] | None = None) -> Fli
     warnings = [w[1]["text"] for w in raw.pop("_warnings", [])]
     size = path.stat().st_size
     data_len = getattr(reader, "data_len", size)
-    if isinstance(reader, DFReader.DFReader_binary) and data_len - last_offset > 1024:
+    if isinstance(reader, DFReader.DFReader_binary) and data_len - last_offset > 0:
         warnings.append(f"{path}: {data_len - last_offset} of {data_len} bytes at the end could not be parsed "
                         "and were dropped (truncated or corrupt tail)")
     if n_msgs == 0 or not raw:
@@ -108,6 +108,12 @@ def read_dataflash(path: Path, channel_map: dict[str, int] | None = None) -> Fli
         if key in signals and name not in signals:
             s = signals[key]
             signals[name] = Signal(name, s.t_s, s.values * scale, unit, f"from {key}")
+    if all(f"GPS.{f}" in signals for f in ("Spd", "GCrs", "VZ")):  # ground speed, course [deg], VZ down (NED)
+        spd, crs, vz = (signals[f"GPS.{f}"] for f in ("Spd", "GCrs", "VZ"))
+        course = crs.values * DEG
+        for name, vals in (("vel_north_m_s", spd.values * np.cos(course)),
+                           ("vel_east_m_s", spd.values * np.sin(course)), ("vel_down_m_s", vz.values)):
+            signals[name] = Signal(name, spd.t_s, vals, "m/s", "from GPS.Spd/GCrs/VZ")
     if "altitude_m" not in signals and "BARO.Alt" in signals:
         s = signals["BARO.Alt"]
         signals["altitude_m"] = Signal("altitude_m", s.t_s, s.values, "m", "from BARO.Alt")
