@@ -1,0 +1,29 @@
+"""``uavfmu demo`` end to end on self-made data: flights, logs, identification, rebuild, validation report."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from uavfmu.cli import main
+
+
+@pytest.mark.slow
+def test_demo_pipeline(tmp_path: Path, capsys) -> None:
+    assert main(["demo", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "=== uavfmu demo summary ===" in out and "report:" in out
+    work = tmp_path / "demo"
+    assert (work / "logs" / "quadrotor_flight.bin").stat().st_size > 100_000
+    ident = json.loads((work / "identified.json").read_text())
+    assert {k for k in ident if not k.startswith("_")} == {"quadrotor", "fixed_wing"}
+    aero = json.loads((work / "fixed_wing_identified.metrics.json").read_text())["estimate"]["parameters"]
+    # the recorded flight used the Aerosonde's C_ell_p = -0.51 and C_ell_delta_a = 0.17
+    assert aero["C_ell_p"]["value"] == pytest.approx(-0.51, rel=0.05)
+    assert aero["C_ell_delta_a"]["value"] == pytest.approx(0.17, rel=0.05)
+    results = json.loads((work / "report" / "results.json").read_text())
+    assert [r["status"] for r in results] == ["pass", "pass"]
+    assert (work / "report" / "index.html").exists()
+    assert all((work / "report" / r["report"]).exists() for r in results)
