@@ -115,3 +115,41 @@ class FmuHost:
         if len(res) != len(t_s):
             raise FmuRunError(f"{self.path.name}: {len(res)} result rows for {len(t_s)} samples")
         return res
+
+    # -------------------------------------------------------------- step-by-step (HIL, closed-loop scenarios)
+    def start(self, start_values: Mapping[str, float] | None = None) -> None:
+        """(Re-)initialise the instance at time 0 with ``start_values``; ``FmuRunError`` on failure."""
+        self._vr = {n: v.valueReference for n, v in self.variables.items()}
+        try:
+            if self._used:
+                self.slave.reset()
+            self._used = True
+            self.messages.clear()
+            self.slave.setupExperiment(startTime=0.0)
+            if start_values:
+                self.set(start_values)
+            self.slave.enterInitializationMode()
+            self.slave.exitInitializationMode()
+        except Exception as err:  # FMPy raises FMICallException (an Exception) for fmi2Error
+            raise FmuRunError(f"{self.path.name}: initialisation failed ({err}){self._tail()}") from err
+
+    def set(self, values: Mapping[str, float]) -> None:
+        try:
+            self.slave.setReal([self._vr[k] for k in values], [float(v) for v in values.values()])
+        except KeyError as err:
+            raise FmuRunError(f"{self.path.name}: no variable {err}") from None
+        except Exception as err:
+            raise FmuRunError(f"{self.path.name}: setting {', '.join(values)} failed ({err}){self._tail()}") from err
+
+    def step(self, t_s: float, dt_s: float, inputs: Mapping[str, float] | None = None) -> None:
+        """Set ``inputs`` and advance one communication step; ``FmuRunError`` with the FMU's messages."""
+        if inputs:
+            self.set(inputs)
+        try:
+            self.slave.doStep(currentCommunicationPoint=t_s, communicationStepSize=dt_s)
+        except Exception as err:
+            raise FmuRunError(f"{self.path.name}: step at t = {t_s:.4f} s failed ({err}){self._tail()}") from err
+
+    def get(self, names: Sequence[str]) -> dict[str, float]:
+        vals = self.slave.getReal([self._vr[n] for n in names])
+        return dict(zip(names, vals, strict=True))

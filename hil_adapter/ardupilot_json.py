@@ -1,0 +1,128 @@
+"""ArduPilot SITL JSON backend: servo packets in over UDP (port 9002), a JSON state per frame back.
+
+SITL drives the clock (lockstep by construction): every servo frame advances the FMU by ``1/frame_rate``.
+A repeated ``frame_count`` is a resend (answered with the last state, no step); a smaller one means SITL
+restarted (the FMU is re-initialised). Malformed datagrams are counted and ignored.
+"""
+
+from __future__ import annotations
+
+import logging
+import socket
+import threading
+import time
+from typing import Any, Protocol
+
+from hil_adapter.core import Plant, Recorder, Stats
+from hil_adapter.packets import PacketError, ServoPacket, json_state
+from hil_adapter.pwm_mapping import MappingError
+
+log = logging.getLogger(__name__)
+DEFAULT_PORT = 9002
+
+
+class DatagramTransport(Protocol):
+    def recv(self, timeout_s: float) -> tuple[bytes, Any] | None: ...
+
+    def send(self, data: bytes, addr: Any) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class UdpTransport:
+    """A UDP socket bound to ``host:port`` (127.0.0.1 unless told otherwise)."""
+
+    def __init__(self, host: str = "127.0.0.1", port: int = DEFAULT_PORT) -> None:
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.sock.bind((host, port))
+        self.address = self.sock.getsockname()
+
+    def recv(self, timeout_s: float) -> tuple[bytes, Any] | None:
+        self.sock.settimeout(timeout_s)
+        try:
+            return self.sock.recvfrom(65536)
+        except (TimeoutError, BlockingIOError):
+            return None
+
+    def send(self, data: bytes, addr: Any) -> None:
+        try:
+            self.sock.sendto(data, addr)
+        except OSError as err:  # the other side went away: SITL will resend or reconnect
+            log.warning("reply to %s failed: %s", addr, err)
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+class ArduPilotJsonServer:
+    """Serve one SITL instance from ``plant``; ``handle`` is the pure per-datagram logic."""
+
+    def __init__(self, plant: Plant, transport: DatagramTransport, stats: Stats | None = None,
+                 recorder: Recorder | None = None, sensors: Any = None) -> None:
+        self.plant, self.transport = plant, transport
+        self.stats = stats or Stats()
+        self.recorder, self.sensors = recorder, sensors
+        self.last_count: int | None = None
+        self.last_reply = b""
+
+    def reply(self) -> bytes:
+        s = self.plant.state
+        gyro = [s["rate_body_x_rad_s"], s["rate_body_y_rad_s"], s["rate_body_z_rad_s"]]
+        accel = [s["accel_body_x_m_s2"], s["accel_body_y_m_s2"], s["accel_body_z_m_s2"]]
+        if self.sensors is not None:  # noisy IMU (SITL adds its own noise model on top if configured)
+            frame = self.sensors.sample(self.plant.t_s, s)
+            gyro, accel = list(frame.gyro_body_rad_s), list(frame.accel_body_m_s2)
+        return json_state(self.plant.t_s, gyro, accel, [s["pos_north_m"], s["pos_east_m"], s["pos_down_m"]],
+                          [s["vel_north_m_s"], s["vel_east_m_s"], s["vel_down_m_s"]],
+                          [s["quat_w"], s["quat_x"], s["quat_y"], s["quat_z"]],
+                          s.get("airspeed_m_s") if self.plant.has_airspeed else None)
+
+    def handle(self, data: bytes) -> bytes | None:
+        """One datagram in, the reply out (None for a malformed one)."""
+        try:
+            pkt = ServoPacket.unpack(data)
+            pwm = {k + 1: float(v) for k, v in enumerate(pkt.pwm_us) if v > 0}
+            if self.last_count is not None and pkt.frame_count == self.last_count:
+                self.stats.resends += 1
+                return self.last_reply
+            if self.last_count is not None and pkt.frame_count < self.last_count:
+                log.info("frame_count went from %d to %d: SITL restarted, resetting the FMU", self.last_count,
+                         pkt.frame_count)
+                self.stats.restarts += 1
+                self.plant.restart()
+            elif self.last_count is not None and pkt.frame_count > self.last_count + 1:
+                self.stats.dropped += pkt.frame_count - self.last_count - 1
+            self.plant.apply(pwm)
+        except (PacketError, MappingError) as err:
+            self.stats.malformed += 1
+            log.debug("malformed servo packet (%d bytes): %s", len(data), err)
+            return None
+        self.last_count = pkt.frame_count
+        self.plant.advance(1.0 / pkt.frame_rate_hz)
+        self.stats.steps += 1
+        if self.recorder is not None:
+            self.recorder.write(self.plant.t_s, pwm, self.plant.inputs, self.plant.state)
+        self.last_reply = self.reply()
+        return self.last_reply
+
+    def serve(self, stop: threading.Event | None = None, max_frames: int | None = None,
+              idle_timeout_s: float | None = None, poll_s: float = 0.1) -> Stats:
+        """Answer frames until ``stop`` is set, ``max_frames`` were stepped, or ``idle_timeout_s`` passes."""
+        idle_since = time.perf_counter()
+        while not (stop is not None and stop.is_set()):
+            if max_frames is not None and self.stats.steps >= max_frames:
+                break
+            got = self.transport.recv(poll_s)
+            if got is None:
+                if idle_timeout_s is not None and time.perf_counter() - idle_since > idle_timeout_s:
+                    break
+                continue
+            t0 = time.perf_counter()
+            idle_since = t0
+            data, addr = got
+            out = self.handle(data)
+            if out is not None:
+                self.transport.send(out, addr)
+                self.stats.latencies.append(time.perf_counter() - t0)
+        return self.stats

@@ -1,0 +1,206 @@
+"""What every simulator interface shares: the FMU plant, statistics, the crash-safe recorder, the watchdog.
+
+The plant drives the FMU only through FMI (FMPy's FMU2Slave, via ``uavfmu.fmu_host``): PWM in through the
+PWM mapping, outputs by name out. An FMU error never propagates: it is counted, logged, and the FMU is
+re-initialised at its start state, as a bench operator would restart the simulation.
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import math
+import time
+from collections import deque
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, TextIO
+
+from hil_adapter.pwm_mapping import Channel, MappingError, PwmMapping
+from uavfmu.fmu_host import FmuHost, FmuRunError
+
+log = logging.getLogger(__name__)
+
+#: FMU outputs every interface needs (both of our FMUs have them)
+STATE_OUTPUTS = (
+    "accel_body_x_m_s2", "accel_body_y_m_s2", "accel_body_z_m_s2", "rate_body_x_rad_s", "rate_body_y_rad_s",
+    "rate_body_z_rad_s", "quat_w", "quat_x", "quat_y", "quat_z", "roll_rad", "pitch_rad", "yaw_rad",
+    "pos_north_m", "pos_east_m", "pos_down_m", "vel_north_m_s", "vel_east_m_s", "vel_down_m_s",
+    "lat_deg", "lon_deg", "height_m", "altitude_m",
+)
+OPTIONAL_OUTPUTS = ("airspeed_m_s",)
+#: FMU output -> canonical log signal where they differ (identification.flightlog names)
+LOG_NAMES = {"rate_body_x_rad_s": "gyro_body_x_rad_s", "rate_body_y_rad_s": "gyro_body_y_rad_s",
+             "rate_body_z_rad_s": "gyro_body_z_rad_s"}
+
+
+def default_mapping(vehicle: str) -> PwmMapping:
+    """Quadrotor: outputs 1-4 are the motors' PWM as they are; fixed wing: ArduPlane's SERVO1-4 defaults."""
+    if vehicle == "quadrotor":
+        return PwmMapping(tuple(Channel(f"pwm_{k}_us", k, 1000.0, 1000.0, 2000.0, 1000.0, 2000.0, failsafe=1000.0)
+                                for k in range(1, 5)))
+    surf = {"min_us": 1100.0, "trim_us": 1500.0, "max_us": 1900.0, "out_min": -0.35, "out_max": 0.35}
+    return PwmMapping.from_dict({"channels": {
+        "aileron_rad": {"source": 1, **surf}, "elevator_rad": {"source": 2, **surf},
+        "throttle": {"source": 3, "min_us": 1000.0, "trim_us": 1000.0, "max_us": 2000.0, "out_min": 0.0,
+                     "out_max": 1.0},
+        "rudder_rad": {"source": 4, **surf}}}, source="default fixed-wing mapping")
+
+
+class Plant:
+    """The FMU behind the adapter: ``apply(pwm)`` then ``advance(dt)``; restarts itself after an FMU error."""
+
+    def __init__(self, fmu: str | Path, mapping: PwmMapping | None = None,
+                 start_values: Mapping[str, float] | None = None) -> None:
+        self.host = FmuHost(fmu, instance_name="hil")
+        names = set(self.host.variables)
+        self.vehicle = "quadrotor" if "pwm_1_us" in names else "fixed_wing"
+        self.mapping = mapping or default_mapping(self.vehicle)
+        missing = [c.target for c in self.mapping.channels if c.target not in names]
+        if missing:
+            self.host.close()
+            raise MappingError(f"PWM mapping targets {', '.join(missing)} are not inputs of {self.host.path.name}")
+        self.outputs = [n for n in STATE_OUTPUTS + OPTIONAL_OUTPUTS if n in names]
+        self.start_values = dict(start_values or {})
+        self.inputs: dict[str, float] = {c.target: c.failsafe for c in self.mapping.channels}
+        self.fmu_errors = 0
+        self.last_error = ""
+        self.restart()
+
+    @property
+    def has_airspeed(self) -> bool:
+        return "airspeed_m_s" in self.outputs
+
+    def restart(self) -> None:
+        """Back to the start state at t = 0 (SITL restarted, or after an FMU error)."""
+        self.t_s = 0.0
+        self.host.start(self.start_values)
+        self.state = self.host.get(self.outputs)
+
+    def apply(self, pwm_us: Mapping[int, float], failsafe: bool = False) -> dict[str, float]:
+        """FMU inputs from PWM by output channel (1-based); a bad pulse raises ``MappingError``."""
+        self.inputs = self.mapping.apply(pwm_us, failsafe=failsafe)
+        return self.inputs
+
+    def advance(self, dt_s: float) -> dict[str, float]:
+        """One FMU step of ``dt_s`` with the current inputs; returns the outputs by name."""
+        try:
+            self.host.step(self.t_s, dt_s, self.inputs)
+            self.t_s += dt_s
+            self.state = self.host.get(self.outputs)
+        except FmuRunError as err:
+            self.fmu_errors += 1
+            self.last_error = str(err)
+            log.error("FMU error, restarting the simulation: %s", err)
+            self.restart()
+        return self.state
+
+    def close(self) -> None:
+        self.host.close()
+
+
+@dataclass
+class Stats:
+    """Live counters of an adapter run; latencies in seconds."""
+
+    steps: int = 0
+    overruns: int = 0
+    dropped: int = 0
+    malformed: int = 0
+    resends: int = 0
+    restarts: int = 0
+    reconnects: int = 0
+    failsafes: int = 0
+    started: float = field(default_factory=time.perf_counter)
+    latencies: deque[float] = field(default_factory=lambda: deque(maxlen=20000))
+
+    def percentile(self, q: float) -> float:
+        if not self.latencies:
+            return math.nan
+        s = sorted(self.latencies)
+        return s[min(len(s) - 1, int(q / 100.0 * len(s)))]
+
+    @property
+    def rate_hz(self) -> float:
+        return self.steps / max(time.perf_counter() - self.started, 1e-9)
+
+    def summary(self, plant: Plant | None = None) -> dict[str, Any]:
+        out = {"steps": self.steps, "step_rate_hz": round(self.rate_hz, 1),
+               "latency_p50_ms": round(1e3 * self.percentile(50), 4),
+               "latency_p99_ms": round(1e3 * self.percentile(99), 4),
+               "overruns": self.overruns, "dropped": self.dropped, "malformed": self.malformed,
+               "resends": self.resends, "restarts": self.restarts, "reconnects": self.reconnects,
+               "failsafes": self.failsafes}
+        if plant is not None:
+            out |= {"sim_time_s": round(plant.t_s, 3), "fmu_errors": plant.fmu_errors}
+        return out
+
+    def line(self, plant: Plant | None = None) -> str:
+        s = self.summary(plant)
+        return (f"t={s.get('sim_time_s', 0):8.2f}s steps={s['steps']} rate={s['step_rate_hz']:.0f}/s "
+                f"rtt p50={s['latency_p50_ms']:.3f}ms p99={s['latency_p99_ms']:.3f}ms overruns={s['overruns']} "
+                f"dropped={s['dropped']} malformed={s['malformed']} fmu_errors={s.get('fmu_errors', 0)}")
+
+
+class Recorder:
+    """Every step's PWM in, FMU inputs and outputs, as a CSV log the project's readers read back.
+
+    Each row is flushed as it is written, so a crash or Ctrl-C loses at most the row being written.
+    """
+
+    def __init__(self, path: str | Path, channels: Sequence[int], inputs: Sequence[str], outputs: Sequence[str]):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._fh: TextIO = self.path.open("w", newline="", buffering=1)
+        self._w = csv.writer(self._fh)
+        self.channels, self.inputs, self.outputs = list(channels), list(inputs), list(outputs)
+        self._w.writerow(["time_s", *(f"servo_{c}_pwm_us" for c in self.channels), *self.inputs,
+                          *(LOG_NAMES.get(o, o) for o in self.outputs), "failsafe"])
+        self.rows = 0
+
+    def write(self, t_s: float, pwm_us: Mapping[int, float], inputs: Mapping[str, float],
+              outputs: Mapping[str, float], failsafe: bool = False) -> None:
+        self._w.writerow([repr(t_s), *(repr(float(pwm_us.get(c, math.nan))) for c in self.channels),
+                          *(repr(float(inputs[n])) for n in self.inputs),
+                          *(repr(float(outputs[n])) for n in self.outputs), int(failsafe)])
+        self.rows += 1
+
+    def close(self) -> None:
+        self._fh.close()
+
+
+@dataclass
+class Watchdog:
+    """Input watchdog: after ``timeout_s`` of wall time without actuator input, the failsafe applies.
+
+    ``mode`` ``hold`` keeps the last inputs; ``throttle_off`` sets every channel's failsafe value (motors
+    and throttle off, surfaces at their failsafe).
+    """
+
+    timeout_s: float = 0.5
+    mode: str = "throttle_off"
+    last_input: float = field(default_factory=time.perf_counter)
+    tripped: bool = False
+
+    def __post_init__(self) -> None:
+        if self.mode not in ("hold", "throttle_off"):
+            raise ValueError(f"watchdog mode {self.mode!r}; allowed: hold, throttle_off")
+        if not self.timeout_s > 0:
+            raise ValueError(f"watchdog timeout {self.timeout_s} s; allowed: > 0")
+
+    def fed(self) -> None:
+        self.last_input = time.perf_counter()
+        self.tripped = False
+
+    def check(self, plant: Plant, stats: Stats) -> bool:
+        """True while the failsafe is active; applies it once when the timeout passes."""
+        if time.perf_counter() - self.last_input < self.timeout_s:
+            return False
+        if not self.tripped:
+            self.tripped = True
+            stats.failsafes += 1
+            log.warning("no actuator input for %.2f s: failsafe (%s)", self.timeout_s, self.mode)
+            if self.mode == "throttle_off":
+                plant.apply({}, failsafe=True)
+        return True

@@ -1,0 +1,250 @@
+"""PX4 simulator interface: MAVLink 2 over TCP port 4560, PX4 connects as the client.
+
+We send HIL_SENSOR (``fields_updated`` set), HIL_GPS at the GPS rate, HIL_STATE_QUATERNION (ground truth),
+HEARTBEAT at 1 Hz and optionally RC_CHANNELS; PX4 answers with HIL_ACTUATOR_CONTROLS (``controls[16]``:
+motors 0..1, surfaces -1..1; ``mode`` carries the armed bit; ``flags`` bit 0 asks for lockstep).
+
+Lockstep: send the sensors of time t, wait for the actuator reply, step the FMU, repeat. Real time: step at
+a fixed rate on the wall clock with the latest actuator controls, deadline scheduling, overruns counted.
+A disconnect re-initialises the FMU and waits for the next connection. The same message builders serve the
+generic MAVLink bridge (``hil_adapter.mavlink_bridge``).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import socket
+import threading
+import time
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from pymavlink.dialects.v20 import common as mavlink2
+
+from hil_adapter.core import Plant, Recorder, Stats, Watchdog
+
+log = logging.getLogger(__name__)
+DEFAULT_PORT = 4560
+#: HIL_SENSOR.fields_updated: accel xyz, gyro xyz, mag xyz, abs pressure, diff pressure, pressure alt, temperature
+FIELDS_ALL = (1 << 13) - 1
+ARMED_FLAG = mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
+LOCKSTEP_FLAG = 1  # HIL_ACTUATOR_CONTROLS.flags bit 0
+#: fixed wing: which control index drives which output channel (PX4's classic roll, pitch, yaw, throttle group)
+WING_CONTROLS = {1: 0, 2: 1, 3: 3, 4: 2}
+
+
+def controls_to_pwm(controls: Sequence[float], vehicle: str, armed: bool) -> dict[int, float]:
+    """PWM by output channel from normalised controls: motors/throttle 0..1 -> 1000..2000 us, surfaces
+    -1..1 -> 1000..2000 us around 1500; unarmed: motors and throttle at 1000 us."""
+    def clip(v: float, lo: float, hi: float) -> float:
+        return lo if not math.isfinite(v) else min(max(v, lo), hi)
+
+    if vehicle == "quadrotor":
+        return {k + 1: 1000.0 + 1000.0 * (clip(controls[k], 0.0, 1.0) if armed else 0.0) for k in range(4)}
+    out = {}
+    for ch, idx in WING_CONTROLS.items():
+        if ch == 3:
+            out[ch] = 1000.0 + 1000.0 * (clip(controls[idx], 0.0, 1.0) if armed else 0.0)
+        else:
+            out[ch] = 1500.0 + 500.0 * clip(controls[idx], -1.0, 1.0)
+    return out
+
+
+class HilMessages:
+    """Builds the HIL_* messages of one time step from the FMU state and the sensor frame."""
+
+    def __init__(self, mav: mavlink2.MAVLink, vehicle: str) -> None:
+        self.mav = mav
+        self.mav_type = mavlink2.MAV_TYPE_QUADROTOR if vehicle == "quadrotor" else mavlink2.MAV_TYPE_FIXED_WING
+
+    def sensor(self, t_us: int, frame: Any) -> bytes:
+        a, g, m = frame.accel_body_m_s2, frame.gyro_body_rad_s, frame.mag_body_gauss
+        return self.mav.hil_sensor_encode(
+            t_us, a[0], a[1], a[2], g[0], g[1], g[2], m[0], m[1], m[2], frame.abs_pressure_pa / 100.0,
+            frame.diff_pressure_pa / 100.0, frame.pressure_alt_m, frame.temperature_degc, FIELDS_ALL, 0,
+        ).pack(self.mav)
+
+    def gps(self, t_us: int, fix: Any) -> bytes:
+        vn, ve, vd = fix.vel_ned_m_s
+        return self.mav.hil_gps_encode(
+            t_us, int(fix.fix_type), round(fix.lat_deg * 1e7), round(fix.lon_deg * 1e7), round(fix.alt_msl_m * 1e3),
+            min(round(fix.eph_m * 100), 65535), min(round(fix.epv_m * 100), 65535),
+            min(round(fix.ground_speed_m_s * 100), 65535), round(vn * 100), round(ve * 100), round(vd * 100),
+            round(fix.course_deg * 100) % 36000, int(fix.satellites), 0, 0,
+        ).pack(self.mav)
+
+    def state(self, t_us: int, s: Mapping[str, float]) -> bytes:
+        g0 = 9.80665
+        return self.mav.hil_state_quaternion_encode(
+            t_us, [s["quat_w"], s["quat_x"], s["quat_y"], s["quat_z"]], s["rate_body_x_rad_s"],
+            s["rate_body_y_rad_s"], s["rate_body_z_rad_s"], round(s["lat_deg"] * 1e7), round(s["lon_deg"] * 1e7),
+            round(s["height_m"] * 1e3), round(s["vel_north_m_s"] * 100), round(s["vel_east_m_s"] * 100),
+            round(s["vel_down_m_s"] * 100), min(round(s.get("airspeed_m_s", 0.0) * 100), 65535),
+            min(round(s.get("airspeed_m_s", 0.0) * 100), 65535), round(s["accel_body_x_m_s2"] / g0 * 1000),
+            round(s["accel_body_y_m_s2"] / g0 * 1000), round(s["accel_body_z_m_s2"] / g0 * 1000),
+        ).pack(self.mav)
+
+    def heartbeat(self) -> bytes:
+        return self.mav.heartbeat_encode(self.mav_type, mavlink2.MAV_AUTOPILOT_INVALID, 0, 0,
+                                         mavlink2.MAV_STATE_ACTIVE).pack(self.mav)
+
+    def rc(self, t_ms: int, channels: Sequence[int]) -> bytes:
+        ch = [int(c) for c in channels][:18] + [65535] * (18 - len(channels))
+        return self.mav.rc_channels_encode(t_ms, len(channels), *ch, 255).pack(self.mav)
+
+
+class Px4Server:
+    """Serve PX4 SITL/HIL over TCP. ``serve()`` handles connect, lockstep or real-time steps, disconnects."""
+
+    def __init__(self, plant: Plant, sensors: Any, host: str = "127.0.0.1", port: int = DEFAULT_PORT,
+                 lockstep: bool = True, dt_s: float = 0.004, stats: Stats | None = None,
+                 recorder: Recorder | None = None, watchdog: Watchdog | None = None,
+                 rc_channels: Sequence[int] | None = None) -> None:
+        self.plant, self.sensors = plant, sensors
+        self.lockstep, self.dt_s = lockstep, dt_s
+        self.stats = stats or Stats()
+        self.recorder = recorder
+        self.watchdog = watchdog or Watchdog()
+        self.rc_channels = list(rc_channels) if rc_channels else None
+        self.server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.server.bind((host, port))
+        self.server.listen(1)
+        self.address = self.server.getsockname()
+        self.mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=51)
+        self.mav.robust_parsing = True  # bad CRC / garbage become MAVLink_bad_data, counted, never raised
+        self.msgs = HilMessages(self.mav, plant.vehicle)
+        self.pwm: dict[int, float] = {}
+        self.armed = False
+        self._last_heartbeat = -math.inf
+
+    def close(self) -> None:
+        self.server.close()
+
+    # ---------------------------------------------------------------- one connection
+    def _send_step(self, conn: socket.socket) -> None:
+        t_s = self.plant.t_s
+        t_us = round(t_s * 1e6)
+        frame = self.sensors.sample(t_s, self.plant.state)
+        out = [self.msgs.sensor(t_us, frame), self.msgs.state(t_us, self.plant.state)]
+        if frame.gps is not None:
+            out.append(self.msgs.gps(t_us, frame.gps))
+        if t_s - self._last_heartbeat >= 1.0:
+            out.append(self.msgs.heartbeat())
+            if self.rc_channels:
+                out.append(self.msgs.rc(round(t_s * 1e3), self.rc_channels))
+            self._last_heartbeat = t_s
+        conn.sendall(b"".join(out))
+
+    def _absorb(self, data: bytes) -> bool:
+        """Parse received bytes; True when an actuator message arrived."""
+        got = False
+        try:
+            msgs = self.mav.parse_buffer(data) or []
+        except mavlink2.MAVError as err:  # robust_parsing makes this rare; count, resynchronise, go on
+            self.stats.malformed += 1
+            log.debug("MAVLink parse error: %s", err)
+            return False
+        for m in msgs:
+            kind = m.get_type()
+            if kind == "BAD_DATA":
+                self.stats.malformed += 1
+            elif kind == "HIL_ACTUATOR_CONTROLS":
+                self.armed = bool(m.mode & ARMED_FLAG)
+                self.pwm = controls_to_pwm(m.controls, self.plant.vehicle, self.armed)
+                got = True
+        return got
+
+    def _step(self) -> None:
+        if self.pwm and not self.watchdog.tripped:
+            self.plant.apply(self.pwm)
+        self.plant.advance(self.dt_s)
+        self.stats.steps += 1
+        if self.recorder is not None:
+            self.recorder.write(self.plant.t_s, self.pwm, self.plant.inputs, self.plant.state, self.watchdog.tripped)
+
+    def _run_lockstep(self, conn: socket.socket, stop: threading.Event | None, max_steps: int | None) -> bool:
+        """Returns False when the connection ended."""
+        conn.settimeout(self.watchdog.timeout_s)
+        while not (stop is not None and stop.is_set()) and (max_steps is None or self.stats.steps < max_steps):
+            t0 = time.perf_counter()
+            self._send_step(conn)
+            while True:
+                try:
+                    data = conn.recv(65536)
+                except TimeoutError:
+                    if self.watchdog.check(self.plant, self.stats):
+                        break  # step on with the failsafe inputs: the autopilot may be restarting
+                    continue
+                if not data:
+                    return False
+                if self._absorb(data):
+                    self.watchdog.fed()
+                    self.stats.latencies.append(time.perf_counter() - t0)
+                    break
+            self._step()
+        return True
+
+    def _run_realtime(self, conn: socket.socket, stop: threading.Event | None, max_steps: int | None) -> bool:
+        conn.setblocking(False)
+        next_t = time.perf_counter()
+        while not (stop is not None and stop.is_set()) and (max_steps is None or self.stats.steps < max_steps):
+            try:
+                while True:
+                    data = conn.recv(65536)
+                    if not data:
+                        return False
+                    if self._absorb(data):
+                        self.watchdog.fed()
+            except BlockingIOError:
+                pass
+            self.watchdog.check(self.plant, self.stats)
+            self._step()
+            try:
+                self._send_step(conn)
+            except BlockingIOError:
+                self.stats.dropped += 1
+            next_t += self.dt_s
+            delay = next_t - time.perf_counter()
+            if delay < 0:
+                self.stats.overruns += 1
+                next_t = time.perf_counter()  # don't try to catch up: keep the rate from now on
+            else:
+                time.sleep(delay)
+        return True
+
+    def serve(self, stop: threading.Event | None = None, max_steps: int | None = None,
+              accept_timeout_s: float | None = None) -> Stats:
+        """Accept PX4, run until ``stop``/``max_steps``; on a disconnect reset the FMU and accept again."""
+        self.server.settimeout(0.2)
+        waited = 0.0
+        while not (stop is not None and stop.is_set()) and (max_steps is None or self.stats.steps < max_steps):
+            try:
+                conn, addr = self.server.accept()
+            except TimeoutError:
+                waited += 0.2
+                if accept_timeout_s is not None and waited >= accept_timeout_s:
+                    break
+                continue
+            waited = 0.0
+            log.info("PX4 connected from %s", addr)
+            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            self.watchdog.fed()
+            try:
+                run = self._run_lockstep if self.lockstep else self._run_realtime
+                ended = not run(conn, stop, max_steps)
+            except (ConnectionError, OSError) as err:
+                log.warning("PX4 connection lost: %s", err)
+                ended = True
+            finally:
+                conn.close()
+            if ended:
+                self.stats.reconnects += 1
+                self.plant.restart()
+                self.pwm, self.armed = {}, False
+                self.mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=51)
+                self.mav.robust_parsing = True
+                self.msgs = HilMessages(self.mav, self.plant.vehicle)
+                self._last_heartbeat = -math.inf
+        return self.stats
