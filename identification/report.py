@@ -34,20 +34,29 @@ def _table(header: Sequence[str], rows: Sequence[Sequence[str]], raw: bool = Fal
     return "".join(out)
 
 
+#: most samples drawn per series: a 300 s log at 100 Hz has 30000; beyond a few thousand a PNG shows no more
+MAX_PLOT_POINTS = 4000
+
+
 def _signal_figures(res: ReplayResult) -> list[str]:
     parts = []
     edges = [w[0] for w in res.windows[1:]]
+    k = max(1, len(res.t_s) // MAX_PLOT_POINTS)
+    t = res.t_s[::k]
     for m in res.maps:
         meas, mod = res.measured[m.fmu], res.model[m.fmu]
-        fig, (ax, axr) = plots.figure(2, 1, sharex=True, figsize=(9.0, 4.2), height_ratios=[2, 1])
-        ax.plot(res.t_s, meas, color="0.25", lw=0.9, label=f"log: {m.log}")
-        ax.plot(res.t_s, mod, color="tab:red", lw=0.9, label=f"FMU: {m.fmu}")
-        for e in edges:
-            ax.axvline(e, color="tab:blue", lw=0.4, alpha=0.4)
+        # fixed layout and legend place: constrained layout and loc="best" cost seconds per figure
+        fig, (ax, axr) = plots.figure(2, 1, sharex=True, figsize=(9.0, 4.2), height_ratios=[2, 1], layout=None)
+        fig.subplots_adjust(left=0.08, right=0.98, top=0.92, bottom=0.12, hspace=0.1)
+        ax.plot(t, meas[::k], color="0.25", lw=0.9, label=f"log: {m.log}")
+        ax.plot(t, mod[::k], color="tab:red", lw=0.9, label=f"FMU: {m.fmu}")
+        if len(edges) <= 200:
+            for e in edges:
+                ax.axvline(e, color="tab:blue", lw=0.4, alpha=0.4)
         ax.set_title(f"{m.fmu}  (Theil U {res.overall[m.fmu].theil_u:.3f}, limit {m.max_theil:g})", fontsize=9)
-        ax.legend(loc="best", fontsize=8)
+        ax.legend(loc="upper right", fontsize=8)
         ax.grid(True, alpha=0.3)
-        axr.plot(res.t_s, meas - mod, color="tab:purple", lw=0.7)
+        axr.plot(t, (meas - mod)[::k], color="tab:purple", lw=0.7)
         axr.axhline(0.0, color="k", lw=0.5)
         axr.set_ylabel("residual", fontsize=8)
         axr.set_xlabel("log time [s]")
@@ -55,14 +64,15 @@ def _signal_figures(res: ReplayResult) -> list[str]:
         parts.append(_png(fig))
         if m.fmu == "thrust_total_N":  # paper 000 Fig. 5: modelled thrust against the measured force
             parts.append("<h3>Thrust map against the measured force F_z = -m a_z (paper 000 Fig. 5)</h3>")
-            fig, ax = plots.figure(figsize=(5.0, 4.5))
-            ax.plot(meas, mod, ".", ms=2, alpha=0.4)
+            fig, ax = plots.figure(figsize=(5.0, 4.5), layout=None)
+            fig.subplots_adjust(left=0.14, right=0.97, top=0.92, bottom=0.12)
+            ax.plot(meas[::k], mod[::k], ".", ms=2, alpha=0.4)
             lim = [float(np.nanmin([meas, mod])), float(np.nanmax([meas, mod]))]
             ax.plot(lim, lim, "k--", lw=1, label="ideal")
             ax.set_xlabel("measured F_z = -m a_z [N]")
             ax.set_ylabel("FMU thrust_total_N [N]")
             ax.set_title("thrust map against measured force (paper 000 Fig. 5)", fontsize=9)
-            ax.legend(fontsize=8)
+            ax.legend(loc="upper left", fontsize=8)
             ax.grid(True, alpha=0.3)
             parts.append(_png(fig))
     return parts
