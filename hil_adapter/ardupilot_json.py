@@ -11,6 +11,7 @@ import logging
 import socket
 import threading
 import time
+from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
 from hil_adapter.core import Plant, Recorder, Stats
@@ -62,6 +63,8 @@ class ArduPilotJsonServer:
                  recorder: Recorder | None = None, sensors: Any = None) -> None:
         self.plant, self.transport = plant, transport
         self.stats = stats or Stats()
+        #: called after every step with (t_s, FMU outputs): auxiliary outputs such as the NMEA GPS
+        self.sinks: list[Callable[[float, Mapping[str, float]], None]] = []
         self.recorder, self.sensors = recorder, sensors
         self.last_count: int | None = None
         self.last_reply = b""
@@ -103,6 +106,8 @@ class ArduPilotJsonServer:
         self.stats.steps += 1
         if self.recorder is not None:
             self.recorder.write(self.plant.t_s, pwm, self.plant.inputs, self.plant.state)
+        for sink in self.sinks:
+            sink(self.plant.t_s, self.plant.state)
         self.last_reply = self.reply()
         return self.last_reply
 

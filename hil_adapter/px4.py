@@ -17,7 +17,7 @@ import math
 import socket
 import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink2
@@ -104,6 +104,8 @@ class Px4Server:
         self.plant, self.sensors = plant, sensors
         self.lockstep, self.dt_s = lockstep, dt_s
         self.stats = stats or Stats()
+        #: called after every step with (t_s, FMU outputs): auxiliary outputs such as the NMEA GPS
+        self.sinks: list[Callable[[float, Mapping[str, float]], None]] = []
         self.recorder = recorder
         self.watchdog = watchdog or Watchdog()
         self.rc_channels = list(rc_channels) if rc_channels else None
@@ -163,6 +165,8 @@ class Px4Server:
         self.stats.steps += 1
         if self.recorder is not None:
             self.recorder.write(self.plant.t_s, self.pwm, self.plant.inputs, self.plant.state, self.watchdog.tripped)
+        for sink in self.sinks:
+            sink(self.plant.t_s, self.plant.state)
 
     def _run_lockstep(self, conn: socket.socket, stop: threading.Event | None, max_steps: int | None) -> bool:
         """Returns False when the connection ended."""

@@ -1,0 +1,519 @@
+"""Sensor models for the HIL adapter: IMU, magnetometer, barometer, pitot and GPS from FMU outputs.
+
+Pure Python/numpy, no I/O. Every random number comes from ``numpy.random.Generator`` streams derived from
+one seed (one independent stream per sensor, so changing e.g. the GPS settings does not change the IMU
+noise); ``SensorSuite.reset()`` restarts them and a rerun repeats exactly.
+
+Each sensor reads ``truth + bias + drift + noise``: ``bias`` is constant, ``drift`` a random walk whose
+increment over ``dt`` seconds has the std ``drift_std * sqrt(dt)`` (so it grows like ``sqrt(t)``), and
+``noise`` is white with the std ``noise_std`` per sample (a per-sample std, not a density: it does not
+change with the sample rate). A configuration with every std and bias 0 reproduces the FMU outputs exactly.
+
+Frames and conventions follow the FMUs: body FRD, NED world, ``quat_w/x/y/z`` rotates body vectors into NED,
+the accelerometer reads specific force (``-9.80665`` on z at rest, level). Configurations come from a dict
+(a TOML table) via ``SensorConfig.from_dict(data, source)``, which checks every field and lists every problem.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields, replace
+from typing import Any, ClassVar, NamedTuple
+
+import numpy as np
+
+# Both helpers are written once for CasADi but take and return plain floats for float arguments, which is
+# all we use here (checked: ``isa(1000.0)`` and ``radii_of_curvature(0.8)`` return Python floats).
+from fmu_models.common.atmosphere import EXPONENT, LAPSE_K_M, P0_PA, T0_K, isa
+from fmu_models.common.wgs84 import radii_of_curvature
+
+KELVIN_OFFSET = 273.15  #: 0 degC in K
+#: FMU outputs every sample needs; ``airspeed_m_s`` (fixed wing only) is optional
+REQUIRED_OUTPUTS = (
+    "accel_body_x_m_s2", "accel_body_y_m_s2", "accel_body_z_m_s2",
+    "rate_body_x_rad_s", "rate_body_y_rad_s", "rate_body_z_rad_s",
+    "quat_w", "quat_x", "quat_y", "quat_z",
+    "lat_deg", "lon_deg", "height_m",
+    "vel_north_m_s", "vel_east_m_s", "vel_down_m_s",
+)
+AIRSPEED_OUTPUT = "airspeed_m_s"
+_TIME_EPS_S = 1e-9  #: float slack when comparing sample times with the GPS schedule
+
+
+class SensorConfigError(ValueError):
+    """An invalid sensor configuration; the message names the source, and per problem the field, the value
+    and the allowed range."""
+
+
+class MissingOutputError(KeyError):
+    """A required FMU output is not in the outputs given to ``SensorSuite.sample``; the message names it."""
+
+    def __str__(self) -> str:  # KeyError would print the repr of the message, quotes and all
+        return str(self.args[0]) if self.args else ""
+
+
+# ------------------------------------------------------------------------------------------ configuration
+class _Spec(NamedTuple):
+    """Allowed values of one config field: ``kind`` is "float", "int" or "vec3" (a number for all three
+    axes, or a list of three numbers); ``lo..hi`` is the closed range (per axis for "vec3")."""
+
+    kind: str
+    lo: float
+    hi: float
+    unit: str
+
+
+def _fmt(x: float) -> str:
+    return f"{x:g}"
+
+
+def _convert(spec: _Spec, value: Any) -> tuple[Any, str | None]:
+    """``(converted value, None)`` or ``(None, what is wrong)``."""
+    allowed = f"allowed {_fmt(spec.lo)}..{_fmt(spec.hi)}" + (f" {spec.unit}" if spec.unit else "")
+
+    def number(v: Any, integer: bool) -> float | int | None:
+        if isinstance(v, bool):  # bool is an int subclass, and never what a sensor setting means
+            return None
+        if integer:
+            return v if isinstance(v, int | np.integer) else None
+        return float(v) if isinstance(v, int | float | np.integer | np.floating) else None
+
+    if spec.kind == "vec3":
+        items = list(value) if isinstance(value, list | tuple) else [value] * 3
+        if len(items) != 3:
+            return None, f"needs a number or 3 numbers, got {len(items)} values; {allowed} per axis"
+        nums = [number(v, False) for v in items]
+        if any(n is None for n in nums):
+            return None, f"needs a number or 3 numbers; {allowed} per axis"
+        if not all(math.isfinite(n) and spec.lo <= n <= spec.hi for n in nums):
+            return None, f"{allowed} per axis (finite)"
+        return tuple(nums), None
+    n = number(value, spec.kind == "int")
+    if n is None:
+        return None, f"needs {'an integer' if spec.kind == 'int' else 'a number'}; {allowed}"
+    if not (math.isfinite(n) and spec.lo <= n <= spec.hi):  # also catches NaN
+        return None, f"{allowed} (finite)"
+    return (int(n) if spec.kind == "int" else float(n)), None
+
+
+def _problem(prefix: str, name: str, value: Any, why: str) -> str:
+    return f"{prefix}{name} = {value!r}: {why}"
+
+
+class _Checked:
+    """Frozen config dataclasses with a ``SPEC`` per field: checked on construction and in ``from_dict``."""
+
+    SPEC: ClassVar[Mapping[str, _Spec]] = {}
+    SECTION: ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        problems = []
+        for name, spec in self.SPEC.items():
+            raw = getattr(self, name)
+            value, why = _convert(spec, raw)
+            if why is not None:
+                problems.append(_problem(f"{self.SECTION}.", name, raw, why))
+            else:
+                object.__setattr__(self, name, value)  # normalise (scalar bias -> 3 axes, int -> float)
+        if problems:
+            raise SensorConfigError(f"{type(self).__name__}: " + "; ".join(problems))
+
+    @classmethod
+    def _parse(cls, data: Any, prefix: str) -> tuple[dict[str, Any], list[str]]:
+        """Checked keyword arguments from a table, and the problems found (unknown keys included)."""
+        if not isinstance(data, Mapping):
+            return {}, [f"{prefix.rstrip('.') or 'config'} = {data!r}: must be a table"]
+        kwargs, problems = {}, []
+        for key, raw in data.items():
+            spec = cls.SPEC.get(key)
+            if spec is None:
+                problems.append(f"{prefix}{key} = {raw!r}: unknown key; allowed keys: {', '.join(cls.SPEC)}")
+                continue
+            value, why = _convert(spec, raw)
+            if why is not None:
+                problems.append(_problem(prefix, key, raw, why))
+            else:
+                kwargs[key] = value
+        return kwargs, problems
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], source: str = "sensor config") -> Any:
+        """This section from its table (``[accel]`` ...); missing keys keep their defaults."""
+        kwargs, problems = cls._parse(data, f"{cls.SECTION}.")
+        if problems:
+            raise SensorConfigError(f"{source}: " + "; ".join(problems))
+        return cls(**kwargs)
+
+
+@dataclass(frozen=True)
+class AccelConfig(_Checked):
+    """Accelerometer [m/s^2]; drift_std in m/s^2 per sqrt(s)."""
+
+    noise_std: float = 0.02
+    bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    drift_std: float = 0.0006
+    SECTION: ClassVar[str] = "accel"
+    SPEC: ClassVar[Mapping[str, _Spec]] = {
+        "noise_std": _Spec("float", 0.0, 10.0, "m/s^2"), "bias": _Spec("vec3", -10.0, 10.0, "m/s^2"),
+        "drift_std": _Spec("float", 0.0, 1.0, "m/s^2/sqrt(s)")}
+
+
+@dataclass(frozen=True)
+class GyroConfig(_Checked):
+    """Gyroscope [rad/s]; drift_std in rad/s per sqrt(s)."""
+
+    noise_std: float = 0.003
+    bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    drift_std: float = 4e-5
+    SECTION: ClassVar[str] = "gyro"
+    SPEC: ClassVar[Mapping[str, _Spec]] = {
+        "noise_std": _Spec("float", 0.0, 1.0, "rad/s"), "bias": _Spec("vec3", -1.0, 1.0, "rad/s"),
+        "drift_std": _Spec("float", 0.0, 0.1, "rad/s/sqrt(s)")}
+
+
+@dataclass(frozen=True)
+class MagConfig(_Checked):
+    """Magnetometer [gauss] and the Earth field it measures: total intensity [gauss], declination (east of
+    true north, positive) and inclination (below the horizon, positive) [deg]; constant over the flight."""
+
+    noise_std: float = 0.005
+    bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    drift_std: float = 0.0
+    intensity_gauss: float = 0.5
+    declination_deg: float = 0.0
+    inclination_deg: float = 60.0
+    SECTION: ClassVar[str] = "mag"
+    SPEC: ClassVar[Mapping[str, _Spec]] = {
+        "noise_std": _Spec("float", 0.0, 1.0, "gauss"), "bias": _Spec("vec3", -2.0, 2.0, "gauss"),
+        "drift_std": _Spec("float", 0.0, 0.1, "gauss/sqrt(s)"),
+        "intensity_gauss": _Spec("float", 0.1, 1.0, "gauss"),  # the Earth's field is 0.22..0.67 gauss
+        "declination_deg": _Spec("float", -180.0, 180.0, "deg"),
+        "inclination_deg": _Spec("float", -90.0, 90.0, "deg")}
+
+    def field_ned_gauss(self) -> np.ndarray:
+        """The Earth field in NED [gauss]."""
+        inc, dec = math.radians(self.inclination_deg), math.radians(self.declination_deg)
+        horizontal = self.intensity_gauss * math.cos(inc)
+        return np.array([horizontal * math.cos(dec), horizontal * math.sin(dec),
+                         self.intensity_gauss * math.sin(inc)])
+
+
+@dataclass(frozen=True)
+class BaroConfig(_Checked):
+    """Barometer static pressure [Pa]; drift_std in Pa per sqrt(s). The temperature is the noise-free ISA one."""
+
+    noise_std: float = 2.0
+    bias: float = 0.0
+    drift_std: float = 0.1
+    SECTION: ClassVar[str] = "baro"
+    SPEC: ClassVar[Mapping[str, _Spec]] = {
+        "noise_std": _Spec("float", 0.0, 1000.0, "Pa"), "bias": _Spec("float", -5000.0, 5000.0, "Pa"),
+        "drift_std": _Spec("float", 0.0, 100.0, "Pa/sqrt(s)")}
+
+
+@dataclass(frozen=True)
+class DiffPressureConfig(_Checked):
+    """Pitot differential pressure [Pa]; drift_std in Pa per sqrt(s). Used only when the FMU has airspeed."""
+
+    noise_std: float = 0.5
+    bias: float = 0.0
+    drift_std: float = 0.0
+    SECTION: ClassVar[str] = "diff_pressure"
+    SPEC: ClassVar[Mapping[str, _Spec]] = {
+        "noise_std": _Spec("float", 0.0, 100.0, "Pa"), "bias": _Spec("float", -100.0, 100.0, "Pa"),
+        "drift_std": _Spec("float", 0.0, 10.0, "Pa/sqrt(s)")}
+
+
+@dataclass(frozen=True)
+class GpsConfig(_Checked):
+    """GPS receiver: fix rate [Hz], latency [s] (a fix delivered at t describes the state at t - latency),
+    the reported accuracies eph/epv [m], fix type (MAVLink GPS_FIX_TYPE: 3 = 3D), satellites, and white
+    noise std of the position (horizontal per axis / vertical) [m] and of the NED velocity [m/s]."""
+
+    rate_hz: float = 5.0
+    latency_s: float = 0.1
+    eph_m: float = 1.0
+    epv_m: float = 1.5
+    fix_type: int = 3
+    satellites: int = 10
+    pos_noise_std_h_m: float = 0.5
+    pos_noise_std_v_m: float = 0.8
+    vel_noise_std_m_s: float = 0.05
+    SECTION: ClassVar[str] = "gps"
+    SPEC: ClassVar[Mapping[str, _Spec]] = {
+        "rate_hz": _Spec("float", 0.1, 100.0, "Hz"), "latency_s": _Spec("float", 0.0, 1.0, "s"),
+        "eph_m": _Spec("float", 0.0, 600.0, "m"), "epv_m": _Spec("float", 0.0, 600.0, "m"),
+        "fix_type": _Spec("int", 0, 8, ""), "satellites": _Spec("int", 0, 255, ""),
+        "pos_noise_std_h_m": _Spec("float", 0.0, 100.0, "m"), "pos_noise_std_v_m": _Spec("float", 0.0, 100.0, "m"),
+        "vel_noise_std_m_s": _Spec("float", 0.0, 10.0, "m/s")}
+
+
+_SECTIONS: dict[str, type[_Checked]] = {
+    "accel": AccelConfig, "gyro": GyroConfig, "mag": MagConfig, "baro": BaroConfig,
+    "diff_pressure": DiffPressureConfig, "gps": GpsConfig}
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    """All sensors; the defaults are plausible small-MEMS/u-blox values. TOML layout: one table per sensor,
+    ``[accel] [gyro] [mag] [baro] [diff_pressure] [gps]``, each optional, missing keys keep their defaults."""
+
+    accel: AccelConfig = field(default_factory=AccelConfig)
+    gyro: GyroConfig = field(default_factory=GyroConfig)
+    mag: MagConfig = field(default_factory=MagConfig)
+    baro: BaroConfig = field(default_factory=BaroConfig)
+    diff_pressure: DiffPressureConfig = field(default_factory=DiffPressureConfig)
+    gps: GpsConfig = field(default_factory=GpsConfig)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], source: str = "sensor config") -> SensorConfig:
+        """Check every field of every table; ``SensorConfigError`` lists all problems, prefixed by ``source``."""
+        if not isinstance(data, Mapping):
+            raise SensorConfigError(f"{source}: sensor config must be a table, got {data!r}")
+        sections, problems = {}, []
+        for key, raw in data.items():
+            section = _SECTIONS.get(key)
+            if section is None:
+                problems.append(f"{key} = {raw!r}: unknown sensor; allowed: {', '.join(_SECTIONS)}")
+                continue
+            kwargs, found = section._parse(raw, f"{key}.")
+            problems += found
+            if not found:
+                sections[key] = section(**kwargs)
+        if problems:
+            raise SensorConfigError(f"{source}: " + "; ".join(problems))
+        return cls(**sections)
+
+    @classmethod
+    def noise_free(cls) -> SensorConfig:
+        """Every noise, bias and drift 0 (GPS rate, latency and the Earth field keep their defaults)."""
+        zero = {"noise_std": 0.0, "bias": 0.0, "drift_std": 0.0}
+        d = cls()
+        return cls(accel=replace(d.accel, **zero), gyro=replace(d.gyro, **zero), mag=replace(d.mag, **zero),
+                   baro=replace(d.baro, **zero), diff_pressure=replace(d.diff_pressure, **zero),
+                   gps=replace(d.gps, pos_noise_std_h_m=0.0, pos_noise_std_v_m=0.0, vel_noise_std_m_s=0.0))
+
+
+# ------------------------------------------------------------------------------------------ frames
+@dataclass(frozen=True)
+class GpsFix:
+    """One GPS solution. ``time_s`` is the time the fix describes (delivery time minus the latency, no
+    earlier than the first sample); ``alt_msl_m`` is the FMU's ellipsoidal height (see ``SensorSuite``)."""
+
+    time_s: float
+    lat_deg: float
+    lon_deg: float
+    alt_msl_m: float
+    vel_ned_m_s: tuple[float, float, float]
+    ground_speed_m_s: float
+    course_deg: float
+    eph_m: float
+    epv_m: float
+    fix_type: int
+    satellites: int
+
+
+@dataclass(frozen=True)
+class SensorFrame:
+    """All sensor readings of one sample; ``gps`` is None unless a new fix is due at this sample."""
+
+    accel_body_m_s2: tuple[float, float, float]
+    gyro_body_rad_s: tuple[float, float, float]
+    mag_body_gauss: tuple[float, float, float]
+    abs_pressure_pa: float
+    temperature_degc: float
+    diff_pressure_pa: float
+    pressure_alt_m: float
+    gps: GpsFix | None
+
+
+class _GpsState(NamedTuple):
+    t_s: float
+    lat_deg: float
+    lon_deg: float
+    height_m: float
+    vel_ned_m_s: tuple[float, float, float]
+
+
+# ------------------------------------------------------------------------------------------ physics helpers
+def quat_to_dcm(q: tuple[float, float, float, float]) -> np.ndarray:
+    """Body -> NED rotation matrix of ``[w, x, y, z]`` (as ``fmu_models.common.rigid_body.quat_to_dcm``, but
+    numpy and normalised, since an integrated FMU quaternion drifts slightly off unit norm)."""
+    n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
+    if not n2 > 0.0:
+        raise ValueError(f"FMU quaternion {q} has no direction (norm^2 = {n2})")
+    s = 1.0 / math.sqrt(n2)
+    w, x, y, z = (c * s for c in q)
+    return np.array([
+        [w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z],
+    ])
+
+
+def pressure_altitude_m(pressure_pa: float) -> float:
+    """ISA troposphere altitude [m] of a static pressure: the inverse of ``atmosphere.isa``'s pressure
+    (written here because the atmosphere module only goes from altitude to pressure)."""
+    return T0_K / LAPSE_K_M * (1.0 - (pressure_pa / P0_PA) ** (1.0 / EXPONENT))
+
+
+def _wrap_deg(angle_deg: float) -> float:
+    return (angle_deg + 180.0) % 360.0 - 180.0
+
+
+# ------------------------------------------------------------------------------------------ the suite
+class SensorSuite:
+    """Sensor readings from FMU outputs: ``sample(t_s, outputs) -> SensorFrame``, seeded and repeatable.
+
+    Call ``sample`` with increasing ``t_s`` (the drift random walks integrate over the time steps). If
+    ``t_s`` goes backwards the simulation restarted: the GPS history and schedule start afresh (the noise
+    streams go on; ``reset()`` restarts them too).
+
+    Barometer: ISA static pressure and temperature at ``height_m``. The FMUs give WGS-84 ellipsoidal height;
+    we treat it as height above mean sea level (the geoid undulation, up to about +-100 m, is ignored), so
+    ``pressure_alt_m`` and the GPS ``alt_msl_m`` are ellipsoidal heights too. The ISA model is the
+    troposphere, valid up to 11 km. Pitot: ``0.5 * rho * airspeed^2`` with the ISA density at that height
+    (``airspeed_m_s`` taken as true airspeed); exactly 0 when the FMU has no airspeed (no pitot).
+    """
+
+    _STREAMS = ("accel", "gyro", "mag", "baro", "diff_pressure", "gps")
+
+    def __init__(self, config: SensorConfig | None = None, seed: int = 0) -> None:
+        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+            raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+        self.config = config if config is not None else SensorConfig()
+        self.seed = int(seed)
+        self._mag_ned = self.config.mag.field_ned_gauss()
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the state right after construction: same seed, zero drift, empty GPS history."""
+        children = np.random.SeedSequence(self.seed).spawn(len(self._STREAMS))
+        self._rng = {name: np.random.default_rng(s) for name, s in zip(self._STREAMS, children, strict=True)}
+        self._drift: dict[str, Any] = {"accel": np.zeros(3), "gyro": np.zeros(3), "mag": np.zeros(3),
+                                       "baro": 0.0, "diff_pressure": 0.0}
+        self._restart_clock()
+
+    def _restart_clock(self) -> None:
+        self._t_prev: float | None = None
+        self._history: deque[_GpsState] = deque()
+        self._gps_t0: float | None = None
+        self._gps_k = 0
+
+    # ------------------------------------------------------------------ per sensor
+    def _vector(self, name: str, truth: np.ndarray, dt: float) -> tuple[float, float, float]:
+        cfg = getattr(self.config, name)
+        z = self._rng[name].standard_normal(6)  # always 6 draws: the stream does not depend on the settings
+        self._drift[name] = self._drift[name] + cfg.drift_std * math.sqrt(dt) * z[3:]
+        error = np.asarray(cfg.bias) + self._drift[name] + cfg.noise_std * z[:3]
+        return tuple(float(v) for v in truth + error)  # type: ignore[return-value]
+
+    def _scalar(self, name: str, truth: float, dt: float) -> float:
+        cfg = getattr(self.config, name)
+        z = self._rng[name].standard_normal(2)
+        self._drift[name] += cfg.drift_std * math.sqrt(dt) * float(z[1])
+        return truth + (cfg.bias + self._drift[name] + cfg.noise_std * float(z[0]))
+
+    def _gps(self, t_s: float, now: _GpsState) -> GpsFix | None:
+        cfg = self.config.gps
+        self._history.append(now)
+        target = t_s - cfg.latency_s
+        while len(self._history) >= 2 and self._history[1].t_s <= target:
+            self._history.popleft()  # keep the one sample at or before the target, and everything after
+        if self._gps_t0 is None:
+            self._gps_t0 = t_s
+        if t_s + _TIME_EPS_S < self._gps_t0 + self._gps_k / cfg.rate_hz:
+            return None
+        # next fix on the fixed grid t0 + k / rate (one fix per sample at most, missed slots are skipped)
+        self._gps_k = math.floor((t_s - self._gps_t0 + _TIME_EPS_S) * cfg.rate_hz) + 1
+        s = self._state_at(target)
+        z = self._rng["gps"].standard_normal(6)
+        r_m, r_n = (float(r) for r in radii_of_curvature(math.radians(s.lat_deg)))
+        cos_lat = max(math.cos(math.radians(s.lat_deg)), 1e-9)
+        lat = s.lat_deg + math.degrees(cfg.pos_noise_std_h_m * float(z[0]) / (r_m + s.height_m))
+        lon = _wrap_deg(s.lon_deg + math.degrees(cfg.pos_noise_std_h_m * float(z[1]) /
+                                                 ((r_n + s.height_m) * cos_lat)))
+        if cfg.pos_noise_std_h_m == 0.0:
+            lon = s.lon_deg  # exact (wrapping may change the last bit)
+        alt = s.height_m + cfg.pos_noise_std_v_m * float(z[2])
+        vn, ve, vd = (v + cfg.vel_noise_std_m_s * float(n) for v, n in zip(s.vel_ned_m_s, z[3:], strict=True))
+        speed = math.hypot(vn, ve)
+        course = math.degrees(math.atan2(ve, vn)) % 360.0 if speed > 0.0 else 0.0
+        if course >= 360.0:  # -tiny % 360 rounds to 360.0
+            course = 0.0
+        return GpsFix(time_s=s.t_s, lat_deg=lat, lon_deg=lon, alt_msl_m=alt, vel_ned_m_s=(vn, ve, vd),
+                      ground_speed_m_s=speed, course_deg=course, eph_m=cfg.eph_m, epv_m=cfg.epv_m,
+                      fix_type=cfg.fix_type, satellites=cfg.satellites)
+
+    def _state_at(self, target: float) -> _GpsState:
+        """The state at ``target`` from the history, linearly interpolated; the oldest one before it."""
+        first = self._history[0]
+        if target <= first.t_s or len(self._history) == 1:
+            return first
+        second = self._history[1]
+        if target >= second.t_s or second.t_s <= first.t_s:
+            return second
+        f = (target - first.t_s) / (second.t_s - first.t_s)
+
+        def lerp(a: float, b: float) -> float:
+            return a + f * (b - a)
+
+        return _GpsState(target, lerp(first.lat_deg, second.lat_deg),
+                         _wrap_deg(first.lon_deg + f * _wrap_deg(second.lon_deg - first.lon_deg)),
+                         lerp(first.height_m, second.height_m),
+                         tuple(lerp(a, b) for a, b in zip(first.vel_ned_m_s, second.vel_ned_m_s, strict=True)))
+
+    # ------------------------------------------------------------------ the frame
+    def sample(self, t_s: float, outputs: Mapping[str, float]) -> SensorFrame:
+        """Sensor readings at simulation time ``t_s`` [s] from the FMU outputs by name."""
+        t_s = float(t_s)
+        if not math.isfinite(t_s):
+            raise ValueError(f"sample time must be finite, got {t_s}")
+        missing = [name for name in REQUIRED_OUTPUTS if name not in outputs]
+        if missing:
+            raise MissingOutputError(f"FMU output{'s' if len(missing) > 1 else ''} {', '.join(missing)} "
+                                     "missing: the sensor models need them")
+        o = {name: float(outputs[name]) for name in REQUIRED_OUTPUTS}
+        if self._t_prev is not None and t_s < self._t_prev:
+            self._restart_clock()
+        dt = 0.0 if self._t_prev is None else t_s - self._t_prev
+        self._t_prev = t_s
+
+        accel = np.array([o["accel_body_x_m_s2"], o["accel_body_y_m_s2"], o["accel_body_z_m_s2"]])
+        rates = np.array([o["rate_body_x_rad_s"], o["rate_body_y_rad_s"], o["rate_body_z_rad_s"]])
+        r_b2n = quat_to_dcm((o["quat_w"], o["quat_x"], o["quat_y"], o["quat_z"]))
+        mag_body = r_b2n.T @ self._mag_ned
+
+        height = o["height_m"]
+        temp_k, p_pa, rho = (float(v) for v in isa(height))
+        abs_pressure = self._scalar("baro", p_pa, dt)
+        airspeed = outputs.get(AIRSPEED_OUTPUT)
+        if airspeed is None:
+            self._rng["diff_pressure"].standard_normal(2)  # keep the stream in step either way
+            diff_pressure = 0.0
+        else:
+            diff_pressure = self._scalar("diff_pressure", 0.5 * rho * float(airspeed) ** 2, dt)
+
+        gps = self._gps(t_s, _GpsState(t_s, o["lat_deg"], o["lon_deg"], height,
+                                       (o["vel_north_m_s"], o["vel_east_m_s"], o["vel_down_m_s"])))
+        return SensorFrame(
+            accel_body_m_s2=self._vector("accel", accel, dt),
+            gyro_body_rad_s=self._vector("gyro", rates, dt),
+            mag_body_gauss=self._vector("mag", mag_body, dt),
+            abs_pressure_pa=abs_pressure,
+            temperature_degc=temp_k - KELVIN_OFFSET,
+            diff_pressure_pa=diff_pressure,
+            pressure_alt_m=pressure_altitude_m(abs_pressure),
+            gps=gps,
+        )
+
+
+__all__ = [
+    "REQUIRED_OUTPUTS", "AccelConfig", "BaroConfig", "DiffPressureConfig", "GpsConfig", "GpsFix", "GyroConfig",
+    "MagConfig", "MissingOutputError", "SensorConfig", "SensorConfigError", "SensorFrame", "SensorSuite",
+    "pressure_altitude_m", "quat_to_dcm",
+]
+
+_ = fields  # dataclasses.fields is re-exported for callers that introspect configs

@@ -1,0 +1,139 @@
+"""PX4 simulator interface over loopback TCP with a pymavlink fake PX4: sensors at rest, lockstep closed-loop
+hover at 10 m, disconnect/reconnect, malformed bytes."""
+
+from __future__ import annotations
+
+import socket
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pymavlink.dialects.v20 import common as mavlink2
+
+from hil_adapter.core import Plant, Watchdog
+from hil_adapter.px4 import FIELDS_ALL, Px4Server, controls_to_pwm
+from hil_adapter.sensors import SensorConfig, SensorSuite
+from tests.hil_fakes import controller_inputs, hold_10m_autopilot
+
+DT = 0.004  # PX4's usual 250 Hz
+
+
+class FakePx4:
+    """Connects like PX4 SITL: reads the HIL messages of a step, answers with HIL_ACTUATOR_CONTROLS."""
+
+    def __init__(self, address: tuple[str, int]) -> None:
+        self.sock = socket.create_connection(address, timeout=5.0)
+        self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self.mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+        self.pending: list = []
+
+    def read_step(self) -> dict[str, object]:
+        """Messages up to and including the next HIL_STATE_QUATERNION, by type."""
+        got: dict[str, object] = {}
+        while True:
+            while self.pending:
+                m = self.pending.pop(0)
+                got[m.get_type()] = m
+                if m.get_type() == "HIL_STATE_QUATERNION":
+                    return got
+            data = self.sock.recv(65536)
+            assert data, "adapter closed the connection"
+            self.pending += self.mav.parse_buffer(data) or []
+
+    def send_controls(self, t_us: int, pwm: list[float], armed: bool = True) -> None:
+        controls = [(p - 1000.0) / 1000.0 for p in pwm] + [0.0] * (16 - len(pwm))
+        mode = mavlink2.MAV_MODE_FLAG_SAFETY_ARMED if armed else 0
+        self.sock.sendall(self.mav.hil_actuator_controls_encode(t_us, controls, mode, 1).pack(self.mav))
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+@pytest.fixture
+def server(quadrotor_fmu: Path):
+    plant = Plant(quadrotor_fmu)
+    srv = Px4Server(plant, SensorSuite(SensorConfig.noise_free()), port=0, dt_s=DT,
+                    watchdog=Watchdog(timeout_s=2.0))
+    stop = threading.Event()
+    th = threading.Thread(target=srv.serve, kwargs={"stop": stop}, daemon=True)
+    th.start()
+    yield srv
+    stop.set()
+    th.join(timeout=10)
+    srv.close()
+    plant.close()
+
+
+def test_controls_map_to_pwm() -> None:
+    assert controls_to_pwm([0.5, 0.0, 1.0, 2.0] + [0] * 12, "quadrotor", True) == {1: 1500, 2: 1000, 3: 2000, 4: 2000}
+    assert controls_to_pwm([0.5] * 16, "quadrotor", False) == {1: 1000, 2: 1000, 3: 1000, 4: 1000}
+    wing = controls_to_pwm([-1.0, 0.5, 0.2, 0.7] + [0] * 12, "fixed_wing", True)
+    assert wing == {1: 1000.0, 2: 1750.0, 3: 1700.0, 4: 1600.0}
+    assert controls_to_pwm([float("nan")] * 16, "quadrotor", True)[1] == 1000.0
+
+
+def test_at_rest_sensors_read_gravity_and_home(server) -> None:
+    px4 = FakePx4(server.address)
+    try:
+        for k in range(250):  # 1 s on the ground, motors idle
+            got = px4.read_step()
+            px4.send_controls(k, [1000.0] * 4)
+        sensor, state = got["HIL_SENSOR"], got["HIL_STATE_QUATERNION"]
+        assert sensor.zacc == pytest.approx(-9.81, abs=0.02) and abs(sensor.xacc) < 1e-3
+        assert sensor.fields_updated == FIELDS_ALL
+        home = server.plant.host.start_value
+        isa_hpa = 1013.25 * (1 - 2.25577e-5 * home("home_height_m")) ** 5.25588  # ISA at the home height
+        assert sensor.abs_pressure == pytest.approx(isa_hpa, abs=0.5)
+        assert state.lat == pytest.approx(home("home_lat_deg") * 1e7, abs=20)
+        gps = None
+        for k in range(50):  # GPS comes at its own rate
+            got = px4.read_step()
+            px4.send_controls(250 + k, [1000.0] * 4)
+            gps = got.get("HIL_GPS", gps)
+        assert gps is not None and gps.fix_type == 3
+        assert gps.lat == pytest.approx(home("home_lat_deg") * 1e7, abs=20)
+        assert gps.lon == pytest.approx(home("home_lon_deg") * 1e7, abs=20)
+        assert "HEARTBEAT" in got or server.stats.steps > 250
+    finally:
+        px4.close()
+
+
+def test_lockstep_closed_loop_hover_at_10_m(server) -> None:
+    px4 = FakePx4(server.address)
+    ap = hold_10m_autopilot()
+    alts = []
+    try:
+        for k in range(round(35.0 / DT)):
+            s = px4.read_step()["HIL_STATE_QUATERNION"]
+            q = tuple(s.attitude_quaternion)
+            alt = server.plant.host.start_value("home_height_m")
+            alt = s.alt / 1000.0 - alt
+            v = (s.vx / 100.0, s.vy / 100.0, s.vz / 100.0)
+            y = controller_inputs(q, (s.rollspeed, s.pitchspeed, s.yawspeed), alt, v)
+            cmd = ap(k * DT, y)
+            px4.send_controls(s.time_usec, [cmd[f"pwm_{i}_us"] for i in range(1, 5)])
+            alts.append(alt)
+    finally:
+        px4.close()
+    hold = np.array(alts[round(15.0 / DT):])  # the last 20 s of simulated time
+    assert np.all(np.abs(hold - 10.0) < 0.5), (hold.min(), hold.max())
+    assert server.stats.malformed == 0
+    assert server.stats.percentile(99) < 0.05
+
+
+def test_garbage_disconnect_and_reconnect(server) -> None:
+    px4 = FakePx4(server.address)
+    px4.read_step()
+    px4.sock.sendall(b"\xfd\x09garbage-not-mavlink" * 5)
+    px4.send_controls(0, [1200.0] * 4)
+    px4.read_step()
+    assert server.stats.malformed >= 1
+    px4.close()  # PX4 goes away mid-run
+    again = FakePx4(server.address)
+    try:
+        first = again.read_step()["HIL_STATE_QUATERNION"]
+        assert first.time_usec == 0  # the FMU was re-initialised for the new connection
+        assert server.stats.reconnects == 1
+    finally:
+        again.close()
