@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
@@ -88,13 +88,13 @@ def _convert(spec: _Spec, value: Any) -> tuple[Any, str | None]:
         if any(n is None for n in nums):
             return None, f"needs a number or 3 numbers; {allowed} per axis"
         if not all(math.isfinite(n) and spec.lo <= n <= spec.hi for n in nums):
-            return None, f"{allowed} per axis (finite)"
+            return None, f"outside the range, {allowed} per axis"
         return tuple(nums), None
     n = number(value, spec.kind == "int")
     if n is None:
         return None, f"needs {'an integer' if spec.kind == 'int' else 'a number'}; {allowed}"
     if not (math.isfinite(n) and spec.lo <= n <= spec.hi):  # also catches NaN
-        return None, f"{allowed} (finite)"
+        return None, f"outside the range, {allowed}"
     return (int(n) if spec.kind == "int" else float(n)), None
 
 
@@ -407,8 +407,8 @@ class SensorSuite:
         cfg = getattr(self.config, name)
         z = self._rng[name].standard_normal(6)  # always 6 draws: the stream does not depend on the settings
         self._drift[name] = self._drift[name] + cfg.drift_std * math.sqrt(dt) * z[3:]
-        error = np.asarray(cfg.bias) + self._drift[name] + cfg.noise_std * z[:3]
-        return tuple(float(v) for v in truth + error)  # type: ignore[return-value]
+        x, y, z_ = truth + (np.asarray(cfg.bias) + self._drift[name] + cfg.noise_std * z[:3])
+        return float(x), float(y), float(z_)
 
     def _scalar(self, name: str, truth: float, dt: float) -> float:
         cfg = getattr(self.config, name)
@@ -515,5 +515,3 @@ __all__ = [
     "MagConfig", "MissingOutputError", "SensorConfig", "SensorConfigError", "SensorFrame", "SensorSuite",
     "pressure_altitude_m", "quat_to_dcm",
 ]
-
-_ = fields  # dataclasses.fields is re-exported for callers that introspect configs
