@@ -60,9 +60,10 @@ class HilMessages:
 
     def sensor(self, t_us: int, frame: Any) -> bytes:
         a, g, m = frame.accel_body_m_s2, frame.gyro_body_rad_s, frame.mag_body_gauss
+        # extension fields (id, yaw) left at their defaults: the same call packs MAVLink 1 and 2
         return self.mav.hil_sensor_encode(
             t_us, a[0], a[1], a[2], g[0], g[1], g[2], m[0], m[1], m[2], frame.abs_pressure_pa / 100.0,
-            frame.diff_pressure_pa / 100.0, frame.pressure_alt_m, frame.temperature_degc, FIELDS_ALL, 0,
+            frame.diff_pressure_pa / 100.0, frame.pressure_alt_m, frame.temperature_degc, FIELDS_ALL,
         ).pack(self.mav)
 
     def gps(self, t_us: int, fix: Any) -> bytes:
@@ -71,7 +72,7 @@ class HilMessages:
             t_us, int(fix.fix_type), round(fix.lat_deg * 1e7), round(fix.lon_deg * 1e7), round(fix.alt_msl_m * 1e3),
             min(round(fix.eph_m * 100), 65535), min(round(fix.epv_m * 100), 65535),
             min(round(fix.ground_speed_m_s * 100), 65535), round(vn * 100), round(ve * 100), round(vd * 100),
-            round(fix.course_deg * 100) % 36000, int(fix.satellites), 0, 0,
+            round(fix.course_deg * 100) % 36000, int(fix.satellites),
         ).pack(self.mav)
 
     def state(self, t_us: int, s: Mapping[str, float]) -> bytes:

@@ -1,0 +1,88 @@
+"""HIL plant, watchdog and generic MAVLink bridge: FMU errors restart the simulation, the failsafe applies when
+input stops, SERVO_OUTPUT_RAW drives the FMU and HIL_* messages come back (pymavlink over loopback UDP)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+from pymavlink import mavutil
+
+from hil_adapter.core import Plant, Stats, Watchdog, default_mapping
+from hil_adapter.mavlink_bridge import MavlinkBridge
+from hil_adapter.pwm_mapping import MappingError
+from hil_adapter.sensors import SensorConfig, SensorSuite
+
+
+def test_fmu_error_restarts_instead_of_crashing(quadrotor_fmu: Path) -> None:
+    plant = Plant(quadrotor_fmu)
+    try:
+        plant.apply({1: 1500, 2: 1500, 3: 1500, 4: 1500})
+        for _ in range(10):
+            plant.advance(0.01)
+        assert plant.t_s == pytest.approx(0.1)
+        plant.inputs = {**plant.inputs, "pwm_1_us": 3000.0}  # beyond the FMU's input range: fmi2Error
+        state = plant.advance(0.01)
+        assert plant.fmu_errors == 1 and "pwm_1_us" in plant.last_error
+        assert plant.t_s == 0.0 and state["altitude_m"] == pytest.approx(0.0, abs=0.05)
+        with pytest.raises(MappingError, match="channel 2"):
+            plant.apply({1: 1500, 3: 1500, 4: 1500})
+    finally:
+        plant.close()
+
+
+def test_watchdog_throttle_off_and_hold(quadrotor_fmu: Path) -> None:
+    plant = Plant(quadrotor_fmu)
+    stats = Stats()
+    try:
+        plant.apply({k: 1700.0 for k in range(1, 5)})
+        dog = Watchdog(timeout_s=0.05, mode="throttle_off")
+        assert not dog.check(plant, stats)
+        time.sleep(0.06)
+        assert dog.check(plant, stats) and stats.failsafes == 1
+        assert plant.inputs == {f"pwm_{k}_us": 1000.0 for k in range(1, 5)}
+        dog.fed()
+        assert not dog.check(plant, stats)
+        plant.apply({k: 1700.0 for k in range(1, 5)})
+        hold = Watchdog(timeout_s=0.01, mode="hold")
+        time.sleep(0.02)
+        assert hold.check(plant, stats) and plant.inputs["pwm_1_us"] == 1700.0
+        with pytest.raises(ValueError, match="watchdog mode 'coast'"):
+            Watchdog(mode="coast")
+    finally:
+        plant.close()
+
+
+def test_default_fixed_wing_mapping_matches_arduplane() -> None:
+    m = default_mapping("fixed_wing")
+    assert m.apply({1: 1900, 2: 1100, 3: 1500, 4: 1500}) == pytest.approx(
+        {"aileron_rad": 0.35, "elevator_rad": -0.35, "throttle": 0.5, "rudder_rad": 0.0})
+
+
+def test_generic_mavlink_bridge_over_udp(fixed_wing_fmu: Path) -> None:
+    plant = Plant(fixed_wing_fmu, start_values={"init_pos_down_m": -100.0, "init_vel_body_x_m_s": 25.0})
+    adapter = mavutil.mavlink_connection("udpin:127.0.0.1:0", source_system=1, dialect="common")
+    port = adapter.port.getsockname()[1]
+    autopilot = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=2, dialect="common")
+    bridge = MavlinkBridge(plant, SensorSuite(SensorConfig.noise_free()), adapter, dt_s=0.01)
+    try:
+        autopilot.mav.servo_output_raw_send(0, 0, 1900, 1500, 1700, 1500, 0, 0, 0, 0)
+        deadline = time.monotonic() + 3.0
+        while not bridge.pwm and time.monotonic() < deadline:  # the first datagram also tells udpin the peer
+            bridge.step()
+        assert bridge.pwm[1] == 1900 and plant.inputs["aileron_rad"] == pytest.approx(0.35)
+        for _ in range(50):
+            bridge.step()
+        sensor = autopilot.recv_match(type="HIL_SENSOR", blocking=True, timeout=2.0)
+        state = autopilot.recv_match(type="HIL_STATE_QUATERNION", blocking=True, timeout=2.0)
+        assert sensor is not None and state is not None
+        assert state.rollspeed > 0.1  # full right aileron rolls right
+        autopilot.write(b"\xfe\x05junkjunkjunk")
+        time.sleep(0.05)
+        bridge.step()
+        assert bridge.stats.steps > 50
+    finally:
+        autopilot.close()
+        adapter.close()
+        plant.close()
