@@ -1,0 +1,127 @@
+"""HIL lockstep loop over loopback: steps per second and round-trip latency p50/p99 of the PX4 (TCP, MAVLink)
+and ArduPilot JSON (UDP) interfaces with the quadrotor FMU, next to the FMU's bare step cost measured in the
+same run. The adapter runs in its own process (as it would beside a real autopilot); a minimal fake
+autopilot in this process measures each round trip from sending its actuator message to receiving the next
+sensor message.
+
+Targets (issue 6): >= 1000 lockstep steps/s, p99 round trip < 1 ms, adapter overhead per step (mean round
+trip minus the bare FMU step) below the FMU's own step cost.
+
+Run: ``.venv/bin/python bench/hil_loop.py [--steps 5000]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing as mp
+import socket
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from pymavlink.dialects.v20 import common as mavlink2
+
+from build_fmus import build
+from hil_adapter.packets import ServoPacket
+from uavfmu.fmu_host import FmuHost
+
+
+def serve(kind: str, fmu: str, port_q: mp.Queue, steps: int) -> None:
+    from hil_adapter.ardupilot_json import ArduPilotJsonServer, UdpTransport
+    from hil_adapter.core import Plant
+    from hil_adapter.px4 import Px4Server
+    from hil_adapter.sensors import SensorSuite
+
+    plant = Plant(fmu)
+    if kind == "px4":
+        srv = Px4Server(plant, SensorSuite(seed=1), port=0, dt_s=0.004)
+        port_q.put(srv.address[1])
+        srv.serve(max_steps=steps, accept_timeout_s=30)
+    else:
+        tr = UdpTransport("127.0.0.1", 0)
+        port_q.put(tr.address[1])
+        ArduPilotJsonServer(plant, tr).serve(max_frames=steps, idle_timeout_s=10)
+    plant.close()
+
+
+def bare_step_us(fmu: Path, n: int) -> float:
+    with FmuHost(fmu) as host:
+        host.start()
+        inputs = {f"pwm_{k}_us": 1000.0 for k in range(1, 5)}
+        t0 = time.perf_counter()
+        for k in range(n):
+            host.step(k * 0.004, 0.004, inputs)
+        return 1e6 * (time.perf_counter() - t0) / n
+
+
+def px4_client(port: int, steps: int) -> np.ndarray:
+    sock = socket.create_connection(("127.0.0.1", port), timeout=10)
+    sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+    rtt, pending, sent_at = [], [], None
+    controls = [0.0] * 16
+    armed = mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
+    while len(rtt) < steps - 1:
+        got = False
+        while not got:
+            while pending:
+                if pending.pop(0).get_type() == "HIL_STATE_QUATERNION":
+                    got = True
+                    break
+            if not got:
+                pending += mav.parse_buffer(sock.recv(65536)) or []
+        if sent_at is not None:
+            rtt.append(time.perf_counter() - sent_at)
+        sent_at = time.perf_counter()
+        sock.sendall(mav.hil_actuator_controls_encode(0, controls, armed, 1).pack(mav))
+    sock.close()
+    return np.array(rtt)
+
+
+def json_client(port: int, steps: int) -> np.ndarray:
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.settimeout(5)
+    rtt = []
+    for k in range(1, steps + 1):
+        t0 = time.perf_counter()
+        sock.sendto(ServoPacket(250, k, (1000,) * 16).pack(), ("127.0.0.1", port))
+        sock.recvfrom(65536)
+        rtt.append(time.perf_counter() - t0)
+    sock.close()
+    return np.array(rtt)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=5000)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        fmu = build(None, Path(tmp), ["quadrotor"])[0]
+        step_us = bare_step_us(fmu, args.steps)
+        print(f"bare FMU step (FMU2Slave.doStep + getReal via FMPy): {step_us:.1f} us")
+        for kind, client in (("px4", px4_client), ("ardupilot-json", json_client)):
+            q: mp.Queue = mp.Queue()
+            proc = mp.Process(target=serve, args=(kind, str(fmu), q, args.steps + 1), daemon=True)
+            proc.start()
+            port = q.get(timeout=60)
+            time.sleep(0.2)
+            t0 = time.perf_counter()
+            rtt = client(port, args.steps)
+            wall = time.perf_counter() - t0
+            proc.join(timeout=30)
+            rate = len(rtt) / wall
+            p50, p99 = np.percentile(rtt, [50, 99]) * 1e6
+            overhead = np.mean(rtt) * 1e6 - step_us
+            print(f"{kind:<15} {rate:7.0f} steps/s (target >= 1000)  round trip p50 {p50:6.0f} us  p99 {p99:6.0f} us "
+                  f"(target < 1000)  adapter overhead {overhead:6.0f} us/step = {overhead / step_us:.2f}x the FMU step "
+                  "(target < 1x)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
