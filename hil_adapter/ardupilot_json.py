@@ -130,4 +130,5 @@ class ArduPilotJsonServer:
             if out is not None:
                 self.transport.send(out, addr)
                 self.stats.latencies.append(time.perf_counter() - t0)
+                self.stats.busy.append(time.perf_counter() - t0)
         return self.stats

@@ -114,6 +114,8 @@ class Stats:
     failsafes: int = 0
     started: float = field(default_factory=time.perf_counter)
     latencies: deque[float] = field(default_factory=lambda: deque(maxlen=20000))
+    #: adapter busy time per step [s]: from the autopilot's input to our reply sent (FMU step included)
+    busy: deque[float] = field(default_factory=lambda: deque(maxlen=20000))
 
     def percentile(self, q: float) -> float:
         if not self.latencies:
@@ -126,7 +128,8 @@ class Stats:
         return self.steps / max(time.perf_counter() - self.started, 1e-9)
 
     def summary(self, plant: Plant | None = None) -> dict[str, Any]:
-        out = {"steps": self.steps, "step_rate_hz": round(self.rate_hz, 1),
+        busy = 1e3 * sum(self.busy) / len(self.busy) if self.busy else math.nan
+        out = {"steps": self.steps, "step_rate_hz": round(self.rate_hz, 1), "busy_mean_ms": round(busy, 4),
                "latency_p50_ms": round(1e3 * self.percentile(50), 4),
                "latency_p99_ms": round(1e3 * self.percentile(99), 4),
                "overruns": self.overruns, "dropped": self.dropped, "malformed": self.malformed,

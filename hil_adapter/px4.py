@@ -172,9 +172,12 @@ class Px4Server:
     def _run_lockstep(self, conn: socket.socket, stop: threading.Event | None, max_steps: int | None) -> bool:
         """Returns False when the connection ended."""
         conn.settimeout(self.watchdog.timeout_s)
+        got_input: float | None = None
         while not (stop is not None and stop.is_set()) and (max_steps is None or self.stats.steps < max_steps):
             t0 = time.perf_counter()
             self._send_step(conn)
+            if got_input is not None:
+                self.stats.busy.append(time.perf_counter() - got_input)
             while True:
                 try:
                     data = conn.recv(65536)
@@ -185,8 +188,9 @@ class Px4Server:
                 if not data:
                     return False
                 if self._absorb(data):
+                    got_input = time.perf_counter()
                     self.watchdog.fed()
-                    self.stats.latencies.append(time.perf_counter() - t0)
+                    self.stats.latencies.append(got_input - t0)
                     break
             self._step()
         return True

@@ -1,0 +1,371 @@
+"""HIL sensor models: exact noise-free readings, ISA baro, Earth field, GPS rate and latency, seeded noise,
+noise statistics, bias drift, config checking, missing outputs."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from fmu_models.common.wgs84 import radii_of_curvature
+from hil_adapter.sensors import (
+    AccelConfig,
+    GpsConfig,
+    MagConfig,
+    MissingOutputError,
+    SensorConfig,
+    SensorConfigError,
+    SensorSuite,
+)
+
+G0 = 9.80665
+
+
+def outputs(**overrides: float) -> dict[str, float]:
+    """At rest, level, heading north, on the ground at 0 m."""
+    out = {
+        "accel_body_x_m_s2": 0.0, "accel_body_y_m_s2": 0.0, "accel_body_z_m_s2": -G0,
+        "rate_body_x_rad_s": 0.0, "rate_body_y_rad_s": 0.0, "rate_body_z_rad_s": 0.0,
+        "roll_rad": 0.0, "pitch_rad": 0.0, "yaw_rad": 0.0,
+        "quat_w": 1.0, "quat_x": 0.0, "quat_y": 0.0, "quat_z": 0.0,
+        "lat_deg": 47.3977, "lon_deg": 8.5456, "height_m": 0.0, "altitude_m": 0.0,
+        "vel_north_m_s": 0.0, "vel_east_m_s": 0.0, "vel_down_m_s": 0.0,
+    }
+    out.update(overrides)
+    return out
+
+
+def yawed(yaw_deg: float) -> dict[str, float]:
+    half = math.radians(yaw_deg) / 2
+    return {"quat_w": math.cos(half), "quat_z": math.sin(half), "yaw_rad": 2 * half}
+
+
+def noise_free(**sections) -> SensorConfig:
+    return replace(SensorConfig.noise_free(), **sections)
+
+
+def quiet_gps(**settings) -> GpsConfig:
+    """A GPS without position and velocity noise."""
+    return GpsConfig(**{"pos_noise_std_h_m": 0.0, "pos_noise_std_v_m": 0.0, "vel_noise_std_m_s": 0.0, **settings})
+
+
+# ------------------------------------------------------------------------------------------ noise-free physics
+def test_at_rest_on_the_ground_noise_free_reads_exact_values() -> None:
+    frame = SensorSuite(noise_free(), seed=3).sample(0.0, outputs())
+    assert frame.accel_body_m_s2 == (0.0, 0.0, -G0)
+    assert frame.gyro_body_rad_s == (0.0, 0.0, 0.0)
+    assert frame.abs_pressure_pa == 101325.0
+    assert frame.temperature_degc == pytest.approx(15.0, abs=1e-9)
+    assert frame.pressure_alt_m == pytest.approx(0.0, abs=1e-9)
+    assert frame.diff_pressure_pa == 0.0  # no airspeed output: no pitot
+    assert all(isinstance(v, float) for v in (*frame.accel_body_m_s2, *frame.gyro_body_rad_s, *frame.mag_body_gauss))
+    # later samples stay exact too (no drift creeps in)
+    suite = SensorSuite(noise_free(), seed=3)
+    for k in range(100):
+        f = suite.sample(k * 0.004, outputs(rate_body_x_rad_s=0.1, accel_body_x_m_s2=1.5))
+        assert f.accel_body_m_s2 == (1.5, 0.0, -G0) and f.gyro_body_rad_s == (0.1, 0.0, 0.0)
+
+
+def test_baro_follows_isa_at_1000_m() -> None:
+    frame = SensorSuite(noise_free()).sample(0.0, outputs(height_m=1000.0, altitude_m=1000.0))
+    assert frame.abs_pressure_pa == pytest.approx(89874.6, abs=0.05)
+    assert frame.temperature_degc == pytest.approx(8.5, abs=1e-9)
+    assert frame.pressure_alt_m == pytest.approx(1000.0, abs=1e-6)
+
+
+def test_baro_uses_height_not_altitude_above_home() -> None:
+    frame = SensorSuite(noise_free()).sample(0.0, outputs(height_m=500.0, altitude_m=0.0))
+    assert frame.pressure_alt_m == pytest.approx(500.0, abs=1e-6)
+    assert frame.abs_pressure_pa < 101325.0 - 5000.0
+
+
+def test_diff_pressure_is_dynamic_pressure_of_airspeed() -> None:
+    suite = SensorSuite(noise_free())
+    assert suite.sample(0.0, outputs(airspeed_m_s=20.0)).diff_pressure_pa == pytest.approx(0.5 * 1.225 * 400.0,
+                                                                                          rel=1e-4)
+    assert suite.sample(0.1, outputs(airspeed_m_s=0.0)).diff_pressure_pa == 0.0
+    high = suite.sample(0.2, outputs(airspeed_m_s=20.0, height_m=1000.0)).diff_pressure_pa
+    assert high == pytest.approx(0.5 * 1.1116 * 400.0, rel=1e-4)  # thinner air at 1000 m
+
+
+MAG = MagConfig(noise_std=0.0, bias=0.0, drift_std=0.0, intensity_gauss=0.5, declination_deg=0.0,
+                inclination_deg=60.0)
+
+
+def test_mag_level_heading_north_points_north_and_down() -> None:
+    m = SensorSuite(noise_free(mag=MAG)).sample(0.0, outputs()).mag_body_gauss
+    assert m == pytest.approx((0.25, 0.0, 0.4330127), abs=1e-7)
+
+
+def test_mag_rotates_with_heading() -> None:
+    east = SensorSuite(noise_free(mag=MAG)).sample(0.0, outputs(**yawed(90.0))).mag_body_gauss
+    assert east == pytest.approx((0.0, -0.25, 0.4330127), abs=1e-7)  # north is on the body's left
+    south = SensorSuite(noise_free(mag=MAG)).sample(0.0, outputs(**yawed(180.0))).mag_body_gauss
+    assert south == pytest.approx((-0.25, 0.0, 0.4330127), abs=1e-7)
+
+
+def test_mag_declination_is_east_positive() -> None:
+    mag = replace(MAG, declination_deg=10.0)
+    # nose on magnetic north (10 deg east of true north): the horizontal field is along the nose again
+    m = SensorSuite(noise_free(mag=mag)).sample(0.0, outputs(**yawed(10.0))).mag_body_gauss
+    assert m == pytest.approx((0.25, 0.0, 0.4330127), abs=1e-7)
+
+
+def test_mag_with_unnormalised_quaternion() -> None:
+    q = {k: 1.001 * v for k, v in yawed(90.0).items() if k.startswith("quat")}
+    m = SensorSuite(noise_free(mag=MAG)).sample(0.0, outputs(**q)).mag_body_gauss
+    assert m == pytest.approx((0.0, -0.25, 0.4330127), abs=1e-7)
+
+
+def test_constant_bias_is_added() -> None:
+    cfg = noise_free(accel=AccelConfig(noise_std=0.0, bias=(0.1, -0.2, 0.3), drift_std=0.0))
+    suite = SensorSuite(cfg)
+    for k in range(10):
+        assert suite.sample(k * 0.01, outputs()).accel_body_m_s2 == pytest.approx((0.1, -0.2, -G0 + 0.3))
+
+
+# ------------------------------------------------------------------------------------------ GPS
+@pytest.mark.parametrize(("gps_hz", "sample_hz", "expected"), [(5.0, 250, 5), (10.0, 100, 10), (1.0, 250, 1),
+                                                             (50.0, 250, 50)])
+def test_gps_comes_at_its_rate(gps_hz: float, sample_hz: int, expected: int) -> None:
+    suite = SensorSuite(noise_free(gps=quiet_gps(rate_hz=gps_hz, latency_s=0.0)))
+    times = [k / sample_hz for k in range(sample_hz)]  # 1 s
+    fixes = [(t, f.gps) for t in times if (f := suite.sample(t, outputs())).gps is not None]
+    assert len(fixes) == expected
+    assert [t for t, _ in fixes] == pytest.approx([k / gps_hz for k in range(expected)])
+
+
+def test_gps_after_a_gap_keeps_its_grid_without_a_burst() -> None:
+    suite = SensorSuite(noise_free(gps=quiet_gps(rate_hz=10.0, latency_s=0.0)))
+    got = {t: suite.sample(t, outputs()).gps is not None for t in (0.0, 1.0, 1.05, 1.1, 1.15, 1.2)}
+    assert got == {0.0: True, 1.0: True, 1.05: False, 1.1: True, 1.15: False, 1.2: True}
+
+
+def test_gps_latency_reports_the_earlier_state() -> None:
+    latency = 0.2
+    suite = SensorSuite(noise_free(gps=quiet_gps(rate_hz=5.0, latency_s=latency)))
+
+    def state(t: float) -> dict[str, float]:  # climbing and speeding up northwards
+        return outputs(lat_deg=47.0 + 1e-4 * t, lon_deg=8.0 - 2e-4 * t, height_m=100.0 + 3.0 * t,
+                       vel_north_m_s=10.0 + t, vel_east_m_s=-1.0, vel_down_m_s=-3.0)
+
+    fixes = {}
+    for k in range(250):
+        t = k * 0.004
+        f = suite.sample(t, state(t))
+        if f.gps is not None:
+            fixes[round(t, 6)] = f.gps
+    assert sorted(fixes) == pytest.approx([0.0, 0.2, 0.4, 0.6, 0.8])
+    assert fixes[0.0].time_s == 0.0 and fixes[0.0].lat_deg == 47.0  # nothing earlier: the first state
+    for t in (0.4, 0.6, 0.8):
+        fix, then = fixes[t], state(t - latency)
+        assert fix.time_s == pytest.approx(t - latency)
+        assert fix.lat_deg == pytest.approx(then["lat_deg"], abs=1e-12)
+        assert fix.lon_deg == pytest.approx(then["lon_deg"], abs=1e-12)
+        assert fix.alt_msl_m == pytest.approx(then["height_m"], abs=1e-9)
+        assert fix.vel_ned_m_s == pytest.approx((then["vel_north_m_s"], -1.0, -3.0), abs=1e-9)
+        assert fix.lat_deg < state(t)["lat_deg"] - 1e-5  # measurably not the current position
+
+
+def test_gps_latency_between_samples_interpolates() -> None:
+    suite = SensorSuite(noise_free(gps=quiet_gps(rate_hz=1.0, latency_s=0.05)))
+    suite.sample(0.0, outputs(height_m=0.0))
+    suite.sample(0.9, outputs(height_m=90.0))
+    fix = suite.sample(1.0, outputs(height_m=100.0)).gps
+    assert fix is not None and fix.time_s == pytest.approx(0.95) and fix.alt_msl_m == pytest.approx(95.0)
+
+
+def test_gps_fix_fields() -> None:
+    cfg = GpsConfig(rate_hz=10.0, latency_s=0.0, eph_m=2.5, epv_m=4.0, fix_type=3, satellites=12,
+                    pos_noise_std_h_m=0.0, pos_noise_std_v_m=0.0, vel_noise_std_m_s=0.0)
+    suite = SensorSuite(noise_free(gps=cfg))
+    fix = suite.sample(0.0, outputs(vel_north_m_s=3.0, vel_east_m_s=4.0, height_m=432.1)).gps
+    assert fix is not None
+    assert (fix.lat_deg, fix.lon_deg, fix.alt_msl_m) == (47.3977, 8.5456, 432.1)
+    assert fix.ground_speed_m_s == pytest.approx(5.0) and fix.course_deg == pytest.approx(53.130102, abs=1e-6)
+    assert (fix.eph_m, fix.epv_m, fix.fix_type, fix.satellites) == (2.5, 4.0, 3, 12)
+    west = suite.sample(0.1, outputs(vel_north_m_s=0.0, vel_east_m_s=-2.0)).gps
+    assert west is not None and west.course_deg == pytest.approx(270.0)
+    north_west = suite.sample(0.2, outputs(vel_north_m_s=1.0, vel_east_m_s=-1e-18)).gps
+    assert north_west is not None and 0.0 <= north_west.course_deg < 360.0
+    still = suite.sample(0.3, outputs(vel_north_m_s=-0.0)).gps
+    assert still is not None and still.course_deg == 0.0 and still.ground_speed_m_s == 0.0
+
+
+def test_time_going_back_restarts_the_gps_schedule() -> None:
+    suite = SensorSuite(noise_free(gps=quiet_gps(rate_hz=1.0, latency_s=0.5)))
+    assert suite.sample(0.0, outputs()).gps is not None
+    assert suite.sample(0.5, outputs()).gps is None
+    restarted = suite.sample(0.0, outputs(height_m=7.0)).gps  # FMU re-initialised
+    assert restarted is not None and restarted.alt_msl_m == 7.0  # no stale state from before the restart
+
+
+# ------------------------------------------------------------------------------------------ seeds
+def run(suite: SensorSuite, n: int = 300) -> list:
+    return [suite.sample(k * 0.004, outputs(height_m=50.0, airspeed_m_s=15.0)) for k in range(n)]
+
+
+def test_same_seed_same_sequence_different_seed_different() -> None:
+    a, b, c = run(SensorSuite(seed=42)), run(SensorSuite(seed=42)), run(SensorSuite(seed=43))
+    assert a == b
+    assert sum(fa.gps is not None for fa in a) == 6
+    for fields in ("accel_body_m_s2", "gyro_body_rad_s", "mag_body_gauss", "abs_pressure_pa", "diff_pressure_pa"):
+        assert all(getattr(fa, fields) != getattr(fc, fields) for fa, fc in zip(a, c, strict=True)), fields
+    assert [fa.gps for fa in a if fa.gps] != [fc.gps for fc in c if fc.gps]
+
+
+def test_reset_repeats_exactly() -> None:
+    suite = SensorSuite(seed=7)
+    first = run(suite)
+    assert run(suite) != first  # without reset the noise goes on
+    suite.reset()
+    assert run(suite) == first
+
+
+def test_noise_is_noise() -> None:
+    f = SensorSuite(seed=1).sample(0.0, outputs())
+    assert f.accel_body_m_s2 != (0.0, 0.0, -G0) and f.gyro_body_rad_s != (0.0, 0.0, 0.0)
+
+
+# ------------------------------------------------------------------------------------------ statistics
+def test_white_noise_has_the_configured_std() -> None:
+    n = 20000
+    cfg = replace(
+        SensorConfig.noise_free(),
+        accel=AccelConfig(noise_std=0.08, bias=0.0, drift_std=0.0),
+        gyro=replace(SensorConfig.noise_free().gyro, noise_std=0.004),
+        baro=replace(SensorConfig.noise_free().baro, noise_std=3.0),
+        diff_pressure=replace(SensorConfig.noise_free().diff_pressure, noise_std=0.7),
+        gps=GpsConfig(rate_hz=100.0, latency_s=0.0, pos_noise_std_h_m=1.5, pos_noise_std_v_m=2.5,
+                      vel_noise_std_m_s=0.2),
+    )
+    suite = SensorSuite(cfg, seed=11)
+    truth = outputs(airspeed_m_s=0.0)
+    frames = [suite.sample(k * 0.01, truth) for k in range(n)]
+    assert all(f.gps is not None for f in frames)
+    r_m, r_n = radii_of_curvature(math.radians(truth["lat_deg"]))
+    cos_lat = math.cos(math.radians(truth["lat_deg"]))
+    errors = {
+        0.08: np.array([f.accel_body_m_s2 for f in frames]) - (0.0, 0.0, -G0),
+        0.004: np.array([f.gyro_body_rad_s for f in frames]),
+        3.0: np.array([f.abs_pressure_pa for f in frames]) - 101325.0,
+        0.7: np.array([f.diff_pressure_pa for f in frames]),
+        1.5: np.column_stack([np.radians([f.gps.lat_deg - truth["lat_deg"] for f in frames]) * r_m,
+                              np.radians([f.gps.lon_deg - truth["lon_deg"] for f in frames]) * r_n * cos_lat]),
+        2.5: np.array([f.gps.alt_msl_m for f in frames]),
+        0.2: np.array([f.gps.vel_ned_m_s for f in frames]),
+    }
+    for std, err in errors.items():
+        err = err.reshape(n, -1)
+        for axis in err.T:
+            assert np.std(axis) == pytest.approx(std, rel=0.1), std
+            assert abs(np.mean(axis)) < 5 * std / math.sqrt(n), std
+    # axes are independent
+    acc = errors[0.08]
+    assert abs(np.corrcoef(acc[:, 0], acc[:, 1])[0, 1]) < 0.05
+
+
+def test_bias_drift_grows_like_sqrt_t() -> None:
+    sigma = 0.01  # rad/s per sqrt(s)
+    cfg = noise_free(gyro=replace(SensorConfig.noise_free().gyro, drift_std=sigma))
+    times = (0.0, 1.0, 4.0, 16.0)
+    runs = []
+    for s in range(1000):
+        suite = SensorSuite(cfg, seed=s)
+        runs.append([suite.sample(t, outputs()).gyro_body_rad_s for t in times])
+    drift = np.array(runs)  # [seed, time, axis]
+    assert np.all(drift[:, 0, :] == 0.0)
+    for i, t in enumerate(times[1:], start=1):
+        assert np.std(drift[:, i, :]) == pytest.approx(sigma * math.sqrt(t), rel=0.1)
+    # it is a random walk: increments are independent of the past
+    inc1, inc2 = drift[:, 1, :].ravel(), (drift[:, 2, :] - drift[:, 1, :]).ravel()
+    assert abs(np.corrcoef(inc1, inc2)[0, 1]) < 0.1
+
+
+def test_drift_does_not_depend_on_the_step() -> None:
+    sigma = 0.02
+    cfg = noise_free(baro=replace(SensorConfig.noise_free().baro, drift_std=sigma))
+    ends = []
+    for s in range(1000):
+        suite = SensorSuite(cfg, seed=s)
+        for k in range(51):
+            f = suite.sample(k * 0.02, outputs())
+        ends.append(f.abs_pressure_pa - 101325.0)
+    assert np.std(ends) == pytest.approx(sigma * math.sqrt(1.0), rel=0.1)
+
+
+# ------------------------------------------------------------------------------------------ config
+def test_config_from_dict_defaults_and_normalisation() -> None:
+    cfg = SensorConfig.from_dict({"accel": {"noise_std": 0.1, "bias": 0.05}, "gyro": {"bias": [0.01, 0, -0.01]},
+                                  "gps": {"rate_hz": 10, "fix_type": 3}}, source="bench.toml")
+    assert cfg.accel.noise_std == 0.1 and cfg.accel.bias == (0.05, 0.05, 0.05)
+    assert cfg.gyro.bias == (0.01, 0.0, -0.01) and cfg.gyro.noise_std == SensorConfig().gyro.noise_std
+    assert cfg.gps.rate_hz == 10.0 and isinstance(cfg.gps.rate_hz, float) and cfg.mag == MagConfig()
+    assert SensorConfig.from_dict({}) == SensorConfig()
+    with pytest.raises(AttributeError):
+        cfg.accel.noise_std = 1.0  # frozen
+
+
+@pytest.mark.parametrize(("data", "expected"), [
+    ({"accel": {"noise_std": -0.1}}, ["accel.noise_std", "-0.1", "0..10 m/s^2"]),
+    ({"gyro": {"drift_std": math.nan}}, ["gyro.drift_std", "nan", "0..0.1"]),
+    ({"gyro": {"bias": [0.0, 2.0, 0.0]}}, ["gyro.bias", "[0.0, 2.0, 0.0]", "-1..1 rad/s per axis"]),
+    ({"gyro": {"bias": [0.0, 0.0]}}, ["gyro.bias", "3 numbers"]),
+    ({"mag": {"inclination_deg": 95}}, ["mag.inclination_deg", "95", "-90..90 deg"]),
+    ({"mag": {"intensity_gauss": "0.5"}}, ["mag.intensity_gauss", "'0.5'", "a number", "0.1..1 gauss"]),
+    ({"baro": {"noise_std": math.inf}}, ["baro.noise_std", "inf", "0..1000 Pa"]),
+    ({"gps": {"rate_hz": 0}}, ["gps.rate_hz", "= 0", "0.1..100 Hz"]),
+    ({"gps": {"fix_type": 3.0}}, ["gps.fix_type", "3.0", "an integer", "0..8"]),
+    ({"gps": {"satellites": True}}, ["gps.satellites", "True", "0..255"]),
+    ({"gps": {"latency_s": 2.0}}, ["gps.latency_s", "2.0", "0..1 s"]),
+    ({"accel": {"noise": 0.1}}, ["accel.noise", "unknown key", "noise_std"]),
+    ({"lidar": {}}, ["lidar", "unknown sensor", "accel"]),
+    ({"gps": 5}, ["gps", "5", "table"]),
+])
+def test_config_errors_name_source_field_value_and_range(data: dict, expected: list[str]) -> None:
+    with pytest.raises(SensorConfigError) as err:
+        SensorConfig.from_dict(data, source="bench/sensors.toml")
+    text = str(err.value)
+    assert text.startswith("bench/sensors.toml: ")
+    for part in expected:
+        assert part in text, (part, text)
+
+
+def test_config_errors_are_all_listed() -> None:
+    with pytest.raises(SensorConfigError) as err:
+        SensorConfig.from_dict({"accel": {"noise_std": -1, "bias": 99}, "gps": {"eph_m": -1}}, source="x.toml")
+    text = str(err.value)
+    assert "accel.noise_std" in text and "accel.bias" in text and "gps.eph_m" in text
+    assert isinstance(err.value, ValueError)
+
+
+def test_section_from_dict_and_direct_construction_are_checked() -> None:
+    assert GpsConfig.from_dict({"rate_hz": 2.0}).rate_hz == 2.0
+    with pytest.raises(SensorConfigError, match=r"gps\.toml: gps\.epv_m = -3"):
+        GpsConfig.from_dict({"epv_m": -3}, source="gps.toml")
+    with pytest.raises(SensorConfigError, match=r"accel\.noise_std = -1\.0.*0\.\.10"):
+        AccelConfig(noise_std=-1.0)
+
+
+def test_bad_seed() -> None:
+    with pytest.raises(ValueError, match="seed"):
+        SensorSuite(seed=-1)
+
+
+# ------------------------------------------------------------------------------------------ outputs
+def test_missing_output_is_named() -> None:
+    out = outputs()
+    del out["height_m"]
+    with pytest.raises(MissingOutputError) as err:
+        SensorSuite().sample(0.0, out)
+    assert isinstance(err.value, KeyError)
+    assert "height_m" in str(err.value) and "lat_deg" not in str(err.value)
+
+
+def test_optional_and_unused_outputs_may_be_absent() -> None:
+    out = outputs()
+    for name in ("roll_rad", "pitch_rad", "yaw_rad", "altitude_m"):
+        del out[name]
+    assert SensorSuite().sample(0.0, out).diff_pressure_pa == 0.0
