@@ -9,6 +9,7 @@ line and a summary at exit. Config (TOML, every section optional; unknown keys a
     [record]     path = "hil_log.csv"                    # every step in and out, readable by our readers
     [mavlink]    url = "udpin:127.0.0.1:14560"  baud = 57600
     [nmea]       port = "/dev/ttyUSB0"  baud = 38400  rate_hz = 5     # GPS sentences beside any interface
+    [px4]        rc_channels = [1500, 1500, 1000, 1500]  # RC_CHANNELS sent with each heartbeat (PWM)
     [start]      init_pos_down_m = 0.0                    # FMU start values
     [sensors]    seed = 0  [sensors.gyro] noise_std = 0.002 ...        # hil_adapter.sensors.SensorConfig
     [mapping.channels.aileron_rad] source = 1 ...                      # hil_adapter.pwm_mapping
@@ -28,7 +29,8 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-SECTIONS = {"network": {"host", "port"}, "timing": {"mode", "rate_hz"}, "watchdog": {"timeout_s", "mode"},
+SECTIONS = {"network": {"host", "port"}, "px4": {"rc_channels"}, "timing": {"mode", "rate_hz"},
+            "watchdog": {"timeout_s", "mode"},
             "record": {"path"}, "mavlink": {"url", "baud"}, "nmea": {"port", "baud", "rate_hz"}, "start": None,
             "sensors": None, "mapping": None}
 INTERFACES = ("px4", "ardupilot-json", "mavlink", "nmea")
@@ -169,7 +171,7 @@ def _make_server(interface: str, plant: Any, sensors: Any, stats: Any, recorder:
         from hil_adapter.px4 import Px4Server
 
         srv = Px4Server(plant, sensors, host, port, timing.get("mode", "lockstep") == "lockstep", dt, stats,
-                        recorder, watchdog)
+                        recorder, watchdog, cfg.get("px4", {}).get("rc_channels"))
         closers.append(srv.close)
         return srv
     if interface == "ardupilot-json":

@@ -146,6 +146,18 @@ class Stats:
                 f"dropped={s['dropped']} malformed={s['malformed']} fmu_errors={s.get('fmu_errors', 0)}")
 
 
+#: sensor readings sent to the autopilot, recorded beside the FMU's true outputs
+SENSOR_COLUMNS = ("sens_accel_x_m_s2", "sens_accel_y_m_s2", "sens_accel_z_m_s2", "sens_gyro_x_rad_s",
+                  "sens_gyro_y_rad_s", "sens_gyro_z_rad_s", "sens_mag_x_gauss", "sens_mag_y_gauss",
+                  "sens_mag_z_gauss", "sens_abs_pressure_pa", "sens_diff_pressure_pa", "sens_temperature_degc")
+
+
+def sensor_values(frame: Any) -> tuple[float, ...]:
+    """A sensor frame (``hil_adapter.sensors.SensorFrame``) in the order of ``SENSOR_COLUMNS``."""
+    return (*frame.accel_body_m_s2, *frame.gyro_body_rad_s, *frame.mag_body_gauss, frame.abs_pressure_pa,
+            frame.diff_pressure_pa, frame.temperature_degc)
+
+
 class Recorder:
     """Every step's PWM in, FMU inputs and outputs, as a CSV log the project's readers read back.
 
@@ -159,14 +171,16 @@ class Recorder:
         self._w = csv.writer(self._fh)
         self.channels, self.inputs, self.outputs = list(channels), list(inputs), list(outputs)
         self._w.writerow(["time_s", *(f"servo_{c}_pwm_us" for c in self.channels), *self.inputs,
-                          *(LOG_NAMES.get(o, o) for o in self.outputs), "failsafe"])
+                          *(LOG_NAMES.get(o, o) for o in self.outputs), "failsafe", *SENSOR_COLUMNS])
         self.rows = 0
 
     def write(self, t_s: float, pwm_us: Mapping[int, float], inputs: Mapping[str, float],
-              outputs: Mapping[str, float], failsafe: bool = False) -> None:
+              outputs: Mapping[str, float], failsafe: bool = False, sensors: Any = None) -> None:
+        """One row; ``sensors`` is the sensor frame sent this step (NaN columns when none was sent)."""
+        sens = sensor_values(sensors) if sensors is not None else (math.nan,) * len(SENSOR_COLUMNS)
         self._w.writerow([repr(t_s), *(repr(float(pwm_us.get(c, math.nan))) for c in self.channels),
                           *(repr(float(inputs[n])) for n in self.inputs),
-                          *(repr(float(outputs[n])) for n in self.outputs), int(failsafe)])
+                          *(repr(float(outputs[n])) for n in self.outputs), int(failsafe), *map(repr, sens)])
         self.rows += 1
 
     def close(self) -> None:

@@ -110,7 +110,7 @@ class MavlinkBridge:
             self.stats.dropped += 1
             log.debug("send failed: %s", err)
         if self.recorder is not None:
-            self.recorder.write(t_s, self.pwm, self.plant.inputs, self.plant.state, self.watchdog.tripped)
+            self.recorder.write(t_s, self.pwm, self.plant.inputs, self.plant.state, self.watchdog.tripped, frame)
         for sink in self.sinks:
             sink(self.plant.t_s, self.plant.state)
 

@@ -120,6 +120,7 @@ class Px4Server:
         self.msgs = HilMessages(self.mav, plant.vehicle)
         self.pwm: dict[int, float] = {}
         self.armed = False
+        self.last_frame: Any = None
         self._last_heartbeat = -math.inf
 
     def close(self) -> None:
@@ -130,6 +131,7 @@ class Px4Server:
         t_s = self.plant.t_s
         t_us = round(t_s * 1e6)
         frame = self.sensors.sample(t_s, self.plant.state)
+        self.last_frame = frame
         out = [self.msgs.sensor(t_us, frame), self.msgs.state(t_us, self.plant.state)]
         if frame.gps is not None:
             out.append(self.msgs.gps(t_us, frame.gps))
@@ -165,7 +167,8 @@ class Px4Server:
         self.plant.advance(self.dt_s)
         self.stats.steps += 1
         if self.recorder is not None:
-            self.recorder.write(self.plant.t_s, self.pwm, self.plant.inputs, self.plant.state, self.watchdog.tripped)
+            self.recorder.write(self.plant.t_s, self.pwm, self.plant.inputs, self.plant.state, self.watchdog.tripped,
+                                self.last_frame)
         for sink in self.sinks:
             sink(self.plant.t_s, self.plant.state)
 
