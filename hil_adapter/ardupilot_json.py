@@ -1,8 +1,9 @@
 """ArduPilot SITL JSON backend: servo packets in over UDP (port 9002), a JSON state per frame back.
 
 SITL drives the clock (lockstep by construction): every servo frame advances the FMU by ``1/frame_rate``.
-A repeated ``frame_count`` is a resend (answered with the last state, no step); a smaller one means SITL
-restarted (the FMU is re-initialised). Malformed datagrams are counted and ignored.
+A repeated ``frame_count`` is a resend (answered with the last state, no step); one slightly below the last
+(within ``REORDER_WINDOW``) is a late datagram and is dropped; a count back at 0 or 1, or far below the last,
+means SITL restarted (the FMU is re-initialised). Malformed datagrams are counted and ignored.
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ from hil_adapter.pwm_mapping import MappingError
 
 log = logging.getLogger(__name__)
 DEFAULT_PORT = 9002
+#: a frame_count at most this far below the last one is a late (reordered) datagram, not a SITL restart
+REORDER_WINDOW = 8
 
 
 class DatagramTransport(Protocol):
@@ -89,6 +92,10 @@ class ArduPilotJsonServer:
             if self.last_count is not None and pkt.frame_count == self.last_count:
                 self.stats.resends += 1
                 return self.last_reply
+            if (self.last_count is not None and pkt.frame_count < self.last_count and pkt.frame_count > 1
+                    and self.last_count - pkt.frame_count <= REORDER_WINDOW):
+                self.stats.out_of_order += 1  # a late datagram: its frame was answered or skipped already
+                return None
             if self.last_count is not None and pkt.frame_count < self.last_count:
                 log.info("frame_count went from %d to %d: SITL restarted, resetting the FMU", self.last_count,
                          pkt.frame_count)

@@ -23,7 +23,6 @@ import argparse
 import logging
 import sys
 import threading
-import time
 import tomllib
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -198,19 +197,15 @@ class _NmeaOnly:
         self.sinks: list[Callable[[float, Mapping[str, float]], None]] = []
 
     def serve(self, stop: threading.Event) -> None:
-        next_t = time.perf_counter()
+        from hil_adapter.core import Pacer
+
+        pacer = Pacer(self.dt, self.stats)
         while not stop.is_set():
             self.plant.advance(self.dt)
             self.stats.steps += 1
             for sink in self.sinks:
                 sink(self.plant.t_s, self.plant.state)
-            next_t += self.dt
-            delay = next_t - time.perf_counter()
-            if delay < 0:
-                self.stats.overruns += 1
-                next_t = time.perf_counter()
-            else:
-                time.sleep(delay)
+            pacer.wait()
 
 
 def _status(stop: threading.Event, stats: Any, plant: Any, quiet: bool) -> None:

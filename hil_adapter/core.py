@@ -109,6 +109,7 @@ class Stats:
     dropped: int = 0
     malformed: int = 0
     resends: int = 0
+    out_of_order: int = 0
     restarts: int = 0
     reconnects: int = 0
     failsafes: int = 0
@@ -133,8 +134,8 @@ class Stats:
                "latency_p50_ms": round(1e3 * self.percentile(50), 4),
                "latency_p99_ms": round(1e3 * self.percentile(99), 4),
                "overruns": self.overruns, "dropped": self.dropped, "malformed": self.malformed,
-               "resends": self.resends, "restarts": self.restarts, "reconnects": self.reconnects,
-               "failsafes": self.failsafes}
+               "resends": self.resends, "out_of_order": self.out_of_order, "restarts": self.restarts,
+               "reconnects": self.reconnects, "failsafes": self.failsafes}
         if plant is not None:
             out |= {"sim_time_s": round(plant.t_s, 3), "fmu_errors": plant.fmu_errors}
         return out
@@ -185,6 +186,24 @@ class Recorder:
 
     def close(self) -> None:
         self._fh.close()
+
+
+class Pacer:
+    """Real-time pacing with deadline scheduling: ``wait()`` sleeps until the next period; a missed deadline
+    counts an overrun and restarts the schedule from now (no catch-up bursts)."""
+
+    def __init__(self, period_s: float, stats: Stats) -> None:
+        self.period_s, self.stats = period_s, stats
+        self.next_t = time.perf_counter()
+
+    def wait(self) -> None:
+        self.next_t += self.period_s
+        delay = self.next_t - time.perf_counter()
+        if delay < 0:
+            self.stats.overruns += 1
+            self.next_t = time.perf_counter()
+        else:
+            time.sleep(delay)
 
 
 @dataclass

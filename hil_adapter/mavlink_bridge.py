@@ -17,7 +17,7 @@ from typing import Any, Protocol
 
 from pymavlink import mavutil
 
-from hil_adapter.core import Plant, Recorder, Stats, Watchdog
+from hil_adapter.core import Pacer, Plant, Recorder, Stats, Watchdog
 from hil_adapter.pwm_mapping import MappingError
 from hil_adapter.px4 import HilMessages
 
@@ -116,16 +116,11 @@ class MavlinkBridge:
 
     def serve(self, stop: threading.Event | None = None, max_steps: int | None = None) -> Stats:
         """Real-time loop with deadline scheduling; overruns counted, no catch-up bursts."""
-        next_t = time.perf_counter()
+        pacer = Pacer(self.dt_s, self.stats)
         while not (stop is not None and stop.is_set()) and (max_steps is None or self.stats.steps < max_steps):
             t0 = time.perf_counter()
             self.step()
             self.stats.latencies.append(time.perf_counter() - t0)
-            next_t += self.dt_s
-            delay = next_t - time.perf_counter()
-            if delay < 0:
-                self.stats.overruns += 1
-                next_t = time.perf_counter()
-            else:
-                time.sleep(delay)
+            self.stats.busy.append(time.perf_counter() - t0)
+            pacer.wait()
         return self.stats

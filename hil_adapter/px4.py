@@ -22,7 +22,7 @@ from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from hil_adapter.core import Plant, Recorder, Stats, Watchdog
+from hil_adapter.core import Pacer, Plant, Recorder, Stats, Watchdog
 
 log = logging.getLogger(__name__)
 DEFAULT_PORT = 4560
@@ -200,8 +200,9 @@ class Px4Server:
 
     def _run_realtime(self, conn: socket.socket, stop: threading.Event | None, max_steps: int | None) -> bool:
         conn.setblocking(False)
-        next_t = time.perf_counter()
+        pacer = Pacer(self.dt_s, self.stats)
         while not (stop is not None and stop.is_set()) and (max_steps is None or self.stats.steps < max_steps):
+            t0 = time.perf_counter()
             try:
                 while True:
                     data = conn.recv(65536)
@@ -217,13 +218,8 @@ class Px4Server:
                 self._send_step(conn)
             except BlockingIOError:
                 self.stats.dropped += 1
-            next_t += self.dt_s
-            delay = next_t - time.perf_counter()
-            if delay < 0:
-                self.stats.overruns += 1
-                next_t = time.perf_counter()  # don't try to catch up: keep the rate from now on
-            else:
-                time.sleep(delay)
+            self.stats.busy.append(time.perf_counter() - t0)
+            pacer.wait()
         return True
 
     def serve(self, stop: threading.Event | None = None, max_steps: int | None = None,

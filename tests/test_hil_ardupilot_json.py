@@ -80,7 +80,10 @@ def test_at_rest_imu_reads_gravity_and_resends_and_restarts(server) -> None:
     sitl.exchange(RATE_HZ + 1, [1000] * 4)
     sitl.exchange(RATE_HZ + 4, [1000] * 4)
     assert server.stats.dropped == 2
-    back = sitl.exchange(1, [1000] * 4)  # frame_count went down: SITL restarted -> FMU reset
+    sitl.sock.sendto(ServoPacket(RATE_HZ, RATE_HZ + 2, (1000,) * 16).pack(), server.transport.address)  # late
+    st_now = sitl.exchange(RATE_HZ + 5, [1000] * 4)
+    assert server.stats.out_of_order == 1 and st_now["timestamp"] == pytest.approx(1.0 + 3 / RATE_HZ)
+    back = sitl.exchange(1, [1000] * 4)  # frame_count back to 1: SITL restarted -> FMU reset
     assert server.stats.restarts == 1 and back["timestamp"] == pytest.approx(1 / RATE_HZ)
     sitl.sock.sendto(b"\x00\x01garbage", server.transport.address)
     sitl.exchange(2, [1000] * 4)  # still answering
@@ -110,31 +113,28 @@ def test_closed_loop_hover_at_10_m_through_json(server) -> None:
     assert abs(log.signal("altitude_m").values[-1] - 10.0) < 0.5
 
 
+@pytest.fixture(scope="module")
+def fuzz_server(quadrotor_fmu: Path):
+    plant = Plant(quadrotor_fmu)
+    yield ArduPilotJsonServer(plant, transport=None)  # type: ignore[arg-type]  (handle() only)
+    plant.close()
+
+
 @settings(max_examples=300, deadline=None)
-@given(st.binary(max_size=120))
-def test_fuzzed_datagrams_never_crash(quadrotor_fmu: Path, data: bytes) -> None:
-    srv = _fuzz_server(quadrotor_fmu)
+@given(data=st.binary(max_size=120))
+def test_fuzzed_datagrams_never_crash(fuzz_server, data: bytes) -> None:
+    srv = fuzz_server
     before = srv.stats.steps + srv.stats.malformed + srv.stats.resends
     out = srv.handle(data)
     assert out is None or json.loads(out)["timestamp"] >= 0
     assert srv.stats.steps + srv.stats.malformed + srv.stats.resends == before + 1
 
 
-_FUZZ: dict[str, ArduPilotJsonServer] = {}
-
-
-def _fuzz_server(fmu: Path) -> ArduPilotJsonServer:
-    if "srv" not in _FUZZ:
-        _FUZZ["srv"] = ArduPilotJsonServer(Plant(fmu), transport=None)  # type: ignore[arg-type]
-    return _FUZZ["srv"]
-
-
 @settings(max_examples=200, deadline=None)
-@given(st.integers(0, 65535), st.integers(1, 2000), st.integers(0, 2**32 - 1),
-       st.lists(st.integers(0, 65535), min_size=16, max_size=16))
-def test_fuzzed_servo_values_never_crash(quadrotor_fmu: Path, rate: int, dummy: int, count: int,
-                                         pwm: list[int]) -> None:
-    srv = _fuzz_server(quadrotor_fmu)
+@given(rate=st.integers(1, 65535), count=st.integers(0, 2**32 - 1),
+       pwm=st.lists(st.integers(0, 65535), min_size=16, max_size=16))
+def test_fuzzed_servo_values_never_crash(fuzz_server, rate: int, count: int, pwm: list[int]) -> None:
+    srv = fuzz_server
     out = srv.handle(ServoPacket(rate, count, tuple(pwm)).pack())
     if out is not None:
         state = json.loads(out)

@@ -13,8 +13,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from fmpy import extract, read_model_description
-from fmpy.fmi2 import FMU2Slave
+
+from uavfmu.fmu_host import FmuHost, FmuRunError
 
 
 @dataclass
@@ -28,36 +28,28 @@ class Recording:
 
 
 class FmuRunner:
-    """Drives one FMU instance with FMU2Slave; always frees it (use as a context manager)."""
+    """One FMU instance (``uavfmu.fmu_host.FmuHost``) initialised with ``start_values``, stepped by name."""
 
     def __init__(self, fmu: Path, start_values: dict[str, float] | None = None) -> None:
-        self.md = read_model_description(str(fmu))
-        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
-        self.outputs = [v.name for v in self.md.modelVariables if v.causality == "output" and v.type == "Real"]
-        self._unzip = extract(str(fmu))
-        self.slave = FMU2Slave(guid=self.md.guid, unzipDirectory=self._unzip,
-                               modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName="scenario")
-        self.slave.instantiate()
-        self.slave.setupExperiment(startTime=0.0)
-        if start_values:
-            self.slave.setReal([self.vr[k] for k in start_values], list(start_values.values()))
-        self.slave.enterInitializationMode()
-        self.slave.exitInitializationMode()
-        self._out_vr = [self.vr[n] for n in self.outputs]
+        self.host = FmuHost(fmu, instance_name="scenario")
+        self.outputs = [v.name for v in self.host.md.modelVariables if v.causality == "output" and v.type == "Real"]
+        try:
+            self.host.start(start_values)
+        except FmuRunError:
+            self.host.close()
+            raise
 
     def __enter__(self) -> FmuRunner:
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self.slave.terminate()
-        self.slave.freeInstance()
+        self.host.close()
 
     def read(self) -> dict[str, float]:
-        return dict(zip(self.outputs, self.slave.getReal(self._out_vr), strict=True))
+        return self.host.get(self.outputs)
 
     def step(self, t: float, h: float, inputs: dict[str, float]) -> dict[str, float]:
-        self.slave.setReal([self.vr[k] for k in inputs], list(inputs.values()))
-        self.slave.doStep(t, h)
+        self.host.step(t, h, inputs)
         return self.read()
 
 
