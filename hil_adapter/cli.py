@@ -178,7 +178,8 @@ def _make_server(interface: str, plant: Any, sensors: Any, stats: Any, recorder:
 
         transport = UdpTransport(host, port)
         closers.append(transport.close)
-        return ArduPilotJsonServer(plant, transport, stats, recorder)
+        # SITL models its own sensor noise: our noise goes on the IMU only when [sensors] asks for it
+        return ArduPilotJsonServer(plant, transport, stats, recorder, sensors if "sensors" in cfg else None)
     from hil_adapter.mavlink_bridge import MavlinkBridge, connect
 
     if interface == "mavlink":

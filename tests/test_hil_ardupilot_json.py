@@ -139,3 +139,17 @@ def test_fuzzed_servo_values_never_crash(fuzz_server, rate: int, count: int, pwm
     if out is not None:
         state = json.loads(out)
         assert all(np.isfinite(state["position"]))
+
+
+def test_fixed_wing_reply_has_airspeed_and_gravity(fixed_wing_fmu: Path) -> None:
+    plant = Plant(fixed_wing_fmu, start_values={"init_pos_down_m": -100.0, "init_vel_body_x_m_s": 25.0})
+    try:
+        srv = ArduPilotJsonServer(plant, transport=None)  # type: ignore[arg-type]  (handle() only)
+        pwm = (1500, 1500, 1000, 1500) + (0,) * 12  # surfaces centred, throttle off: a glide
+        state = json.loads(srv.handle(ServoPacket(50, 1, pwm).pack()))
+        assert state["airspeed"] == pytest.approx(25.0, abs=0.5)
+        assert plant.inputs == pytest.approx({"aileron_rad": 0.0, "elevator_rad": 0.0, "throttle": 0.0,
+                                              "rudder_rad": 0.0})
+        assert state["position"][2] == pytest.approx(-100.0, abs=1.0)
+    finally:
+        plant.close()

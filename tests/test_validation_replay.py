@@ -89,3 +89,17 @@ def test_fmu_errors_become_messages(tmp_path: Path) -> None:
         FmuHost(bad)
     with pytest.raises(FmuRunError, match="not found"):
         FmuHost(tmp_path / "absent.fmu")
+
+
+def test_fmu_error_mid_run_is_reported(quadrotor_fmu: Path, quad_log: Path) -> None:
+    """A log whose motor PWM leaves the FMU's input range makes the FMU return fmi2Error: a message naming the
+    input, and the host stays usable."""
+    log = read_log(quad_log)
+    sig = log.signal("motor_1_pwm_us")
+    sig.values[200:] = 2600.0  # the FMU accepts 0..2500 us
+    with FmuHost(quadrotor_fmu) as host:
+        with pytest.raises(FmuRunError, match="pwm_1_us"):
+            replay(host, log, quad_log, output_map.QUADROTOR, window_s=None)
+        log.signal("motor_1_pwm_us").values[200:] = 1500.0
+        res = replay(host, log, quad_log, output_map.QUADROTOR, window_s=2.0)  # the same instance goes on
+        assert res.overall["altitude_m"].rmse < 5.0
