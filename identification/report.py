@@ -41,41 +41,46 @@ REPORT_DPI = 80
 
 
 def _signal_figures(res: ReplayResult) -> list[str]:
+    """One figure of all signals (overlay left, residual right, shared time axis) and paper 000's Fig. 5.
+
+    One figure rather than one per signal: matplotlib's cost is mostly per axes and per text (ticks, titles),
+    and a shared time axis labels only the bottom row.
+    """
     parts = []
     edges = [w[0] for w in res.windows[1:]]
     k = max(1, len(res.t_s) // MAX_PLOT_POINTS)
     t = res.t_s[::k]
-    for m in res.maps:
+    n = len(res.maps)
+    fig, axes = plots.figure(n, 2, sharex=True, squeeze=False, figsize=(11.0, 1.0 + 1.9 * n), layout=None,
+                             width_ratios=[3, 1])
+    fig.subplots_adjust(left=0.07, right=0.99, top=1 - 0.35 / (1.0 + 1.9 * n), bottom=0.5 / (1.0 + 1.9 * n),
+                        hspace=0.35, wspace=0.15)
+    for (ax, axr), m in zip(axes, res.maps, strict=True):
         meas, mod = res.measured[m.fmu], res.model[m.fmu]
-        # fixed layout and legend place: constrained layout and loc="best" cost seconds per figure
-        fig, (ax, axr) = plots.figure(2, 1, sharex=True, figsize=(9.0, 4.2), height_ratios=[2, 1], layout=None)
-        fig.subplots_adjust(left=0.08, right=0.98, top=0.92, bottom=0.12, hspace=0.1)
         ax.plot(t, meas[::k], color="0.25", lw=0.9, label=f"log: {m.log}")
-        ax.plot(t, mod[::k], color="tab:red", lw=0.9, label=f"FMU: {m.fmu}")
+        ax.plot(t, mod[::k], color="tab:red", lw=0.9, label="FMU")
         if edges:  # window starts, one collection (an axvline each costs ms per window)
-            ax.vlines(edges, 0, 1, transform=ax.get_xaxis_transform(), color="tab:blue", lw=0.4, alpha=0.4)
-        ax.set_title(f"{m.fmu}  (Theil U {res.overall[m.fmu].theil_u:.3f}, limit {m.max_theil:g})", fontsize=9)
-        ax.legend(loc="upper right", fontsize=8)
-        ax.grid(True, alpha=0.3)
+            ax.vlines(edges, 0, 1, transform=ax.get_xaxis_transform(), color="tab:blue", lw=0.4, alpha=0.3)
+        ax.set_title(f"{m.fmu}: Theil U {res.overall[m.fmu].theil_u:.3f}", fontsize=9, loc="left")
+        ax.legend(loc="upper right", fontsize=7)
         axr.plot(t, (meas - mod)[::k], color="tab:purple", lw=0.7)
         axr.axhline(0.0, color="k", lw=0.5)
-        axr.set_ylabel("residual", fontsize=8)
-        axr.set_xlabel("log time [s]")
-        axr.grid(True, alpha=0.3)
+        axr.set_title("residual (log - FMU)", fontsize=8, loc="left")
+    axes[-1, 0].set_xlabel("log time [s]")
+    axes[-1, 1].set_xlabel("log time [s]")
+    parts.append(_png(fig))
+    if "thrust_total_N" in res.measured:  # paper 000 Fig. 5: modelled thrust against the measured force
+        meas, mod = res.measured["thrust_total_N"], res.model["thrust_total_N"]
+        parts.append("<h3>Thrust map against the measured force F_z = -m a_z (paper 000 Fig. 5)</h3>")
+        fig, ax = plots.figure(figsize=(5.0, 4.5), layout=None)
+        fig.subplots_adjust(left=0.14, right=0.97, top=0.92, bottom=0.12)
+        ax.plot(meas[::k], mod[::k], ".", ms=2, alpha=0.4)
+        lim = [float(np.nanmin([meas, mod])), float(np.nanmax([meas, mod]))]
+        ax.plot(lim, lim, "k--", lw=1, label="ideal")
+        ax.set_xlabel("measured F_z = -m a_z [N]")
+        ax.set_ylabel("FMU thrust_total_N [N]")
+        ax.legend(loc="upper left", fontsize=8)
         parts.append(_png(fig))
-        if m.fmu == "thrust_total_N":  # paper 000 Fig. 5: modelled thrust against the measured force
-            parts.append("<h3>Thrust map against the measured force F_z = -m a_z (paper 000 Fig. 5)</h3>")
-            fig, ax = plots.figure(figsize=(5.0, 4.5), layout=None)
-            fig.subplots_adjust(left=0.14, right=0.97, top=0.92, bottom=0.12)
-            ax.plot(meas[::k], mod[::k], ".", ms=2, alpha=0.4)
-            lim = [float(np.nanmin([meas, mod])), float(np.nanmax([meas, mod]))]
-            ax.plot(lim, lim, "k--", lw=1, label="ideal")
-            ax.set_xlabel("measured F_z = -m a_z [N]")
-            ax.set_ylabel("FMU thrust_total_N [N]")
-            ax.set_title("thrust map against measured force (paper 000 Fig. 5)", fontsize=9)
-            ax.legend(loc="upper left", fontsize=8)
-            ax.grid(True, alpha=0.3)
-            parts.append(_png(fig))
     return parts
 
 
