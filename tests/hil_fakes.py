@@ -4,6 +4,10 @@ receives (state estimates), and helpers to turn interface messages into the cont
 from __future__ import annotations
 
 import math
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
 
 import numpy as np
 
@@ -38,3 +42,16 @@ def controller_inputs(q: tuple[float, float, float, float], rates: tuple[float, 
 
 def hold_10m_autopilot() -> QuadrotorAutopilot:
     return QuadrotorAutopilot(lambda t: 10.0, published_thrust_inverse())
+
+
+@contextmanager
+def serving(server: Any, **serve_kwargs: Any) -> Iterator[Any]:
+    """Run ``server.serve(stop=...)`` in a thread for the duration of the block; always stop and join it."""
+    stop = threading.Event()
+    th = threading.Thread(target=server.serve, kwargs={"stop": stop, **serve_kwargs}, daemon=True)
+    th.start()
+    try:
+        yield server
+    finally:
+        stop.set()
+        th.join(timeout=10)

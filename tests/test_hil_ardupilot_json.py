@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import socket
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +15,7 @@ from hil_adapter.ardupilot_json import ArduPilotJsonServer, UdpTransport
 from hil_adapter.core import Plant, Recorder
 from hil_adapter.packets import SERVO16_MAGIC, SERVO32_MAGIC, PacketError, ServoPacket, parse_json_state
 from identification.readers import read_log
-from tests.hil_fakes import controller_inputs, hold_10m_autopilot
+from tests.hil_fakes import controller_inputs, hold_10m_autopilot, serving
 
 RATE_HZ = 250
 
@@ -56,12 +55,8 @@ def server(quadrotor_fmu: Path, tmp_path: Path):
     plant = Plant(quadrotor_fmu)
     rec = Recorder(tmp_path / "hil.csv", [1, 2, 3, 4], list(plant.inputs), plant.outputs)
     srv = ArduPilotJsonServer(plant, UdpTransport("127.0.0.1", 0), recorder=rec)
-    stop = threading.Event()
-    th = threading.Thread(target=srv.serve, kwargs={"stop": stop, "poll_s": 0.05}, daemon=True)
-    th.start()
-    yield srv
-    stop.set()
-    th.join(timeout=5)
+    with serving(srv, poll_s=0.05):
+        yield srv
     rec.close()
     srv.transport.close()
     plant.close()

@@ -4,7 +4,6 @@ hover at 10 m, disconnect/reconnect, malformed bytes."""
 from __future__ import annotations
 
 import socket
-import threading
 import time
 from pathlib import Path
 
@@ -17,7 +16,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from hil_adapter.core import Plant, Watchdog
 from hil_adapter.px4 import FIELDS_ALL, Px4Server, controls_to_pwm
 from hil_adapter.sensors import SensorConfig, SensorSuite
-from tests.hil_fakes import controller_inputs, hold_10m_autopilot
+from tests.hil_fakes import controller_inputs, hold_10m_autopilot, serving
 
 DT = 0.004  # PX4's usual 250 Hz
 
@@ -58,12 +57,8 @@ def server(quadrotor_fmu: Path):
     plant = Plant(quadrotor_fmu)
     srv = Px4Server(plant, SensorSuite(SensorConfig.noise_free()), port=0, dt_s=DT,
                     watchdog=Watchdog(timeout_s=2.0))
-    stop = threading.Event()
-    th = threading.Thread(target=srv.serve, kwargs={"stop": stop}, daemon=True)
-    th.start()
-    yield srv
-    stop.set()
-    th.join(timeout=10)
+    with serving(srv):
+        yield srv
     srv.close()
     plant.close()
 
@@ -150,12 +145,8 @@ def realtime_server(quadrotor_fmu: Path, tmp_path: Path):
     rec = Recorder(tmp_path / "rt.csv", [1, 2, 3, 4], list(plant.inputs), plant.outputs)
     srv = Px4Server(plant, SensorSuite(seed=5), port=0, lockstep=False, dt_s=0.004, recorder=rec,
                     watchdog=Watchdog(timeout_s=0.1, mode="throttle_off"), rc_channels=[1500, 1500, 1000, 1500])
-    stop = threading.Event()
-    th = threading.Thread(target=srv.serve, kwargs={"stop": stop}, daemon=True)
-    th.start()
-    yield srv
-    stop.set()
-    th.join(timeout=10)
+    with serving(srv):
+        yield srv
     rec.close()
     srv.close()
     plant.close()
