@@ -66,6 +66,8 @@ class Plant:
         self.inputs: dict[str, float] = {c.target: c.failsafe for c in self.mapping.channels}
         self.fmu_errors = 0
         self.last_error = ""
+        #: wall time of each FMU step (setReal + doStep + getReal) [s], for the statistics
+        self.step_times: deque[float] = deque(maxlen=20000)
         self.restart()
 
     @property
@@ -85,10 +87,12 @@ class Plant:
 
     def advance(self, dt_s: float) -> dict[str, float]:
         """One FMU step of ``dt_s`` with the current inputs; returns the outputs by name."""
+        t0 = time.perf_counter()
         try:
             self.host.step(self.t_s, dt_s, self.inputs)
             self.t_s += dt_s
             self.state = self.host.get(self.outputs)
+            self.step_times.append(time.perf_counter() - t0)
         except FmuRunError as err:
             self.fmu_errors += 1
             self.last_error = str(err)
@@ -137,7 +141,9 @@ class Stats:
                "resends": self.resends, "out_of_order": self.out_of_order, "restarts": self.restarts,
                "reconnects": self.reconnects, "failsafes": self.failsafes}
         if plant is not None:
-            out |= {"sim_time_s": round(plant.t_s, 3), "fmu_errors": plant.fmu_errors}
+            fmu = 1e3 * sum(plant.step_times) / len(plant.step_times) if plant.step_times else math.nan
+            out |= {"sim_time_s": round(plant.t_s, 3), "fmu_step_mean_ms": round(fmu, 4),
+                    "fmu_errors": plant.fmu_errors}
         return out
 
     def line(self, plant: Plant | None = None) -> str:

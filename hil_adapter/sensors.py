@@ -353,6 +353,20 @@ def quat_to_dcm(q: tuple[float, float, float, float]) -> np.ndarray:
     ])
 
 
+def _ned_to_body(q: tuple[float, float, float, float], v: list[float]) -> tuple[float, float, float]:
+    """``R_b2nᵀ v`` for the (normalised) quaternion ``q`` in plain floats: the per-sample path of ``sample``."""
+    w, x, y, z = q
+    norm = math.sqrt(w * w + x * x + y * y + z * z)
+    if not norm > 0.0:
+        raise ValueError(f"attitude quaternion {q} has no direction")
+    w, x, y, z = w / norm, x / norm, y / norm, z / norm
+    r00, r01, r02 = w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)
+    r10, r11, r12 = 2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)
+    r20, r21, r22 = 2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z
+    return (r00 * v[0] + r10 * v[1] + r20 * v[2], r01 * v[0] + r11 * v[1] + r21 * v[2],
+            r02 * v[0] + r12 * v[1] + r22 * v[2])
+
+
 def pressure_altitude_m(pressure_pa: float) -> float:
     """ISA troposphere altitude [m] of a static pressure: the inverse of ``atmosphere.isa``'s pressure
     (written here because the atmosphere module only goes from altitude to pressure)."""
@@ -364,6 +378,9 @@ def _wrap_deg(angle_deg: float) -> float:
 
 
 # ------------------------------------------------------------------------------------------ the suite
+_BLOCK = 6 * 256  #: normal draws fetched per numpy call and stream
+
+
 class SensorSuite:
     """Sensor readings from FMU outputs: ``sample(t_s, outputs) -> SensorFrame``, seeded and repeatable.
 
@@ -386,14 +403,18 @@ class SensorSuite:
         self.config = config if config is not None else SensorConfig()
         self.seed = int(seed)
         self._mag_ned = self.config.mag.field_ned_gauss()
+        self._mag_ned_list = [float(v) for v in self._mag_ned]
         self.reset()
 
     def reset(self) -> None:
         """Back to the state right after construction: same seed, zero drift, empty GPS history."""
         children = np.random.SeedSequence(self.seed).spawn(len(self._STREAMS))
         self._rng = {name: np.random.default_rng(s) for name, s in zip(self._STREAMS, children, strict=True)}
-        self._drift: dict[str, Any] = {"accel": np.zeros(3), "gyro": np.zeros(3), "mag": np.zeros(3),
+        self._buffers: dict[str, tuple[list[float], int]] = {name: ([], 0) for name in self._STREAMS}
+        self._drift: dict[str, Any] = {"accel": [0.0, 0.0, 0.0], "gyro": [0.0, 0.0, 0.0], "mag": [0.0, 0.0, 0.0],
                                        "baro": 0.0, "diff_pressure": 0.0}
+        self._bias3 = {name: [float(v) for v in np.broadcast_to(getattr(self.config, name).bias, 3)]
+                       for name in ("accel", "gyro", "mag")}
         self._restart_clock()
 
     def _restart_clock(self) -> None:
@@ -403,18 +424,32 @@ class SensorSuite:
         self._gps_k = 0
 
     # ------------------------------------------------------------------ per sensor
-    def _vector(self, name: str, truth: np.ndarray, dt: float) -> tuple[float, float, float]:
+    def _normals(self, name: str, n: int) -> list[float]:
+        """The next ``n`` standard normal draws of a stream, taken from blocks drawn ahead (numpy calls cost
+        microseconds each: one per block instead of several per sample keeps a 1 kHz loop cheap)."""
+        buf, pos = self._buffers[name]
+        if pos + n > len(buf):
+            buf, pos = self._rng[name].standard_normal(_BLOCK).tolist(), 0
+        self._buffers[name] = (buf, pos + n)
+        return buf[pos:pos + n]
+
+    def _vector(self, name: str, truth: tuple[float, float, float], dt: float) -> tuple[float, float, float]:
         cfg = getattr(self.config, name)
-        z = self._rng[name].standard_normal(6)  # always 6 draws: the stream does not depend on the settings
-        self._drift[name] = self._drift[name] + cfg.drift_std * math.sqrt(dt) * z[3:]
-        x, y, z_ = truth + (np.asarray(cfg.bias) + self._drift[name] + cfg.noise_std * z[:3])
-        return float(x), float(y), float(z_)
+        z = self._normals(name, 6)  # always 6 draws: the stream does not depend on the settings
+        walk = cfg.drift_std * math.sqrt(dt)
+        d = self._drift[name]
+        d[0] += walk * z[3]
+        d[1] += walk * z[4]
+        d[2] += walk * z[5]
+        b = self._bias3[name]
+        return (truth[0] + b[0] + d[0] + cfg.noise_std * z[0], truth[1] + b[1] + d[1] + cfg.noise_std * z[1],
+                truth[2] + b[2] + d[2] + cfg.noise_std * z[2])
 
     def _scalar(self, name: str, truth: float, dt: float) -> float:
         cfg = getattr(self.config, name)
-        z = self._rng[name].standard_normal(2)
-        self._drift[name] += cfg.drift_std * math.sqrt(dt) * float(z[1])
-        return truth + (cfg.bias + self._drift[name] + cfg.noise_std * float(z[0]))
+        z = self._normals(name, 2)
+        self._drift[name] += cfg.drift_std * math.sqrt(dt) * z[1]
+        return truth + (cfg.bias + self._drift[name] + cfg.noise_std * z[0])
 
     def _gps(self, t_s: float, now: _GpsState) -> GpsFix | None:
         cfg = self.config.gps
@@ -429,7 +464,7 @@ class SensorSuite:
         # next fix on the fixed grid t0 + k / rate (one fix per sample at most, missed slots are skipped)
         self._gps_k = math.floor((t_s - self._gps_t0 + _TIME_EPS_S) * cfg.rate_hz) + 1
         s = self._state_at(target)
-        z = self._rng["gps"].standard_normal(6)
+        z = self._normals("gps", 6)
         r_m, r_n = (float(r) for r in radii_of_curvature(math.radians(s.lat_deg)))
         cos_lat = max(math.cos(math.radians(s.lat_deg)), 1e-9)
         lat = s.lat_deg + math.degrees(cfg.pos_noise_std_h_m * float(z[0]) / (r_m + s.height_m))
@@ -481,17 +516,16 @@ class SensorSuite:
         dt = 0.0 if self._t_prev is None else t_s - self._t_prev
         self._t_prev = t_s
 
-        accel = np.array([o["accel_body_x_m_s2"], o["accel_body_y_m_s2"], o["accel_body_z_m_s2"]])
-        rates = np.array([o["rate_body_x_rad_s"], o["rate_body_y_rad_s"], o["rate_body_z_rad_s"]])
-        r_b2n = quat_to_dcm((o["quat_w"], o["quat_x"], o["quat_y"], o["quat_z"]))
-        mag_body = r_b2n.T @ self._mag_ned
+        accel = (o["accel_body_x_m_s2"], o["accel_body_y_m_s2"], o["accel_body_z_m_s2"])
+        rates = (o["rate_body_x_rad_s"], o["rate_body_y_rad_s"], o["rate_body_z_rad_s"])
+        mag_body = _ned_to_body((o["quat_w"], o["quat_x"], o["quat_y"], o["quat_z"]), self._mag_ned_list)
 
         height = o["height_m"]
         temp_k, p_pa, rho = (float(v) for v in isa(height))
         abs_pressure = self._scalar("baro", p_pa, dt)
         airspeed = outputs.get(AIRSPEED_OUTPUT)
         if airspeed is None:
-            self._rng["diff_pressure"].standard_normal(2)  # keep the stream in step either way
+            self._normals("diff_pressure", 2)  # keep the stream in step either way
             diff_pressure = 0.0
         else:
             diff_pressure = self._scalar("diff_pressure", 0.5 * rho * float(airspeed) ** 2, dt)
