@@ -12,6 +12,13 @@ from hil_adapter.pwm_mapping import MappingError, PwmMapping
 from identification.flightlog import FlightLog, Signal
 
 
+def resample_angle(sig: Signal, t_s: np.ndarray) -> np.ndarray:
+    """An angle [rad] at ``t_s``, interpolated on the unwrapped series (logs wrap yaw at 0/360 deg: plain
+    interpolation across the wrap gives 180 deg), wrapped back to (-pi, pi]."""
+    unwrapped = np.interp(t_s, sig.t_s, np.unwrap(sig.values))
+    return np.angle(np.exp(1j * unwrapped))
+
+
 def hold(sig: Signal, t_s: np.ndarray) -> np.ndarray:
     """Zero-order hold of ``sig`` at ``t_s``: commanded outputs (servo PWM) hold between log samples."""
     idx = np.clip(np.searchsorted(sig.t_s, t_s, side="right") - 1, 0, len(sig.t_s) - 1)
@@ -46,7 +53,8 @@ def initial_values(log: FlightLog, t0_s: float, forward_from_airspeed: bool) -> 
     def val(name: str) -> float:
         return float(log.signal(name).resample(at)[0])
 
-    roll, pitch, yaw = val("roll_rad"), val("pitch_rad"), val("yaw_rad")
+    roll, pitch = val("roll_rad"), val("pitch_rad")
+    yaw = float(resample_angle(log.signal("yaw_rad"), at)[0])
     out = {"init_roll_rad": roll, "init_pitch_rad": pitch, "init_yaw_rad": yaw}
     for axis in "xyz":
         out[f"init_rate_body_{axis}_rad_s"] = val(f"gyro_body_{axis}_rad_s")

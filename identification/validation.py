@@ -19,7 +19,7 @@ import numpy as np
 
 from hil_adapter.pwm_mapping import PwmMapping
 from identification.flightlog import FlightLog, LogError
-from identification.log_state import hold, initial_values, mapped_inputs
+from identification.log_state import hold, initial_values, mapped_inputs, resample_angle
 from identification.metrics import FitMetrics, fit_metrics
 from identification.output_map import SignalMap
 from uavfmu.fmu_host import FmuHost
@@ -118,7 +118,8 @@ def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalM
         raise ValidationError(str(err)) from err
     params = {n: host.start_value(n) for n, v in host.variables.items() if v.causality == "parameter"}
     params.update(overrides)
-    measured = {m.fmu: m.convert(log.signal(m.log).resample(t), host.unit(m.fmu), params) for m in maps}
+    measured = {m.fmu: m.convert(resample_angle(log.signal(m.log), t) if m.wrap else log.signal(m.log).resample(t),
+                                 host.unit(m.fmu), params) for m in maps}
     n = len(t)
     step = n - 1 if not window_s else max(1, round(window_s * rate_hz))
     edges = [*range(0, n - 1, step), n - 1]
