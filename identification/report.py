@@ -9,7 +9,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from matplotlib.ticker import MaxNLocator
+from matplotlib.ticker import MaxNLocator, NullLocator
 
 from identification import plots
 from identification.validation import ReplayResult
@@ -59,25 +59,30 @@ def _signal_figures(res: ReplayResult) -> list[str]:
     t = res.t_s[::k]
     n = len(res.maps)
     height = 1.4 + 1.5 * n + 0.45 * n
-    fig, axes = plots.figure(n + 1, 1, sharex=True, squeeze=False, figsize=(10.0, height), layout=None,
+    fig, axes = plots.figure(n + 1, 1, sharex=False, squeeze=False, figsize=(10.0, height), layout=None,
                              height_ratios=[1.5] * n + [0.45 * n])
     fig.subplots_adjust(left=0.12, right=0.99, top=1 - 0.3 / height, bottom=0.5 / height, hspace=0.45)
     strip = axes[-1, 0]
     for row, (ax, m) in enumerate(zip(axes[:-1, 0], res.maps, strict=True)):
         meas, mod = res.measured[m.fmu], res.model[m.fmu]
-        ax.plot(t, meas[::k], color="0.25", lw=0.9, label=f"log: {m.log}")
+        ax.plot(t, meas[::k], color="0.25", lw=0.9, label="log")
         ax.plot(t, mod[::k], color="tab:red", lw=0.9, label="FMU")
         if edges:  # window starts, one collection (an axvline each costs ms per window)
             ax.vlines(edges, 0, 1, transform=ax.get_xaxis_transform(), color="tab:blue", lw=0.4, alpha=0.3)
-        _label(ax, f"{m.fmu}: Theil U {res.overall[m.fmu].theil_u:.3f}, RMSE {res.overall[m.fmu].rmse:.3g}")
-        ax.legend(loc="upper right", fontsize=7)
+        _label(ax, f"FMU {m.fmu} against log {m.log}: Theil U {res.overall[m.fmu].theil_u:.3f}, "
+                   f"RMSE {res.overall[m.fmu].rmse:.3g}")
+        ax.set_xlim(t[0], t[-1])
+        if row == 0:
+            ax.legend(loc="upper right", fontsize=7)
         scale = float(np.nanstd(meas)) or 1.0
         strip.plot(t, (meas - mod)[::k] / scale - 4.0 * row, lw=0.6)
     strip.set_yticks([-4.0 * r for r in range(n)], [m.fmu for m in res.maps], fontsize=7)
     strip.set_ylim(-4.0 * n + 2.0, 2.0)  # +-2 std per row; larger excursions are clipped at the frame
     for ax in axes[:-1, 0]:
         ax.yaxis.set_major_locator(MaxNLocator(3))
+        ax.xaxis.set_major_locator(NullLocator())  # the strip chart below carries the time axis
     strip.xaxis.set_major_locator(MaxNLocator(8))
+    strip.set_xlim(t[0], t[-1])
     _label(strip, "residuals (log - FMU) / std of the log signal, one row per signal (4 units apart)")
     strip.set_xlabel("log time [s]")
     parts.append(_png(fig))
