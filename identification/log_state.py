@@ -4,10 +4,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import casadi as ca
 import numpy as np
 
-from fmu_models.common.rigid_body import quat_from_euler, quat_to_dcm
 from hil_adapter.pwm_mapping import MappingError, PwmMapping
 from identification.flightlog import FlightLog, Signal
 
@@ -48,26 +46,46 @@ def initial_values(log: FlightLog, t0_s: float, forward_from_airspeed: bool) -> 
     Attitude and body rates as logged, ``init_pos_down_m = -altitude``; body velocity from GPS NED velocity
     where logged, else the airspeed along body x (``forward_from_airspeed``, fixed wing) or rest.
     """
-    at = np.array([t0_s])
+    return initial_values_at(log, np.array([t0_s]), forward_from_airspeed)[0]
 
-    def val(name: str) -> float:
-        return float(log.signal(name).resample(at)[0])
+
+def initial_values_at(log: FlightLog, t_s: np.ndarray, forward_from_airspeed: bool) -> list[dict[str, float]]:
+    """:func:`initial_values` at every time of ``t_s``, each signal resampled once for all of them."""
+    t_s = np.asarray(t_s, dtype=float)
+
+    def val(name: str) -> np.ndarray:
+        return log.signal(name).resample(t_s)
 
     roll, pitch = val("roll_rad"), val("pitch_rad")
-    yaw = float(resample_angle(log.signal("yaw_rad"), at)[0])
-    out = {"init_roll_rad": roll, "init_pitch_rad": pitch, "init_yaw_rad": yaw}
-    for axis in "xyz":
-        out[f"init_rate_body_{axis}_rad_s"] = val(f"gyro_body_{axis}_rad_s")
-    if all(log.has(f"vel_{a}_m_s") for a in ("north", "east", "down")):
-        v_ned = np.array([val(f"vel_{a}_m_s") for a in ("north", "east", "down")])
-        r_b2n = np.asarray(ca.DM(quat_to_dcm(quat_from_euler(roll, pitch, yaw))))
-        v_body = r_b2n.T @ v_ned
-    elif forward_from_airspeed and log.has("airspeed_m_s"):
-        v_body = np.array([val("airspeed_m_s"), 0.0, 0.0])
-    else:
-        v_body = np.zeros(3)
-    for axis, v in zip("xyz", v_body, strict=True):
-        out[f"init_vel_body_{axis}_m_s"] = float(v)
-    if log.has("altitude_m"):
-        out["init_pos_down_m"] = -val("altitude_m")
+    yaw = resample_angle(log.signal("yaw_rad"), t_s)
+    rates = [val(f"gyro_body_{axis}_rad_s") for axis in "xyz"]
+    has_gps_vel = all(log.has(f"vel_{a}_m_s") for a in ("north", "east", "down"))
+    v_ned = np.column_stack([val(f"vel_{a}_m_s") for a in ("north", "east", "down")]) if has_gps_vel else None
+    airspeed = val("airspeed_m_s") if forward_from_airspeed and log.has("airspeed_m_s") else None
+    altitude = val("altitude_m") if log.has("altitude_m") else None
+    out = []
+    for i in range(len(t_s)):
+        d = {"init_roll_rad": float(roll[i]), "init_pitch_rad": float(pitch[i]), "init_yaw_rad": float(yaw[i])}
+        for axis, r in zip("xyz", rates, strict=True):
+            d[f"init_rate_body_{axis}_rad_s"] = float(r[i])
+        if v_ned is not None:
+            v_body = _euler_dcm(roll[i], pitch[i], yaw[i]).T @ v_ned[i]
+        elif airspeed is not None:
+            v_body = np.array([airspeed[i], 0.0, 0.0])
+        else:
+            v_body = np.zeros(3)
+        for axis, v in zip("xyz", v_body, strict=True):
+            d[f"init_vel_body_{axis}_m_s"] = float(v)
+        if altitude is not None:
+            d["init_pos_down_m"] = -float(altitude[i])
+        out.append(d)
     return out
+
+
+def _euler_dcm(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """Body -> NED rotation of the 3-2-1 Euler angles [rad] (numpy floats: this runs once per replay window;
+    ``fmu_models.common.rigid_body`` builds the same matrix symbolically for the models)."""
+    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    return np.array([[cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy],
+                     [cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy],
+                     [-sp, sr * cp, cr * cp]])

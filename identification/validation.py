@@ -19,7 +19,7 @@ import numpy as np
 
 from hil_adapter.pwm_mapping import PwmMapping
 from identification.flightlog import FlightLog, LogError
-from identification.log_state import hold, initial_values, mapped_inputs, resample_angle
+from identification.log_state import hold, initial_values_at, mapped_inputs, resample_angle
 from identification.metrics import FitMetrics, fit_metrics
 from identification.output_map import SignalMap
 from uavfmu.fmu_host import FmuHost
@@ -125,8 +125,9 @@ def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalM
     edges = [*range(0, n - 1, step), n - 1]
     model = {m.fmu: np.full(n, np.nan) for m in maps}
     windows, per_window = [], []
+    starts = initial_values_at(log, t[edges[:-1]], forward_from_airspeed=vehicle == "fixed_wing")
     for i, (a, b) in enumerate(itertools.pairwise(edges)):
-        start = {**initial_values(log, float(t[a]), forward_from_airspeed=vehicle == "fixed_wing"), **overrides}
+        start = {**starts[i], **overrides}
         res = host.simulate(t[a:b + 1], {k: v[a:b + 1] for k, v in inputs.items()}, [m.fmu for m in maps], start)
         for m in maps:  # sample a is the re-initialisation itself: score the predicted samples a+1..b
             model[m.fmu][a + 1:b + 1] = m.align(res[m.fmu][1:], measured[m.fmu][a + 1:b + 1])

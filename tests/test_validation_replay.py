@@ -103,3 +103,18 @@ def test_fmu_error_mid_run_is_reported(quadrotor_fmu: Path, quad_log: Path) -> N
         log.signal("motor_1_pwm_us").values[200:] = 1500.0
         res = replay(host, log, quad_log, output_map.QUADROTOR, window_s=2.0)  # the same instance goes on
         assert res.overall["altitude_m"].rmse < 5.0
+
+
+def test_log_state_angles_and_rotation() -> None:
+    import casadi as ca
+
+    from fmu_models.common.rigid_body import quat_from_euler, quat_to_dcm
+    from identification.flightlog import Signal
+    from identification.log_state import _euler_dcm, resample_angle
+
+    for r, p, y in [(0.3, -0.2, 1.1), (-1.0, 0.5, -2.5)]:
+        np.testing.assert_allclose(_euler_dcm(r, p, y), np.asarray(ca.DM(quat_to_dcm(quat_from_euler(r, p, y)))),
+                                   atol=1e-12)
+    # a log's yaw wrapping from 359 deg to 1 deg: halfway between is 0, not 180 deg
+    yaw = Signal("yaw_rad", np.array([0.0, 1.0]), np.radians([359.0, 1.0]), "rad")
+    np.testing.assert_allclose(resample_angle(yaw, np.array([0.5])), [0.0], atol=1e-12)
