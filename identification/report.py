@@ -37,8 +37,8 @@ def _table(header: Sequence[str], rows: Sequence[Sequence[str]], raw: bool = Fal
 
 
 #: most samples drawn per series: a 300 s log at 100 Hz has 30000; beyond a few thousand a PNG shows no more
-MAX_PLOT_POINTS = 2000
-REPORT_DPI = 80
+MAX_PLOT_POINTS = 1500
+REPORT_DPI = 72
 
 
 def _label(ax: Any, text: str) -> None:
