@@ -20,7 +20,7 @@ import numpy as np
 from hil_adapter.pwm_mapping import PwmMapping
 from identification.flightlog import FlightLog, LogError
 from identification.log_state import hold, initial_values_at, mapped_inputs, resample_angle
-from identification.metrics import FitMetrics, fit_metrics
+from identification.metrics import FitMetrics, fit_metrics, segment_metrics
 from identification.output_map import SignalMap
 from uavfmu.fmu_host import FmuHost
 
@@ -124,7 +124,7 @@ def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalM
     step = n - 1 if not window_s else max(1, round(window_s * rate_hz))
     edges = [*range(0, n - 1, step), n - 1]
     model = {m.fmu: np.full(n, np.nan) for m in maps}
-    windows, per_window = [], []
+    windows = []
     starts = initial_values_at(log, t[edges[:-1]], forward_from_airspeed=vehicle == "fixed_wing")
     for i, (a, b) in enumerate(itertools.pairwise(edges)):
         start = {**starts[i], **overrides}
@@ -132,11 +132,14 @@ def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalM
         for m in maps:  # sample a is the re-initialisation itself: score the predicted samples a+1..b
             model[m.fmu][a + 1:b + 1] = m.align(res[m.fmu][1:], measured[m.fmu][a + 1:b + 1])
         windows.append((float(t[a]), float(t[b])))
-        per_window.append({m.fmu: fit_metrics(measured[m.fmu][a + 1:b + 1], model[m.fmu][a + 1:b + 1]) for m in maps})
         if progress:
             progress(i + 1, len(edges) - 1)
     keep = slice(1, n)
     overall = {m.fmu: fit_metrics(measured[m.fmu][keep], model[m.fmu][keep]) for m in maps}
+    # each window scores its predicted samples a+1..b: in the kept series they start at a
+    seg = {m.fmu: segment_metrics(measured[m.fmu][keep], model[m.fmu][keep], np.array(edges[:-1]))
+           for m in maps}
+    per_window = [{m.fmu: seg[m.fmu][i] for m in maps} for i in range(len(windows))]
     return ReplayResult(fmu_identity(host, overrides), log_identity(log, log_path), t[keep],
                         {k: v[keep] for k, v in model.items()}, {k: v[keep] for k, v in measured.items()},
                         windows, per_window, overall, tuple(maps), overrides)

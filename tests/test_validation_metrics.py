@@ -31,3 +31,20 @@ def test_perfect_fit_and_nan_dropping() -> None:
 def test_mismatched_lengths_are_an_error() -> None:
     with pytest.raises(MetricsError, match="3 samples, model 2"):
         fit_metrics(np.zeros(3), np.zeros(2))
+
+
+def test_segment_metrics_equal_fit_metrics_per_segment() -> None:
+    from identification.metrics import segment_metrics
+
+    rng = np.random.default_rng(4)
+    y = np.cumsum(rng.normal(size=503))
+    m = y + rng.normal(0, 0.3, size=503)
+    m[100] = np.nan  # a segment with a NaN falls back to the exact per-segment path
+    starts = np.array([0, 50, 97, 260, 500])
+    got = segment_metrics(y, m, starts)
+    ends = [*starts[1:], 503]
+    for s, e, g in zip(starts, ends, got, strict=True):
+        want = fit_metrics(y[s:e], m[s:e])
+        for field in ("rmse", "nrmse", "theil_u", "fit_percent", "r2", "max_error"):
+            assert getattr(g, field) == pytest.approx(getattr(want, field), rel=1e-9, abs=1e-12), (s, field)
+        assert g.n == want.n
