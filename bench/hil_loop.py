@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing as mp
+import os
 import socket
 import sys
 import tempfile
@@ -33,6 +34,7 @@ from uavfmu.fmu_host import FmuHost
 
 
 def serve(kind: str, fmu: str, port_q: mp.Queue, steps: int, busy_q: mp.Queue) -> None:
+    _pin(0)
     from hil_adapter.ardupilot_json import ArduPilotJsonServer, UdpTransport
     from hil_adapter.core import Plant
     from hil_adapter.px4 import Px4Server
@@ -49,6 +51,12 @@ def serve(kind: str, fmu: str, port_q: mp.Queue, steps: int, busy_q: mp.Queue) -
         stats = ArduPilotJsonServer(plant, tr).serve(max_frames=steps, idle_timeout_s=1.0)
     busy_q.put((float(np.mean(stats.busy)), float(np.mean(plant.step_times))))
     plant.close()
+
+
+def _pin(cpu: int) -> None:
+    """Keep a process on one core (adapter and fake autopilot on different cores, as on a bench PC)."""
+    if hasattr(os, "sched_setaffinity") and (os.cpu_count() or 1) > 1:
+        os.sched_setaffinity(0, {cpu % (os.cpu_count() or 1)})
 
 
 def bare_step_us(fmu: Path, n: int) -> float:
@@ -109,6 +117,7 @@ def main() -> int:
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         fmu = build(None, Path(tmp), ["quadrotor"])[0]
+        _pin(1)
         step_us = bare_step_us(fmu, args.steps)
         print(f"bare FMU step (setReal + doStep + getReal of the sent outputs, FMPy FMU2Slave): {step_us:.1f} us")
         for kind, client in (("px4", px4_client), ("ardupilot-json", json_client)):
