@@ -18,7 +18,7 @@ import socket
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import common as mavlink2
 
@@ -95,13 +95,35 @@ class HilMessages:
         return self.mav.rc_channels_encode(t_ms, len(channels), *ch, 255).pack(self.mav)
 
 
+class Listener(Protocol):
+    """Where PX4 connections come from: a listening TCP socket, or in tests anything that hands out one end of
+    a ``socket.socketpair()``."""
+
+    def accept(self) -> tuple[socket.socket, Any]: ...
+
+    def settimeout(self, timeout: float | None) -> None: ...
+
+    def getsockname(self) -> Any: ...
+
+    def close(self) -> None: ...
+
+
+def tcp_listener(host: str = "127.0.0.1", port: int = DEFAULT_PORT) -> socket.socket:
+    """The TCP socket PX4 connects to (``host`` 127.0.0.1 unless told otherwise)."""
+    server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    server.bind((host, port))
+    server.listen(1)
+    return server
+
+
 class Px4Server:
     """Serve PX4 SITL/HIL over TCP. ``serve()`` handles connect, lockstep or real-time steps, disconnects."""
 
     def __init__(self, plant: Plant, sensors: Any, host: str = "127.0.0.1", port: int = DEFAULT_PORT,
                  lockstep: bool = True, dt_s: float = 0.004, stats: Stats | None = None,
                  recorder: Recorder | None = None, watchdog: Watchdog | None = None,
-                 rc_channels: Sequence[int] | None = None) -> None:
+                 rc_channels: Sequence[int] | None = None, listener: Listener | None = None) -> None:
         self.plant, self.sensors = plant, sensors
         self.lockstep, self.dt_s = lockstep, dt_s
         self.stats = stats or Stats()
@@ -110,10 +132,7 @@ class Px4Server:
         self.recorder = recorder
         self.watchdog = watchdog or Watchdog()
         self.rc_channels = list(rc_channels) if rc_channels else None
-        self.server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        self.server.bind((host, port))
-        self.server.listen(1)
+        self.server = listener if listener is not None else tcp_listener(host, port)
         self.address = self.server.getsockname()
         self.mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=51)
         self.mav.robust_parsing = True  # bad CRC / garbage become MAVLink_bad_data, counted, never raised
@@ -237,7 +256,8 @@ class Px4Server:
                 continue
             waited = 0.0
             log.info("PX4 connected from %s", addr)
-            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            if conn.family in (socket.AF_INET, socket.AF_INET6):
+                conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             self.watchdog.fed()
             try:
                 run = self._run_lockstep if self.lockstep else self._run_realtime

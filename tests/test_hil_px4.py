@@ -4,6 +4,7 @@ hover at 10 m, disconnect/reconnect, malformed bytes."""
 from __future__ import annotations
 
 import socket
+import threading
 import time
 from pathlib import Path
 
@@ -24,9 +25,12 @@ DT = 0.004  # PX4's usual 250 Hz
 class FakePx4:
     """Connects like PX4 SITL: reads the HIL messages of a step, answers with HIL_ACTUATOR_CONTROLS."""
 
-    def __init__(self, address: tuple[str, int]) -> None:
-        self.sock = socket.create_connection(address, timeout=5.0)
-        self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    def __init__(self, address: tuple[str, int] | None = None, sock: socket.socket | None = None) -> None:
+        if sock is None:
+            sock = socket.create_connection(address, timeout=5.0)
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self.sock = sock
+        self.sock.settimeout(5.0)
         self.mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
         self.pending: list = []
 
@@ -198,3 +202,52 @@ def test_fuzzed_mavlink_bytes_never_crash(absorb_server, data: bytes) -> None:
         assert got in (True, False)
     if absorb_server.pwm:
         assert all(1000.0 <= v <= 2000.0 for v in absorb_server.pwm.values())
+
+
+class PairListener:
+    """An in-memory listener: each accept() hands the server one end of a fresh socketpair."""
+
+    def __init__(self) -> None:
+        self.peers: list[socket.socket] = []
+        self.timeout: float | None = None
+        self.ready = threading.Event()
+
+    def accept(self) -> tuple[socket.socket, str]:
+        if not self.ready.wait(self.timeout):
+            raise TimeoutError
+        self.ready.clear()
+        ours, theirs = socket.socketpair()
+        self.peers.append(theirs)
+        return ours, "memory"
+
+    def settimeout(self, timeout: float | None) -> None:
+        self.timeout = timeout
+
+    def getsockname(self) -> str:
+        return "memory"
+
+    def close(self) -> None:
+        for s in self.peers:
+            s.close()
+
+
+def test_px4_over_an_in_memory_transport(quadrotor_fmu: Path) -> None:
+    """The same server on a socketpair instead of TCP: the HIL loop needs no network to be tested."""
+    plant = Plant(quadrotor_fmu)
+    listener = PairListener()
+    srv = Px4Server(plant, SensorSuite(SensorConfig.noise_free()), listener=listener, dt_s=DT)
+    try:
+        with serving(srv):
+            listener.ready.set()
+            deadline = time.monotonic() + 5.0
+            while not listener.peers and time.monotonic() < deadline:
+                time.sleep(0.01)
+            px4 = FakePx4(sock=listener.peers[0])
+            for k in range(100):
+                got = px4.read_step()
+                px4.send_controls(k, [1000.0] * 4)
+            assert got["HIL_SENSOR"].zacc == pytest.approx(-9.81, abs=0.05)
+            assert srv.stats.steps >= 99
+    finally:
+        srv.close()
+        plant.close()
