@@ -10,6 +10,7 @@ line and a summary at exit. Config (TOML, every section optional; unknown keys a
     [mavlink]    url = "udpin:127.0.0.1:14560"  baud = 57600
     [nmea]       port = "/dev/ttyUSB0"  baud = 38400  rate_hz = 5     # GPS sentences beside any interface
     [px4]        rc_channels = [1500, 1500, 1000, 1500]  # RC_CHANNELS sent with each heartbeat (PWM)
+                 wing_controls = {"1" = 0, "2" = 1, "3" = 3, "4" = 2}  # fixed wing: output channel -> control
     [start]      init_pos_down_m = 0.0                    # FMU start values
     [sensors]    seed = 0  [sensors.gyro] noise_std = 0.002 ...        # hil_adapter.sensors.SensorConfig
     [mapping.channels.aileron_rad] source = 1 ...                      # hil_adapter.pwm_mapping
@@ -28,7 +29,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-SECTIONS = {"network": {"host", "port"}, "px4": {"rc_channels"}, "timing": {"mode", "rate_hz"},
+SECTIONS = {"network": {"host", "port"}, "px4": {"rc_channels", "wing_controls"}, "timing": {"mode", "rate_hz"},
             "watchdog": {"timeout_s", "mode"},
             "record": {"path"}, "mavlink": {"url", "baud"}, "nmea": {"port", "baud", "rate_hz"}, "start": None,
             "sensors": None, "mapping": None}
@@ -170,7 +171,8 @@ def _make_server(interface: str, plant: Any, sensors: Any, stats: Any, recorder:
         from hil_adapter.px4 import Px4Server
 
         srv = Px4Server(plant, sensors, host, port, timing.get("mode", "lockstep") == "lockstep", dt, stats,
-                        recorder, watchdog, cfg.get("px4", {}).get("rc_channels"))
+                        recorder, watchdog, cfg.get("px4", {}).get("rc_channels"),
+                        wing_controls=_wing_controls(cfg.get("px4", {}).get("wing_controls")))
         closers.append(srv.close)
         return srv
     if interface == "ardupilot-json":
@@ -188,6 +190,16 @@ def _make_server(interface: str, plant: Any, sensors: Any, stats: Any, recorder:
         closers.append(conn.close)
         return MavlinkBridge(plant, sensors, conn, dt, stats, recorder, watchdog)
     return _NmeaOnly(plant, stats, dt, watchdog)
+
+
+def _wing_controls(raw: Any) -> dict[int, int] | None:
+    """``[px4] wing_controls`` (TOML keys are strings) as output channel -> control index."""
+    if raw is None:
+        return None
+    try:
+        return {int(k): int(v) for k, v in dict(raw).items()}
+    except (TypeError, ValueError):
+        raise HilConfigError(f"px4.wing_controls = {raw!r}: a table of output channel -> control index") from None
 
 
 class _NmeaOnly:

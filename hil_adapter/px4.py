@@ -34,16 +34,18 @@ LOCKSTEP_FLAG = 1  # HIL_ACTUATOR_CONTROLS.flags bit 0
 WING_CONTROLS = {1: 0, 2: 1, 3: 3, 4: 2}
 
 
-def controls_to_pwm(controls: Sequence[float], vehicle: str, armed: bool) -> dict[int, float]:
+def controls_to_pwm(controls: Sequence[float], vehicle: str, armed: bool,
+                    wing_controls: Mapping[int, int] | None = None) -> dict[int, float]:
     """PWM by output channel from normalised controls: motors/throttle 0..1 -> 1000..2000 us, surfaces
-    -1..1 -> 1000..2000 us around 1500; unarmed: motors and throttle at 1000 us."""
+    -1..1 -> 1000..2000 us around 1500; unarmed: motors and throttle at 1000 us. ``wing_controls`` maps output
+    channel -> control index for the fixed wing (default ``WING_CONTROLS``; channel 3 is the throttle)."""
     def clip(v: float, lo: float, hi: float) -> float:
         return lo if not math.isfinite(v) else min(max(v, lo), hi)
 
     if vehicle == "quadrotor":
         return {k + 1: 1000.0 + 1000.0 * (clip(controls[k], 0.0, 1.0) if armed else 0.0) for k in range(4)}
     out = {}
-    for ch, idx in WING_CONTROLS.items():
+    for ch, idx in (wing_controls or WING_CONTROLS).items():
         if ch == 3:
             out[ch] = 1000.0 + 1000.0 * (clip(controls[idx], 0.0, 1.0) if armed else 0.0)
         else:
@@ -123,7 +125,8 @@ class Px4Server:
     def __init__(self, plant: Plant, sensors: Any, host: str = "127.0.0.1", port: int = DEFAULT_PORT,
                  lockstep: bool = True, dt_s: float = 0.004, stats: Stats | None = None,
                  recorder: Recorder | None = None, watchdog: Watchdog | None = None,
-                 rc_channels: Sequence[int] | None = None, listener: Listener | None = None) -> None:
+                 rc_channels: Sequence[int] | None = None, listener: Listener | None = None,
+                 wing_controls: Mapping[int, int] | None = None) -> None:
         self.plant, self.sensors = plant, sensors
         self.lockstep, self.dt_s = lockstep, dt_s
         self.stats = stats or Stats()
@@ -132,6 +135,9 @@ class Px4Server:
         self.recorder = recorder
         self.watchdog = watchdog or Watchdog()
         self.rc_channels = list(rc_channels) if rc_channels else None
+        self.wing_controls = dict(wing_controls) if wing_controls else None
+        if self.wing_controls and not all(1 <= c <= 16 and 0 <= i < 16 for c, i in self.wing_controls.items()):
+            raise ValueError(f"wing_controls {self.wing_controls}: channels 1..16 -> control indices 0..15")
         self.server = listener if listener is not None else tcp_listener(host, port)
         self.address = self.server.getsockname()
         self.mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=51)
@@ -176,7 +182,7 @@ class Px4Server:
                 self.stats.malformed += 1
             elif kind == "HIL_ACTUATOR_CONTROLS":
                 self.armed = bool(m.mode & ARMED_FLAG)
-                self.pwm = controls_to_pwm(m.controls, self.plant.vehicle, self.armed)
+                self.pwm = controls_to_pwm(m.controls, self.plant.vehicle, self.armed, self.wing_controls)
                 got = True
         return got
 

@@ -73,6 +73,8 @@ def test_controls_map_to_pwm() -> None:
     wing = controls_to_pwm([-1.0, 0.5, 0.2, 0.7] + [0] * 12, "fixed_wing", True)
     assert wing == {1: 1000.0, 2: 1750.0, 3: 1700.0, 4: 1600.0}
     assert controls_to_pwm([float("nan")] * 16, "quadrotor", True)[1] == 1000.0
+    swapped = controls_to_pwm([-1.0, 0.5, 0.2, 0.7] + [0] * 12, "fixed_wing", True, {1: 1, 2: 0, 3: 3, 4: 2})
+    assert swapped == {1: 1750.0, 2: 1000.0, 3: 1700.0, 4: 1600.0}
 
 
 def test_at_rest_sensors_read_gravity_and_home(server) -> None:
