@@ -70,6 +70,8 @@ class ArduPilotJsonServer:
         self.sinks: list[Callable[[float, Mapping[str, float]], None]] = []
         self.recorder, self.sensors = recorder, sensors
         self.last_count: int | None = None
+        #: the output channels the PWM mapping reads: the only ones decoded per frame
+        self._sources = sorted({c.source for c in plant.mapping.channels})
         self.last_reply = b""
 
     def reply(self) -> bytes:
@@ -88,7 +90,7 @@ class ArduPilotJsonServer:
         """One datagram in, the reply out (None for a malformed one)."""
         try:
             pkt = ServoPacket.unpack(data)
-            pwm = {k + 1: float(v) for k, v in enumerate(pkt.pwm_us) if v > 0}
+            pwm = {s: float(pkt.pwm_us[s - 1]) for s in self._sources if s <= len(pkt.pwm_us)}
             if self.last_count is not None and pkt.frame_count == self.last_count:
                 self.stats.resends += 1
                 return self.last_reply

@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
-from hil_adapter.pwm_mapping import Channel, MappingError, PwmMapping
+from hil_adapter.pwm_mapping import MappingError, PwmMapping, default_mapping
+from identification.flightlog import OUTPUT_TO_LOG
 from uavfmu.fmu_host import FmuHost, FmuRunError
 
 log = logging.getLogger(__name__)
@@ -30,22 +31,6 @@ STATE_OUTPUTS = (
     "lat_deg", "lon_deg", "height_m", "altitude_m",
 )
 OPTIONAL_OUTPUTS = ("airspeed_m_s",)
-#: FMU output -> canonical log signal where they differ (identification.flightlog names)
-LOG_NAMES = {"rate_body_x_rad_s": "gyro_body_x_rad_s", "rate_body_y_rad_s": "gyro_body_y_rad_s",
-             "rate_body_z_rad_s": "gyro_body_z_rad_s"}
-
-
-def default_mapping(vehicle: str) -> PwmMapping:
-    """Quadrotor: outputs 1-4 are the motors' PWM as they are; fixed wing: ArduPlane's SERVO1-4 defaults."""
-    if vehicle == "quadrotor":
-        return PwmMapping(tuple(Channel(f"pwm_{k}_us", k, 1000.0, 1000.0, 2000.0, 1000.0, 2000.0, failsafe=1000.0)
-                                for k in range(1, 5)))
-    surf = {"min_us": 1100.0, "trim_us": 1500.0, "max_us": 1900.0, "out_min": -0.35, "out_max": 0.35}
-    return PwmMapping.from_dict({"channels": {
-        "aileron_rad": {"source": 1, **surf}, "elevator_rad": {"source": 2, **surf},
-        "throttle": {"source": 3, "min_us": 1000.0, "trim_us": 1000.0, "max_us": 2000.0, "out_min": 0.0,
-                     "out_max": 1.0},
-        "rudder_rad": {"source": 4, **surf}}}, source="default fixed-wing mapping")
 
 
 class Plant:
@@ -55,13 +40,17 @@ class Plant:
                  start_values: Mapping[str, float] | None = None) -> None:
         self.host = FmuHost(fmu, instance_name="hil")
         names = set(self.host.variables)
-        self.vehicle = "quadrotor" if "pwm_1_us" in names else "fixed_wing"
+        try:
+            self.vehicle = self.host.vehicle
+        except FmuRunError:
+            self.host.close()
+            raise
         self.mapping = mapping or default_mapping(self.vehicle)
         missing = [c.target for c in self.mapping.channels if c.target not in names]
         if missing:
             self.host.close()
             raise MappingError(f"PWM mapping targets {', '.join(missing)} are not inputs of {self.host.path.name}")
-        self.outputs = [n for n in STATE_OUTPUTS + OPTIONAL_OUTPUTS if n in names]
+        self.outputs = tuple(n for n in STATE_OUTPUTS + OPTIONAL_OUTPUTS if n in names)
         self.start_values = dict(start_values or {})
         self.inputs: dict[str, float] = {c.target: c.failsafe for c in self.mapping.channels}
         self.fmu_errors = 0
@@ -178,7 +167,7 @@ class Recorder:
         self._w = csv.writer(self._fh)
         self.channels, self.inputs, self.outputs = list(channels), list(inputs), list(outputs)
         self._w.writerow(["time_s", *(f"servo_{c}_pwm_us" for c in self.channels), *self.inputs,
-                          *(LOG_NAMES.get(o, o) for o in self.outputs), "failsafe", *SENSOR_COLUMNS])
+                          *(OUTPUT_TO_LOG.get(o, o) for o in self.outputs), "failsafe", *SENSOR_COLUMNS])
         self.rows = 0
 
     def write(self, t_s: float, pwm_us: Mapping[int, float], inputs: Mapping[str, float],

@@ -145,3 +145,17 @@ class PwmMapping:
         if not channels:
             raise MappingError("no SERVOn_FUNCTION for aileron (4), elevator (19), rudder (21) or throttle (70)")
         return cls(tuple(channels))
+
+
+def default_mapping(vehicle: str) -> PwmMapping:
+    """Quadrotor: outputs 1-4 are the motors' PWM as they are; fixed wing: ArduPlane's SERVO1-4 defaults
+    (aileron, elevator, throttle, rudder; surfaces +/-0.35 rad over 1100..1900 us)."""
+    if vehicle == "quadrotor":
+        return PwmMapping(tuple(Channel(f"pwm_{k}_us", k, 1000.0, 1000.0, 2000.0, 1000.0, 2000.0, failsafe=1000.0)
+                                for k in range(1, 5)))
+    surf = {"min_us": 1100.0, "trim_us": 1500.0, "max_us": 1900.0, "out_min": -0.35, "out_max": 0.35}
+    return PwmMapping.from_dict({"channels": {
+        "aileron_rad": {"source": 1, **surf}, "elevator_rad": {"source": 2, **surf},
+        "throttle": {"source": 3, "min_us": 1000.0, "trim_us": 1000.0, "max_us": 2000.0, "out_min": 0.0,
+                     "out_max": 1.0},
+        "rudder_rad": {"source": 4, **surf}}}, source="default fixed-wing mapping")

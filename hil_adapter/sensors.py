@@ -338,21 +338,6 @@ class _GpsState(NamedTuple):
 
 
 # ------------------------------------------------------------------------------------------ physics helpers
-def quat_to_dcm(q: tuple[float, float, float, float]) -> np.ndarray:
-    """Body -> NED rotation matrix of ``[w, x, y, z]`` (as ``fmu_models.common.rigid_body.quat_to_dcm``, but
-    numpy and normalised, since an integrated FMU quaternion drifts slightly off unit norm)."""
-    n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
-    if not n2 > 0.0:
-        raise ValueError(f"FMU quaternion {q} has no direction (norm^2 = {n2})")
-    s = 1.0 / math.sqrt(n2)
-    w, x, y, z = (c * s for c in q)
-    return np.array([
-        [w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z],
-    ])
-
-
 def _ned_to_body(q: tuple[float, float, float, float], v: list[float]) -> tuple[float, float, float]:
     """``R_b2nᵀ v`` for the (normalised) quaternion ``q`` in plain floats: the per-sample path of ``sample``."""
     w, x, y, z = q
@@ -547,5 +532,5 @@ class SensorSuite:
 __all__ = [
     "REQUIRED_OUTPUTS", "AccelConfig", "BaroConfig", "DiffPressureConfig", "GpsConfig", "GpsFix", "GyroConfig",
     "MagConfig", "MissingOutputError", "SensorConfig", "SensorConfigError", "SensorFrame", "SensorSuite",
-    "pressure_altitude_m", "quat_to_dcm",
+    "pressure_altitude_m",
 ]

@@ -13,23 +13,16 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
 
 from fmu_models.common.model import VehicleModel, init_function
 from hil_adapter.pwm_mapping import PwmMapping
-from identification.flightlog import FlightLog, LogError
+from identification.flightlog import OUTPUT_TO_LOG, FlightLog, LogError
 from identification.log_state import initial_values, mapped_inputs
 from identification.metrics import FitMetrics, fit_metrics
 from identification.oem import Manoeuvre
 
-#: model output -> canonical log signal
-LOG_SIGNAL = {
-    "roll_rad": "roll_rad", "pitch_rad": "pitch_rad", "yaw_rad": "yaw_rad",
-    "rate_body_x_rad_s": "gyro_body_x_rad_s", "rate_body_y_rad_s": "gyro_body_y_rad_s",
-    "rate_body_z_rad_s": "gyro_body_z_rad_s",
-    "accel_body_x_m_s2": "accel_body_x_m_s2", "accel_body_y_m_s2": "accel_body_y_m_s2",
-    "accel_body_z_m_s2": "accel_body_z_m_s2", "airspeed_m_s": "airspeed_m_s", "altitude_m": "altitude_m",
-}
 #: outputs fitted by default: attitude, body rates, specific force, airspeed (issue 4)
 DEFAULT_OUTPUTS = ("roll_rad", "pitch_rad", "rate_body_x_rad_s", "rate_body_y_rad_s", "rate_body_z_rad_s",
                    "accel_body_x_m_s2", "accel_body_y_m_s2", "accel_body_z_m_s2", "airspeed_m_s")
@@ -96,19 +89,21 @@ def log_inputs(model: VehicleModel, log: FlightLog, mapping: PwmMapping, t_s: np
 
 def log_outputs(log: FlightLog, outputs: Sequence[str], t_s: np.ndarray) -> np.ndarray:
     """Measured outputs (len(t) x ny) at ``t_s``, linearly interpolated."""
-    unknown = [n for n in outputs if n not in LOG_SIGNAL]
+    unknown = [n for n in outputs if n not in OUTPUT_TO_LOG]
     if unknown:
         raise LogError(f"no log signal is known for the outputs {', '.join(unknown)}; "
-                       f"choose from {', '.join(LOG_SIGNAL)}")
-    return np.column_stack([log.signal(LOG_SIGNAL[n]).resample(t_s) for n in outputs])
+                       f"choose from {', '.join(OUTPUT_TO_LOG)}")
+    return np.column_stack([log.signal(OUTPUT_TO_LOG[n]).resample(t_s) for n in outputs])
 
 
-def initial_state(model: VehicleModel, p: np.ndarray, log: FlightLog, t0_s: float, u0: np.ndarray) -> np.ndarray:
-    """The model state at ``t0_s`` from the log, through the model's own initial-state function."""
+def initial_state(model: VehicleModel, p: np.ndarray, log: FlightLog, t0_s: float, u0: np.ndarray,
+                  init: ca.Function | None = None) -> np.ndarray:
+    """The model state at ``t0_s`` from the log, through the model's own initial-state function (``init``:
+    ``init_function(model)``, built once by the caller when it needs many states)."""
     p = p.copy()
     for name, value in initial_values(log, t0_s, forward_from_airspeed=True).items():
         p[model.params.index[name]] = value
-    x0, _ = init_function(model)(u0, p)
+    x0, _ = (init or init_function(model))(u0, p)
     return np.asarray(x0).ravel()
 
 
@@ -117,6 +112,7 @@ def manoeuvres(model: VehicleModel, p: np.ndarray, log: FlightLog, mapping: PwmM
     """One :class:`Manoeuvre` per segment: inputs at ``t_k``, measurements at ``t_{k+1}``."""
     out = []
     end = log.duration_s
+    init = init_function(model)
     for seg in segments:
         if seg.t1_s > end + 1e-6:
             raise SegmentError(f"{log.source}: segment {seg} ends after the log ({end:.2f} s)")
@@ -128,7 +124,7 @@ def manoeuvres(model: VehicleModel, p: np.ndarray, log: FlightLog, mapping: PwmM
         if not np.all(np.isfinite(y)):
             bad = [outputs[i] for i in range(len(outputs)) if not np.all(np.isfinite(y[:, i]))]
             raise LogError(f"{log.source}: segment {seg}: {', '.join(bad)} not finite (gap in the log?)")
-        x0 = initial_state(model, p, log, seg.t0_s, u[0])
+        x0 = initial_state(model, p, log, seg.t0_s, u[0], init)
         out.append(Manoeuvre(x0, u, y, 1.0 / rate_hz, str(seg)))
     return out
 

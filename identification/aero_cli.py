@@ -17,7 +17,6 @@ Exit status: 0 done, 2 bad input (unreadable log, unknown parameter or output, b
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import sys
 from pathlib import Path
@@ -108,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
     from fmu_models.fixed_wing.params import FixedWingParams
     from hil_adapter.pwm_mapping import PwmMapping
     from identification import aero
+    from identification.jsonio import write_json
     from identification.oem import EstimationError, OutputError
     from identification.readers import read_log
 
@@ -169,12 +169,11 @@ def run(args: argparse.Namespace) -> int:
         "estimate": est.as_dict(),
         "metrics": {k: {n: m.as_dict() for n, m in v.items()} for k, v in scores.items()},
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps({"fixed_wing": identified, "_identification": {
+    write_json(args.out, {"fixed_wing": identified, "_identification": {
         "method": "output error (identification.oem)", "log": str(args.log), "free": free,
-        "crb_std": {n: float(s) for n, s in zip(free, est.crb_std, strict=True)}}}, indent=2) + "\n")
+        "crb_std": {n: float(s) for n, s in zip(free, est.crb_std, strict=True)}}})
     metrics_path = args.metrics or args.out.with_suffix(".metrics.json")
-    metrics_path.write_text(json.dumps(report, indent=2) + "\n")
+    write_json(metrics_path, report)
     if args.plots:
         from identification import plots
 

@@ -12,11 +12,12 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import json
 import sys
 import warnings
 from pathlib import Path
 from typing import Any
+
+from identification.jsonio import write_json
 
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2
@@ -261,7 +262,7 @@ def _thrust(args: argparse.Namespace, ds_cfg: Any, train_cfg: Any, np: Any) -> i
             )
     except CorrelationGateError:
         metrics["refused"] = True
-        _write_json(metrics_path, metrics)
+        write_json(metrics_path, metrics)
         raise
     metrics["gate_forced"] = bool(gate_warnings)
     if gate_warnings:
@@ -343,8 +344,8 @@ def _thrust(args: argparse.Namespace, ds_cfg: Any, train_cfg: Any, np: Any) -> i
         }
     )
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    _write_json(args.out, {"quadrotor": section, "_identification": {"metrics": str(metrics_path)}})
-    _write_json(metrics_path, metrics)
+    write_json(args.out, {"quadrotor": section, "_identification": {"metrics": str(metrics_path)}})
+    write_json(metrics_path, metrics)
     if args.plots:
         plots.thrust_training(
             args.plots / "fig4_training.png", result.train_rmse, result.check_rmse, result.best_epoch
@@ -372,22 +373,6 @@ def _thrust(args: argparse.Namespace, ds_cfg: Any, train_cfg: Any, np: Any) -> i
         )
     print(_summary(metrics, args, k_value))
     return EXIT_OK
-
-
-def _finite(value: Any) -> Any:
-    """``value`` with every non-finite float replaced by None (strict JSON has no NaN)."""
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
-    if isinstance(value, float) and not (value == value and abs(value) != float("inf")):
-        return None
-    return value
-
-
-def _write_json(path: Path, data: dict[str, Any]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(_finite(data), indent=2, allow_nan=False) + "\n")
 
 
 def _correlation_table(corr: dict[str, float], gate: float, ds: Any) -> str:

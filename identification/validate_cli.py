@@ -23,7 +23,6 @@ Exit status: 0 every signal of every run passes, 1 a signal fails or a batch run
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import tomllib
@@ -72,6 +71,7 @@ def validate_one(job: dict[str, Any]) -> dict[str, Any]:
 
     from hil_adapter.pwm_mapping import PwmMapping
     from identification import output_map, report
+    from identification.jsonio import write_json
     from identification.readers import read_log
     from identification.validation import replay, vehicle_of
     from uavfmu.fmu_host import FmuHost, FmuRunError
@@ -101,10 +101,10 @@ def validate_one(job: dict[str, Any]) -> dict[str, Any]:
         rdir = Path(job["report"])
         rdir.mkdir(parents=True, exist_ok=True)
         (rdir / "report.html").write_text(report.validation_page(res))
-        (rdir / "metrics.json").write_text(json.dumps(
-            {"fmu": res.fmu, "log": res.log, "window_s": job.get("window_s"), "rate_hz": job.get("rate_hz"),
-             "windows": res.windows, "signals": out["signals"], "failed": res.failed,
-             "per_window": [{k: v.as_dict() for k, v in w.items()} for w in res.window_metrics]}, indent=2))
+        write_json(rdir / "metrics.json",
+                   {"fmu": res.fmu, "log": res.log, "window_s": job.get("window_s"), "rate_hz": job.get("rate_hz"),
+                    "windows": res.windows, "signals": out["signals"], "failed": res.failed,
+                    "per_window": [{k: v.as_dict() for k, v in w.items()} for w in res.window_metrics]})
         out["report"] = str(rdir / "report.html")
     return out
 
@@ -192,6 +192,7 @@ def _run_batch(jobs: list[dict[str, Any]], args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from identification import report
+    from identification.jsonio import write_json
 
     root = args.report
     for k, job in enumerate(jobs):
@@ -219,6 +220,6 @@ def _run_batch(jobs: list[dict[str, Any]], args: argparse.Namespace) -> int:
                 r["report"] = str(Path(r["report"]).relative_to(root.resolve()) if Path(r["report"]).is_absolute()
                                   else Path(r["report"]).relative_to(root))
         (root / "index.html").write_text(report.index_page(results))
-        (root / "results.json").write_text(json.dumps(results, indent=2))
+        write_json(root / "results.json", results)
         print(f"report: {root / 'index.html'}")
     return EXIT_FAIL if bad else EXIT_PASS

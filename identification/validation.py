@@ -22,9 +22,8 @@ from identification.flightlog import FlightLog, LogError
 from identification.log_state import hold, initial_values_at, mapped_inputs, resample_angle
 from identification.metrics import FitMetrics, fit_metrics, segment_metrics
 from identification.output_map import SignalMap
-from uavfmu.fmu_host import FmuHost
+from uavfmu.fmu_host import FmuHost, FmuRunError
 
-QUAD_INPUTS = tuple(f"pwm_{k}_us" for k in range(1, 5))
 WING_INPUTS = ("aileron_rad", "elevator_rad", "rudder_rad", "throttle")
 
 
@@ -53,13 +52,11 @@ class ReplayResult:
 
 
 def vehicle_of(host: FmuHost) -> str:
-    """``quadrotor`` or ``fixed_wing`` from the FMU's inputs."""
-    names = set(host.variables)
-    if set(QUAD_INPUTS) <= names:
-        return "quadrotor"
-    if set(WING_INPUTS) <= names:
-        return "fixed_wing"
-    raise ValidationError(f"{host.path}: neither motor PWM inputs {QUAD_INPUTS} nor surface inputs {WING_INPUTS}")
+    """``quadrotor`` or ``fixed_wing`` from the FMU's inputs (``FmuHost.vehicle``)."""
+    try:
+        return host.vehicle
+    except FmuRunError as err:
+        raise ValidationError(str(err)) from None
 
 
 def log_identity(log: FlightLog, path: Path) -> dict[str, Any]:

@@ -101,6 +101,7 @@ def record_flights(fmus: dict[str, Path], logs_dir: Path, seed: int) -> dict[str
 
 def identify(logs: dict[str, Path], work: Path, force_gate: bool = False) -> tuple[Path, dict[str, Any]]:
     """Thrust map and roll derivatives from the logs, merged into one parameter file for ``build_fmus``."""
+    from identification.jsonio import write_json
     from uavfmu.cli import main
 
     merged: dict[str, Any] = {}
@@ -123,7 +124,7 @@ def identify(logs: dict[str, Path], work: Path, force_gate: bool = False) -> tup
         merged["fixed_wing"] = json.loads(out.read_text())["fixed_wing"]
         found["aero"] = json.loads(out.with_suffix(".metrics.json").read_text())
     params = work / "identified.json"
-    params.write_text(json.dumps(merged, indent=2) + "\n")
+    write_json(params, merged)
     return params, found
 
 

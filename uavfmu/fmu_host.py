@@ -48,6 +48,9 @@ class FmuHost:
         if self.md.coSimulation is None:
             raise FmuRunError(f"{fmu}: not a co-simulation FMU")
         self.variables = {v.name: v for v in self.md.modelVariables}
+        self._vr = {n: v.valueReference for n, v in self.variables.items()}
+        #: value-reference lists by the tuple of names they serve: built once, reused every step
+        self._refs: dict[tuple[str, ...], list[int]] = {}
         self.messages: list[tuple[str, str]] = []
         self._callbacks = fmi2CallbackFunctions()
         self._callbacks.logger = fmi2CallbackLoggerTYPE(self._on_log)
@@ -119,7 +122,6 @@ class FmuHost:
     # -------------------------------------------------------------- step-by-step (HIL, closed-loop scenarios)
     def start(self, start_values: Mapping[str, float] | None = None) -> None:
         """(Re-)initialise the instance at time 0 with ``start_values``; ``FmuRunError`` on failure."""
-        self._vr = {n: v.valueReference for n, v in self.variables.items()}
         try:
             if self._used:
                 self.slave.reset()
@@ -133,9 +135,27 @@ class FmuHost:
         except Exception as err:  # FMPy raises FMICallException (an Exception) for fmi2Error
             raise FmuRunError(f"{self.path.name}: initialisation failed ({err}){self._tail()}") from err
 
+    def refs(self, names: Sequence[str]) -> list[int]:
+        """Value references of ``names`` (cached: the same inputs and outputs are exchanged every step)."""
+        key = tuple(names)
+        found = self._refs.get(key)
+        if found is None:
+            found = self._refs[key] = [self._vr[n] for n in key]
+        return found
+
+    @property
+    def vehicle(self) -> str:
+        """``quadrotor`` (motor PWM inputs) or ``fixed_wing`` (surface and throttle inputs) of our FMUs."""
+        if all(f"pwm_{k}_us" in self.variables for k in range(1, 5)):
+            return "quadrotor"
+        if all(n in self.variables for n in ("aileron_rad", "elevator_rad", "rudder_rad", "throttle")):
+            return "fixed_wing"
+        raise FmuRunError(f"{self.path}: neither motor PWM inputs pwm_1_us..pwm_4_us nor surface inputs "
+                          "aileron_rad, elevator_rad, rudder_rad, throttle")
+
     def set(self, values: Mapping[str, float]) -> None:
         try:
-            self.slave.setReal([self._vr[k] for k in values], [float(v) for v in values.values()])
+            self.slave.setReal(self.refs(values), [float(v) for v in values.values()])
         except KeyError as err:
             raise FmuRunError(f"{self.path.name}: no variable {err}") from None
         except Exception as err:
@@ -151,5 +171,5 @@ class FmuHost:
             raise FmuRunError(f"{self.path.name}: step at t = {t_s:.4f} s failed ({err}){self._tail()}") from err
 
     def get(self, names: Sequence[str]) -> dict[str, float]:
-        vals = self.slave.getReal([self._vr[n] for n in names])
+        vals = self.slave.getReal(self.refs(names))
         return dict(zip(names, vals, strict=True))

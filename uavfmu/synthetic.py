@@ -18,30 +18,14 @@ from fmu_models.common.simulate import Simulator
 from fmu_models.fixed_wing.model import FixedWingModel
 from fmu_models.fixed_wing.params import FixedWingParams
 from fmu_models.fixed_wing.trim import trim
-from hil_adapter.pwm_mapping import PwmMapping
+from hil_adapter.pwm_mapping import PwmMapping, default_mapping
+from identification.flightlog import OUTPUT_TO_LOG
 from identification.oem import Manoeuvre, OutputError
 from uavfmu.scenarios import Recording
 
 #: ArduPlane's default outputs: SERVO1 aileron, SERVO2 elevator, SERVO3 throttle, SERVO4 rudder
-MAPPING = PwmMapping.from_dict({"channels": {
-    "aileron_rad": {"source": 1, "min_us": 1100, "trim_us": 1500, "max_us": 1900, "out_min": -0.35,
-                    "out_max": 0.35},
-    "elevator_rad": {"source": 2, "min_us": 1100, "trim_us": 1500, "max_us": 1900, "out_min": -0.35,
-                     "out_max": 0.35},
-    "throttle": {"source": 3, "min_us": 1000, "trim_us": 1000, "max_us": 2000, "out_min": 0.0, "out_max": 1.0},
-    "rudder_rad": {"source": 4, "min_us": 1100, "trim_us": 1500, "max_us": 1900, "out_min": -0.35,
-                   "out_max": 0.35},
-}}, source="uavfmu.synthetic.MAPPING")
+MAPPING = default_mapping("fixed_wing")
 
-#: model output -> canonical log column
-LOG_COLUMNS = {
-    "roll_rad": "roll_rad", "pitch_rad": "pitch_rad", "yaw_rad": "yaw_rad",
-    "rate_body_x_rad_s": "gyro_body_x_rad_s", "rate_body_y_rad_s": "gyro_body_y_rad_s",
-    "rate_body_z_rad_s": "gyro_body_z_rad_s", "accel_body_x_m_s2": "accel_body_x_m_s2",
-    "accel_body_y_m_s2": "accel_body_y_m_s2", "accel_body_z_m_s2": "accel_body_z_m_s2",
-    "airspeed_m_s": "airspeed_m_s", "altitude_m": "altitude_m", "vel_north_m_s": "vel_north_m_s",
-    "vel_east_m_s": "vel_east_m_s", "vel_down_m_s": "vel_down_m_s", "lat_deg": "lat_deg", "lon_deg": "lon_deg",
-}
 #: white sensor noise (1 sigma) per log column when ``noise=True``
 NOISE = {"roll_rad": 0.003, "pitch_rad": 0.003, "yaw_rad": 0.003, "gyro_body_x_rad_s": 0.005,
          "gyro_body_y_rad_s": 0.005, "gyro_body_z_rad_s": 0.005, "accel_body_x_m_s2": 0.05,
@@ -85,7 +69,7 @@ def fixed_wing_flight(params: FixedWingParams | None = None, seconds: float = 40
         x = np.asarray(x1).ravel()
         rows.append(np.asarray(y1).ravel())
     y = np.array(rows)
-    signals = {col: y[:, idx[name]].copy() for name, col in LOG_COLUMNS.items()}
+    signals = {col: y[:, idx[name]].copy() for name, col in OUTPUT_TO_LOG.items()}
     if noise:
         rng = np.random.default_rng(seed)
         for col, sigma in NOISE.items():
@@ -100,7 +84,7 @@ def recording_signals(rec: Recording, noise: bool = False, seed: int = 0) -> dic
     """Canonical log signals of an FMU flight (``uavfmu.scenarios.fly``): outputs under their log names and
     the inputs as the servo PWM an autopilot logs (quadrotor ``motor_k``/``servo_k``; wing via ``MAPPING``)."""
     signals = {col: np.asarray(rec.outputs[name], dtype=float).copy()
-               for name, col in LOG_COLUMNS.items() if name in rec.outputs}
+               for name, col in OUTPUT_TO_LOG.items() if name in rec.outputs}
     if noise:
         rng = np.random.default_rng(seed)
         for col, sigma in NOISE.items():
