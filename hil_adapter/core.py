@@ -10,6 +10,8 @@ from __future__ import annotations
 import csv
 import logging
 import math
+import select
+import socket
 import time
 from collections import deque
 from collections.abc import Mapping, Sequence
@@ -31,6 +33,27 @@ STATE_OUTPUTS = (
     "lat_deg", "lon_deg", "height_m", "altitude_m",
 )
 OPTIONAL_OUTPUTS = ("airspeed_m_s",)
+#: lockstep default of the busy poll before a blocking receive [s]; see :func:`spin_until_readable`
+BUSY_POLL_S = 0.001
+
+
+def spin_until_readable(sock: socket.socket, spin_s: float) -> bool:
+    """Poll ``sock`` without sleeping for up to ``spin_s`` [s]; True as soon as data is waiting.
+
+    Written here because nothing covers it for local sockets: the kernel's SO_BUSY_POLL serves NIC queues
+    only. In lockstep the autopilot answers within microseconds, but a core that sleeps in ``recv`` (and on
+    a virtual machine, its virtual CPU) takes tens to hundreds of microseconds to wake and then runs the
+    step with cold caches; spinning briefly first keeps the step hot. After ``spin_s`` the caller's blocking
+    wait takes over, so a stalled autopilot costs no more CPU than ``spin_s`` per step.
+    """
+    if spin_s <= 0.0:
+        return False
+    end = time.perf_counter() + spin_s
+    watch = [sock]
+    while not select.select(watch, [], [], 0.0)[0]:
+        if time.perf_counter() >= end:
+            return False
+    return True
 
 
 class Plant:

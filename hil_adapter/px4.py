@@ -22,7 +22,8 @@ from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from hil_adapter.core import Pacer, Plant, Recorder, Stats, Watchdog
+from hil_adapter.core import BUSY_POLL_S, Pacer, Plant, Recorder, Stats, Watchdog, spin_until_readable
+from hil_adapter.mavlink_fast import FastMavlink
 
 log = logging.getLogger(__name__)
 DEFAULT_PORT = 4560
@@ -54,47 +55,48 @@ def controls_to_pwm(controls: Sequence[float], vehicle: str, armed: bool,
 
 
 class HilMessages:
-    """Builds the HIL_* messages of one time step from the FMU state and the sensor frame."""
+    """Builds the HIL_* messages of one time step from the FMU state and the sensor frame (framed by
+    :class:`hil_adapter.mavlink_fast.FastMavlink` on ``mav``: sequence numbers advance per message)."""
 
     def __init__(self, mav: mavlink2.MAVLink, vehicle: str) -> None:
         self.mav = mav
+        self.codec = FastMavlink(mav)
         self.mav_type = mavlink2.MAV_TYPE_QUADROTOR if vehicle == "quadrotor" else mavlink2.MAV_TYPE_FIXED_WING
 
     def sensor(self, t_us: int, frame: Any) -> bytes:
         a, g, m = frame.accel_body_m_s2, frame.gyro_body_rad_s, frame.mag_body_gauss
-        # extension fields (id, yaw) left at their defaults: the same call packs MAVLink 1 and 2
-        return self.mav.hil_sensor_encode(
-            t_us, a[0], a[1], a[2], g[0], g[1], g[2], m[0], m[1], m[2], frame.abs_pressure_pa / 100.0,
-            frame.diff_pressure_pa / 100.0, frame.pressure_alt_m, frame.temperature_degc, FIELDS_ALL,
-        ).pack(self.mav)
+        return self.codec.pack(
+            mavlink2.MAVLink_hil_sensor_message, t_us, a[0], a[1], a[2], g[0], g[1], g[2], m[0], m[1], m[2],
+            frame.abs_pressure_pa / 100.0, frame.diff_pressure_pa / 100.0, frame.pressure_alt_m,
+            frame.temperature_degc, FIELDS_ALL)
 
     def gps(self, t_us: int, fix: Any) -> bytes:
         vn, ve, vd = fix.vel_ned_m_s
-        return self.mav.hil_gps_encode(
-            t_us, int(fix.fix_type), round(fix.lat_deg * 1e7), round(fix.lon_deg * 1e7), round(fix.alt_msl_m * 1e3),
-            min(round(fix.eph_m * 100), 65535), min(round(fix.epv_m * 100), 65535),
-            min(round(fix.ground_speed_m_s * 100), 65535), round(vn * 100), round(ve * 100), round(vd * 100),
-            round(fix.course_deg * 100) % 36000, int(fix.satellites),
-        ).pack(self.mav)
+        return self.codec.pack(
+            mavlink2.MAVLink_hil_gps_message, t_us, int(fix.fix_type), round(fix.lat_deg * 1e7),
+            round(fix.lon_deg * 1e7), round(fix.alt_msl_m * 1e3), min(round(fix.eph_m * 100), 65535),
+            min(round(fix.epv_m * 100), 65535), min(round(fix.ground_speed_m_s * 100), 65535), round(vn * 100),
+            round(ve * 100), round(vd * 100), round(fix.course_deg * 100) % 36000, int(fix.satellites))
 
     def state(self, t_us: int, s: Mapping[str, float]) -> bytes:
         g0 = 9.80665
-        return self.mav.hil_state_quaternion_encode(
-            t_us, [s["quat_w"], s["quat_x"], s["quat_y"], s["quat_z"]], s["rate_body_x_rad_s"],
-            s["rate_body_y_rad_s"], s["rate_body_z_rad_s"], round(s["lat_deg"] * 1e7), round(s["lon_deg"] * 1e7),
-            round(s["height_m"] * 1e3), round(s["vel_north_m_s"] * 100), round(s["vel_east_m_s"] * 100),
-            round(s["vel_down_m_s"] * 100), min(round(s.get("airspeed_m_s", 0.0) * 100), 65535),
-            min(round(s.get("airspeed_m_s", 0.0) * 100), 65535), round(s["accel_body_x_m_s2"] / g0 * 1000),
-            round(s["accel_body_y_m_s2"] / g0 * 1000), round(s["accel_body_z_m_s2"] / g0 * 1000),
-        ).pack(self.mav)
+        airspeed_cm_s = min(round(s.get("airspeed_m_s", 0.0) * 100), 65535)
+        return self.codec.pack(
+            mavlink2.MAVLink_hil_state_quaternion_message, t_us, (s["quat_w"], s["quat_x"], s["quat_y"],
+                                                                 s["quat_z"]),
+            s["rate_body_x_rad_s"], s["rate_body_y_rad_s"], s["rate_body_z_rad_s"], round(s["lat_deg"] * 1e7),
+            round(s["lon_deg"] * 1e7), round(s["height_m"] * 1e3), round(s["vel_north_m_s"] * 100),
+            round(s["vel_east_m_s"] * 100), round(s["vel_down_m_s"] * 100), airspeed_cm_s, airspeed_cm_s,
+            round(s["accel_body_x_m_s2"] / g0 * 1000), round(s["accel_body_y_m_s2"] / g0 * 1000),
+            round(s["accel_body_z_m_s2"] / g0 * 1000))
 
     def heartbeat(self) -> bytes:
-        return self.mav.heartbeat_encode(self.mav_type, mavlink2.MAV_AUTOPILOT_INVALID, 0, 0,
-                                         mavlink2.MAV_STATE_ACTIVE).pack(self.mav)
+        return self.codec.pack(mavlink2.MAVLink_heartbeat_message, self.mav_type, mavlink2.MAV_AUTOPILOT_INVALID,
+                               0, 0, mavlink2.MAV_STATE_ACTIVE, 3)
 
     def rc(self, t_ms: int, channels: Sequence[int]) -> bytes:
         ch = [int(c) for c in channels][:18] + [65535] * (18 - len(channels))
-        return self.mav.rc_channels_encode(t_ms, len(channels), *ch, 255).pack(self.mav)
+        return self.codec.pack(mavlink2.MAVLink_rc_channels_message, t_ms, len(channels), *ch, 255)
 
 
 class Listener(Protocol):
@@ -126,8 +128,12 @@ class Px4Server:
                  lockstep: bool = True, dt_s: float = 0.004, stats: Stats | None = None,
                  recorder: Recorder | None = None, watchdog: Watchdog | None = None,
                  rc_channels: Sequence[int] | None = None, listener: Listener | None = None,
-                 wing_controls: Mapping[int, int] | None = None) -> None:
+                 wing_controls: Mapping[int, int] | None = None, busy_poll_s: float = BUSY_POLL_S) -> None:
+        if not 0.0 <= busy_poll_s <= 0.1:
+            raise ValueError(f"busy_poll_s = {busy_poll_s}; allowed 0..0.1 s")
         self.plant, self.sensors = plant, sensors
+        #: lockstep: busy-poll this long [s] for the actuator reply before blocking (``spin_until_readable``)
+        self.busy_poll_s = busy_poll_s
         self.lockstep, self.dt_s = lockstep, dt_s
         self.stats = stats or Stats()
         #: called after every step with (t_s, FMU outputs): auxiliary outputs such as the NMEA GPS
@@ -170,21 +176,31 @@ class Px4Server:
     def _absorb(self, data: bytes) -> bool:
         """Parse received bytes; True when an actuator message arrived."""
         got = False
+        fast = self.msgs.codec.actuator_controls(data)  # the common case: one whole actuator frame
+        if fast is not None:
+            controls, mode, _flags, data = fast
+            self._actuators(controls, mode)
+            if not data:
+                return True
+            got = True
         try:
             msgs = self.mav.parse_buffer(data) or []
         except mavlink2.MAVError as err:  # robust_parsing makes this rare; count, resynchronise, go on
             self.stats.malformed += 1
             log.debug("MAVLink parse error: %s", err)
-            return False
+            return got
         for m in msgs:
             kind = m.get_type()
             if kind == "BAD_DATA":
                 self.stats.malformed += 1
             elif kind == "HIL_ACTUATOR_CONTROLS":
-                self.armed = bool(m.mode & ARMED_FLAG)
-                self.pwm = controls_to_pwm(m.controls, self.plant.vehicle, self.armed, self.wing_controls)
+                self._actuators(m.controls, m.mode)
                 got = True
         return got
+
+    def _actuators(self, controls: Sequence[float], mode: int) -> None:
+        self.armed = bool(mode & ARMED_FLAG)
+        self.pwm = controls_to_pwm(controls, self.plant.vehicle, self.armed, self.wing_controls)
 
     def _step(self) -> None:
         if self.pwm and not self.watchdog.tripped:
@@ -207,6 +223,7 @@ class Px4Server:
             if got_input is not None:
                 self.stats.busy.append(time.perf_counter() - got_input)
             while True:
+                spin_until_readable(conn, self.busy_poll_s)
                 try:
                     data = conn.recv(65536)
                 except TimeoutError:
