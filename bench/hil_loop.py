@@ -2,13 +2,17 @@
 and ArduPilot JSON (UDP) interfaces with the quadrotor FMU, next to the FMU's bare step cost measured in the
 same run. The adapter runs in its own process (as it would beside a real autopilot); a minimal fake
 autopilot in this process measures each round trip from sending its actuator message to receiving the next
-sensor message; the adapter reports its busy time per step (autopilot input in -> our reply out).
+sensor message; the adapter reports its busy time per step (autopilot input received -> our reply sent).
 
 Targets (issue 6): >= 1000 lockstep steps/s, p99 round trip < 1 ms, adapter overhead per step (busy time
 minus the FMU step) below the FMU's own step cost. The FMU step is timed twice: inside the loop (same cache
 and scheduling conditions as the adapter's own work) and bare, in a tight loop with warm caches.
 
-Run: ``.venv/bin/python bench/hil_loop.py [--steps 5000]``.
+References measured in the same run: a null server per interface (same socket, same busy poll, the same
+reply bytes sent back with no work) gives the transport's own cost per step, mostly the kernel waking the
+sleeping autopilot in ``send``; the overhead is shown with and without it.
+
+Run: ``.venv/bin/python bench/hil_loop.py [--steps 5000] [--repeat 3] [--busy-poll-us 500]``.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -29,11 +34,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from pymavlink.dialects.v20 import common as mavlink2
 
 from build_fmus import build
+from hil_adapter.core import BUSY_POLL_S
 from hil_adapter.packets import ServoPacket
 from uavfmu.fmu_host import FmuHost
 
 
-def serve(kind: str, fmu: str, port_q: mp.Queue, steps: int, busy_q: mp.Queue) -> None:
+def serve(kind: str, fmu: str, port_q: mp.Queue, steps: int, busy_q: mp.Queue, busy_poll_s: float) -> None:
     _pin(0)
     from hil_adapter.ardupilot_json import ArduPilotJsonServer, UdpTransport
     from hil_adapter.core import Plant
@@ -42,15 +48,84 @@ def serve(kind: str, fmu: str, port_q: mp.Queue, steps: int, busy_q: mp.Queue) -
 
     plant = Plant(fmu)
     if kind == "px4":
-        srv = Px4Server(plant, SensorSuite(seed=1), port=0, dt_s=0.004)
+        srv = Px4Server(plant, SensorSuite(seed=1), port=0, dt_s=0.004, busy_poll_s=busy_poll_s)
         port_q.put(srv.address[1])
         stats = srv.serve(max_steps=steps, accept_timeout_s=1.0)
     else:
-        tr = UdpTransport("127.0.0.1", 0)
+        tr = UdpTransport("127.0.0.1", 0, busy_poll_s=busy_poll_s)
         port_q.put(tr.address[1])
         stats = ArduPilotJsonServer(plant, tr).serve(max_frames=steps, idle_timeout_s=1.0)
-    busy_q.put((float(np.mean(stats.busy)), float(np.mean(plant.step_times))))
+    busy_q.put((float(np.median(stats.busy)), float(np.median(plant.step_times))))
     plant.close()
+
+
+def serve_null(kind: str, reply: bytes, work_s: float, port_q: mp.Queue, steps: int, busy_q: mp.Queue,
+               busy_poll_s: float) -> None:
+    """The transport alone: receive as the adapter does, wait ``work_s`` (the adapter's busy time, so that the
+    autopilot sleeps as long as with the adapter: waking it is most of the cost of ``send``), send back
+    ``reply`` (a real reply's bytes); reports the median time of the send."""
+    _pin(0)
+    from hil_adapter.ardupilot_json import UdpTransport
+    from hil_adapter.core import spin_until_readable
+    from hil_adapter.px4 import tcp_listener
+
+    busy = []
+    if kind == "px4":
+        server = tcp_listener("127.0.0.1", 0)
+        port_q.put(server.getsockname()[1])
+        conn, _ = server.accept()
+        conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        conn.settimeout(1.0)
+        conn.sendall(reply)
+        for _ in range(steps - 1):
+            spin_until_readable(conn, busy_poll_s)
+            if not conn.recv(65536):
+                break
+            _spin(work_s)
+            t0 = time.perf_counter()
+            conn.sendall(reply)
+            busy.append(time.perf_counter() - t0)
+        conn.close()
+        server.close()
+    else:
+        tr = UdpTransport("127.0.0.1", 0, busy_poll_s=busy_poll_s)
+        port_q.put(tr.address[1])
+        for _ in range(steps):
+            got = tr.recv(1.0)
+            if got is None:
+                break
+            _spin(work_s)
+            t0 = time.perf_counter()
+            tr.send(reply, got[1])
+            busy.append(time.perf_counter() - t0)
+        tr.close()
+    busy_q.put((float(np.median(busy)), 0.0))
+
+
+def _spin(duration_s: float) -> None:
+    end = time.perf_counter() + duration_s
+    while time.perf_counter() < end:
+        pass
+
+
+def sample_replies(fmu: Path) -> dict[str, bytes]:
+    """One step's reply bytes of each interface (for the null servers)."""
+    from pymavlink.dialects.v20 import common as mavlink2
+
+    from hil_adapter.ardupilot_json import ArduPilotJsonServer
+    from hil_adapter.core import Plant
+    from hil_adapter.px4 import HilMessages
+    from hil_adapter.sensors import SensorSuite
+
+    plant = Plant(fmu)
+    try:
+        plant.advance(0.004)
+        msgs = HilMessages(mavlink2.MAVLink(None, 1, 51), plant.vehicle)
+        frame = SensorSuite(seed=1).sample(plant.t_s, plant.state)
+        px4 = msgs.sensor(4000, frame) + msgs.state(4000, plant.state)
+        return {"px4": px4, "ardupilot-json": ArduPilotJsonServer(plant, None).reply()}
+    finally:
+        plant.close()
 
 
 def _pin(cpu: int) -> None:
@@ -111,35 +186,71 @@ def json_client(port: int, steps: int) -> np.ndarray:
     return np.array(rtt)
 
 
+def run_pair(target: Any, args: tuple, client: Any, steps: int) -> tuple[np.ndarray, float, float, float]:
+    """Start a server process, drive it with ``client``: round trips [s], wall time [s], its busy and FMU
+    medians [s]."""
+    q: mp.Queue = mp.Queue()
+    busy_q: mp.Queue = mp.Queue()
+    proc = mp.Process(target=target, args=(*args[:-1], q, steps + 1, busy_q, args[-1]), daemon=True)
+    proc.start()
+    port = q.get(timeout=60)
+    time.sleep(0.2)
+    t0 = time.perf_counter()
+    rtt = client(port, steps)
+    wall = time.perf_counter() - t0
+    busy_s, fmu_s = busy_q.get(timeout=30)
+    proc.join(timeout=30)
+    return rtt, wall, busy_s, fmu_s
+
+
+def one_run(fmu: Path, replies: dict[str, bytes], steps: int, poll_s: float) -> dict[str, dict[str, float]]:
+    """Every figure of one run [us, steps/s], per interface."""
+    step_us = bare_step_us(fmu, steps)
+    out = {}
+    for kind, client in (("px4", px4_client), ("ardupilot-json", json_client)):
+        rtt, wall, busy_s, fmu_s = run_pair(serve, (kind, str(fmu), poll_s), client, steps)
+        _, _, send_s, _ = run_pair(serve_null, (kind, replies[kind], busy_s, poll_s), client, steps)
+        p50, p99 = np.percentile(rtt, [50, 99]) * 1e6
+        out[kind] = {"bare_us": step_us, "rate": len(rtt) / wall, "p50_us": p50, "p99_us": p99,
+                     "busy_us": 1e6 * busy_s, "fmu_us": 1e6 * fmu_s, "send_us": 1e6 * send_s}
+        r = out[kind]
+        print(f"  {kind:<15} {r['rate']:5.0f} steps/s, p50 {p50:4.0f} us, p99 {p99:4.0f} us, busy {r['busy_us']:4.0f}"
+              f" us, FMU step {r['fmu_us']:3.0f} us (bare {step_us:3.0f}), send alone {r['send_us']:3.0f} us",
+              flush=True)
+    return out
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=5000)
+    parser.add_argument("--repeat", type=int, default=3, help="runs; the summary is their median")
+    parser.add_argument("--busy-poll-us", type=float, default=BUSY_POLL_S * 1e6,
+                        help="the adapter's busy poll before blocking receives (0: off)")
     args = parser.parse_args()
+    poll_s = args.busy_poll_us * 1e-6
     with tempfile.TemporaryDirectory() as tmp:
         fmu = build(None, Path(tmp), ["quadrotor"])[0]
+        replies = sample_replies(fmu)
         _pin(1)
-        step_us = bare_step_us(fmu, args.steps)
-        print(f"bare FMU step (setReal + doStep + getReal of the sent outputs, FMPy FMU2Slave): {step_us:.1f} us")
-        for kind, client in (("px4", px4_client), ("ardupilot-json", json_client)):
-            q: mp.Queue = mp.Queue()
-            busy_q: mp.Queue = mp.Queue()
-            proc = mp.Process(target=serve, args=(kind, str(fmu), q, args.steps + 1, busy_q), daemon=True)
-            proc.start()
-            port = q.get(timeout=60)
-            time.sleep(0.2)
-            t0 = time.perf_counter()
-            rtt = client(port, args.steps)
-            wall = time.perf_counter() - t0
-            busy_s, fmu_s = busy_q.get(timeout=30)
-            busy_us, fmu_us = 1e6 * busy_s, 1e6 * fmu_s
-            proc.join(timeout=30)
-            rate = len(rtt) / wall
-            p50, p99 = np.percentile(rtt, [50, 99]) * 1e6
-            overhead = busy_us - fmu_us
-            print(f"{kind:<15} {rate:6.0f} steps/s (target >= 1000); round trip p50 {p50:4.0f} us, p99 {p99:4.0f} us "
-                  f"(target < 1000); adapter busy {busy_us:4.0f} us/step, of which the FMU step {fmu_us:4.0f} us; "
-                  f"overhead {overhead:4.0f} us = {overhead / fmu_us:.2f}x the FMU step in the loop, "
-                  f"{overhead / step_us:.2f}x the bare one (target < 1x)")
+        print(f"{args.repeat} runs of {args.steps} lockstep steps, busy poll {args.busy_poll_us:.0f} us; medians per "
+              "step (FMU step = setReal + doStep + getReal of the sent outputs through FMPy's FMU2Slave)")
+        runs = [one_run(fmu, replies, args.steps, poll_s) for _ in range(args.repeat)]
+    print("median of the runs (ratios taken within each run: the machine's speed drifts between runs):")
+    for kind in runs[0]:
+        for run in runs:
+            r = run[kind]
+            r["overhead_us"] = r["busy_us"] - r["fmu_us"]
+            r["own_us"] = r["overhead_us"] - r["send_us"]
+            for key in ("overhead", "own"):
+                r[f"{key}_loop"] = r[f"{key}_us"] / r["fmu_us"]
+                r[f"{key}_bare"] = r[f"{key}_us"] / r["bare_us"]
+        m = {key: float(np.median([run[kind][key] for run in runs])) for key in runs[0][kind]}
+        print(f"{kind:<15} {m['rate']:5.0f} steps/s (target >= 1000); round trip p50 {m['p50_us']:4.0f} us, "
+              f"p99 {m['p99_us']:4.0f} us (target < 1000)")
+        print(f"{'':16}adapter overhead (busy - FMU step) {m['overhead_us']:3.0f} us: {m['overhead_loop']:.2f}x "
+              f"the FMU step in the loop, {m['overhead_bare']:.2f}x the bare one (target < 1x)")
+        print(f"{'':16}of it, sending alone (null server) {m['send_us']:3.0f} us; the adapter's own work "
+              f"{m['own_us']:3.0f} us: {m['own_loop']:.2f}x the FMU step in the loop, {m['own_bare']:.2f}x bare")
     return 0
 
 

@@ -125,7 +125,11 @@ class ArduPilotJsonServer:
             self.recorder.write(self.plant.t_s, pwm, self.plant.inputs, self.plant.state)
         for sink in self.sinks:
             sink(self.plant.t_s, self.plant.state)
-        self.last_reply = self.reply()
+        try:
+            self.last_reply = self.reply()
+        except PacketError as err:  # outputs SITL cannot take: like an FMU error, restart the simulation
+            self.plant.fail(f"t = {self.plant.t_s:.6g} s: {err}")
+            self.last_reply = self.reply()
         return self.last_reply
 
     def serve(self, stop: threading.Event | None = None, max_frames: int | None = None,

@@ -5,6 +5,7 @@ line and a summary at exit. Config (TOML, every section optional; unknown keys a
 
     [network]    host = "127.0.0.1"   port = 4560       # PX4 TCP / JSON UDP; 127.0.0.1 unless told otherwise
     [timing]     mode = "lockstep"    rate_hz = 250     # PX4: lockstep or realtime; MAVLink/NMEA: realtime
+                 busy_poll_us = 500                      # lockstep: poll this long before a blocking receive
     [watchdog]   timeout_s = 0.5      mode = "throttle_off"   # or "hold"
     [record]     path = "hil_log.csv"                    # every step in and out, readable by our readers
     [mavlink]    url = "udpin:127.0.0.1:14560"  baud = 57600
@@ -29,8 +30,8 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-SECTIONS = {"network": {"host", "port"}, "px4": {"rc_channels", "wing_controls"}, "timing": {"mode", "rate_hz"},
-            "watchdog": {"timeout_s", "mode"},
+SECTIONS = {"network": {"host", "port"}, "px4": {"rc_channels", "wing_controls"},
+            "timing": {"mode", "rate_hz", "busy_poll_us"}, "watchdog": {"timeout_s", "mode"},
             "record": {"path"}, "mavlink": {"url", "baud"}, "nmea": {"port", "baud", "rate_hz"}, "start": None,
             "sensors": None, "mapping": None}
 INTERFACES = ("px4", "ardupilot-json", "mavlink", "nmea")
@@ -63,6 +64,9 @@ def load_config(path: Path | None) -> dict[str, Any]:
     rate = timing.get("rate_hz", 250)
     if not (isinstance(rate, int | float) and 1 <= rate <= 10000):
         problems.append(f"timing.rate_hz = {rate!r}; allowed: 1..10000")
+    poll = timing.get("busy_poll_us", 0)
+    if not (isinstance(poll, int | float) and not isinstance(poll, bool) and 0 <= poll <= 100_000):
+        problems.append(f"timing.busy_poll_us = {poll!r}; allowed: 0..100000 (0 turns the busy poll off)")
     if problems:
         raise HilConfigError(f"{path}: " + "; ".join(problems))
     return data
@@ -167,18 +171,21 @@ def run(args: argparse.Namespace) -> int:
 def _make_server(interface: str, plant: Any, sensors: Any, stats: Any, recorder: Any, watchdog: Any, host: str,
                  port: int, dt: float, timing: Mapping[str, Any], cfg: Mapping[str, Any],
                  closers: list[Callable[[], Any]]) -> Any:
+    from hil_adapter.core import BUSY_POLL_S
+
+    poll_s = float(timing["busy_poll_us"]) * 1e-6 if "busy_poll_us" in timing else BUSY_POLL_S
     if interface == "px4":
         from hil_adapter.px4 import Px4Server
 
         srv = Px4Server(plant, sensors, host, port, timing.get("mode", "lockstep") == "lockstep", dt, stats,
                         recorder, watchdog, cfg.get("px4", {}).get("rc_channels"),
-                        wing_controls=_wing_controls(cfg.get("px4", {}).get("wing_controls")))
+                        wing_controls=_wing_controls(cfg.get("px4", {}).get("wing_controls")), busy_poll_s=poll_s)
         closers.append(srv.close)
         return srv
     if interface == "ardupilot-json":
         from hil_adapter.ardupilot_json import ArduPilotJsonServer, UdpTransport
 
-        transport = UdpTransport(host, port)
+        transport = UdpTransport(host, port, busy_poll_s=poll_s)
         closers.append(transport.close)
         # SITL models its own sensor noise: our noise goes on the IMU only when [sensors] asks for it
         return ArduPilotJsonServer(plant, transport, stats, recorder, sensors if "sensors" in cfg else None)

@@ -34,7 +34,7 @@ STATE_OUTPUTS = (
 )
 OPTIONAL_OUTPUTS = ("airspeed_m_s",)
 #: lockstep default of the busy poll before a blocking receive [s]; see :func:`spin_until_readable`
-BUSY_POLL_S = 0.001
+BUSY_POLL_S = 0.0005
 
 
 def spin_until_readable(sock: socket.socket, spin_s: float) -> bool:
@@ -106,11 +106,15 @@ class Plant:
             self.state = self.host.get(self.outputs)
             self.step_times.append(time.perf_counter() - t0)
         except FmuRunError as err:
-            self.fmu_errors += 1
-            self.last_error = str(err)
-            log.error("FMU error, restarting the simulation: %s", err)
-            self.restart()
+            self.fail(str(err))
         return self.state
+
+    def fail(self, reason: str) -> None:
+        """The FMU failed (or gave outputs no interface can send): count, log, restart from the start state."""
+        self.fmu_errors += 1
+        self.last_error = reason
+        log.error("FMU error, restarting the simulation: %s", reason)
+        self.restart()
 
     def close(self) -> None:
         self.host.close()

@@ -21,8 +21,20 @@ MAGIC_V2 = 0xFD
 #: MAVLink 2 header after the magic byte: len, incompat flags, compat flags, seq, sysid, compid, msgid (24 bit)
 HEADER_V2 = struct.Struct("<BBBBBBBHB")
 HEADER_LEN = HEADER_V2.size
+#: the header as we send it, from the length on (incompat and compat flags 0: unsigned)
+_HEADER_OUT = struct.Struct("<BxxBBBHB")
 CRC = struct.Struct("<H")
-INCOMPAT_SIGNED = mavlink2.MAVLINK_IFLAG_SIGNED
+
+
+#: fastcrc's CRC-16/MCRF4XX when pymavlink found it (what pymavlink's own ``x25crc`` calls), else None
+_MCRF4XX = getattr(mavlink2, "mcrf4xx", None)
+
+
+def _crc16(data: bytes) -> int:
+    """MAVLink's X.25 (CRC-16/MCRF4XX) checksum, as pymavlink computes it (without its wrapper object)."""
+    if _MCRF4XX is not None:
+        return int(_MCRF4XX(data, 0xFFFF))
+    return int(mavlink2.x25crc(data).crc)
 
 
 @dataclass(frozen=True)
@@ -30,18 +42,22 @@ class _Layout:
     """Wire layout of one message class: per wire field the declared argument index and array length."""
 
     msg_id: int
-    crc_extra: int
+    crc_extra: bytes
     payload: struct.Struct
     wire: tuple[tuple[int, int], ...]
     defaults: tuple[Any, ...]
+    #: wire order is the declared order and no field is an array: the arguments pack as they are
+    flat: bool
 
     @classmethod
     def of(cls, msg_class: type) -> _Layout:
         names = list(msg_class.fieldnames)
         wire = tuple((names.index(n), length) for n, length in
                      zip(msg_class.ordered_fieldnames, msg_class.array_lengths, strict=True))
+        flat = all(index == k and not length for k, (index, length) in enumerate(wire))
         # MAVLink 2 extension fields (declared after the base ones) default to zero, as in pymavlink
-        return cls(msg_class.id, msg_class.crc_extra, msg_class.unpacker, wire, tuple(0 for _ in names))
+        return cls(msg_class.id, bytes((msg_class.crc_extra,)), msg_class.unpacker, wire,
+                   tuple(0 for _ in names), flat)
 
 
 class FastMavlink:
@@ -53,33 +69,32 @@ class FastMavlink:
         self._layouts: dict[type, _Layout] = {}
         self._actuator = _Layout.of(mavlink2.MAVLink_hil_actuator_controls_message)
 
-    def _layout(self, msg_class: type) -> _Layout:
-        layout = self._layouts.get(msg_class)
-        if layout is None:
-            layout = self._layouts[msg_class] = _Layout.of(msg_class)
-        return layout
-
     def pack(self, msg_class: type, *args: Any) -> bytes:
         """One framed message; ``args`` in the order of ``msg_class``'s constructor (as pymavlink's
         ``*_encode``). Advances the sequence number like ``MAVLink.send``."""
         mav = self.mav
+        lay = self._layouts.get(msg_class)
+        if lay is None:
+            lay = self._layouts[msg_class] = _Layout.of(msg_class)
         if mav.signing.sign_outgoing:  # rare on a simulator link: pymavlink signs
             buf = msg_class(*args).pack(mav)
         else:
-            lay = self._layout(msg_class)
             if len(args) < len(lay.defaults):
                 args = args + lay.defaults[len(args):]
-            values: list[Any] = []
-            for index, length in lay.wire:
-                if length:
-                    values.extend(args[index])
-                else:
-                    values.append(args[index])
-            payload = lay.payload.pack(*values).rstrip(b"\0") or b"\0"  # MAVLink 2 trims trailing zeros
-            head = HEADER_V2.pack(MAGIC_V2, len(payload), 0, 0, mav.seq, mav.srcSystem, mav.srcComponent,
-                                  lay.msg_id & 0xFFFF, lay.msg_id >> 16)
-            body = head[1:] + payload
-            buf = head[:1] + body + CRC.pack(mavlink2.x25crc(body + bytes((lay.crc_extra,))).crc)
+            if lay.flat:
+                payload = lay.payload.pack(*args)
+            else:
+                values: list[Any] = []
+                for index, length in lay.wire:
+                    if length:
+                        values.extend(args[index])
+                    else:
+                        values.append(args[index])
+                payload = lay.payload.pack(*values)
+            payload = payload.rstrip(b"\0") or b"\0"  # MAVLink 2 trims trailing zero bytes, keeps one
+            body = _HEADER_OUT.pack(len(payload), mav.seq, mav.srcSystem, mav.srcComponent, lay.msg_id & 0xFFFF,
+                                    lay.msg_id >> 16) + payload
+            buf = b"\xfd" + body + CRC.pack(_crc16(body + lay.crc_extra))
         mav.seq = (mav.seq + 1) % 256
         return buf
 
@@ -94,12 +109,14 @@ class FastMavlink:
         end = HEADER_LEN + plen + 2
         if plen > lay.payload.size or len(data) < end:
             return None
-        body = data[1:HEADER_LEN + plen]
-        if CRC.unpack_from(data, end - 2)[0] != mavlink2.x25crc(body + bytes((lay.crc_extra,))).crc:
+        if CRC.unpack_from(data, end - 2)[0] != _crc16(data[1:HEADER_LEN + plen] + lay.crc_extra):
             return None  # pymavlink counts it as bad data
-        payload = data[HEADER_LEN:HEADER_LEN + plen] + bytes(lay.payload.size - plen)  # MAVLink 2 trimmed zeros
-        _, flags, *rest = lay.payload.unpack(payload)
-        return rest[:16], rest[16], flags, data[end:]
+        if plen == lay.payload.size:
+            fields = lay.payload.unpack_from(data, HEADER_LEN)
+        else:  # MAVLink 2 trimmed trailing zero bytes off the payload
+            fields = lay.payload.unpack(data[HEADER_LEN:HEADER_LEN + plen] + bytes(lay.payload.size - plen))
+        # wire order: time_usec, flags, controls[16], mode
+        return fields[2:18], fields[18], fields[1], data[end:]
 
 
 __all__ = ["FastMavlink"]

@@ -13,7 +13,7 @@ import json
 import math
 import struct
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from typing import NamedTuple
 
 #: ArduPilot servo packet with 16 channels: magic, frame_rate [Hz], frame_count, pwm[16] [us]
 SERVO16 = struct.Struct("<HHI16H")
@@ -28,9 +28,8 @@ class PacketError(ValueError):
     """A malformed packet; the message says what is wrong with it."""
 
 
-@dataclass(frozen=True)
-class ServoPacket:
-    """One ArduPilot SITL output frame."""
+class ServoPacket(NamedTuple):
+    """One ArduPilot SITL output frame (a named tuple: one is unpacked per lockstep frame)."""
 
     frame_rate_hz: int
     frame_count: int
@@ -47,23 +46,26 @@ class ServoPacket:
         """Parse a datagram; ``PacketError`` names the length or magic that does not fit."""
         if len(data) < 2:
             raise PacketError(f"servo packet of {len(data)} bytes is too short for its magic")
-        (magic,) = struct.unpack_from("<H", data)
+        magic = data[0] | data[1] << 8  # little-endian uint16
         layout = MAGIC_TO_STRUCT.get(magic)
         if layout is None:
             raise PacketError(f"servo packet magic {magic} is neither {SERVO16_MAGIC} (16 ch) nor {SERVO32_MAGIC} "
                               "(32 ch)")
         if len(data) != layout.size:
             raise PacketError(f"servo packet with magic {magic} must be {layout.size} bytes, got {len(data)}")
-        _, rate, count, *pwm = layout.unpack(data)
-        if rate == 0:
+        fields = layout.unpack(data)
+        if fields[1] == 0:
             raise PacketError("servo packet frame_rate is 0 Hz")
-        return cls(rate, count, tuple(pwm))
+        return cls(fields[1], fields[2], fields[3:])
 
 
 #: SITL reads the timestamp and position as doubles (shortest round-trip repr here) and the IMU, velocity and
-#: quaternion as floats: 9 significant digits hold every float32 exactly and format several times faster
+#: quaternion as floats: those are rounded to float32 first, and 9 significant digits give every float32 back
+#: exactly, formatted several times faster than a double's repr
 _STATE_FORMAT = ('\n{"timestamp":%r,"imu":{"gyro":[%.9g,%.9g,%.9g],"accel_body":[%.9g,%.9g,%.9g]},'
                  '"position":[%r,%r,%r],"velocity":[%.9g,%.9g,%.9g],"quaternion":[%.9g,%.9g,%.9g,%.9g]')
+_FLOAT32_FIELDS = struct.Struct("<13f")  #: gyro, accel, velocity, quaternion as SITL stores them
+_FLOAT32 = struct.Struct("<f")
 
 
 def json_state(timestamp_s: float, gyro_body_rad_s: Sequence[float], accel_body_m_s2: Sequence[float],
@@ -72,21 +74,33 @@ def json_state(timestamp_s: float, gyro_body_rad_s: Sequence[float], accel_body_
     """The physics backend's reply: a JSON object framed by newlines (quaternion w, x, y, z body->NED).
 
     Formatted with a fixed template (finite floats format as valid JSON): ``json.dumps`` of the nested dict
-    costs several times more, once per lockstep frame.
+    costs several times more, once per lockstep frame. ``PacketError`` for a non-finite value or one beyond
+    float32's range in a float field.
     """
-    pn, pe, pd = position_ned_m
-    values = (float(timestamp_s), *gyro_body_rad_s, *accel_body_m_s2, float(pn), float(pe), float(pd),
-              *velocity_ned_m_s, *quaternion)
-    if len(values) != 17:
-        raise PacketError(f"JSON state needs 3-vectors and a 4-quaternion, got {len(values)} numbers")
+    try:
+        pn, pe, pd = position_ned_m
+        singles = _FLOAT32_FIELDS.unpack(_FLOAT32_FIELDS.pack(*gyro_body_rad_s, *accel_body_m_s2, *velocity_ned_m_s,
+                                                              *quaternion))
+    except OverflowError as err:
+        raise PacketError(f"JSON state value beyond float32 range ({err}): gyro {gyro_body_rad_s}, accel "
+                          f"{accel_body_m_s2}, velocity {velocity_ned_m_s}, quaternion {quaternion}") from None
+    except (ValueError, struct.error) as err:
+        raise PacketError(f"JSON state needs 3-vectors and a 4-quaternion ({err})") from None
+    values = (float(timestamp_s), *singles[:6], float(pn), float(pe), float(pd), *singles[6:])
     # one sum instead of 17 tests in the common case; a sum that overflows is checked value by value
     if not math.isfinite(sum(values)) and not all(map(math.isfinite, values)):
-        raise PacketError(f"JSON state has a non-finite value: {values}")
+        raise PacketError(f"JSON state has a non-finite value: timestamp {timestamp_s}, gyro {gyro_body_rad_s}, "
+                          f"accel {accel_body_m_s2}, position {position_ned_m}, velocity {velocity_ned_m_s}, "
+                          f"quaternion {quaternion}")
     text = _STATE_FORMAT % values
     if airspeed_m_s is not None:
-        if not math.isfinite(airspeed_m_s):
-            raise PacketError(f"JSON state airspeed is not finite: {airspeed_m_s}")
-        text += f',"airspeed":{airspeed_m_s:.9g}'
+        try:
+            (airspeed,) = _FLOAT32.unpack(_FLOAT32.pack(airspeed_m_s))
+        except OverflowError:
+            airspeed = math.inf
+        if not math.isfinite(airspeed):
+            raise PacketError(f"JSON state airspeed {airspeed_m_s} is not a finite float32")
+        text += f',"airspeed":{airspeed:.9g}'
     if extra:
         text += "," + json.dumps(dict(extra), separators=(",", ":"))[1:-1]
     return (text + "}\n").encode()

@@ -36,33 +36,38 @@ class Channel:
     deadband_us: float = 0.0
     failsafe: float = 0.0
 
+    @property
+    def one_sided(self) -> bool:
+        """Throttle or motor: the range runs from ``min_us`` (at ``out_min``) to ``max_us``, no centre."""
+        return self.out_min >= 0.0 or self.trim_us <= self.min_us
+
     def to_input(self, pwm_us: float) -> float:
         """FMU input value of a pulse width [us]; NaN or implausible pulses raise ``MappingError``."""
         if not (PWM_LIMITS_US[0] <= pwm_us <= PWM_LIMITS_US[1]):  # also catches NaN
             raise MappingError(f"channel {self.source} ({self.target}): PWM {pwm_us} us outside "
                                f"[{PWM_LIMITS_US[0]}, {PWM_LIMITS_US[1]}] us")
-        x = min(max(pwm_us, self.min_us), self.max_us)
-        if abs(x - self.trim_us) <= self.deadband_us:
-            x = self.trim_us
-        if x >= self.trim_us:
-            frac = 0.0 if self.max_us == self.trim_us else (x - self.trim_us) / (self.max_us - self.trim_us)
-        else:
-            frac = -(self.trim_us - x) / (self.trim_us - self.min_us)
-        if self.reversed:
-            frac = -frac
-        if self.out_min >= 0.0 or self.trim_us <= self.min_us:  # one-sided target (throttle, motor)
-            full = (x - self.min_us) / (self.max_us - self.min_us)
+        lo, trim, hi = self.min_us, self.trim_us, self.max_us
+        x = lo if pwm_us < lo else hi if pwm_us > hi else pwm_us
+        if self.deadband_us and abs(x - trim) <= self.deadband_us:
+            x = trim
+        if self.out_min >= 0.0 or trim <= lo:  # one-sided target (throttle, motor)
+            full = (x - lo) / (hi - lo)
             if self.reversed:
                 full = 1.0 - full
             return self.out_min + full * (self.out_max - self.out_min)
-        half = self.out_max if frac >= 0 else -self.out_min
-        return frac * half
+        if x >= trim:
+            frac = 0.0 if hi == trim else (x - trim) / (hi - trim)
+        else:
+            frac = -(trim - x) / (trim - lo)
+        if self.reversed:
+            frac = -frac
+        return frac * (self.out_max if frac >= 0 else -self.out_min)
 
     def to_pwm(self, value: float) -> float:
         """The pulse width [us] that :meth:`to_input` maps to ``value`` (clipped to the channel's range);
         used to write synthetic logs as an autopilot would have logged its outputs."""
         v = min(max(value, self.out_min), self.out_max)
-        if self.out_min >= 0.0 or self.trim_us <= self.min_us:
+        if self.one_sided:
             full = (v - self.out_min) / (self.out_max - self.out_min)
             if self.reversed:
                 full = 1.0 - full

@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 import math
 import socket
+import struct
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -44,7 +45,11 @@ def controls_to_pwm(controls: Sequence[float], vehicle: str, armed: bool,
         return lo if not math.isfinite(v) else min(max(v, lo), hi)
 
     if vehicle == "quadrotor":
-        return {k + 1: 1000.0 + 1000.0 * (clip(controls[k], 0.0, 1.0) if armed else 0.0) for k in range(4)}
+        if not armed:
+            return dict.fromkeys(range(1, 5), 1000.0)
+        c1, c2, c3, c4 = controls[:4]
+        return {1: 1000.0 + 1000.0 * clip(c1, 0.0, 1.0), 2: 1000.0 + 1000.0 * clip(c2, 0.0, 1.0),
+                3: 1000.0 + 1000.0 * clip(c3, 0.0, 1.0), 4: 1000.0 + 1000.0 * clip(c4, 0.0, 1.0)}
     out = {}
     for ch, idx in (wing_controls or WING_CONTROLS).items():
         if ch == 3:
@@ -52,6 +57,11 @@ def controls_to_pwm(controls: Sequence[float], vehicle: str, armed: bool,
         else:
             out[ch] = 1500.0 + 500.0 * clip(controls[idx], -1.0, 1.0)
     return out
+
+
+def _int16(value: float) -> int:
+    """``value`` rounded and saturated to a MAVLink int16 field."""
+    return min(max(round(value), -32768), 32767)
 
 
 class HilMessages:
@@ -75,20 +85,22 @@ class HilMessages:
         return self.codec.pack(
             mavlink2.MAVLink_hil_gps_message, t_us, int(fix.fix_type), round(fix.lat_deg * 1e7),
             round(fix.lon_deg * 1e7), round(fix.alt_msl_m * 1e3), min(round(fix.eph_m * 100), 65535),
-            min(round(fix.epv_m * 100), 65535), min(round(fix.ground_speed_m_s * 100), 65535), round(vn * 100),
-            round(ve * 100), round(vd * 100), round(fix.course_deg * 100) % 36000, int(fix.satellites))
+            min(round(fix.epv_m * 100), 65535), min(round(fix.ground_speed_m_s * 100), 65535), _int16(vn * 100),
+            _int16(ve * 100), _int16(vd * 100), round(fix.course_deg * 100) % 36000, int(fix.satellites))
 
     def state(self, t_us: int, s: Mapping[str, float]) -> bytes:
-        g0 = 9.80665
-        airspeed_cm_s = min(round(s.get("airspeed_m_s", 0.0) * 100), 65535)
+        """Ground truth; velocities [cm/s] and accelerations [mG] saturate at the int16 range (a crash
+        landing can exceed 32 g)."""
+        mg = 1000.0 / 9.80665
+        airspeed_cm_s = min(max(round(s.get("airspeed_m_s", 0.0) * 100), 0), 65535)
         return self.codec.pack(
             mavlink2.MAVLink_hil_state_quaternion_message, t_us, (s["quat_w"], s["quat_x"], s["quat_y"],
                                                                  s["quat_z"]),
             s["rate_body_x_rad_s"], s["rate_body_y_rad_s"], s["rate_body_z_rad_s"], round(s["lat_deg"] * 1e7),
-            round(s["lon_deg"] * 1e7), round(s["height_m"] * 1e3), round(s["vel_north_m_s"] * 100),
-            round(s["vel_east_m_s"] * 100), round(s["vel_down_m_s"] * 100), airspeed_cm_s, airspeed_cm_s,
-            round(s["accel_body_x_m_s2"] / g0 * 1000), round(s["accel_body_y_m_s2"] / g0 * 1000),
-            round(s["accel_body_z_m_s2"] / g0 * 1000))
+            round(s["lon_deg"] * 1e7), round(s["height_m"] * 1e3), _int16(s["vel_north_m_s"] * 100),
+            _int16(s["vel_east_m_s"] * 100), _int16(s["vel_down_m_s"] * 100), airspeed_cm_s, airspeed_cm_s,
+            _int16(s["accel_body_x_m_s2"] * mg), _int16(s["accel_body_y_m_s2"] * mg),
+            _int16(s["accel_body_z_m_s2"] * mg))
 
     def heartbeat(self) -> bytes:
         return self.codec.pack(mavlink2.MAVLink_heartbeat_message, self.mav_type, mavlink2.MAV_AUTOPILOT_INVALID,
@@ -163,9 +175,14 @@ class Px4Server:
         t_us = round(t_s * 1e6)
         frame = self.sensors.sample(t_s, self.plant.state)
         self.last_frame = frame
-        out = [self.msgs.sensor(t_us, frame), self.msgs.state(t_us, self.plant.state)]
-        if frame.gps is not None:
-            out.append(self.msgs.gps(t_us, frame.gps))
+        try:
+            out = [self.msgs.sensor(t_us, frame), self.msgs.state(t_us, self.plant.state)]
+            if frame.gps is not None:
+                out.append(self.msgs.gps(t_us, frame.gps))
+        except (struct.error, OverflowError) as err:  # outputs no MAVLink field holds: like an FMU error
+            self.plant.fail(f"t = {t_s:.6g} s: FMU outputs do not fit the HIL messages ({err})")
+            self._send_step(conn)
+            return
         if t_s - self._last_heartbeat >= 1.0:
             out.append(self.msgs.heartbeat())
             if self.rc_channels:
@@ -230,10 +247,11 @@ class Px4Server:
                     if self.watchdog.check(self.plant, self.stats):
                         break  # step on with the failsafe inputs: the autopilot may be restarting
                     continue
+                received = time.perf_counter()  # busy time counts from here: parsing is the adapter's work
                 if not data:
                     return False
                 if self._absorb(data):
-                    got_input = time.perf_counter()
+                    got_input = received
                     self.watchdog.fed()
                     self.stats.latencies.append(got_input - t0)
                     break

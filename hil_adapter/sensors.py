@@ -395,7 +395,8 @@ class SensorSuite:
         """Back to the state right after construction: same seed, zero drift, empty GPS history."""
         children = np.random.SeedSequence(self.seed).spawn(len(self._STREAMS))
         self._rng = {name: np.random.default_rng(s) for name, s in zip(self._STREAMS, children, strict=True)}
-        self._buffers: dict[str, tuple[list[float], int]] = {name: ([], 0) for name in self._STREAMS}
+        #: per stream: the block drawn ahead and the position of the next draw in it
+        self._buffers: dict[str, list[Any]] = {name: [[], 0] for name in self._STREAMS}
         self._drift: dict[str, Any] = {"accel": [0.0, 0.0, 0.0], "gyro": [0.0, 0.0, 0.0], "mag": [0.0, 0.0, 0.0],
                                        "baro": 0.0, "diff_pressure": 0.0}
         self._bias3 = {name: [float(v) for v in np.broadcast_to(getattr(self.config, name).bias, 3)]
@@ -412,10 +413,12 @@ class SensorSuite:
     def _normals(self, name: str, n: int) -> list[float]:
         """The next ``n`` standard normal draws of a stream, taken from blocks drawn ahead (numpy calls cost
         microseconds each: one per block instead of several per sample keeps a 1 kHz loop cheap)."""
-        buf, pos = self._buffers[name]
+        state = self._buffers[name]
+        buf, pos = state
         if pos + n > len(buf):
             buf, pos = self._rng[name].standard_normal(_BLOCK).tolist(), 0
-        self._buffers[name] = (buf, pos + n)
+            state[0] = buf
+        state[1] = pos + n
         return buf[pos:pos + n]
 
     def _vector(self, name: str, truth: tuple[float, float, float], sqrt_dt: float) -> tuple[float, float, float]:
@@ -492,8 +495,9 @@ class SensorSuite:
         t_s = float(t_s)
         if not math.isfinite(t_s):
             raise ValueError(f"sample time must be finite, got {t_s}")
-        try:
-            o = {name: float(outputs[name]) for name in REQUIRED_OUTPUTS}
+        try:  # one pass, in the order of REQUIRED_OUTPUTS
+            ax, ay, az, p, q, r, qw, qx, qy, qz, lat, lon, height, vn, ve, vd = map(
+                float, map(outputs.__getitem__, REQUIRED_OUTPUTS))
         except KeyError:
             missing = [name for name in REQUIRED_OUTPUTS if name not in outputs]
             raise MissingOutputError(f"FMU output{'s' if len(missing) > 1 else ''} {', '.join(missing)} "
@@ -503,12 +507,8 @@ class SensorSuite:
         dt = 0.0 if self._t_prev is None else t_s - self._t_prev
         self._t_prev = t_s
 
-        accel = (o["accel_body_x_m_s2"], o["accel_body_y_m_s2"], o["accel_body_z_m_s2"])
-        rates = (o["rate_body_x_rad_s"], o["rate_body_y_rad_s"], o["rate_body_z_rad_s"])
-        mag_body = _ned_to_body((o["quat_w"], o["quat_x"], o["quat_y"], o["quat_z"]), self._mag_ned_list)
-
-        height = o["height_m"]
-        temp_k, p_pa, rho = (float(v) for v in isa(height))
+        mag_body = _ned_to_body((qw, qx, qy, qz), self._mag_ned_list)
+        temp_k, p_pa, rho = isa(height)  # plain floats for a float altitude
         abs_pressure = self._scalar("baro", p_pa, dt)
         airspeed = outputs.get(AIRSPEED_OUTPUT)
         if airspeed is None:
@@ -517,19 +517,11 @@ class SensorSuite:
         else:
             diff_pressure = self._scalar("diff_pressure", 0.5 * rho * float(airspeed) ** 2, dt)
 
-        gps = self._gps(t_s, _GpsState(t_s, o["lat_deg"], o["lon_deg"], height,
-                                       (o["vel_north_m_s"], o["vel_east_m_s"], o["vel_down_m_s"])))
+        gps = self._gps(t_s, _GpsState(t_s, lat, lon, height, (vn, ve, vd)))
         sqrt_dt = math.sqrt(dt)
-        return SensorFrame(
-            accel_body_m_s2=self._vector("accel", accel, sqrt_dt),
-            gyro_body_rad_s=self._vector("gyro", rates, sqrt_dt),
-            mag_body_gauss=self._vector("mag", mag_body, sqrt_dt),
-            abs_pressure_pa=abs_pressure,
-            temperature_degc=temp_k - KELVIN_OFFSET,
-            diff_pressure_pa=diff_pressure,
-            pressure_alt_m=pressure_altitude_m(abs_pressure),
-            gps=gps,
-        )
+        return SensorFrame(self._vector("accel", (ax, ay, az), sqrt_dt), self._vector("gyro", (p, q, r), sqrt_dt),
+                           self._vector("mag", mag_body, sqrt_dt), abs_pressure, temp_k - KELVIN_OFFSET,
+                           diff_pressure, pressure_altitude_m(abs_pressure), gps)
 
 
 __all__ = [

@@ -148,3 +148,41 @@ def test_fixed_wing_reply_has_airspeed_and_gravity(fixed_wing_fmu: Path) -> None
         assert state["position"][2] == pytest.approx(-100.0, abs=1.0)
     finally:
         plant.close()
+
+
+def test_json_state_keeps_doubles_exact_and_floats_float32_exact() -> None:
+    """SITL reads timestamp and position as doubles, the IMU, velocity and quaternion as floats."""
+    from hil_adapter.packets import json_state
+
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        v = rng.normal(size=17) * 10.0 ** rng.integers(-8, 5, size=17)
+        state = parse_json_state(json_state(v[0], v[1:4], v[4:7], v[7:10], v[10:13], v[13:17], airspeed_m_s=v[0]))
+        assert state["timestamp"] == v[0] and state["position"] == list(v[7:10])
+        floats = [*state["imu"]["gyro"], *state["imu"]["accel_body"], *state["velocity"], *state["quaternion"],
+                  state["airspeed"]]
+        sent = np.concatenate([v[1:7], v[10:17], v[:1]])
+        assert np.array_equal(np.float32(floats), np.float32(sent))
+    with pytest.raises(PacketError, match="non-finite"):
+        json_state(0.0, [0.0, np.inf, 0.0], [0, 0, 0], [0, 0, 0], [0, 0, 0], [1, 0, 0, 0])
+
+
+def test_outputs_sitl_cannot_take_restart_the_simulation(quadrotor_fmu: Path) -> None:
+    """A state beyond float32 in the reply is handled like an FMU error: logged, counted, restarted."""
+    plant = Plant(quadrotor_fmu)
+    try:
+        srv = ArduPilotJsonServer(plant, transport=None)  # type: ignore[arg-type]  (handle() only)
+        for k in range(1, 4):
+            assert srv.handle(ServoPacket(400, k, (1000,) * 16).pack()) is not None
+        advance = plant.advance
+
+        def runaway(dt_s: float) -> dict[str, float]:
+            plant.state = {**advance(dt_s), "accel_body_x_m_s2": 1e39}
+            return plant.state
+
+        plant.advance = runaway  # type: ignore[method-assign]
+        state = json.loads(srv.handle(ServoPacket(400, 4, (1000,) * 16).pack()))
+        assert plant.fmu_errors == 1 and "float32" in plant.last_error and plant.t_s == 0.0
+        assert state["timestamp"] == 0.0 and np.isfinite(state["imu"]["accel_body"]).all()
+    finally:
+        plant.close()

@@ -61,6 +61,9 @@ def test_bad_config_exits_2_with_the_key_named(quadrotor_fmu: Path, tmp_path: Pa
     assert "noise_std" in capsys.readouterr().err
     assert main(["hil", str(tmp_path / "none.fmu"), "--interface", "nmea"]) == 2
     assert "not found" in capsys.readouterr().err
+    cfg.write_text("[timing]\nbusy_poll_us = -5\n")
+    assert main(["hil", str(quadrotor_fmu), "--interface", "ardupilot-json", "--config", str(cfg)]) == 2
+    assert "timing.busy_poll_us = -5; allowed: 0..100000" in capsys.readouterr().err
 
 
 def test_nmea_interface_streams_gps_sentences(quadrotor_fmu: Path, tmp_path: Path, capsys) -> None:

@@ -86,3 +86,36 @@ def test_generic_mavlink_bridge_over_udp(fixed_wing_fmu: Path) -> None:
         autopilot.close()
         adapter.close()
         plant.close()
+
+
+def test_busy_poll_returns_when_data_waits_and_gives_up_after_its_time() -> None:
+    import socket
+
+    from hil_adapter.core import spin_until_readable
+
+    a, b = socket.socketpair()
+    try:
+        assert spin_until_readable(a, 0.0) is False  # off: the caller blocks at once
+        t0 = time.perf_counter()
+        assert spin_until_readable(a, 0.005) is False
+        assert time.perf_counter() - t0 >= 0.005
+        b.sendall(b"x")
+        t0 = time.perf_counter()
+        assert spin_until_readable(a, 5.0) is True
+        assert time.perf_counter() - t0 < 1.0  # found the byte, did not spin for 5 s
+        assert a.recv(1) == b"x"
+    finally:
+        a.close()
+        b.close()
+
+
+def test_busy_poll_setting_is_checked() -> None:
+    from hil_adapter.ardupilot_json import UdpTransport
+
+    with pytest.raises(ValueError, match=r"busy_poll_s = -0\.001; allowed 0\.\.0\.1 s"):
+        UdpTransport("127.0.0.1", 0, busy_poll_s=-0.001)
+    tr = UdpTransport("127.0.0.1", 0, busy_poll_s=0.0)
+    try:
+        assert tr.recv(0.01) is None  # no spin, a short blocking wait, nothing came
+    finally:
+        tr.close()

@@ -142,3 +142,26 @@ def test_all_zero_payload_keeps_one_byte() -> None:
     assert buf[1] == 1 and buf == mavlink2.MAVLink_hil_actuator_controls_message(0, [0.0] * 16, 0, 0).pack(ref)
     got = FastMavlink(mavlink2.MAVLink(None, 1, 51)).actuator_controls(buf)
     assert got is not None and all(c == 0.0 and not math.copysign(1, c) < 0 for c in got[0])
+
+
+def test_checksum_without_fastcrc_matches(monkeypatch: pytest.MonkeyPatch) -> None:
+    """pymavlink falls back to its pure-Python CRC without fastcrc; so do we, with the same bytes."""
+    import hil_adapter.mavlink_fast as fast_module
+
+    args = (5, 0.1, 0.2, -9.8, 0.0, 0.0, 0.0, 0.2, 0.0, 0.4, 1013.0, 0.0, 100.0, 15.0, 8191)
+    with_fastcrc = FastMavlink(mavlink2.MAVLink(None, 1, 51)).pack(mavlink2.MAVLink_hil_sensor_message, *args)
+    monkeypatch.setattr(fast_module, "_MCRF4XX", None)
+    monkeypatch.setattr(mavlink2, "x25crc", mavlink2._x25crc_slow)
+    assert FastMavlink(mavlink2.MAVLink(None, 1, 51)).pack(mavlink2.MAVLink_hil_sensor_message, *args) == with_fastcrc
+
+
+def test_ground_truth_saturates_int16_fields_instead_of_failing() -> None:
+    """A crash landing can exceed 32 g, a runaway model 327 m/s: the int16 fields saturate."""
+    state = {"quat_w": 1.0, "quat_x": 0.0, "quat_y": 0.0, "quat_z": 0.0, "rate_body_x_rad_s": 0.0,
+             "rate_body_y_rad_s": 0.0, "rate_body_z_rad_s": 0.0, "lat_deg": 47.0, "lon_deg": 8.0, "height_m": 500.0,
+             "vel_north_m_s": 400.0, "vel_east_m_s": -400.0, "vel_down_m_s": 1.0, "accel_body_x_m_s2": 50 * 9.80665,
+             "accel_body_y_m_s2": 0.0, "accel_body_z_m_s2": -50 * 9.80665}
+    msg = mavlink2.MAVLink(None, 255, 0).parse_buffer(HilMessages(mavlink2.MAVLink(None, 1, 51), "quadrotor")
+                                                      .state(0, state))[0]
+    assert (msg.vx, msg.vy, msg.vz) == (32767, -32768, 100)
+    assert (msg.xacc, msg.zacc) == (32767, -32768)

@@ -253,3 +253,23 @@ def test_px4_over_an_in_memory_transport(quadrotor_fmu: Path) -> None:
     finally:
         srv.close()
         plant.close()
+
+
+def test_outputs_no_message_holds_restart_the_simulation(absorb_server) -> None:
+    """A sensor reading beyond float32 cannot be sent: handled like an FMU error, the step goes out from the
+    restarted simulation instead of raising in the server loop."""
+    srv = absorb_server
+    a, b = socket.socketpair()
+    try:
+        srv.plant.advance(DT)
+        srv.plant.state = {**srv.plant.state, "accel_body_x_m_s2": 1e39}
+        errors = srv.plant.fmu_errors
+        srv._send_step(a)
+        assert srv.plant.fmu_errors == errors + 1 and "do not fit" in srv.plant.last_error
+        b.settimeout(2.0)
+        msgs = mavlink2.MAVLink(None, 255, 0).parse_buffer(b.recv(65536))
+        assert [m.get_type() for m in msgs][:2] == ["HIL_SENSOR", "HIL_STATE_QUATERNION"]
+        assert msgs[0].time_usec == 0 and abs(msgs[0].xacc) < 1.0  # the start state's reading, not 1e39
+    finally:
+        a.close()
+        b.close()
