@@ -68,7 +68,8 @@ class UdpTransport:
 
 
 class ArduPilotJsonServer:
-    """Serve one SITL instance from ``plant``; ``handle`` is the pure per-datagram logic."""
+    """Serve one SITL instance from ``plant``; ``handle`` is the per-datagram logic (the reply), ``after_reply``
+    the bookkeeping done once the reply is out."""
 
     def __init__(self, plant: Plant, transport: DatagramTransport, stats: Stats | None = None,
                  recorder: Recorder | None = None, sensors: Any = None) -> None:
@@ -81,14 +82,17 @@ class ArduPilotJsonServer:
         #: the output channels the PWM mapping reads: the only ones decoded per frame
         self._sources = sorted({c.source for c in plant.mapping.channels})
         self.last_reply = b""
+        #: the sensor frame of the last reply (when ``sensors`` is set), for the log
+        self.last_frame: Any = None
+        self._stepped_pwm: dict[int, float] | None = None
 
     def reply(self) -> bytes:
         s = self.plant.state
-        gyro = [s["rate_body_x_rad_s"], s["rate_body_y_rad_s"], s["rate_body_z_rad_s"]]
-        accel = [s["accel_body_x_m_s2"], s["accel_body_y_m_s2"], s["accel_body_z_m_s2"]]
+        gyro = (s["rate_body_x_rad_s"], s["rate_body_y_rad_s"], s["rate_body_z_rad_s"])
+        accel = (s["accel_body_x_m_s2"], s["accel_body_y_m_s2"], s["accel_body_z_m_s2"])
         if self.sensors is not None:  # noisy IMU (SITL adds its own noise model on top if configured)
-            frame = self.sensors.sample(self.plant.t_s, s)
-            gyro, accel = list(frame.gyro_body_rad_s), list(frame.accel_body_m_s2)
+            self.last_frame = self.sensors.sample(self.plant.t_s, s)
+            gyro, accel = self.last_frame.gyro_body_rad_s, self.last_frame.accel_body_m_s2
         return json_state(self.plant.t_s, gyro, accel, [s["pos_north_m"], s["pos_east_m"], s["pos_down_m"]],
                           [s["vel_north_m_s"], s["vel_east_m_s"], s["vel_down_m_s"]],
                           [s["quat_w"], s["quat_x"], s["quat_y"], s["quat_z"]],
@@ -121,16 +125,24 @@ class ArduPilotJsonServer:
         self.last_count = pkt.frame_count
         self.plant.advance(1.0 / pkt.frame_rate_hz)
         self.stats.steps += 1
-        if self.recorder is not None:
-            self.recorder.write(self.plant.t_s, pwm, self.plant.inputs, self.plant.state)
-        for sink in self.sinks:
-            sink(self.plant.t_s, self.plant.state)
+        self._stepped_pwm = pwm
         try:
             self.last_reply = self.reply()
         except PacketError as err:  # outputs SITL cannot take: like an FMU error, restart the simulation
             self.plant.fail(f"t = {self.plant.t_s:.6g} s: {err}")
             self.last_reply = self.reply()
         return self.last_reply
+
+    def after_reply(self) -> None:
+        """Bookkeeping of the frame just answered, off SITL's critical path: the log row (PWM in, FMU inputs and
+        outputs, the IMU readings sent when ``sensors`` is set) and the sinks. Nothing for a resend."""
+        pwm, self._stepped_pwm = self._stepped_pwm, None
+        if pwm is None:
+            return
+        if self.recorder is not None:
+            self.recorder.write(self.plant.t_s, pwm, self.plant.inputs, self.plant.state, sensors=self.last_frame)
+        for sink in self.sinks:
+            sink(self.plant.t_s, self.plant.state)
 
     def serve(self, stop: threading.Event | None = None, max_frames: int | None = None,
               idle_timeout_s: float | None = None, poll_s: float = 0.1) -> Stats:
@@ -150,6 +162,8 @@ class ArduPilotJsonServer:
             out = self.handle(data)
             if out is not None:
                 self.transport.send(out, addr)
-                self.stats.latencies.append(time.perf_counter() - t0)
-                self.stats.busy.append(time.perf_counter() - t0)
+                busy = time.perf_counter() - t0
+                self.stats.latencies.append(busy)
+                self.stats.busy.append(busy)
+            self.after_reply()
         return self.stats

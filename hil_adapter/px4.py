@@ -224,6 +224,10 @@ class Px4Server:
             self.plant.apply(self.pwm)
         self.plant.advance(self.dt_s)
         self.stats.steps += 1
+
+    def _after_send(self) -> None:
+        """Bookkeeping of the state just sent, off the autopilot's critical path: the log row (PWM that led to
+        it, FMU inputs and outputs, the sensor readings sent) and the sinks."""
         if self.recorder is not None:
             self.recorder.write(self.plant.t_s, self.pwm, self.plant.inputs, self.plant.state, self.watchdog.tripped,
                                 self.last_frame)
@@ -239,6 +243,7 @@ class Px4Server:
             self._send_step(conn)
             if got_input is not None:
                 self.stats.busy.append(time.perf_counter() - got_input)
+            self._after_send()
             while True:
                 spin_until_readable(conn, self.busy_poll_s)
                 try:
@@ -278,6 +283,7 @@ class Px4Server:
                 self._send_step(conn)
             except BlockingIOError:
                 self.stats.dropped += 1
+            self._after_send()
             self.stats.busy.append(time.perf_counter() - t0)
             pacer.wait()
         return True

@@ -3,6 +3,7 @@ hover at 10 m, disconnect/reconnect, malformed bytes."""
 
 from __future__ import annotations
 
+import csv
 import socket
 import threading
 import time
@@ -233,11 +234,15 @@ class PairListener:
             s.close()
 
 
-def test_px4_over_an_in_memory_transport(quadrotor_fmu: Path) -> None:
-    """The same server on a socketpair instead of TCP: the HIL loop needs no network to be tested."""
+def test_px4_over_an_in_memory_transport(quadrotor_fmu: Path, tmp_path: Path) -> None:
+    """The same server on a socketpair instead of TCP: the HIL loop needs no network to be tested. Each log
+    row holds the state and the (noise-free) sensor readings sent with it, at the same time."""
+    from hil_adapter.core import Recorder
+
     plant = Plant(quadrotor_fmu)
     listener = PairListener()
-    srv = Px4Server(plant, SensorSuite(SensorConfig.noise_free()), listener=listener, dt_s=DT)
+    rec = Recorder(tmp_path / "px4.csv", [1, 2, 3, 4], list(plant.inputs), plant.outputs)
+    srv = Px4Server(plant, SensorSuite(SensorConfig.noise_free()), listener=listener, dt_s=DT, recorder=rec)
     try:
         with serving(srv):
             listener.ready.set()
@@ -246,13 +251,22 @@ def test_px4_over_an_in_memory_transport(quadrotor_fmu: Path) -> None:
                 time.sleep(0.01)
             px4 = FakePx4(sock=listener.peers[0])
             for k in range(100):
-                got = px4.read_step()
-                px4.send_controls(k, [1000.0] * 4)
-            assert got["HIL_SENSOR"].zacc == pytest.approx(-9.81, abs=0.05)
+                px4.read_step()
+                px4.send_controls(k, [1000.0] * 4 if k < 50 else [1700.0] * 4)  # rest, then climb
             assert srv.stats.steps >= 99
     finally:
         srv.close()
         plant.close()
+        rec.close()
+    with (tmp_path / "px4.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) >= 100 and float(rows[0]["time_s"]) == 0.0  # the start state, then one row per step
+    accel_z = np.array([float(r["accel_body_z_m_s2"]) for r in rows[1:]])
+    sensed_z = np.array([float(r["sens_accel_z_m_s2"]) for r in rows[1:]])
+    assert accel_z[45] == pytest.approx(-9.81, abs=0.05)  # at rest on the ground
+    assert np.all(np.abs(np.diff(accel_z[55:])) > 1e-6)  # climbing: drag changes the reading every step
+    np.testing.assert_allclose(sensed_z, accel_z, rtol=0, atol=1e-9)  # sensors of the same step, not the last
+    assert all(float(r["servo_1_pwm_us"]) == pytest.approx(1700.0, abs=1e-3) for r in rows[60:])  # float32 controls
 
 
 def test_outputs_no_message_holds_restart_the_simulation(absorb_server) -> None:
