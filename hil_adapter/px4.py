@@ -4,7 +4,8 @@ We send HIL_SENSOR (``fields_updated`` set), HIL_GPS at the GPS rate, HIL_STATE_
 HEARTBEAT at 1 Hz and optionally RC_CHANNELS; PX4 answers with HIL_ACTUATOR_CONTROLS (``controls[16]``:
 motors 0..1, surfaces -1..1; ``mode`` carries the armed bit; ``flags`` bit 0 asks for lockstep).
 
-Lockstep: send the sensors of time t, wait for the actuator reply, step the FMU, repeat. Real time: step at
+Lockstep: send the sensors of time t, log the step, busy-poll then wait for the actuator reply, step the FMU,
+repeat (the log row and the sinks run after the send, off PX4's critical path). Real time: step at
 a fixed rate on the wall clock with the latest actuator controls, deadline scheduling, overruns counted.
 A disconnect re-initialises the FMU and waits for the next connection. The same message builders serve the
 generic MAVLink bridge (``hil_adapter.mavlink_bridge``).
