@@ -49,7 +49,14 @@ def spin_until_readable(sock: socket.socket, spin_s: float) -> bool:
     if spin_s <= 0.0:
         return False
     end = time.perf_counter() + spin_s
-    watch = [sock]
+    if hasattr(select, "poll"):  # no FD_SETSIZE limit
+        poller = select.poll()
+        poller.register(sock, select.POLLIN)
+        while not poller.poll(0):
+            if time.perf_counter() >= end:
+                return False
+        return True
+    watch = [sock]  # Windows: select() on sockets
     while not select.select(watch, [], [], 0.0)[0]:
         if time.perf_counter() >= end:
             return False
