@@ -130,7 +130,11 @@ class ArduPilotJsonServer:
             self.last_reply = self.reply()
         except PacketError as err:  # outputs SITL cannot take: like an FMU error, restart the simulation
             self.plant.fail(f"t = {self.plant.t_s:.6g} s: {err}")
-            self.last_reply = self.reply()
+            try:
+                self.last_reply = self.reply()
+            except PacketError as again:  # not even the start state: no reply, SITL resends
+                log.error("FMU start state cannot be sent either: %s", again)
+                return None
         return self.last_reply
 
     def after_reply(self) -> None:

@@ -171,7 +171,9 @@ class Px4Server:
         self.server.close()
 
     # ---------------------------------------------------------------- one connection
-    def _send_step(self, conn: socket.socket) -> None:
+    def _send_step(self, conn: socket.socket, retry: bool = True) -> None:
+        """Sensors of the current state out; outputs no message can hold restart the FMU (once: if even its
+        start state cannot be sent, the step is logged and skipped, and the watchdog takes over)."""
         t_s = self.plant.t_s
         t_us = round(t_s * 1e6)
         frame = self.sensors.sample(t_s, self.plant.state)
@@ -181,8 +183,12 @@ class Px4Server:
             if frame.gps is not None:
                 out.append(self.msgs.gps(t_us, frame.gps))
         except (struct.error, OverflowError) as err:  # outputs no MAVLink field holds: like an FMU error
-            self.plant.fail(f"t = {t_s:.6g} s: FMU outputs do not fit the HIL messages ({err})")
-            self._send_step(conn)
+            reason = f"t = {t_s:.6g} s: FMU outputs do not fit the HIL messages ({err})"
+            if retry:
+                self.plant.fail(reason)
+                self._send_step(conn, retry=False)
+            else:
+                log.error("%s; not sent", reason)
             return
         if t_s - self._last_heartbeat >= 1.0:
             out.append(self.msgs.heartbeat())

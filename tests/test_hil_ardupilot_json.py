@@ -184,5 +184,14 @@ def test_outputs_sitl_cannot_take_restart_the_simulation(quadrotor_fmu: Path) ->
         state = json.loads(srv.handle(ServoPacket(400, 4, (1000,) * 16).pack()))
         assert plant.fmu_errors == 1 and "float32" in plant.last_error and plant.t_s == 0.0
         assert state["timestamp"] == 0.0 and np.isfinite(state["imu"]["accel_body"]).all()
+        restart = plant.restart
+
+        def runaway_start() -> None:
+            restart()
+            plant.state = {**plant.state, "accel_body_x_m_s2": 1e39}
+
+        plant.restart = runaway_start  # type: ignore[method-assign]
+        assert srv.handle(ServoPacket(400, 5, (1000,) * 16).pack()) is None  # nothing to send, nothing raised
+        assert plant.fmu_errors == 2
     finally:
         plant.close()

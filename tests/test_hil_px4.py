@@ -284,6 +284,23 @@ def test_outputs_no_message_holds_restart_the_simulation(absorb_server) -> None:
         msgs = mavlink2.MAVLink(None, 255, 0).parse_buffer(b.recv(65536))
         assert [m.get_type() for m in msgs][:2] == ["HIL_SENSOR", "HIL_STATE_QUATERNION"]
         assert msgs[0].time_usec == 0 and abs(msgs[0].xacc) < 1.0  # the start state's reading, not 1e39
+        restart = srv.plant.restart
+
+        def runaway_start() -> None:
+            restart()
+            srv.plant.state = {**srv.plant.state, "accel_body_x_m_s2": 1e39}
+
+        srv.plant.restart = runaway_start  # type: ignore[method-assign]
+        try:
+            srv.plant.state = {**srv.plant.state, "accel_body_x_m_s2": 1e39}
+            srv._send_step(a)  # not even the start state fits: logged, nothing sent, nothing raised
+        finally:
+            del srv.plant.restart
+            srv.plant.restart()  # leave the shared server as it was
+        assert srv.plant.fmu_errors == errors + 2
+        b.settimeout(0.2)
+        with pytest.raises(TimeoutError):
+            b.recv(65536)
     finally:
         a.close()
         b.close()
