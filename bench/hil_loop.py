@@ -66,7 +66,7 @@ def serve_null(kind: str, reply: bytes, work_s: float, port_q: mp.Queue, steps: 
     ``reply`` (a real reply's bytes); reports the median time of the send."""
     _pin(0)
     from hil_adapter.ardupilot_json import UdpTransport
-    from hil_adapter.core import spin_until_readable
+    from hil_adapter.core import SocketSpinner
     from hil_adapter.px4 import tcp_listener
 
     busy = []
@@ -77,8 +77,9 @@ def serve_null(kind: str, reply: bytes, work_s: float, port_q: mp.Queue, steps: 
         conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         conn.settimeout(1.0)
         conn.sendall(reply)
+        spinner = SocketSpinner(conn, busy_poll_s)
         for _ in range(steps - 1):
-            spin_until_readable(conn, busy_poll_s)
+            spinner.wait()
             if not conn.recv(65536):
                 break
             _spin(work_s)

@@ -15,7 +15,7 @@ import time
 from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
-from hil_adapter.core import BUSY_POLL_S, Plant, Recorder, Stats, spin_until_readable
+from hil_adapter.core import BUSY_POLL_S, Plant, Recorder, SocketSpinner, Stats
 from hil_adapter.packets import PacketError, ServoPacket, json_state
 from hil_adapter.pwm_mapping import MappingError
 
@@ -35,23 +35,22 @@ class DatagramTransport(Protocol):
 
 class UdpTransport:
     """A UDP socket bound to ``host:port`` (127.0.0.1 unless told otherwise); each receive busy-polls for
-    ``busy_poll_s`` [s] before it blocks (:func:`hil_adapter.core.spin_until_readable`; 0 turns it off)."""
+    ``busy_poll_s`` [s] before it blocks (:class:`hil_adapter.core.SocketSpinner`; 0 turns it off)."""
 
     def __init__(self, host: str = "127.0.0.1", port: int = DEFAULT_PORT, busy_poll_s: float = BUSY_POLL_S) -> None:
-        if not 0.0 <= busy_poll_s <= 0.1:
-            raise ValueError(f"busy_poll_s = {busy_poll_s}; allowed 0..0.1 s")
+        SocketSpinner.check(busy_poll_s)  # before the socket is bound
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         self.sock.bind((host, port))
         self.address = self.sock.getsockname()
-        self.busy_poll_s = busy_poll_s
+        self.spinner = SocketSpinner(self.sock, busy_poll_s)
         self._timeout_s: float | None = None
 
     def recv(self, timeout_s: float) -> tuple[bytes, Any] | None:
         if timeout_s != self._timeout_s:  # settimeout costs system calls: only when it changes
             self.sock.settimeout(timeout_s)
             self._timeout_s = timeout_s
-        spin_until_readable(self.sock, min(self.busy_poll_s, timeout_s))
+        self.spinner.wait(timeout_s)
         try:
             return self.sock.recvfrom(65536)
         except (TimeoutError, BlockingIOError):

@@ -33,34 +33,51 @@ STATE_OUTPUTS = (
     "lat_deg", "lon_deg", "height_m", "altitude_m",
 )
 OPTIONAL_OUTPUTS = ("airspeed_m_s",)
-#: lockstep default of the busy poll before a blocking receive [s]; see :func:`spin_until_readable`
+#: lockstep default of the busy poll before a blocking receive [s]; see :class:`SocketSpinner`
 BUSY_POLL_S = 0.0005
 
 
-def spin_until_readable(sock: socket.socket, spin_s: float) -> bool:
-    """Poll ``sock`` without sleeping for up to ``spin_s`` [s]; True as soon as data is waiting.
+class SocketSpinner:
+    """Polls one socket without sleeping for up to ``spin_s`` [s] before the caller's blocking receive.
 
     Written here because nothing covers it for local sockets: the kernel's SO_BUSY_POLL serves NIC queues
     only. In lockstep the autopilot answers within microseconds, but a core that sleeps in ``recv`` (and on
     a virtual machine, its virtual CPU) takes tens to hundreds of microseconds to wake and then runs the
-    step with cold caches; spinning briefly first keeps the step hot. After ``spin_s`` the caller's blocking
-    wait takes over, so a stalled autopilot costs no more CPU than ``spin_s`` per step.
+    step with cold caches; spinning briefly first keeps the step hot. After ``spin_s`` the blocking wait
+    takes over, so a stalled autopilot costs no more CPU than ``spin_s`` per step. The poll object is made
+    once per socket, not per step.
     """
-    if spin_s <= 0.0:
-        return False
-    end = time.perf_counter() + spin_s
-    if hasattr(select, "poll"):  # no FD_SETSIZE limit
-        poller = select.poll()
-        poller.register(sock, select.POLLIN)
-        while not poller.poll(0):
+
+    def __init__(self, sock: socket.socket, spin_s: float) -> None:
+        self.spin_s = self.check(spin_s)
+        self._sock = sock
+        self._poller = None
+        if hasattr(select, "poll"):  # no FD_SETSIZE limit; Windows falls back to select() on sockets
+            self._poller = select.poll()
+            self._poller.register(sock, select.POLLIN)
+
+    @staticmethod
+    def check(spin_s: float) -> float:
+        """``spin_s`` if it is a valid busy-poll time, else ``ValueError`` naming it and the range."""
+        if not 0.0 <= spin_s <= 0.1:
+            raise ValueError(f"busy_poll_s = {spin_s}; allowed 0..0.1 s")
+        return spin_s
+
+    def _ready(self) -> bool:
+        if self._poller is not None:
+            return bool(self._poller.poll(0))
+        return bool(select.select([self._sock], [], [], 0.0)[0])
+
+    def wait(self, limit_s: float | None = None) -> bool:
+        """Spin for at most ``spin_s`` (and ``limit_s``) [s]; True as soon as data is waiting."""
+        spin_s = self.spin_s if limit_s is None else min(self.spin_s, limit_s)
+        if spin_s <= 0.0:
+            return False
+        end = time.perf_counter() + spin_s
+        while not self._ready():
             if time.perf_counter() >= end:
                 return False
         return True
-    watch = [sock]  # Windows: select() on sockets
-    while not select.select(watch, [], [], 0.0)[0]:
-        if time.perf_counter() >= end:
-            return False
-    return True
 
 
 class Plant:

@@ -24,7 +24,8 @@ from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from hil_adapter.core import BUSY_POLL_S, Pacer, Plant, Recorder, Stats, Watchdog, spin_until_readable
+from fmu_models.common.atmosphere import G0_M_S2
+from hil_adapter.core import BUSY_POLL_S, Pacer, Plant, Recorder, SocketSpinner, Stats, Watchdog
 from hil_adapter.mavlink_fast import FastMavlink
 
 log = logging.getLogger(__name__)
@@ -33,6 +34,7 @@ DEFAULT_PORT = 4560
 FIELDS_ALL = (1 << 13) - 1
 ARMED_FLAG = mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
 LOCKSTEP_FLAG = 1  # HIL_ACTUATOR_CONTROLS.flags bit 0
+MG_PER_M_S2 = 1000.0 / G0_M_S2  #: HIL_STATE_QUATERNION accelerations are in milli-g
 #: fixed wing: which control index drives which output channel (PX4's classic roll, pitch, yaw, throttle group)
 WING_CONTROLS = {1: 0, 2: 1, 3: 3, 4: 2}
 
@@ -65,6 +67,11 @@ def _int16(value: float) -> int:
     return min(max(round(value), -32768), 32767)
 
 
+def _uint16(value: float) -> int:
+    """``value`` rounded and saturated to a MAVLink uint16 field."""
+    return min(max(round(value), 0), 65535)
+
+
 class HilMessages:
     """Builds the HIL_* messages of one time step from the FMU state and the sensor frame (framed by
     :class:`hil_adapter.mavlink_fast.FastMavlink` on ``mav``: sequence numbers advance per message)."""
@@ -85,15 +92,15 @@ class HilMessages:
         vn, ve, vd = fix.vel_ned_m_s
         return self.codec.pack(
             mavlink2.MAVLink_hil_gps_message, t_us, int(fix.fix_type), round(fix.lat_deg * 1e7),
-            round(fix.lon_deg * 1e7), round(fix.alt_msl_m * 1e3), min(round(fix.eph_m * 100), 65535),
-            min(round(fix.epv_m * 100), 65535), min(round(fix.ground_speed_m_s * 100), 65535), _int16(vn * 100),
+            round(fix.lon_deg * 1e7), round(fix.alt_msl_m * 1e3), _uint16(fix.eph_m * 100), _uint16(fix.epv_m * 100),
+            _uint16(fix.ground_speed_m_s * 100), _int16(vn * 100),
             _int16(ve * 100), _int16(vd * 100), round(fix.course_deg * 100) % 36000, int(fix.satellites))
 
     def state(self, t_us: int, s: Mapping[str, float]) -> bytes:
         """Ground truth; velocities [cm/s] and accelerations [mG] saturate at the int16 range (a crash
         landing can exceed 32 g)."""
-        mg = 1000.0 / 9.80665
-        airspeed_cm_s = min(max(round(s.get("airspeed_m_s", 0.0) * 100), 0), 65535)
+        mg = MG_PER_M_S2
+        airspeed_cm_s = _uint16(s.get("airspeed_m_s", 0.0) * 100)
         return self.codec.pack(
             mavlink2.MAVLink_hil_state_quaternion_message, t_us, (s["quat_w"], s["quat_x"], s["quat_y"],
                                                                  s["quat_z"]),
@@ -142,11 +149,9 @@ class Px4Server:
                  recorder: Recorder | None = None, watchdog: Watchdog | None = None,
                  rc_channels: Sequence[int] | None = None, listener: Listener | None = None,
                  wing_controls: Mapping[int, int] | None = None, busy_poll_s: float = BUSY_POLL_S) -> None:
-        if not 0.0 <= busy_poll_s <= 0.1:
-            raise ValueError(f"busy_poll_s = {busy_poll_s}; allowed 0..0.1 s")
         self.plant, self.sensors = plant, sensors
-        #: lockstep: busy-poll this long [s] for the actuator reply before blocking (``spin_until_readable``)
-        self.busy_poll_s = busy_poll_s
+        #: lockstep: busy-poll this long [s] for the actuator reply before blocking (``core.SocketSpinner``)
+        self.busy_poll_s = SocketSpinner.check(busy_poll_s)
         self.lockstep, self.dt_s = lockstep, dt_s
         self.stats = stats or Stats()
         #: called after every step with (t_s, FMU outputs): auxiliary outputs such as the NMEA GPS
@@ -244,6 +249,7 @@ class Px4Server:
     def _run_lockstep(self, conn: socket.socket, stop: threading.Event | None, max_steps: int | None) -> bool:
         """Returns False when the connection ended."""
         conn.settimeout(self.watchdog.timeout_s)
+        spinner = SocketSpinner(conn, self.busy_poll_s)
         got_input: float | None = None
         while not (stop is not None and stop.is_set()) and (max_steps is None or self.stats.steps < max_steps):
             t0 = time.perf_counter()
@@ -252,7 +258,7 @@ class Px4Server:
                 self.stats.busy.append(time.perf_counter() - got_input)
             self._after_send()
             while True:
-                spin_until_readable(conn, self.busy_poll_s)
+                spinner.wait()
                 try:
                     data = conn.recv(65536)
                 except TimeoutError:

@@ -434,10 +434,10 @@ class SensorSuite:
         return (truth[0] + b[0] + d[0] + sigma * z[0], truth[1] + b[1] + d[1] + sigma * z[1],
                 truth[2] + b[2] + d[2] + sigma * z[2])
 
-    def _scalar(self, name: str, truth: float, dt: float) -> float:
+    def _scalar(self, name: str, truth: float, sqrt_dt: float) -> float:
         cfg = getattr(self.config, name)
         z = self._normals(name, 2)
-        self._drift[name] += cfg.drift_std * math.sqrt(dt) * z[1]
+        self._drift[name] += cfg.drift_std * sqrt_dt * z[1]
         return truth + (cfg.bias + self._drift[name] + cfg.noise_std * z[0])
 
     def _gps(self, t_s: float, now: _GpsState) -> GpsFix | None:
@@ -509,16 +509,16 @@ class SensorSuite:
 
         mag_body = _ned_to_body((qw, qx, qy, qz), self._mag_ned_list)
         temp_k, p_pa, rho = isa(height)  # plain floats for a float altitude
-        abs_pressure = self._scalar("baro", p_pa, dt)
+        sqrt_dt = math.sqrt(dt)  # the random walks' step
+        abs_pressure = self._scalar("baro", p_pa, sqrt_dt)
         airspeed = outputs.get(AIRSPEED_OUTPUT)
         if airspeed is None:
             self._normals("diff_pressure", 2)  # keep the stream in step either way
             diff_pressure = 0.0
         else:
-            diff_pressure = self._scalar("diff_pressure", 0.5 * rho * float(airspeed) ** 2, dt)
+            diff_pressure = self._scalar("diff_pressure", 0.5 * rho * float(airspeed) ** 2, sqrt_dt)
 
         gps = self._gps(t_s, _GpsState(t_s, lat, lon, height, (vn, ve, vd)))
-        sqrt_dt = math.sqrt(dt)
         return SensorFrame(self._vector("accel", (ax, ay, az), sqrt_dt), self._vector("gyro", (p, q, r), sqrt_dt),
                            self._vector("mag", mag_body, sqrt_dt), abs_pressure, temp_k - KELVIN_OFFSET,
                            diff_pressure, pressure_altitude_m(abs_pressure), gps)

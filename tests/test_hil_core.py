@@ -91,18 +91,19 @@ def test_generic_mavlink_bridge_over_udp(fixed_wing_fmu: Path) -> None:
 def test_busy_poll_returns_when_data_waits_and_gives_up_after_its_time() -> None:
     import socket
 
-    from hil_adapter.core import spin_until_readable
+    from hil_adapter.core import SocketSpinner
 
     a, b = socket.socketpair()
     try:
-        assert spin_until_readable(a, 0.0) is False  # off: the caller blocks at once
+        assert SocketSpinner(a, 0.0).wait() is False  # off: the caller blocks at once
+        spinner = SocketSpinner(a, 5.0 / 1000)
         t0 = time.perf_counter()
-        assert spin_until_readable(a, 0.005) is False
+        assert spinner.wait() is False
         assert time.perf_counter() - t0 >= 0.005
         b.sendall(b"x")
         t0 = time.perf_counter()
-        assert spin_until_readable(a, 5.0) is True
-        assert time.perf_counter() - t0 < 1.0  # found the byte, did not spin for 5 s
+        assert SocketSpinner(a, 0.1).wait(limit_s=5.0) is True
+        assert time.perf_counter() - t0 < 1.0  # found the byte, did not spin for its whole time
         assert a.recv(1) == b"x"
     finally:
         a.close()
