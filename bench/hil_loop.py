@@ -36,7 +36,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from build_fmus import build
 from hil_adapter.core import BUSY_POLL_S
 from hil_adapter.packets import ServoPacket
-from uavfmu.fmu_host import FmuHost
+from fmu_models.fmi.host import FmuHost
 
 
 def serve(kind: str, fmu: str, port_q: mp.Queue, steps: int, busy_q: mp.Queue, busy_poll_s: float) -> None:

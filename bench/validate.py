@@ -23,7 +23,8 @@ import numpy as np
 
 from build_fmus import build
 from identification.validate_cli import validate_one
-from uavfmu import fmu_host, synthetic
+from fmu_models.fmi import host as fmu_host
+from uavfmu import synthetic
 from uavfmu.scenarios import QuadrotorAutopilot, fly, published_thrust_inverse, quadrotor_profile
 
 

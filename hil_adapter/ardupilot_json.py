@@ -17,7 +17,7 @@ from typing import Any, Protocol
 
 from hil_adapter.core import BUSY_POLL_S, Plant, Recorder, SocketSpinner, Stats
 from hil_adapter.packets import PacketError, ServoPacket, json_state
-from hil_adapter.pwm_mapping import MappingError
+from fmu_models.signals.pwm_mapping import MappingError
 
 log = logging.getLogger(__name__)
 DEFAULT_PORT = 9002

@@ -14,7 +14,7 @@ line and a summary at exit. Config (TOML, every section optional; unknown keys a
                  wing_controls = {"1" = 0, "2" = 1, "3" = 3, "4" = 2}  # fixed wing: output channel -> control
     [start]      init_pos_down_m = 0.0                    # FMU start values
     [sensors]    seed = 0  [sensors.gyro] noise_std = 0.002 ...        # hil_adapter.sensors.SensorConfig
-    [mapping.channels.aileron_rad] source = 1 ...                      # hil_adapter.pwm_mapping
+    [mapping.channels.aileron_rad] source = 1 ...                      # fmu_models.signals.pwm_mapping
 
 Exit status: 0 after a clean stop, 2 bad config or FMU.
 """
@@ -101,9 +101,9 @@ def nmea_sink(cfg: Mapping[str, Any]) -> tuple[Callable[[float, Mapping[str, flo
 
 def run(args: argparse.Namespace) -> int:
     from hil_adapter.core import Plant, Recorder, Stats, Watchdog
-    from hil_adapter.pwm_mapping import PwmMapping
+    from fmu_models.signals.pwm_mapping import PwmMapping
     from hil_adapter.sensors import SensorConfig, SensorSuite
-    from uavfmu.fmu_host import FmuRunError
+    from fmu_models.fmi.host import FmuRunError
 
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     closers: list[Callable[[], Any]] = []

@@ -1,6 +1,6 @@
 """What every simulator interface shares: the FMU plant, statistics, the crash-safe recorder, the watchdog.
 
-The plant drives the FMU only through FMI (FMPy's FMU2Slave, via ``uavfmu.fmu_host``): PWM in through the
+The plant drives the FMU only through FMI (FMPy's FMU2Slave, via ``fmu_models.fmi.host``): PWM in through the
 PWM mapping, outputs by name out. An FMU error never propagates: it is counted, logged, and the FMU is
 re-initialised at its start state, as a bench operator would restart the simulation.
 """
@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
-from hil_adapter.pwm_mapping import MappingError, PwmMapping, default_mapping
-from identification.flightlog import OUTPUT_TO_LOG
-from uavfmu.fmu_host import FmuHost, FmuRunError
+from fmu_models.signals.pwm_mapping import MappingError, PwmMapping, default_mapping
+from fmu_models.signals.names import OUTPUT_TO_LOG
+from fmu_models.fmi.host import FmuHost, FmuRunError
 
 log = logging.getLogger(__name__)
 

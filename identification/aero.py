@@ -1,6 +1,6 @@
 """From a fixed-wing flight log to output-error manoeuvres, and back to scored model outputs.
 
-Inputs come from the log's servo PWM through :mod:`hil_adapter.pwm_mapping` (the same mapping the HIL
+Inputs come from the log's servo PWM through :mod:`fmu_models.signals.pwm_mapping` (the same mapping the HIL
 adapter drives the FMU with; ArduPilot ``SERVOn_*`` parameters in the log fill it). Measured outputs are
 the log's canonical signals (``identification.flightlog``), resampled onto a uniform grid. Each segment
 starts from the log's own state at its first sample: attitude, body rates, altitude, and the body velocity
@@ -17,8 +17,9 @@ import casadi as ca
 import numpy as np
 
 from fmu_models.common.model import VehicleModel, init_function
-from hil_adapter.pwm_mapping import PwmMapping
-from identification.flightlog import OUTPUT_TO_LOG, FlightLog, LogError
+from fmu_models.signals.pwm_mapping import PwmMapping
+from fmu_models.signals.names import OUTPUT_TO_LOG
+from identification.flightlog import FlightLog, LogError
 from identification.log_state import initial_values, mapped_inputs
 from identification.metrics import FitMetrics, fit_metrics
 from identification.oem import Manoeuvre

@@ -105,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
     from fmu_models.common.errors import ParameterError
     from fmu_models.fixed_wing.model import FixedWingModel
     from fmu_models.fixed_wing.params import FixedWingParams
-    from hil_adapter.pwm_mapping import PwmMapping
+    from fmu_models.signals.pwm_mapping import PwmMapping
     from identification import aero
     from identification.jsonio import write_json
     from identification.oem import EstimationError, OutputError

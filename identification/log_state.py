@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hil_adapter.pwm_mapping import MappingError, PwmMapping
+from fmu_models.signals.pwm_mapping import MappingError, PwmMapping
 from identification.flightlog import FlightLog, Signal
 
 

@@ -24,7 +24,7 @@ import numpy as np
 from tqdm import tqdm
 
 from fmu_models.common.model import VehicleModel, step_function
-from identification.jit import compiled
+from fmu_models.fmi.jit import compiled
 
 log = logging.getLogger(__name__)
 

@@ -1,6 +1,6 @@
 """Replay a flight log's inputs through an FMU with FMPy and score its outputs against the log.
 
-Nothing of the Python model is imported: ``fmpy.simulate_fmu`` drives the FMU (``uavfmu.fmu_host``) with
+Nothing of the Python model is imported: ``fmpy.simulate_fmu`` drives the FMU (``fmu_models.fmi.host``) with
 the recorded inputs as a structured input array. Full-length replay, or segment-wise replay in windows each
 re-initialised from the logged state (the usual way open-loop-unstable vehicles are judged), scored per
 window and over all windows together.
@@ -17,12 +17,12 @@ from typing import Any
 
 import numpy as np
 
-from hil_adapter.pwm_mapping import PwmMapping
+from fmu_models.signals.pwm_mapping import PwmMapping
 from identification.flightlog import FlightLog, LogError
 from identification.log_state import hold, initial_values_at, mapped_inputs, resample_angle
 from identification.metrics import FitMetrics, fit_metrics, segment_metrics
 from identification.output_map import SignalMap
-from uavfmu.fmu_host import FmuHost, FmuRunError
+from fmu_models.fmi.host import FmuHost, FmuRunError
 
 WING_INPUTS = ("aileron_rad", "elevator_rad", "rudder_rad", "throttle")
 

@@ -10,7 +10,7 @@ import pytest
 
 from build_fmus import split_params
 from fmu_models.fixed_wing.params import FixedWingParams
-from hil_adapter.pwm_mapping import MappingError
+from fmu_models.signals.pwm_mapping import MappingError
 from identification import aero
 from identification.aero_cli import EXIT_BAD_INPUT, EXIT_OK
 from tests.conftest import shared_data

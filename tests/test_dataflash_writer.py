@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pymavlink import DFReader
 
-from identification.dataflash_writer import (
+from uavfmu.dataflash_writer import (
     ATT,
     CTUN,
     FIRST_TYPE_ID,

@@ -11,7 +11,7 @@ from pymavlink import mavutil
 
 from hil_adapter.core import Plant, Stats, Watchdog
 from hil_adapter.mavlink_bridge import MavlinkBridge
-from hil_adapter.pwm_mapping import MappingError, default_mapping
+from fmu_models.signals.pwm_mapping import MappingError, default_mapping
 from hil_adapter.sensors import SensorConfig, SensorSuite
 
 

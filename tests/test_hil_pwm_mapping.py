@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from hil_adapter.pwm_mapping import Channel, MappingError, PwmMapping
+from fmu_models.signals.pwm_mapping import Channel, MappingError, PwmMapping
 from tests.conftest import shared_data
 
 

@@ -13,7 +13,7 @@ from identification import output_map
 from identification.readers import read_log
 from identification.validation import ValidationError, replay
 from uavfmu import synthetic
-from uavfmu.fmu_host import FmuHost, FmuRunError
+from fmu_models.fmi.host import FmuHost, FmuRunError
 from uavfmu.scenarios import QuadrotorAutopilot, fly, published_thrust_inverse
 
 

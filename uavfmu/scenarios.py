@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from uavfmu.fmu_host import FmuHost, FmuRunError
+from fmu_models.fmi.host import FmuHost, FmuRunError
 
 
 @dataclass
@@ -28,7 +28,7 @@ class Recording:
 
 
 class FmuRunner:
-    """One FMU instance (``uavfmu.fmu_host.FmuHost``) initialised with ``start_values``, stepped by name."""
+    """One FMU instance (``fmu_models.fmi.host.FmuHost``) initialised with ``start_values``, stepped by name."""
 
     def __init__(self, fmu: Path, start_values: dict[str, float] | None = None) -> None:
         self.host = FmuHost(fmu, instance_name="scenario")

@@ -18,8 +18,8 @@ from fmu_models.common.simulate import Simulator
 from fmu_models.fixed_wing.model import FixedWingModel
 from fmu_models.fixed_wing.params import FixedWingParams
 from fmu_models.fixed_wing.trim import trim
-from hil_adapter.pwm_mapping import PwmMapping, default_mapping
-from identification.flightlog import OUTPUT_TO_LOG
+from fmu_models.signals.pwm_mapping import PwmMapping, default_mapping
+from fmu_models.signals.names import OUTPUT_TO_LOG
 from identification.oem import Manoeuvre, OutputError
 from uavfmu.scenarios import Recording
 
@@ -192,7 +192,7 @@ def write_log(path: str | Path, rec: Recording, noise: bool = False, seed: int =
     """An ArduPilot DataFlash ``.bin`` log of an FMU flight, as the autopilot would have written it: IMU, ATT
     (degrees), RCOU (integer PWM), CTUN/BARO altitude, GPS, ARSP for the wing, at the rates of
     ``LOG_DECIMATION``, the ``SERVOn_*`` parameters, and seeded white sensor noise when ``noise``."""
-    from identification.dataflash_writer import write_log as write_dataflash
+    from uavfmu.dataflash_writer import write_log as write_dataflash
 
     sig = recording_signals(rec, noise=noise, seed=seed)
     t = np.asarray(rec.t_s, dtype=float)
