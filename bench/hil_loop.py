@@ -34,9 +34,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from pymavlink.dialects.v20 import common as mavlink2
 
 from build_fmus import build
+from fmu_models.fmi.host import FmuHost
 from hil_adapter.core import BUSY_POLL_S
 from hil_adapter.packets import ServoPacket
-from fmu_models.fmi.host import FmuHost
 
 
 def serve(kind: str, fmu: str, port_q: mp.Queue, steps: int, busy_q: mp.Queue, busy_poll_s: float) -> None:

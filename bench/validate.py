@@ -22,8 +22,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np
 
 from build_fmus import build
-from identification.validate_cli import validate_one
 from fmu_models.fmi import host as fmu_host
+from identification.validate_cli import validate_one
 from uavfmu import synthetic
 from uavfmu.scenarios import QuadrotorAutopilot, fly, published_thrust_inverse, quadrotor_profile
 

@@ -15,9 +15,9 @@ import time
 from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
+from fmu_models.signals.pwm_mapping import MappingError
 from hil_adapter.core import BUSY_POLL_S, Plant, Recorder, SocketSpinner, Stats
 from hil_adapter.packets import PacketError, ServoPacket, json_state
-from fmu_models.signals.pwm_mapping import MappingError
 
 log = logging.getLogger(__name__)
 DEFAULT_PORT = 9002

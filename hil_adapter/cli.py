@@ -100,10 +100,10 @@ def nmea_sink(cfg: Mapping[str, Any]) -> tuple[Callable[[float, Mapping[str, flo
 
 
 def run(args: argparse.Namespace) -> int:
-    from hil_adapter.core import Plant, Recorder, Stats, Watchdog
-    from fmu_models.signals.pwm_mapping import PwmMapping
-    from hil_adapter.sensors import SensorConfig, SensorSuite
     from fmu_models.fmi.host import FmuRunError
+    from fmu_models.signals.pwm_mapping import PwmMapping
+    from hil_adapter.core import Plant, Recorder, Stats, Watchdog
+    from hil_adapter.sensors import SensorConfig, SensorSuite
 
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     closers: list[Callable[[], Any]] = []

@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
-from fmu_models.signals.pwm_mapping import MappingError, PwmMapping, default_mapping
-from fmu_models.signals.names import OUTPUT_TO_LOG
 from fmu_models.fmi.host import FmuHost, FmuRunError
+from fmu_models.signals.names import OUTPUT_TO_LOG
+from fmu_models.signals.pwm_mapping import MappingError, PwmMapping, default_mapping
 
 log = logging.getLogger(__name__)
 

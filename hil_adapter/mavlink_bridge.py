@@ -17,8 +17,8 @@ from typing import Any, Protocol
 
 from pymavlink import mavutil
 
-from hil_adapter.core import Pacer, Plant, Recorder, Stats, Watchdog
 from fmu_models.signals.pwm_mapping import MappingError
+from hil_adapter.core import Pacer, Plant, Recorder, Stats, Watchdog
 from hil_adapter.px4 import HilMessages
 
 log = logging.getLogger(__name__)

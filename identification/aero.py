@@ -17,8 +17,8 @@ import casadi as ca
 import numpy as np
 
 from fmu_models.common.model import VehicleModel, init_function
-from fmu_models.signals.pwm_mapping import PwmMapping
 from fmu_models.signals.names import OUTPUT_TO_LOG
+from fmu_models.signals.pwm_mapping import PwmMapping
 from identification.flightlog import FlightLog, LogError
 from identification.log_state import initial_values, mapped_inputs
 from identification.metrics import FitMetrics, fit_metrics

@@ -11,7 +11,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 
-
 class LogError(ValueError):
     """A log that cannot be read (missing, empty, corrupt); the message names the file."""
 

@@ -69,12 +69,12 @@ def validate_one(job: dict[str, Any]) -> dict[str, Any]:
     """
     from dataclasses import replace
 
+    from fmu_models.fmi.host import FmuHost, FmuRunError
     from fmu_models.signals.pwm_mapping import PwmMapping
     from identification import output_map, report
     from identification.jsonio import write_json
     from identification.readers import read_log
     from identification.validation import replay, vehicle_of
-    from fmu_models.fmi.host import FmuHost, FmuRunError
 
     fmu, log_path = Path(job["fmu"]), Path(job["log"])
     out: dict[str, Any] = {"fmu": str(fmu), "log": str(log_path), "status": "error", "failed": [], "error": ""}

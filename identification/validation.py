@@ -17,12 +17,12 @@ from typing import Any
 
 import numpy as np
 
+from fmu_models.fmi.host import FmuHost, FmuRunError
 from fmu_models.signals.pwm_mapping import PwmMapping
 from identification.flightlog import FlightLog, LogError
 from identification.log_state import hold, initial_values_at, mapped_inputs, resample_angle
 from identification.metrics import FitMetrics, fit_metrics, segment_metrics
 from identification.output_map import SignalMap
-from fmu_models.fmi.host import FmuHost, FmuRunError
 
 WING_INPUTS = ("aileron_rad", "elevator_rad", "rudder_rad", "throttle")
 

@@ -14,6 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pymavlink import DFReader
 
+from identification.readers import read_log
 from uavfmu.dataflash_writer import (
     ATT,
     CTUN,
@@ -30,7 +31,6 @@ from uavfmu.dataflash_writer import (
     define_standard,
     write_log,
 )
-from identification.readers import read_log
 
 DEG = math.pi / 180.0
 

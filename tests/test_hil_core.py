@@ -9,9 +9,9 @@ from pathlib import Path
 import pytest
 from pymavlink import mavutil
 
+from fmu_models.signals.pwm_mapping import MappingError, default_mapping
 from hil_adapter.core import Plant, Stats, Watchdog
 from hil_adapter.mavlink_bridge import MavlinkBridge
-from fmu_models.signals.pwm_mapping import MappingError, default_mapping
 from hil_adapter.sensors import SensorConfig, SensorSuite
 
 

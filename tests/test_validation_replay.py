@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from fmu_models.fmi.host import FmuHost, FmuRunError
 from identification import output_map
 from identification.readers import read_log
 from identification.validation import ValidationError, replay
 from uavfmu import synthetic
-from fmu_models.fmi.host import FmuHost, FmuRunError
 from uavfmu.scenarios import QuadrotorAutopilot, fly, published_thrust_inverse
 
 

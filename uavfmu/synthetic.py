@@ -18,8 +18,8 @@ from fmu_models.common.simulate import Simulator
 from fmu_models.fixed_wing.model import FixedWingModel
 from fmu_models.fixed_wing.params import FixedWingParams
 from fmu_models.fixed_wing.trim import trim
-from fmu_models.signals.pwm_mapping import PwmMapping, default_mapping
 from fmu_models.signals.names import OUTPUT_TO_LOG
+from fmu_models.signals.pwm_mapping import PwmMapping, default_mapping
 from identification.oem import Manoeuvre, OutputError
 from uavfmu.scenarios import Recording
 
