@@ -21,6 +21,10 @@ def read_log(path: str | Path, *, channel_map: dict | str | Path | None = None, 
     p = Path(path)
     if not p.exists():
         raise LogError(f"{p}: no such file")
+    if p.is_dir() or fmt == "px4_csv":
+        from identification.readers.px4_csv import read_px4_csv
+
+        return read_px4_csv(p)
     if p.stat().st_size == 0:
         raise LogError(f"{p}: the file is empty")
     kind = fmt or p.suffix.lower().lstrip(".")
