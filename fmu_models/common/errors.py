@@ -1,20 +1,23 @@
-"""Small exception classes shared by the physics layer (subclasses of built-ins)."""
+"""Errors of the physics layer: an invalid parameter set is a :class:`fmu_models.config.ConfigError`."""
 
 from __future__ import annotations
 
+import math
 
-class ParameterError(ValueError):
-    """A parameter set is invalid; the message lists every problem found, one per line."""
+from fmu_models.config import ConfigError
 
-    def __init__(self, source: str, problems: list[str]) -> None:
-        self.source = source
-        self.problems = list(problems)
-        lines = "\n".join(f"  - {p}" for p in self.problems)
-        super().__init__(f"{source}: {len(self.problems)} invalid parameter(s):\n{lines}")
+__all__ = ["ParameterError", "ProblemList"]
+
+
+class ParameterError(ConfigError):
+    """A parameter set is invalid; ``problems`` lists every problem found, one line each.
+
+    A :class:`~fmu_models.config.ConfigError` (and so a ``ValueError``): callers catch either name.
+    """
 
 
 class ProblemList:
-    """Collects load-time problems so that one error names all of them (like FMPy's validation)."""
+    """Collects the cross-field problems checked after the schema (e.g. idle PWM below the thrust band)."""
 
     def __init__(self, source: str) -> None:
         self.source = source
@@ -23,17 +26,15 @@ class ProblemList:
     def add(self, message: str) -> None:
         self.items.append(message)
 
-    def check_range(self, name: str, value: float, lo: float | None, hi: float | None) -> None:
-        """Record a problem when ``value`` is not finite or outside ``[lo, hi]``."""
-        try:
-            v = float(value)
-        except (TypeError, ValueError):
+    def check_range(self, name: str, value: object, lo: float | None, hi: float | None) -> None:
+        """Record a problem when ``value`` is not a finite number (booleans refused) or outside ``[lo, hi]``."""
+        if isinstance(value, bool) or not isinstance(value, int | float):
             self.add(f"{name} = {value!r} is not a number")
             return
-        if v != v or v in (float("inf"), float("-inf")):
+        v = float(value)
+        if not math.isfinite(v):
             self.add(f"{name} = {v} is not finite")
-            return
-        if (lo is not None and v < lo) or (hi is not None and v > hi):
+        elif (lo is not None and v < lo) or (hi is not None and v > hi):
             self.add(f"{name} = {v} is outside the allowed range [{lo}, {hi}]")
 
     def raise_if_any(self) -> None:

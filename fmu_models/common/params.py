@@ -1,16 +1,37 @@
-"""Frozen parameter dataclasses: metadata per field, JSON loading with every problem reported at once."""
+"""Frozen parameter dataclasses and their file schema.
+
+Each physical parameter is a dataclass field made by :func:`param` (default, unit, allowed range, meaning).
+From that metadata :func:`params_schema` builds a strict pydantic schema on :class:`fmu_models.config.Schema`
+(numbers only - no booleans or strings -, finite, inside the range; unknown keys rejected), so the range
+written once beside the parameter is the one the FMU variable, the parameter file and the docs use.
+:func:`validate_params` raises :class:`ParameterError` (a ``ConfigError``) listing every problem, one line
+each, naming the field, the value and the allowed range.
+"""
 
 from __future__ import annotations
 
 import dataclasses
-import json
+import difflib
+import math
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Annotated, Any, TypeVar
 
-from fmu_models.common.errors import ProblemList
+from pydantic import Field, create_model
+from pydantic import ValidationError as PydanticValidationError
+
+from fmu_models.common.errors import ParameterError
 from fmu_models.common.model import Variable
+from fmu_models.config import ConfigError, Schema, read_config_file
 
 T = TypeVar("T")
+
+#: extra (non-numeric or not-a-model-parameter) keys of a parameter file: name -> (annotation, default)
+ExtraFields = Mapping[str, tuple[Any, Any]]
+
+_NUMBER_ERRORS = ("float_type", "float_parsing", "int_type", "int_parsing", "int_from_float")
+_RANGE_ERRORS = ("greater_than", "greater_than_equal", "less_than", "less_than_equal")
+_SCHEMAS: dict[tuple[type, tuple[str, ...]], type[Schema]] = {}
 
 
 def param(default: float, unit: str, lo: float | None, hi: float | None, description: str) -> Any:
@@ -40,36 +61,91 @@ def to_variables(params: Any) -> tuple[Variable, ...]:
     )
 
 
-def check_scalars(cls: type, values: dict[str, Any], probs: ProblemList) -> dict[str, float]:
-    """Range-check the scalar parameters given in ``values``; return them as floats."""
-    out: dict[str, float] = {}
-    for f in numeric_fields(cls):
-        if f.name in values:
-            probs.check_range(f.name, values[f.name], f.metadata["min"], f.metadata["max"])
-            try:
-                out[f.name] = float(values[f.name])
-            except (TypeError, ValueError):
-                pass
-    return out
+def params_schema(cls: type, extra: ExtraFields | None = None) -> type[Schema]:
+    """The strict schema of a parameter file of dataclass ``cls`` (built once per class and extra keys)."""
+    extra = dict(extra or {})
+    key = (cls, tuple(sorted(extra)))
+    if key not in _SCHEMAS:
+        fields: dict[str, Any] = {
+            f.name: (
+                Annotated[float, Field(ge=f.metadata["min"], le=f.metadata["max"], allow_inf_nan=False,
+                                       description=f"{f.metadata['description']} [{f.metadata['unit']}]")],
+                f.default,
+            )
+            for f in numeric_fields(cls)
+        }
+        fields.update(extra)
+        _SCHEMAS[key] = create_model(f"{cls.__name__}File", __base__=Schema, **fields)
+    return _SCHEMAS[key]
 
 
-def unknown_keys(cls: type, values: dict[str, Any], probs: ProblemList, extra: tuple[str, ...] = ()) -> None:
-    """Report keys that are not parameters of ``cls`` (typos would otherwise be silently ignored)."""
-    known = {f.name for f in dataclasses.fields(cls)} | set(extra)
-    for key in values:
-        if not key.startswith("_") and key not in known:
-            probs.add(f"{key} is not a parameter (known: {', '.join(sorted(known))})")
+def _shown(value: Any) -> str:
+    if isinstance(value, float | int) and not isinstance(value, bool):
+        return repr(float(value)) if math.isfinite(float(value)) else str(float(value))
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _problem_line(err: Mapping[str, Any], cls: type, known: list[str]) -> str:
+    """One line for one schema error: field, value, and the allowed range or choices."""
+    loc = [str(p) for p in err.get("loc", ())]
+    name = ".".join(loc) or "(top level)"
+    kind = str(err.get("type", ""))
+    value = err.get("input")
+    meta = {f.name: f.metadata for f in numeric_fields(cls)}.get(loc[0] if len(loc) == 1 else "")
+    rng = f"[{meta['min']}, {meta['max']}] {meta['unit']}" if meta else ""
+    if kind == "extra_forbidden":
+        close = difflib.get_close_matches(name, known, n=1)
+        return f"{name} is not a parameter" + (f" (did you mean {close[0]}?)" if close else "")
+    if kind == "missing":
+        return f"{name} is missing (required)"
+    if meta and kind in _RANGE_ERRORS:
+        return f"{name} = {_shown(value)} is outside the allowed range {rng}"
+    if kind == "finite_number":
+        return f"{name} = {_shown(value)} is not finite (allowed: a finite number{' in ' + rng if rng else ''})"
+    if kind in _NUMBER_ERRORS:
+        what = "an integer" if kind.startswith("int") else "a number"
+        return f"{name} = {_shown(value)} is not {what} (allowed: {what}{' in ' + rng if rng else ''})"
+    return f"{name} = {_shown(value)}: {err.get('msg', 'invalid')}"
+
+
+def _flatten(values: Mapping[str, Any], sections: tuple[str, ...], source: str) -> dict[str, Any]:
+    """Merge the keys of sub-tables (e.g. ``propulsion``) into the top level; ``_``-keys are comments."""
+    flat: dict[str, Any] = {}
+    for key, value in values.items():
+        if isinstance(key, str) and key.startswith("_"):
+            continue
+        if key not in sections:
+            flat[key] = value
+        elif not isinstance(value, Mapping):
+            raise ParameterError(source, [f"{key} = {_shown(value)} is not a table of parameters"])
+        else:
+            flat.update({k: v for k, v in value.items() if not (isinstance(k, str) and k.startswith("_"))})
+    return flat
+
+
+def validate_params(
+    cls: type, values: Any, source: str, extra: ExtraFields | None = None, sections: tuple[str, ...] = ()
+) -> dict[str, Any]:
+    """Check a mapping of parameters of ``cls``; return the given ones (validated, numbers as floats).
+
+    Raises :class:`ParameterError` listing every problem (type, finiteness, range, unknown key) at once.
+    """
+    if not isinstance(values, Mapping):
+        raise ParameterError(source, [f"expected a table of parameters, found {type(values).__name__}"])
+    data = _flatten(values, sections, source)
+    schema = params_schema(cls, extra)
+    try:
+        model = schema.model_validate(data)
+    except PydanticValidationError as err:
+        known = sorted(schema.model_fields)
+        raise ParameterError(source, [_problem_line(e, cls, known) for e in err.errors(include_url=False)]) from None
+    return {k: getattr(model, k) for k in model.model_fields_set}
 
 
 def read_json(path: str | Path) -> dict[str, Any]:
-    """Read a JSON object from ``path`` with an error naming the file on failure."""
-    p = Path(path)
+    """Read a parameter file (JSON, or TOML by suffix); :class:`ParameterError` names the file on failure."""
     try:
-        data = json.loads(p.read_text())
-    except FileNotFoundError as err:
-        raise FileNotFoundError(f"{p}: parameter file not found") from err
-    except json.JSONDecodeError as err:
-        raise ValueError(f"{p}: not valid JSON ({err.msg} at line {err.lineno}, column {err.colno})") from err
-    if not isinstance(data, dict):
-        raise ValueError(f"{p}: expected a JSON object at the top level, found {type(data).__name__}")
-    return data
+        return read_config_file(path)
+    except ConfigError as err:
+        raise ParameterError(err.source, err.problems) from None

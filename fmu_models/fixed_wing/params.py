@@ -12,8 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fmu_models.common.errors import ProblemList
-from fmu_models.common.params import check_scalars, param, read_json, unknown_keys
+from fmu_models.common.params import param, read_json, validate_params
 
 DEFAULTS_FILE = Path(__file__).with_name("aerosonde.json")
 _D = json.loads(DEFAULTS_FILE.read_text())
@@ -97,15 +96,9 @@ class FixedWingParams:
     @classmethod
     def from_dict(cls, values: dict[str, Any], source: str = "fixed-wing parameters") -> FixedWingParams:
         """Defaults overridden by ``values`` (a ``propulsion`` sub-object is flattened); all problems at once."""
-        flat = {k: v for k, v in values.items() if k != "propulsion"}
-        for k, v in (values.get("propulsion") or {}).items():
-            if not k.startswith("_"):
-                flat[k] = v
-        probs = ProblemList(source)
-        unknown_keys(cls, flat, probs, extra=("KV_rpm_per_V", "ncells"))
-        scalars = check_scalars(cls, flat, probs)
-        probs.raise_if_any()
-        return dataclasses.replace(cls(), **scalars)
+        extra = {"KV_rpm_per_V": (float, 0.0), "ncells": (int, 0)}  # informative keys of aerosonde.json
+        scalars = validate_params(cls, values, source, extra=extra, sections=("propulsion",))
+        return dataclasses.replace(cls(), **{k: v for k, v in scalars.items() if k not in extra})
 
     @classmethod
     def load(cls, path: str | Path) -> FixedWingParams:

@@ -5,13 +5,16 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from fmu_models.common.errors import ParameterError, ProblemList
-from fmu_models.common.params import check_scalars, param, read_json, unknown_keys
+from fmu_models.common.params import param, read_json, validate_params
 from fmu_models.quadrotor.anfis import AnfisMap, published_map
 
 FRAMES = ("x", "+")
+#: keys of a parameter file beside the scalar parameters: (type, default) checked by the schema
+FILE_EXTRAS = {"frame": (Literal["x", "+"], "x"), "thrust_map": (dict[str, Any] | None, None),
+               "k_thrust_source": (str, "")}
 
 
 @dataclass(frozen=True)
@@ -49,14 +52,12 @@ class QuadrotorParams:
     @classmethod
     def from_dict(cls, values: dict[str, Any], source: str = "quadrotor parameters") -> QuadrotorParams:
         """Defaults overridden by ``values``; every problem in ``values`` is reported at once."""
+        scalars = validate_params(cls, values, source, extra=FILE_EXTRAS)
+        scalars.pop("k_thrust_source", None)
+        frame = scalars.pop("frame", "x")
         probs = ProblemList(source)
-        unknown_keys(cls, values, probs, extra=("k_thrust_source",))
-        scalars = check_scalars(cls, values, probs)
-        frame = values.get("frame", "x")
-        if frame not in FRAMES:
-            probs.add(f"frame = {frame!r}; allowed: {', '.join(FRAMES)}")
         thrust_map = published_map()
-        if "thrust_map" in values:
+        if scalars.pop("thrust_map", None) is not None:
             try:
                 thrust_map = AnfisMap.from_dict(values["thrust_map"], source=f"{source}: thrust_map")
             except ParameterError as err:
