@@ -78,3 +78,54 @@ def test_out_of_range_throttle_is_an_error(fixed_wing_fmu: Path) -> None:
             fmu.step(0.01)
         assert err.value.status == 3
         assert "throttle = 1.5 is outside its allowed range [0.0, 1.0]" in fmu.text()
+
+
+def autopilot_pwm(pitch_ref_rad: float, roll: float, pitch: float, p: float, q: float, r: float) -> dict[int, float]:
+    """A small attitude controller written the way ArduPlane and PX4 command: PWM above trim (1500 us) is
+    roll right (out 1), pull = nose up (out 2), right rudder = nose right (out 4); full throttle (out 3)."""
+    def pwm(x: float) -> float:
+        return min(max(1500.0 + 400.0 * x, 1100.0), 1900.0)
+
+    return {1: pwm(-2.0 * roll - 0.3 * p), 2: pwm(3.0 * (pitch_ref_rad - pitch) - 0.5 * q), 3: 2000.0,
+            4: pwm(-1.0 * r)}
+
+
+def test_closed_loop_autopilot_convention_climbs_through_default_mapping(fixed_wing_fmu: Path) -> None:
+    from fmu_models.signals.pwm_mapping import default_mapping
+
+    mapping = default_mapping("fixed_wing")
+    start, _ = trim_start_values()
+    names = ("roll_rad", "pitch_rad", "rate_body_x_rad_s", "rate_body_y_rad_s", "rate_body_z_rad_s", "altitude_m")
+    with Instance(fixed_wing_fmu, **start) as fmu:
+        h0 = fmu.get("altitude_m")[0]
+        pitches = []
+        for _ in range(800):  # 8 s at 100 Hz
+            roll, pitch, p, q, r, _h = fmu.get(*names)
+            fmu.set(**mapping.apply(autopilot_pwm(np.radians(12.0), roll, pitch, p, q, r)))
+            fmu.step(0.01)
+            pitches.append(pitch)
+        roll, pitch, *_, h1 = fmu.get(*names)
+    assert h1 - h0 > 15.0, f"climbed only {h1 - h0:.1f} m"
+    assert abs(np.degrees(np.mean(pitches[-200:])) - 12.0) < 4.0 and abs(roll) < 0.1
+
+
+def test_right_rudder_and_pull_move_the_nose_as_autopilots_expect(fixed_wing_fmu: Path) -> None:
+    from fmu_models.signals.pwm_mapping import default_mapping
+
+    mapping = default_mapping("fixed_wing")
+    start, u = trim_start_values()
+    trim_pwm = {1: 1500.0, 2: 1500.0, 3: 2000.0, 4: 1500.0}
+    for channel, output in ((2, "rate_body_y_rad_s"), (4, "rate_body_z_rad_s")):
+        with Instance(fixed_wing_fmu, **start) as fmu:
+            inputs = mapping.apply(trim_pwm | {channel: 1700.0})
+            inputs.update(throttle=float(u[3]))
+            fmu.set(**inputs)
+            fmu.step(0.01, 30)
+            assert fmu.get(output)[0] > 0.05, output  # nose up (q > 0), nose right (r > 0)
+
+
+def test_input_descriptions_state_the_sign_convention(fixed_wing_fmu: Path) -> None:
+    md = read_model_description(str(fixed_wing_fmu))
+    desc = {v.name: v.description for v in md.modelVariables if v.causality == "input"}
+    assert "rolls right" in desc["aileron_rad"]
+    assert "nose down" in desc["elevator_rad"] and "nose left" in desc["rudder_rad"]

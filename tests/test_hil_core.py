@@ -56,8 +56,9 @@ def test_watchdog_throttle_off_and_hold(quadrotor_fmu: Path) -> None:
 
 def test_default_fixed_wing_mapping_matches_arduplane() -> None:
     m = default_mapping("fixed_wing")
-    assert m.apply({1: 1900, 2: 1100, 3: 1500, 4: 1500}) == pytest.approx(
-        {"aileron_rad": 0.35, "elevator_rad": -0.35, "throttle": 0.5, "rudder_rad": 0.0})
+    # ArduPlane: PWM above trim = roll right, nose up, nose right; the FMU is uavbook (elevator + = nose down)
+    assert m.apply({1: 1900, 2: 1100, 3: 1500, 4: 1900}) == pytest.approx(
+        {"aileron_rad": 0.35, "elevator_rad": 0.35, "throttle": 0.5, "rudder_rad": -0.35})
 
 
 def test_generic_mavlink_bridge_over_udp(fixed_wing_fmu: Path) -> None:

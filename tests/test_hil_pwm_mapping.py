@@ -50,3 +50,34 @@ def test_from_ardupilot_params_of_the_sitl_plane_log() -> None:
     trims = {c.source: c.trim_us for c in m.channels}
     out = m.apply({n: trims[n] for n in trims})
     assert out["aileron_rad"] == 0.0 and out["throttle"] == 0.0
+
+
+def test_ardupilot_convention_pull_is_nose_up_right_rudder_nose_right() -> None:
+    """ArduPilot (SIM_Plane: c_m_deltae, c_n_deltar > 0 on (pwm - trim)) and PX4 (FRD torque demands): PWM
+    above trim is nose up / nose right; the FMU's uavbook elevator and rudder are positive nose down / left."""
+    from fmu_models.signals.pwm_mapping import ardupilot_servo_reversed, default_mapping
+
+    params = {"SERVO1_FUNCTION": 4, "SERVO2_FUNCTION": 19, "SERVO3_FUNCTION": 70, "SERVO4_FUNCTION": 21}
+    for m in (PwmMapping.from_ardupilot(params), default_mapping("fixed_wing")):
+        out = m.apply({1: 1700.0, 2: 1700.0, 3: 1500.0, 4: 1700.0})
+        assert out["aileron_rad"] > 0 and out["elevator_rad"] < 0 and out["rudder_rad"] < 0
+        assert all(not ardupilot_servo_reversed(c) for c in m.channels)
+    flipped = PwmMapping.from_ardupilot(params | {"SERVO2_REVERSED": 1, "SERVO1_REVERSED": 1})
+    out = flipped.apply({1: 1700.0, 2: 1700.0, 3: 1500.0, 4: 1500.0})
+    assert out["aileron_rad"] < 0 and out["elevator_rad"] > 0
+
+
+def test_mapping_schema_names_file_field_value_and_range(tmp_path) -> None:
+    from fmu_models.config import ConfigError
+
+    f = tmp_path / "m.toml"
+    f.write_text('[channels.elevator_rad]\nsource = 2\nmin_us = "1100"\nreversed = 1\ndeadband_us = -3\n'
+                 "trim_us = nan\n")
+    with pytest.raises(ConfigError) as err:
+        PwmMapping.load(f)
+    text = str(err.value)
+    assert str(f) in text and len(err.value.problems) == 4, text
+    assert "channels.elevator_rad.min_us = '1100'" in text and "channels.elevator_rad.reversed = 1" in text
+    assert "deadband_us = -3" in text and ">= 0" in text and "trim_us" in text
+    with pytest.raises(MappingError):  # still caught as a MappingError by the adapter
+        PwmMapping.from_dict({"channels": {"throttle": {"source": 3, "unknown": 1}}})

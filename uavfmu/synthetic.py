@@ -19,7 +19,7 @@ from fmu_models.fixed_wing.model import FixedWingModel
 from fmu_models.fixed_wing.params import FixedWingParams
 from fmu_models.fixed_wing.trim import trim
 from fmu_models.signals.names import OUTPUT_TO_LOG
-from fmu_models.signals.pwm_mapping import PwmMapping, default_mapping
+from fmu_models.signals.pwm_mapping import PwmMapping, ardupilot_servo_reversed, default_mapping
 from identification.oem import Manoeuvre, OutputError
 from uavfmu.scenarios import Recording
 
@@ -179,7 +179,8 @@ def ardupilot_params(vehicle: str) -> dict[str, float]:
     for ch in MAPPING.channels:
         n = ch.source
         out |= {f"SERVO{n}_FUNCTION": float(functions[ch.target]), f"SERVO{n}_MIN": ch.min_us,
-                f"SERVO{n}_TRIM": ch.trim_us, f"SERVO{n}_MAX": ch.max_us, f"SERVO{n}_REVERSED": float(ch.reversed)}
+                f"SERVO{n}_TRIM": ch.trim_us, f"SERVO{n}_MAX": ch.max_us,
+                f"SERVO{n}_REVERSED": float(ardupilot_servo_reversed(ch))}
     return out
 
 

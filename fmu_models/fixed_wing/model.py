@@ -48,12 +48,15 @@ class FixedWingModel:
         self.states = Layout(vehicle.BODY_STATES)
         self.state_limits = vehicle.BODY_STATE_LIMITS
         self.inputs = Layout((
-            Variable("aileron_rad", "rad", "aileron deflection (positive rolls right)", 0.0,
+            Variable("aileron_rad", "rad", "aileron deflection, uavbook sign: positive rolls right "
+                     "(C_ell_delta_a > 0; autopilot PWM above trim)", 0.0, -SURFACE_LIMIT_RAD, SURFACE_LIMIT_RAD),
+            Variable("elevator_rad", "rad", "elevator deflection, uavbook sign: positive is trailing edge down, "
+                     "nose down (C_m_delta_e < 0; autopilot pull = PWM above trim = negative)", 0.0,
                      -SURFACE_LIMIT_RAD, SURFACE_LIMIT_RAD),
-            Variable("elevator_rad", "rad", "elevator deflection (positive trailing edge down)", 0.0,
+            Variable("rudder_rad", "rad", "rudder deflection, uavbook sign: positive is trailing edge left, "
+                     "nose left (C_n_delta_r < 0; autopilot right rudder = PWM above trim = negative)", 0.0,
                      -SURFACE_LIMIT_RAD, SURFACE_LIMIT_RAD),
-            Variable("rudder_rad", "rad", "rudder deflection", 0.0, -SURFACE_LIMIT_RAD, SURFACE_LIMIT_RAD),
-            Variable("throttle", "1", "throttle fraction", 0.0, 0.0, 1.0),
+            Variable("throttle", "1", "throttle fraction, 0 = motor off, 1 = full (PWM min..max)", 0.0, 0.0, 1.0),
         ))
         self.params = Layout(vehicle.INIT_PARAMS + vehicle.GROUND_PARAMS + to_variables(self.defaults))
         self.outputs = Layout((

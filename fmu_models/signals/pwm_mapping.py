@@ -2,7 +2,19 @@
 
 Per channel: the source output index, min/trim/max PWM, reversal, deadband, the target FMU input and its
 range, and a failsafe value. A pulse at trim maps to the middle of a symmetric range (surfaces) or to the
-bottom of a one-sided one (throttle from min); configs are TOML or a dict, checked with every problem listed.
+bottom of a one-sided one (throttle from min). Mapping files (TOML) are typed schemas
+(:class:`MappingConfig`, ``fmu_models.config``): every problem is listed with file, field, value and range.
+
+Sign conventions. The FMU's surface inputs follow Beard & McLain (uavbook): positive ``aileron_rad`` rolls
+right (C_ell_delta_a > 0), positive ``elevator_rad`` is trailing edge down, nose down (C_m_delta_e < 0),
+positive ``rudder_rad`` is trailing edge left, nose left (C_n_delta_r < 0). Autopilots command the other
+way for pitch and yaw: a pulse above trim means roll right, nose up, nose right. ArduPilot: its SITL plane
+(``libraries/SITL/SIM_Plane.cpp``) takes ``(pwm - 1500) / 500`` of outputs 1, 2, 4 with ``c_l_deltaa > 0``,
+``c_m_deltae > 0``, ``c_n_deltar > 0``; ``SERVOn_REVERSED`` flips a channel on top. PX4: control group 0
+carries roll, pitch, yaw torque demands about the FRD body axes (positive: roll right, nose up, nose
+right), passed straight to the surfaces by the plane mixers (docs.px4.io v1.13, Mixing and Actuators).
+So the default fixed-wing mappings reverse elevator and rudder (:data:`AUTOPILOT_REVERSED`): pull (PWM
+above trim) gives nose up, right rudder gives nose right, and identified derivatives keep uavbook signs.
 """
 
 from __future__ import annotations
@@ -14,11 +26,23 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from pydantic import Field
+
+from fmu_models.config import ConfigError, FiniteFloat, Schema, validate_config
+
 PWM_LIMITS_US = (500.0, 2500.0)  #: plausible servo pulse widths
+
+
+#: FMU surface inputs whose uavbook sign is opposite to an autopilot's "PWM above trim" (nose up, nose right)
+AUTOPILOT_REVERSED = {"aileron_rad": False, "elevator_rad": True, "rudder_rad": True, "throttle": False}
 
 
 class MappingError(ValueError):
     """An invalid mapping config or PWM value; the message names the file, channel, field and value."""
+
+
+class MappingConfigError(ConfigError, MappingError):
+    """A mapping file or dict that does not validate; ``problems`` holds one line per problem."""
 
 
 @dataclass(frozen=True)
@@ -78,6 +102,43 @@ class Channel:
         return self.trim_us + frac * ((self.max_us - self.trim_us) if frac >= 0 else (self.trim_us - self.min_us))
 
 
+class ChannelConfig(Schema):
+    """One channel of a mapping file (``[channels.<fmu input>]``); ranges checked field by field."""
+
+    source: int = Field(ge=1, le=32)
+    min_us: float = Field(1000.0, ge=PWM_LIMITS_US[0], le=PWM_LIMITS_US[1])
+    trim_us: float = Field(1500.0, ge=PWM_LIMITS_US[0], le=PWM_LIMITS_US[1])
+    max_us: float = Field(2000.0, ge=PWM_LIMITS_US[0], le=PWM_LIMITS_US[1])
+    out_min: FiniteFloat = -1.0
+    out_max: FiniteFloat = 1.0
+    reversed: bool = False
+    deadband_us: float = Field(0.0, ge=0.0, le=500.0)
+    failsafe: FiniteFloat = 0.0
+
+
+class MappingConfig(Schema):
+    """A mapping file: one table per FMU input under ``[channels]``."""
+
+    channels: dict[str, ChannelConfig]
+
+
+def _order_problems(target: str, raw: Mapping[str, Any]) -> list[str]:
+    """Cross-field checks (min <= trim <= max, out_min < out_max) on whatever fields are numbers."""
+    def num(key: str, default: float) -> float | None:
+        v = raw.get(key, default)
+        return float(v) if isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) else None
+
+    out = []
+    lo, trim, hi = num("min_us", 1000.0), num("trim_us", 1500.0), num("max_us", 2000.0)
+    if None not in (lo, trim, hi) and not (lo <= trim <= hi and lo < hi):  # type: ignore[operator]
+        out.append(f"field channels.{target}: need min_us <= trim_us <= max_us and min_us < max_us "
+                   f"(got {lo}, {trim}, {hi})")
+    a, b = num("out_min", -1.0), num("out_max", 1.0)
+    if a is not None and b is not None and not a < b:
+        out.append(f"field channels.{target}: out_min {a} must be below out_max {b}")
+    return out
+
+
 @dataclass(frozen=True)
 class PwmMapping:
     """All channels of a vehicle; ``apply(pwm_by_channel)`` gives the FMU inputs."""
@@ -96,45 +157,41 @@ class PwmMapping:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "mapping") -> PwmMapping:
+        """Validate a decoded mapping (``{"channels": {target: {...}}}`` or the bare channel tables);
+        :class:`MappingConfigError` lists every problem with file, field, value and allowed range."""
+        tables = data.get("channels", data) if isinstance(data, Mapping) else data
+        if not isinstance(tables, Mapping):
+            raise MappingConfigError(source, [f"field channels = {tables!r}: must be a table"])
         problems: list[str] = []
-        channels = []
-        for target, raw in (data.get("channels", data)).items():
-            if not isinstance(raw, Mapping):
-                problems.append(f"channels.{target} must be a table")
-                continue
-            try:
-                ch = Channel(target=target, **{k: raw[k] for k in raw})
-            except TypeError as err:
-                problems.append(f"channels.{target}: {err}")
-                continue
-            for f in ("min_us", "trim_us", "max_us"):
-                v = getattr(ch, f)
-                if not (isinstance(v, int | float) and math.isfinite(v) and PWM_LIMITS_US[0] <= v <= PWM_LIMITS_US[1]):
-                    problems.append(f"channels.{target}.{f} = {v!r}; allowed {PWM_LIMITS_US[0]}..{PWM_LIMITS_US[1]}")
-            if not ch.min_us <= ch.trim_us <= ch.max_us or ch.min_us == ch.max_us:
-                problems.append(f"channels.{target}: need min_us <= trim_us <= max_us and min_us < max_us "
-                                f"(got {ch.min_us}, {ch.trim_us}, {ch.max_us})")
-            if not ch.out_min < ch.out_max:
-                problems.append(f"channels.{target}: out_min {ch.out_min} must be below out_max {ch.out_max}")
-            if not (isinstance(ch.source, int) and 1 <= ch.source <= 32):
-                problems.append(f"channels.{target}.source = {ch.source!r}; allowed 1..32")
-            channels.append(ch)
-        if problems:
-            raise MappingError(f"{source}: " + "; ".join(problems))
-        return cls(tuple(channels))
+        try:
+            cfg = validate_config({"channels": dict(tables)}, MappingConfig, source)
+        except ConfigError as err:
+            problems += err.problems
+            cfg = None
+        for target, raw in tables.items():
+            if isinstance(raw, Mapping):
+                problems += _order_problems(str(target), raw)
+        if problems or cfg is None:
+            raise MappingConfigError(source, problems)
+        return cls(tuple(Channel(target=t, **c.model_dump()) for t, c in cfg.channels.items()))
 
     @classmethod
     def load(cls, path: str | Path) -> PwmMapping:
+        """Read a TOML mapping file; :class:`MappingConfigError` names the file and every bad field."""
         p = Path(path)
         try:
             data = tomllib.loads(p.read_text())
-        except (OSError, tomllib.TOMLDecodeError) as err:
-            raise MappingError(f"{p}: cannot read mapping ({err})") from err
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as err:
+            raise MappingConfigError(str(p), [f"cannot read mapping ({err})"]) from None
         return cls.from_dict(data, source=str(p))
 
     @classmethod
     def from_ardupilot(cls, params: Mapping[str, float], surface_limit_rad: float = 0.35) -> PwmMapping:
-        """Fixed-wing surfaces and throttle from ArduPilot SERVOn_FUNCTION/MIN/TRIM/MAX/REVERSED."""
+        """Fixed-wing surfaces and throttle from ArduPilot SERVOn_FUNCTION/MIN/TRIM/MAX/REVERSED.
+
+        A pulse above trim on a non-reversed output means roll right, nose up, nose right (ArduPilot's
+        convention, see the module docstring); elevator and rudder are reversed into the uavbook signs.
+        """
         targets = {4: ("aileron_rad", -surface_limit_rad, surface_limit_rad),
                    19: ("elevator_rad", -surface_limit_rad, surface_limit_rad),
                    21: ("rudder_rad", -surface_limit_rad, surface_limit_rad), 70: ("throttle", 0.0, 1.0)}
@@ -146,7 +203,8 @@ class PwmMapping:
             name, lo, hi = targets[int(fn)]
             mn, mx = params.get(f"SERVO{n}_MIN", 1100.0), params.get(f"SERVO{n}_MAX", 1900.0)
             trim = params.get(f"SERVO{n}_TRIM", (mn + mx) / 2) if name != "throttle" else mn
-            channels.append(Channel(name, n, mn, trim, mx, lo, hi, bool(params.get(f"SERVO{n}_REVERSED", 0))))
+            rev = bool(params.get(f"SERVO{n}_REVERSED", 0)) != AUTOPILOT_REVERSED[name]
+            channels.append(Channel(name, n, mn, trim, mx, lo, hi, rev))
         if not channels:
             raise MappingError("no SERVOn_FUNCTION for aileron (4), elevator (19), rudder (21) or throttle (70)")
         return cls(tuple(channels))
@@ -154,13 +212,20 @@ class PwmMapping:
 
 def default_mapping(vehicle: str) -> PwmMapping:
     """Quadrotor: outputs 1-4 are the motors' PWM as they are; fixed wing: ArduPlane's SERVO1-4 defaults
-    (aileron, elevator, throttle, rudder; surfaces +/-0.35 rad over 1100..1900 us)."""
+    (aileron, elevator, throttle, rudder; surfaces +/-0.35 rad over 1100..1900 us, above trim = roll right,
+    nose up, nose right as ArduPlane and PX4 command them; elevator and rudder reversed into uavbook signs)."""
     if vehicle == "quadrotor":
         return PwmMapping(tuple(Channel(f"pwm_{k}_us", k, 1000.0, 1000.0, 2000.0, 1000.0, 2000.0, failsafe=1000.0)
                                 for k in range(1, 5)))
     surf = {"min_us": 1100.0, "trim_us": 1500.0, "max_us": 1900.0, "out_min": -0.35, "out_max": 0.35}
     return PwmMapping.from_dict({"channels": {
-        "aileron_rad": {"source": 1, **surf}, "elevator_rad": {"source": 2, **surf},
+        "aileron_rad": {"source": 1, **surf}, "elevator_rad": {"source": 2, **surf, "reversed": True},
         "throttle": {"source": 3, "min_us": 1000.0, "trim_us": 1000.0, "max_us": 2000.0, "out_min": 0.0,
                      "out_max": 1.0},
-        "rudder_rad": {"source": 4, **surf}}}, source="default fixed-wing mapping")
+        "rudder_rad": {"source": 4, **surf, "reversed": True}}}, source="default fixed-wing mapping")
+
+
+def ardupilot_servo_reversed(channel: Channel) -> bool:
+    """The ``SERVOn_REVERSED`` value an ArduPilot log carries for ``channel`` (inverse of
+    :meth:`PwmMapping.from_ardupilot`'s convention reversal)."""
+    return channel.reversed != AUTOPILOT_REVERSED.get(channel.target, False)
