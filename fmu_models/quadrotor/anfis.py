@@ -20,10 +20,29 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fmu_models.common.errors import ProblemList
+from fmu_models.common.errors import ParameterError, ProblemList
 from fmu_models.common.mathns import CA, NP
+from fmu_models.common.params import read_json
+from fmu_models.config import ConfigError, FiniteFloat, Schema, validate_config
 
 MF_TYPES = ("gaussian", "gbell")
+
+
+class AnfisMapFile(Schema):
+    """Types of a thrust-map table (strict: no bool/str for numbers, finite); :meth:`AnfisMap.from_dict`
+    checks the shapes and values after it."""
+
+    type: str = "anfis"
+    inputs: list[str] | None = None
+    mf_type: str = "gaussian"
+    mf_mean: list[list[FiniteFloat]] | None = None
+    mf_sigma: list[list[FiniteFloat]] | None = None
+    mf_slope: list[list[FiniteFloat]] | None = None
+    order: int = 0
+    consequents: list[list[FiniteFloat]] | None = None
+    input_range: list[list[FiniteFloat]] | None = None
+    output: str = "thrust_N"
+    source: str = ""
 
 
 @dataclass(frozen=True)
@@ -138,6 +157,10 @@ class AnfisMap:
     @classmethod
     def from_dict(cls, d: dict[str, Any], source: str = "thrust_map") -> AnfisMap:
         """Build and check a map; every problem is reported at once (``ParameterError``)."""
+        try:
+            d = validate_config(d, AnfisMapFile, source).model_dump(exclude_unset=True)
+        except ConfigError as err:
+            raise ParameterError(source, err.problems) from None
         probs = ProblemList(source)
         if d.get("type", "anfis") != "anfis":
             probs.add(f"type = {d.get('type')!r}; only 'anfis' is supported")
@@ -207,9 +230,8 @@ class AnfisMap:
 
     @classmethod
     def load(cls, path: str | Path) -> AnfisMap:
-        p = Path(path)
-        data = json.loads(p.read_text())
-        return cls.from_dict(data.get("thrust_map", data), source=str(p))
+        data = read_json(path)
+        return cls.from_dict(data.get("thrust_map", data), source=str(path))
 
     def save(self, path: str | Path) -> None:
         Path(path).write_text(json.dumps(self.to_dict(), indent=2) + "\n")
