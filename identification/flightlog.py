@@ -10,6 +10,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+#: canonical battery signals [V], [A] (``battery_voltage_V`` is kept as an alias of the voltage for older callers)
+BATTERY_VOLTAGE, BATTERY_CURRENT, BATTERY_VOLTAGE_LEGACY = "battery_voltage_v", "battery_current_a", "battery_voltage_V"
+
 
 class LogError(ValueError):
     """A log that cannot be read (missing, empty, corrupt); the message names the file."""
@@ -72,3 +75,28 @@ class FlightLog:
             keep = (s.t_s >= t0_s) & (s.t_s <= t1_s)
             out[n] = Signal(n, s.t_s[keep], s.values[keep], s.unit, s.description)
         return FlightLog(self.source, self.fmt, out, dict(self.params), self.vehicle, list(self.warnings))
+
+
+def add_battery(signals: dict[str, Signal], t_s: np.ndarray, voltage_v: np.ndarray | None,
+                current_a: np.ndarray | None, source: str) -> None:
+    """Add ``battery_voltage_v`` [V] / ``battery_current_a`` [A] when the log really measured them.
+
+    Samples that are not finite, and voltages <= 0 (no sensor: ArduPilot logs 0, MAVLink 65535 mV is mapped
+    to NaN by the caller), are left out; a current is added only with a measured voltage or when it is not
+    all zero. A name already present (an earlier, better source) is kept.
+    """
+    t = np.asarray(t_s, dtype=float)
+    if voltage_v is not None and BATTERY_VOLTAGE not in signals:
+        v = np.asarray(voltage_v, dtype=float)
+        keep = np.isfinite(v) & (v > 0.0) & np.isfinite(t)
+        if keep.any():
+            sig = Signal(BATTERY_VOLTAGE, t[keep], v[keep], "V", f"battery voltage from {source}")
+            signals[BATTERY_VOLTAGE] = sig
+            signals.setdefault(BATTERY_VOLTAGE_LEGACY, Signal(BATTERY_VOLTAGE_LEGACY, sig.t_s, sig.values, "V",
+                                                              f"alias of {BATTERY_VOLTAGE}"))
+    if current_a is not None and BATTERY_CURRENT not in signals:
+        c = np.asarray(current_a, dtype=float)
+        keep = np.isfinite(c) & np.isfinite(t)
+        measured = BATTERY_VOLTAGE in signals or bool(np.any(c[keep] != 0.0))
+        if keep.any() and measured:
+            signals[BATTERY_CURRENT] = Signal(BATTERY_CURRENT, t[keep], c[keep], "A", f"battery current from {source}")

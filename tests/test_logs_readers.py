@@ -145,3 +145,60 @@ def test_text_dataflash_log(tmp_path: Path) -> None:
     np.testing.assert_allclose(log.signal("accel_body_z_m_s2").values, [-9.8, -9.7])
     np.testing.assert_allclose(log.signal("accel_body_z_m_s2").t_s, [0.0, 0.02])
     assert log.params == {"FRAME": 1.0} and log.fmt == "dataflash"
+
+
+def test_battery_from_new_bat_and_old_curr_dataflash(tmp_path: Path) -> None:
+    from uavfmu.dataflash_writer import MessageLayout, write_log
+
+    t = np.arange(5) * 0.5
+    bat = MessageLayout("BAT", "QBff", "TimeUS,Inst,Volt,Curr")
+    new = write_log(tmp_path / "new.bin", {"BAT": (t, {"Inst": 0, "Volt": 12.0 - 0.1 * t, "Curr": 10.0})},
+                    layouts=[bat])
+    log = read_log(new)
+    np.testing.assert_allclose(log.signal("battery_voltage_v").values, 12.0 - 0.1 * t, rtol=1e-6)
+    np.testing.assert_allclose(log.signal("battery_current_a").values, 10.0)
+    assert log.signal("battery_voltage_v").unit == "V" and log.signal("battery_current_a").unit == "A"
+    curr = MessageLayout("CURR", "Qhhh", "TimeUS,Volt,Curr,Vcc")  # old ArduCopter: cV, cA, mV
+    old = write_log(tmp_path / "old.bin", {"CURR": (t, {"Volt": 1110, "Curr": 1550, "Vcc": 5000})},
+                    layouts=[curr])
+    log = read_log(old)
+    np.testing.assert_allclose(log.signal("battery_voltage_v").values, 11.1)
+    np.testing.assert_allclose(log.signal("battery_current_a").values, 15.5)
+    none = write_log(tmp_path / "none.bin", {"CURR": (t, {"Volt": 0, "Curr": 0, "Vcc": 0})}, layouts=[curr])
+    assert not read_log(none).has("battery_voltage_v")  # no monitor fitted: 0 V is not a measurement
+
+
+def test_battery_from_tlog_sys_status_and_battery_status(tmp_path: Path) -> None:
+    from pymavlink.dialects.v20 import ardupilotmega as mav
+
+    link = mav.MAVLink(None, srcSystem=1)
+
+    def write(name: str, msgs: list) -> Path:
+        f = tmp_path / name
+        with f.open("wb") as fh:
+            for k, msg in enumerate(msgs):
+                fh.write(int((1_700_000_000 + 0.1 * k) * 1e6).to_bytes(8, "big") + msg.pack(link))
+        return f
+
+    sys_status = [mav.MAVLink_sys_status_message(0, 0, 0, 500, v, c, 50, 0, 0, 0, 0, 0, 0)
+                  for v, c in ((12600, 1234), (65535, -1), (12500, 1300))]
+    log = read_log(write("sys.tlog", sys_status))
+    np.testing.assert_allclose(log.signal("battery_voltage_v").values, [12.6, 12.5])
+    np.testing.assert_allclose(log.signal("battery_current_a").values, [12.34, 13.0])
+    cells = [4100, 4100, 4000] + [65535] * 7
+    batt = [mav.MAVLink_battery_status_message(0, 0, 0, 2500, cells, 800, 100, 200, 80)]
+    log = read_log(write("batt.tlog", batt))
+    np.testing.assert_allclose(log.signal("battery_voltage_v").values, [12.2])
+    np.testing.assert_allclose(log.signal("battery_current_a").values, [8.0])
+
+
+def test_battery_from_ulog_and_csv(tmp_path: Path) -> None:
+    log = read_log(shared_data("quadrotor", "px4_sitl_quad_takeoff.ulg"))
+    v = log.signal("battery_voltage_v").values
+    assert 15.0 < v.min() <= v.max() <= 16.8  # 4S SITL battery
+    assert not log.has("battery_current_a")  # PX4 SITL logs current_a = -1 (unknown)
+    f = tmp_path / "b.csv"
+    f.write_text("time_s,vbat,ibat\n0.0,12.5,3.0\n0.1,0,3.1\n0.2,12.4,nan\n")
+    log = read_log(f, channel_map={"battery_voltage_v": "vbat", "battery_current_a": "ibat"})
+    np.testing.assert_allclose(log.signal("battery_voltage_v").values, [12.5, 12.4])
+    np.testing.assert_allclose(log.signal("battery_current_a").t_s, [0.0, 0.1])

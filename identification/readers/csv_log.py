@@ -7,7 +7,15 @@ from pathlib import Path
 
 import numpy as np
 
-from identification.flightlog import FlightLog, LogError, Signal
+from identification.flightlog import (
+    BATTERY_CURRENT,
+    BATTERY_VOLTAGE,
+    BATTERY_VOLTAGE_LEGACY,
+    FlightLog,
+    LogError,
+    Signal,
+    add_battery,
+)
 
 
 def read_csv(path: Path, column_map: dict[str, str] | None = None, time_column: str = "time_s") -> FlightLog:
@@ -43,4 +51,8 @@ def read_csv(path: Path, column_map: dict[str, str] | None = None, time_column: 
     for col, vals in data.items():
         name = rename.get(col, col)
         signals[name] = Signal(name, t, np.array(vals), "", f"CSV column {col}")
+    volt = signals.pop(BATTERY_VOLTAGE, None) or signals.pop(BATTERY_VOLTAGE_LEGACY, None)
+    curr = signals.pop(BATTERY_CURRENT, None)
+    if volt is not None or curr is not None:  # units V and A, unmeasured (0 V, NaN) samples left out
+        add_battery(signals, t, None if volt is None else volt.values, None if curr is None else curr.values, "CSV")
     return FlightLog(str(path), "csv", signals, {}, None, warnings)

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from pymavlink import DFReader
 
-from identification.flightlog import FlightLog, LogError, Signal
+from identification.flightlog import FlightLog, LogError, Signal, add_battery
 
 DEG = math.pi / 180.0
 #: ArduPilot SERVOn_FUNCTION values
@@ -39,7 +39,6 @@ CANONICAL: list[tuple[str, str, str, float, str]] = [
     ("height_m", "GPS", "Alt", 1.0, "m"),
     ("altitude_m", "CTUN", "Alt", 1.0, "m"),
     ("airspeed_m_s", "ARSP", "Airspeed", 1.0, "m/s"),
-    ("battery_voltage_V", "BAT", "Volt", 1.0, "V"),
 ]
 
 
@@ -171,6 +170,19 @@ def _times(mtype: str, cols: dict[str, np.ndarray]) -> np.ndarray | None:
     return None
 
 
+def _battery(signals: dict[str, Signal]) -> None:
+    """``BAT.Volt``/``BAT.Curr`` (V, A; ArduPilot 3.6+) else ``CURR.Volt``/``CURR.Curr`` (old logs: int16 in
+    cV and cA, recognised by voltages above 100; ArduPilot logs 0 V when no monitor is fitted)."""
+    for mtype in ("BAT", "CURR"):
+        volt, curr = signals.get(f"{mtype}.Volt"), signals.get(f"{mtype}.Curr")
+        if volt is None:
+            continue
+        v = volt.values
+        positive = v[np.isfinite(v) & (v > 0)]
+        scale = 0.01 if positive.size and np.median(positive) > 100.0 else 1.0
+        add_battery(signals, volt.t_s, v * scale, None if curr is None else curr.values * scale, f"{mtype}.Volt")
+
+
 def read_dataflash(path: Path, channel_map: dict[str, int] | None = None) -> FlightLog:
     """Read ``path``; a damaged tail yields the intact part and a warning saying how much was dropped.
 
@@ -184,8 +196,9 @@ def read_dataflash(path: Path, channel_map: dict[str, int] | None = None) -> Fli
         t = _times(mtype, cols)
         if t is None or not len(t):
             continue
-        if "I" in cols and len(cols["I"]):
-            keep = cols["I"] == np.min(cols["I"])
+        inst = "I" if "I" in cols else "Inst" if "Inst" in cols else None
+        if inst and len(cols[inst]):
+            keep = cols[inst] == np.min(cols[inst])
             t, cols = t[keep], {k: v[keep] for k, v in cols.items()}
         timed[mtype] = (t, cols)
     if not timed:
@@ -208,6 +221,7 @@ def read_dataflash(path: Path, channel_map: dict[str, int] | None = None) -> Fli
         for name, vals in (("vel_north_m_s", spd.values * np.cos(course)),
                            ("vel_east_m_s", spd.values * np.sin(course)), ("vel_down_m_s", vz.values)):
             signals[name] = Signal(name, spd.t_s, vals, "m/s", "from GPS.Spd/GCrs/VZ")
+    _battery(signals)
     if "altitude_m" not in signals and "BARO.Alt" in signals:
         s = signals["BARO.Alt"]
         signals["altitude_m"] = Signal("altitude_m", s.t_s, s.values, "m", "from BARO.Alt")

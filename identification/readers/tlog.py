@@ -10,10 +10,11 @@ from pathlib import Path
 import numpy as np
 from pymavlink import mavutil
 
-from identification.flightlog import FlightLog, LogError, Signal
+from identification.flightlog import FlightLog, LogError, Signal, add_battery
 
 MAV_MODE_FLAG_SAFETY_ARMED = 128
 G0 = 9.80665
+UINT16_MAX = 65535
 
 # canonical <- (message, field, scale)
 FIELDS = [
@@ -28,6 +29,25 @@ FIELDS = [
     ("vel_down_m_s", "GLOBAL_POSITION_INT", "vz", 0.01), ("airspeed_m_s", "VFR_HUD", "airspeed", 1.0),
     ("climb_rate_m_s", "VFR_HUD", "climb", 1.0),
 ]
+
+
+def _cell_sum_mv(msg: object) -> float:
+    """Pack voltage [mV] of a BATTERY_STATUS: the sum of its cells (UINT16_MAX marks an unused cell)."""
+    cells = [c for c in list(getattr(msg, "voltages", [])) + list(getattr(msg, "voltages_ext", []) or [])
+             if c not in (UINT16_MAX, 0)]
+    return float(sum(cells)) if cells else math.nan
+
+
+def _battery(signals: dict[str, Signal]) -> None:
+    """SYS_STATUS.voltage_battery [mV] / current_battery [cA] (UINT16_MAX and -1: unknown), else the first
+    BATTERY_STATUS (cells summed, current_battery [cA])."""
+    for mtype, vkey in (("SYS_STATUS", "voltage_battery"), ("BATTERY_STATUS", "voltage_mV")):
+        volt, curr = signals.get(f"{mtype}.{vkey}"), signals.get(f"{mtype}.current_battery")
+        if volt is None:
+            continue
+        v = np.where(volt.values >= UINT16_MAX, np.nan, volt.values) * 1e-3
+        c = None if curr is None else np.where(curr.values == -1, np.nan, curr.values) * 0.01
+        add_battery(signals, volt.t_s, v, c, f"{mtype}.{vkey}")
 
 
 def read_tlog(path: Path) -> FlightLog:
@@ -56,6 +76,8 @@ def read_tlog(path: Path) -> FlightLog:
             params[str(msg.param_id)] = float(msg.param_value)
             continue
         d = {k: v for k, v in msg.to_dict().items() if isinstance(v, int | float) and not isinstance(v, bool)}
+        if mtype == "BATTERY_STATUS":
+            d["voltage_mV"] = _cell_sum_mv(msg)
         rows[mtype].append((float(getattr(msg, "_timestamp", 0.0)), d))
     if not rows:
         raise LogError(f"{path}: no MAVLink messages found (empty or not a .tlog)")
@@ -76,6 +98,7 @@ def read_tlog(path: Path) -> FlightLog:
         if key in signals:
             s = signals[key]
             signals[f"servo_{n}_pwm_us"] = Signal(f"servo_{n}_pwm_us", s.t_s, s.values, "us", f"from {key}")
+    _battery(signals)
     if "HEARTBEAT.base_mode" in signals:
         s = signals["HEARTBEAT.base_mode"]
         armed = (s.values.astype(int) & MAV_MODE_FLAG_SAFETY_ARMED) > 0

@@ -8,9 +8,26 @@ from pathlib import Path
 import numpy as np
 from pyulog import ULog
 
-from identification.flightlog import FlightLog, LogError, Signal
+from identification.flightlog import FlightLog, LogError, Signal, add_battery
 
 ARMING_STATE_ARMED = 2  #: vehicle_status.arming_state value for armed
+
+
+def _battery(signals: dict[str, Signal]) -> None:
+    """battery_status (instance 0): ``voltage_v`` (else ``voltage_filtered_v``) [V], ``current_a`` [A]
+    (PX4 logs -1 for an unknown current), also ``voltage_filtered_v`` as ``battery_voltage_filtered_v``."""
+    volt = signals.get("battery_status.voltage_v") or signals.get("battery_status.voltage_filtered_v")
+    if volt is None:
+        return
+    curr = signals.get("battery_status.current_a")
+    c = None if curr is None else np.where(curr.values == -1.0, np.nan, curr.values)
+    add_battery(signals, volt.t_s, volt.values, c, "battery_status")
+    filt = signals.get("battery_status.voltage_filtered_v")
+    if filt is not None:
+        good = np.isfinite(filt.values) & (filt.values > 0)
+        if good.any():
+            signals["battery_voltage_filtered_v"] = Signal("battery_voltage_filtered_v", filt.t_s[good],
+                                                           filt.values[good], "V", "from battery_status")
 
 
 def read_ulog(path: Path) -> FlightLog:
@@ -60,7 +77,7 @@ def read_ulog(path: Path) -> FlightLog:
         alias(f"vel_{full}_m_s", f"vehicle_gps_position.vel_{a}_m_s", "m/s")
     alias("altitude_m", "vehicle_local_position.z", "m", -1.0)
     alias("climb_rate_m_s", "vehicle_local_position.vz", "m/s", -1.0)
-    alias("battery_voltage_V", "battery_status.voltage_v", "V")
+    _battery(signals)
     for n in range(16):
         alias(f"servo_{n + 1}_pwm_us", f"actuator_outputs.output[{n}]", "us")
     for k in range(1, 5):  # PX4 quadrotor: motors on the first four actuator outputs
