@@ -122,7 +122,7 @@ def hover_state(sim: Simulator, p: np.ndarray, height_m: float = 10.0) -> tuple[
     _x, y = sim.initial(sim.inputs(), p)
     g = sim.output(y, "gravity_m_s2")
     pwm = hover_pwm_sum(g) / 4
-    u = np.full(4, pwm)
+    u = sim.full_inputs(np.full(4, pwm))  # battery voltage at its nominal start value
     return sim.initial(u, p)[0], u, g
 
 

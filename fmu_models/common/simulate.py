@@ -52,8 +52,15 @@ class Simulator:
             u[self.model.inputs.index[name]] = value
         return u
 
+    def full_inputs(self, u: Any) -> Any:
+        """``u`` padded with the start values of trailing inputs it leaves out (e.g. battery voltage)."""
+        n = len(self.model.inputs)
+        if isinstance(u, ca.SX | ca.MX) or np.size(u) >= n:
+            return u
+        return np.concatenate([np.ravel(u), np.array(self.model.inputs.starts())[np.size(u):]])
+
     def initial(self, u: Any, p: Any) -> tuple[np.ndarray, np.ndarray]:
-        x0, y0 = self.init(u, p)
+        x0, y0 = self.init(self.full_inputs(u), p)
         return np.asarray(x0).ravel(), np.asarray(y0).ravel()
 
     def output(self, y: np.ndarray, name: str) -> float:
@@ -63,14 +70,14 @@ class Simulator:
             x0: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Simulate; ``u_of_t`` is an input vector or a function of time. Returns ``(t, X, Y)``."""
         n = math.ceil(duration_s / dt_s - 1e-9)
-        u0 = u_of_t(0.0) if callable(u_of_t) else u_of_t
+        u0 = self.full_inputs(u_of_t(0.0) if callable(u_of_t) else u_of_t)
         x, y = self.initial(u0, p)
         if x0 is not None:
             x = np.asarray(x0, dtype=float)
             y = np.asarray(self.h(x, u0, p)).ravel()
         ts, xs, ys = [0.0], [x], [y]
         for k in range(n):
-            u = u_of_t(k * dt_s) if callable(u_of_t) else u_of_t
+            u = self.full_inputs(u_of_t(k * dt_s)) if callable(u_of_t) else u0
             x1, y1 = self.step(x, u, p, dt_s)
             x, y = np.asarray(x1).ravel(), np.asarray(y1).ravel()
             ts.append((k + 1) * dt_s)

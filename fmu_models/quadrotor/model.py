@@ -27,7 +27,7 @@ from fmu_models.common.params import to_variables
 from fmu_models.common.rigid_body import inertia_matrix
 from fmu_models.quadrotor.anfis import AnfisMap
 from fmu_models.quadrotor.params import QuadrotorParams, motor_layout
-from fmu_models.quadrotor.thrust import out_of_band, thrust_sum_ca
+from fmu_models.quadrotor.thrust import effective_pwm, motor_thrust, out_of_band
 
 N_MOTORS = 4
 PWM_INPUT_MIN_US = 0.0  #: 0 us = no pulse (motor off); below idle thrust is zero anyway
@@ -54,6 +54,11 @@ def anfis_param_variables(amap: AnfisMap) -> tuple[Variable, ...]:
     return tuple(out)
 
 
+def _n_inputs(u: Any) -> int:
+    """Length of an input vector (CasADi or numeric); callers may leave out the trailing voltage."""
+    return int(u.numel()) if hasattr(u, "numel") else len(u)
+
+
 class QuadrotorModel:
     """Quadrotor of paper 000 as a ``VehicleModel`` (see ``fmu_models.common.model``)."""
 
@@ -74,12 +79,21 @@ class QuadrotorModel:
             )
         )
         self.state_limits = vehicle.BODY_STATE_LIMITS + (1e4,) * N_MOTORS
+        pwm_inputs = tuple(
+            Variable(f"pwm_{i}_us", "us", f"motor {i} PWM command", 1000.0, PWM_INPUT_MIN_US, PWM_INPUT_MAX_US)
+            for i in range(1, 5)
+        )
         self.inputs = Layout(
-            tuple(
+            (
+                *pwm_inputs,
                 Variable(
-                    f"pwm_{i}_us", "us", f"motor {i} PWM command", 1000.0, PWM_INPUT_MIN_US, PWM_INPUT_MAX_US
-                )
-                for i in range(1, 5)
+                    "battery_voltage_V",
+                    "V",
+                    "battery voltage (thrust per PWM grows with it; start: battery_nominal_V of the build)",
+                    self.defaults.battery_nominal_V,
+                    0.0,
+                    100.0,
+                ),
             )
         )
         self.params = Layout(
@@ -133,20 +147,24 @@ class QuadrotorModel:
         """Per-motor thrust [N] the map gives for the PWM inputs (before the motor lag)."""
         pv = self.params.view(p)
         amap = self._map(pv)
-        out = []
-        for i in range(N_MOTORS):
-            x_sum = N_MOTORS * u[i]
-            t = thrust_sum_ca(
-                amap, x_sum, N_MOTORS * pv.pwm_idle_us, pv.anfis_band_lo_us, pv.anfis_band_hi_us
+        volt = u[N_MOTORS] if _n_inputs(u) > N_MOTORS else pv.battery_nominal_V
+        return [
+            motor_thrust(
+                amap, u[i], volt, pv.pwm_idle_us, pv.anfis_band_lo_us, pv.anfis_band_hi_us,
+                pv.battery_nominal_V, pv.thrust_voltage_exponent, pv.thrust_scale, N_MOTORS, _CA,
             )
-            out.append(t / N_MOTORS)
-        return out
+            for i in range(N_MOTORS)
+        ]
 
     def out_of_range(self, u: Any, p: Any) -> Any:
         pv = self.params.view(p)
         flag = 0.0
         for i in range(N_MOTORS):
-            flag = ca.fmax(flag, out_of_band(N_MOTORS * u[i], pv.anfis_band_lo_us, pv.anfis_band_hi_us, _CA))
+            volt = u[N_MOTORS] if _n_inputs(u) > N_MOTORS else pv.battery_nominal_V
+            x = N_MOTORS * effective_pwm(
+                u[i], volt, pv.pwm_idle_us, pv.battery_nominal_V, pv.thrust_voltage_exponent, _CA
+            )
+            flag = ca.fmax(flag, out_of_band(x, pv.anfis_band_lo_us, pv.anfis_band_hi_us, _CA))
         return flag
 
     def motor_thrust(self, x: Any, u: Any, p: Any) -> list[Any]:

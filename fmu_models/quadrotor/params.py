@@ -40,6 +40,13 @@ class QuadrotorParams:
     kd_z_N_s_m: float = param(0.25, "N.s/m", 0.0, 100.0, "linear drag along body z (eq. 7)")
     tau_motor_s: float = param(0.0, "s", 0.0, 2.0, "first-order motor thrust time constant (0: none)")
     pwm_idle_us: float = param(1100.0, "us", 800.0, 1500.0, "per-motor PWM at and below which thrust is 0")
+    battery_nominal_V: float = param(
+        11.1, "V", 1.0, 100.0, "battery voltage the thrust map refers to (start of the voltage input)"
+    )
+    thrust_voltage_exponent: float = param(
+        1.0, "1", 0.0, 3.0, "motor command scales as (V / battery_nominal_V)^this above idle (0: no voltage)"
+    )
+    thrust_scale: float = param(1.0, "1", 0.2, 5.0, "per-flight thrust calibration factor (1: none)")
     ground_mu: float = param(0.5, "1", 0.0, 2.0, "friction coefficient of the landing gear")
     step_internal_s: float = param(0.001, "s", 1e-5, 0.05, "largest internal RK4 step")
     frame: str = "x"

@@ -33,6 +33,39 @@ def thrust_sum(amap: AnfisMap, x_us: Any, idle_us: Any, lo_us: Any, hi_us: Any, 
     return xp.where(x_us < lo_us, below, xp.where(x_us > hi_us, above, t_in))
 
 
+def effective_pwm(pwm_us: Any, voltage_V: Any, idle_us: Any, nominal_V: Any, exponent: Any, xp: Any = NP) -> Any:
+    """Per-motor PWM [us] that gives at ``nominal_V`` the thrust ``pwm_us`` gives at ``voltage_V``.
+
+    An ESC sets the motor's duty cycle from the command above idle; the motor speed follows duty x
+    battery voltage, so thrust ~ ((pwm - idle) V)^2. The command is rescaled by ``(V / V_nom)^exponent``
+    (exponent 1: that physics; 0: voltage ignored). Voltages below 1 % of nominal count as 1 %.
+    """
+    ratio = xp.fmax(voltage_V / nominal_V, 0.01)
+    return idle_us + xp.fmax(pwm_us - idle_us, 0.0) * ratio**exponent
+
+
+def motor_thrust(
+    amap: AnfisMap,
+    pwm_us: Any,
+    voltage_V: Any,
+    idle_us: Any,
+    lo_us: Any,
+    hi_us: Any,
+    nominal_V: Any,
+    exponent: Any,
+    scale: Any = 1.0,
+    n_motors: int = 4,
+    xp: Any = NP,
+) -> Any:
+    """Thrust [N] of one motor at ``pwm_us`` and battery ``voltage_V``: what the quadrotor FMU evaluates.
+
+    ``scale * thrust_sum(n * pwm_eff) / n`` with the voltage-compensated command :func:`effective_pwm`
+    (``idle_us`` per motor; ``lo_us``/``hi_us`` summed). Zero at and below idle, monotone where the map is.
+    """
+    x = n_motors * effective_pwm(pwm_us, voltage_V, idle_us, nominal_V, exponent, xp)
+    return scale * thrust_sum(amap, x, n_motors * idle_us, lo_us, hi_us, xp) / n_motors
+
+
 def thrust_sum_ca(amap: AnfisMap, x_us: Any, idle_us: Any, lo_us: Any, hi_us: Any) -> Any:
     """CasADi form of :func:`thrust_sum`."""
     return thrust_sum(amap, x_us, idle_us, lo_us, hi_us, CA)
