@@ -10,9 +10,12 @@ import dataclasses
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
+
+from pydantic import Field
 
 from fmu_models.common.params import param, read_json, validate_params
+from fmu_models.config import PositiveFiniteFloat
 
 DEFAULTS_FILE = Path(__file__).with_name("aerosonde.json")
 _D = json.loads(DEFAULTS_FILE.read_text())
@@ -96,7 +99,8 @@ class FixedWingParams:
     @classmethod
     def from_dict(cls, values: dict[str, Any], source: str = "fixed-wing parameters") -> FixedWingParams:
         """Defaults overridden by ``values`` (a ``propulsion`` sub-object is flattened); all problems at once."""
-        extra = {"KV_rpm_per_V": (float, 0.0), "ncells": (int, 0)}  # informative keys of aerosonde.json
+        # informative keys of aerosonde.json (the model uses KQ_N_m_per_A), checked but not stored
+        extra = {"KV_rpm_per_V": (PositiveFiniteFloat, 1.0), "ncells": (Annotated[int, Field(ge=1, le=100)], 1)}
         scalars = validate_params(cls, values, source, extra=extra, sections=("propulsion",))
         return dataclasses.replace(cls(), **{k: v for k, v in scalars.items() if k not in extra})
 
