@@ -32,6 +32,8 @@ LOWPASS_ORDER = 2  #: Butterworth order of the optional zero-phase low-pass filt
 RAD_S_PER_RPM = 2.0 * math.pi / 60.0
 MOTOR_SIGNAL = "motor_{k}_pwm_us"
 EXTRA_INPUTS = ("climb_rate_m_s", "battery_voltage_V")
+#: log signal names tried, in order, for each extra input (readers name the battery voltage battery_voltage_v)
+LOG_NAMES = {"battery_voltage_V": ("battery_voltage_v", "battery_voltage_V")}
 
 
 class ThrustDataError(ValueError):
@@ -65,6 +67,7 @@ class ThrustDatasetConfig:
     lowpass_hz: float | None = None
     extra_inputs: tuple[str, ...] = EXTRA_INPUTS
     pwm_idle_us: float = 1100.0
+    airborne_on_mean_pwm: bool = False  #: airborne test on the mean motor PWM instead of every motor
 
     def __post_init__(self) -> None:
         problems = []
@@ -263,7 +266,10 @@ def build_thrust_dataset(log: Any, config: ThrustDatasetConfig, source: str = ""
     edges_hi = t_pwm + dt_next
 
     # airborne mask
-    mask = np.all(pwm > config.motor_min_pwm_us, axis=1)
+    if config.airborne_on_mean_pwm:  # aggressive flight drives single motors to their minimum in the air
+        mask = pwm.mean(axis=1) > config.motor_min_pwm_us
+    else:
+        mask = np.all(pwm > config.motor_min_pwm_us, axis=1)
     armed = _series(log, "armed")
     if armed is None:
         notes.append("no 'armed' signal: airborne samples found from motor PWM (and altitude) only")
@@ -320,7 +326,7 @@ def build_thrust_dataset(log: Any, config: ThrustDatasetConfig, source: str = ""
         inputs[MOTOR_SIGNAL.format(k=k + 1)] = pwm[mask, k]
     mid = (edges_lo + edges_hi)[mask] / 2.0
     for name in config.extra_inputs:
-        s = _series(log, name)
+        s = _extra_series(log, name, src)
         if s is None or s[0].size < 2:
             notes.append(f"candidate input {name!r} is not logged; left out")
             continue
@@ -343,6 +349,27 @@ def build_thrust_dataset(log: Any, config: ThrustDatasetConfig, source: str = ""
         notes=tuple(notes),
         source=src,
     )
+
+
+def _extra_series(log: Any, name: str, src: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """The first logged signal for extra input ``name``; a battery voltage with no valid value is an error."""
+    for log_name in LOG_NAMES.get(name, (name,)):
+        try:
+            raw = log.signal(log_name)
+        except KeyError:
+            continue
+        s = _series(log, log_name)
+        if name == "battery_voltage_V":
+            n_raw = int(np.size(getattr(raw, "values", raw[1] if isinstance(raw, tuple) else [])))
+            ok = s[1] > 0.0 if s is not None else np.zeros(0, bool)
+            if not ok.any():
+                raise ThrustDataError(
+                    f"{src}: field {log_name!r}: all {n_raw} battery voltage samples are zero or NaN; "
+                    "allowed: > 0 V. Fix the log's battery monitor or drop the voltage (--no-voltage)"
+                )
+            s = (s[0][ok], s[1][ok])
+        return s
+    return None
 
 
 def _fz_aligner(
