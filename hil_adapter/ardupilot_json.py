@@ -3,7 +3,9 @@
 SITL drives the clock (lockstep by construction): every servo frame advances the FMU by ``1/frame_rate``.
 A repeated ``frame_count`` is a resend (answered with the last state, no step); one slightly below the last
 (within ``REORDER_WINDOW``) is a late datagram and is dropped; a count back at 0 or 1, or far below the last,
-means SITL restarted (the FMU is re-initialised). Malformed datagrams are counted and ignored.
+means SITL restarted (the FMU restarts; the clock it is sent goes on, never backwards). Malformed datagrams
+(layout, frame rate, a mapped PWM out of range such as 0, a frame_count leap) are counted and dropped before
+they change anything.
 """
 
 from __future__ import annotations
@@ -23,6 +25,10 @@ log = logging.getLogger(__name__)
 DEFAULT_PORT = 9002
 #: a frame_count at most this far below the last one is a late (reordered) datagram, not a SITL restart
 REORDER_WINDOW = 8
+#: SITL frame rates we accept [Hz] (ArduPilot runs 50..8000 Hz physics; 0 is rejected by the packet parser)
+FRAME_RATE_HZ = (10, 10000)
+#: a frame_count more than this far ahead of the last one is malformed, not packet loss (10 s at 1 kHz)
+MAX_FRAME_GAP = 10000
 
 
 class DatagramTransport(Protocol):
@@ -98,32 +104,41 @@ class ArduPilotJsonServer:
                           s.get("airspeed_m_s") if self.plant.has_airspeed else None)
 
     def handle(self, data: bytes) -> bytes | None:
-        """One datagram in, the reply out (None for a malformed one)."""
+        """One datagram in, the reply out (None for a malformed or late one).
+
+        The whole packet is checked before anything changes: a malformed one (bad layout, frame rate outside
+        ``FRAME_RATE_HZ``, a mapped PWM outside the plausible range, e.g. 0, or a frame_count jump beyond
+        ``MAX_FRAME_GAP``) is counted and dropped with no reset, no step and no other counter touched."""
         try:
             pkt = ServoPacket.unpack(data)
+            if not FRAME_RATE_HZ[0] <= pkt.frame_rate_hz <= FRAME_RATE_HZ[1]:
+                raise PacketError(f"frame_rate {pkt.frame_rate_hz} Hz outside {FRAME_RATE_HZ[0]}..{FRAME_RATE_HZ[1]}")
             pwm = {s: float(pkt.pwm_us[s - 1]) for s in self._sources if s <= len(pkt.pwm_us)}
-            if self.last_count is not None and pkt.frame_count == self.last_count:
-                self.stats.resends += 1
-                return self.last_reply
-            if (self.last_count is not None and pkt.frame_count < self.last_count and pkt.frame_count > 1
-                    and self.last_count - pkt.frame_count <= REORDER_WINDOW):
-                self.stats.out_of_order += 1  # a late datagram: its frame was answered or skipped already
-                return None
-            if self.last_count is not None and pkt.frame_count < self.last_count:
-                log.info("frame_count went from %d to %d: SITL restarted, resetting the FMU", self.last_count,
-                         pkt.frame_count)
-                self.stats.restarts += 1
-                self.plant.restart()
-            elif self.last_count is not None and pkt.frame_count > self.last_count + 1:
-                self.stats.dropped += pkt.frame_count - self.last_count - 1
-            self.plant.apply(pwm)
+            inputs = self.plant.check(pwm)
+            last = self.last_count
+            if last is not None and pkt.frame_count > last + MAX_FRAME_GAP:
+                raise PacketError(f"frame_count jumps from {last} to {pkt.frame_count}")
         except (PacketError, MappingError) as err:
             self.stats.malformed += 1
             log.debug("malformed servo packet (%d bytes): %s", len(data), err)
             return None
+        if last is not None and pkt.frame_count == last:
+            self.stats.resends += 1
+            return self.last_reply
+        if last is not None and 1 < pkt.frame_count < last and last - pkt.frame_count <= REORDER_WINDOW:
+            self.stats.out_of_order += 1  # a late datagram: its frame was answered or skipped already
+            return None
+        if last is not None and pkt.frame_count < last:
+            log.info("frame_count went from %d to %d: SITL restarted, restarting the FMU (the clock goes on)",
+                     last, pkt.frame_count)
+            self.stats.restarts += 1
+            self.plant.restart()
+        elif last is not None:
+            self.stats.dropped += pkt.frame_count - last - 1
+        self.plant.inputs = inputs
         self.last_count = pkt.frame_count
         self.plant.advance(1.0 / pkt.frame_rate_hz)
-        self.stats.steps += 1
+        self.stats.step(self.plant.out_of_band)
         self._stepped_pwm = pwm
         try:
             self.last_reply = self.reply()
@@ -143,7 +158,8 @@ class ArduPilotJsonServer:
         if pwm is None:
             return
         if self.recorder is not None:
-            self.recorder.write(self.plant.t_s, pwm, self.plant.inputs, self.plant.state, sensors=self.last_frame)
+            self.recorder.write(self.plant.t_s, pwm, self.plant.inputs, self.plant.state, sensors=self.last_frame,
+                                 out_of_band=self.plant.out_of_band)
         for sink in self.sinks:
             sink(self.plant.t_s, self.plant.state)
 

@@ -1,8 +1,11 @@
 """What every simulator interface shares: the FMU plant, statistics, the crash-safe recorder, the watchdog.
 
 The plant drives the FMU only through FMI (FMPy's FMU2Slave, via ``fmu_models.fmi.host``): PWM in through the
-PWM mapping, outputs by name out. An FMU error never propagates: it is counted, logged, and the FMU is
-re-initialised at its start state, as a bench operator would restart the simulation.
+PWM mapping, outputs by name out. An FMU error never propagates: it is counted, logged, and the FMU instance is
+freed and instantiated afresh at its start state (never ``fmi2Reset`` after a failed call: FMI 2.0 allows
+nothing but ``fmi2FreeInstance`` after ``fmi2Fatal``), as a bench operator would restart the simulation.
+Simulation time never goes backwards: after any restart the clock the autopilot sees continues from the last
+time sent (the FMU's own clock starts at 0 again; ``Plant.t_s`` = ``epoch_s`` + the FMU's time).
 """
 
 from __future__ import annotations
@@ -33,6 +36,10 @@ STATE_OUTPUTS = (
     "lat_deg", "lon_deg", "height_m", "altitude_m",
 )
 OPTIONAL_OUTPUTS = ("airspeed_m_s",)
+#: FMU output flagging PWM above idle outside the thrust map's trained band (quadrotor)
+OUT_OF_BAND_OUTPUT = "thrust_map_out_of_range"
+#: a pause in stepping longer than this [s] (waiting for the autopilot, reconnecting) is not stepping time
+IDLE_GAP_S = 0.25
 #: lockstep default of the busy poll before a blocking receive [s]; see :class:`SocketSpinner`
 BUSY_POLL_S = 0.0005
 
@@ -81,10 +88,16 @@ class SocketSpinner:
 
 
 class Plant:
-    """The FMU behind the adapter: ``apply(pwm)`` then ``advance(dt)``; restarts itself after an FMU error."""
+    """The FMU behind the adapter: ``apply(pwm)`` then ``advance(dt)``; re-instantiates itself after an FMU error.
+
+    ``t_s`` [s] is the simulation time the autopilot sees: it starts at ``start_time_s`` and never goes back,
+    across restarts (``epoch_s`` is where the current FMU run began on that clock).
+    """
 
     def __init__(self, fmu: str | Path, mapping: PwmMapping | None = None,
-                 start_values: Mapping[str, float] | None = None) -> None:
+                 start_values: Mapping[str, float] | None = None, start_time_s: float = 0.0) -> None:
+        if not (math.isfinite(start_time_s) and 0.0 <= start_time_s <= 1.0):
+            raise ValueError(f"start_time_s = {start_time_s}; allowed 0..1 s")
         self.host = FmuHost(fmu, instance_name="hil")
         names = set(self.host.variables)
         try:
@@ -98,12 +111,20 @@ class Plant:
             self.host.close()
             raise MappingError(f"PWM mapping targets {', '.join(missing)} are not inputs of {self.host.path.name}")
         self.outputs = tuple(n for n in STATE_OUTPUTS + OPTIONAL_OUTPUTS if n in names)
+        #: the FMU's Boolean out-of-band flag, read beside the Real outputs (None when the FMU has none)
+        self._oob_vr = self.host.refs([OUT_OF_BAND_OUTPUT]) if OUT_OF_BAND_OUTPUT in names else None
+        self.out_of_band = False
         self.start_values = dict(start_values or {})
         self.inputs: dict[str, float] = {c.target: c.failsafe for c in self.mapping.channels}
         self.fmu_errors = 0
+        #: FMU instances freed and made afresh after an error
+        self.reinstantiations = 0
         self.last_error = ""
         #: wall time of each FMU step (setReal + doStep + getReal) [s], for the statistics
         self.step_times: deque[float] = deque(maxlen=20000)
+        self.epoch_s = float(start_time_s)
+        self.fmu_t_s = 0.0
+        self.t_s = self.epoch_s
         self.restart()
 
     @property
@@ -111,33 +132,58 @@ class Plant:
         return "airspeed_m_s" in self.outputs
 
     def restart(self) -> None:
-        """Back to the start state at t = 0 (SITL restarted, or after an FMU error)."""
-        self.t_s = 0.0
+        """Back to the start state (SITL or PX4 restarted); the clock goes on from the last time."""
+        self.epoch_s = self.t_s
+        self.fmu_t_s = 0.0
+        self.out_of_band = False
         self.host.start(self.start_values)
         self.state = self.host.get(self.outputs)
+
+    def clock_at_least(self, t_s: float) -> None:
+        """Move the clock (not the FMU) forward to ``t_s`` if it is behind: the first packet carries a positive
+        time (PX4 and ArduPilot take 0 as "no time yet")."""
+        if self.t_s < t_s:
+            self.epoch_s += t_s - self.t_s
+            self.t_s = self.epoch_s + self.fmu_t_s
 
     def apply(self, pwm_us: Mapping[int, float], failsafe: bool = False) -> dict[str, float]:
         """FMU inputs from PWM by output channel (1-based); a bad pulse raises ``MappingError``."""
         self.inputs = self.mapping.apply(pwm_us, failsafe=failsafe)
         return self.inputs
 
+    def check(self, pwm_us: Mapping[int, float]) -> dict[str, float]:
+        """The FMU inputs ``pwm_us`` would give, without applying them (``MappingError`` for a bad pulse)."""
+        return self.mapping.apply(pwm_us)
+
     def advance(self, dt_s: float) -> dict[str, float]:
         """One FMU step of ``dt_s`` with the current inputs; returns the outputs by name."""
         t0 = time.perf_counter()
         try:
-            self.host.step(self.t_s, dt_s, self.inputs)
-            self.t_s += dt_s
+            self.host.step(self.fmu_t_s, dt_s, self.inputs)
+            self.fmu_t_s += dt_s
+            self.t_s = self.epoch_s + self.fmu_t_s
             self.state = self.host.get(self.outputs)
+            if self._oob_vr is not None:  # PWM above idle outside the thrust map's trained band (quadrotor)
+                self.out_of_band = bool(self.host.slave.getBoolean(self._oob_vr)[0])
             self.step_times.append(time.perf_counter() - t0)
         except FmuRunError as err:
             self.fail(str(err))
         return self.state
 
     def fail(self, reason: str) -> None:
-        """The FMU failed (or gave outputs no interface can send): count, log, restart from the start state."""
+        """The FMU failed (or gave outputs no interface can send): count, log, free the instance and start a new
+        one at the start state; the clock goes on from the last time."""
         self.fmu_errors += 1
         self.last_error = reason
-        log.error("FMU error, restarting the simulation: %s", reason)
+        log.error("FMU error, restarting the simulation on a new instance: %s", reason)
+        self.reinstantiate()
+
+    def reinstantiate(self) -> None:
+        """Free the FMU instance and instantiate it afresh (never ``fmi2Reset`` after a failed call)."""
+        path = self.host.path
+        self.host.close()
+        self.reinstantiations += 1
+        self.host = FmuHost(path, instance_name="hil")
         self.restart()
 
     def close(self) -> None:
@@ -146,7 +192,11 @@ class Plant:
 
 @dataclass
 class Stats:
-    """Live counters of an adapter run; latencies in seconds."""
+    """Live counters of an adapter run; latencies in seconds.
+
+    Rates count stepping time only: ``active_s`` sums the wall time between consecutive steps, leaving out
+    pauses longer than ``IDLE_GAP_S`` (waiting for the autopilot to connect, reconnects, after it stopped).
+    """
 
     steps: int = 0
     overruns: int = 0
@@ -157,10 +207,32 @@ class Stats:
     restarts: int = 0
     reconnects: int = 0
     failsafes: int = 0
+    #: steps whose FMU outputs flagged PWM outside the thrust map's trained band
+    out_of_band: int = 0
+    #: wall time between the first and the last step, pauses left out [s]
+    active_s: float = 0.0
     started: float = field(default_factory=time.perf_counter)
+    last_step: float = -math.inf
+    #: wall time [s] of each reconnect: connection lost (or accepted again) -> first state sent on the new one
+    reconnect_s: deque[float] = field(default_factory=lambda: deque(maxlen=1000))
     latencies: deque[float] = field(default_factory=lambda: deque(maxlen=20000))
     #: adapter busy time per step [s]: from the autopilot's input to our reply sent (FMU step included)
     busy: deque[float] = field(default_factory=lambda: deque(maxlen=20000))
+    _live: tuple[int, float] = (0, 0.0)
+
+    def step(self, out_of_band: bool = False) -> None:
+        """Count one FMU step (and whether it was out of the thrust map's band)."""
+        now = time.perf_counter()
+        gap = now - self.last_step
+        if gap < IDLE_GAP_S:
+            self.active_s += gap
+        self.last_step = now
+        self.steps += 1
+        if out_of_band:
+            if not self.out_of_band:
+                log.warning("PWM above idle left the thrust map's trained band (counted per step in the summary "
+                            "and the record's out_of_band column)")
+            self.out_of_band += 1
 
     def percentile(self, q: float) -> float:
         if not self.latencies:
@@ -170,16 +242,27 @@ class Stats:
 
     @property
     def rate_hz(self) -> float:
-        return self.steps / max(time.perf_counter() - self.started, 1e-9)
+        """Steps per second of stepping time (waits, reconnects and the time after the last step left out)."""
+        return self.steps / self.active_s if self.active_s > 0 else 0.0
+
+    def live_rate_hz(self) -> float:
+        """Steps per second of stepping time since the previous call (the status line calls it every second);
+        0 once stepping has stopped."""
+        steps, active = self._live
+        self._live = (self.steps, self.active_s)
+        d_active = self.active_s - active
+        return (self.steps - steps) / d_active if d_active > 0 else 0.0
 
     def summary(self, plant: Plant | None = None) -> dict[str, Any]:
         busy = 1e3 * sum(self.busy) / len(self.busy) if self.busy else math.nan
-        out = {"steps": self.steps, "step_rate_hz": round(self.rate_hz, 1), "busy_mean_ms": round(busy, 4),
+        out = {"steps": self.steps, "step_rate_hz": round(self.rate_hz, 1), "stepping_s": round(self.active_s, 3),
+               "busy_mean_ms": round(busy, 4),
                "latency_p50_ms": round(1e3 * self.percentile(50), 4),
                "latency_p99_ms": round(1e3 * self.percentile(99), 4),
                "overruns": self.overruns, "dropped": self.dropped, "malformed": self.malformed,
                "resends": self.resends, "out_of_order": self.out_of_order, "restarts": self.restarts,
-               "reconnects": self.reconnects, "failsafes": self.failsafes}
+               "reconnects": self.reconnects, "reconnect_max_ms": round(1e3 * max(self.reconnect_s, default=0.0), 3),
+               "failsafes": self.failsafes, "out_of_band_steps": self.out_of_band}
         if plant is not None:
             fmu = 1e3 * sum(plant.step_times) / len(plant.step_times) if plant.step_times else math.nan
             out |= {"sim_time_s": round(plant.t_s, 3), "fmu_step_mean_ms": round(fmu, 4),
@@ -187,8 +270,9 @@ class Stats:
         return out
 
     def line(self, plant: Plant | None = None) -> str:
+        """The live status line; its rate is over the last second of stepping."""
         s = self.summary(plant)
-        return (f"t={s.get('sim_time_s', 0):8.2f}s steps={s['steps']} rate={s['step_rate_hz']:.0f}/s "
+        return (f"t={s.get('sim_time_s', 0):8.2f}s steps={s['steps']} rate={self.live_rate_hz():.0f}/s "
                 f"rtt p50={s['latency_p50_ms']:.3f}ms p99={s['latency_p99_ms']:.3f}ms overruns={s['overruns']} "
                 f"dropped={s['dropped']} malformed={s['malformed']} fmu_errors={s.get('fmu_errors', 0)}")
 
@@ -218,16 +302,20 @@ class Recorder:
         self._w = csv.writer(self._fh)
         self.channels, self.inputs, self.outputs = list(channels), list(inputs), list(outputs)
         self._w.writerow(["time_s", *(f"servo_{c}_pwm_us" for c in self.channels), *self.inputs,
-                          *(OUTPUT_TO_LOG.get(o, o) for o in self.outputs), "failsafe", *SENSOR_COLUMNS])
+                          *(OUTPUT_TO_LOG.get(o, o) for o in self.outputs), "failsafe", "out_of_band",
+                          *SENSOR_COLUMNS])
         self.rows = 0
 
     def write(self, t_s: float, pwm_us: Mapping[int, float], inputs: Mapping[str, float],
-              outputs: Mapping[str, float], failsafe: bool = False, sensors: Any = None) -> None:
-        """One row; ``sensors`` is the sensor frame sent this step (NaN columns when none was sent)."""
+              outputs: Mapping[str, float], failsafe: bool = False, sensors: Any = None,
+              out_of_band: bool = False) -> None:
+        """One row; ``sensors`` is the sensor frame sent this step (NaN columns when none was sent);
+        ``out_of_band``: the FMU flagged PWM above idle outside the thrust map's trained band."""
         sens = sensor_values(sensors) if sensors is not None else (math.nan,) * len(SENSOR_COLUMNS)
         self._w.writerow([repr(t_s), *(repr(float(pwm_us.get(c, math.nan))) for c in self.channels),
                           *(repr(float(inputs[n])) for n in self.inputs),
-                          *(repr(float(outputs[n])) for n in self.outputs), int(failsafe), *map(repr, sens)])
+                          *(repr(float(outputs[n])) for n in self.outputs), int(failsafe), int(out_of_band),
+                          *map(repr, sens)])
         self.rows += 1
 
     def close(self) -> None:

@@ -94,7 +94,7 @@ class MavlinkBridge:
         self._receive()
         self.watchdog.check(self.plant, self.stats)
         self.plant.advance(self.dt_s)
-        self.stats.steps += 1
+        self.stats.step(self.plant.out_of_band)
         t_s = self.plant.t_s
         t_us = round(t_s * 1e6)
         frame = self.sensors.sample(t_s, self.plant.state)
@@ -110,7 +110,8 @@ class MavlinkBridge:
             self.stats.dropped += 1
             log.debug("send failed: %s", err)
         if self.recorder is not None:
-            self.recorder.write(t_s, self.pwm, self.plant.inputs, self.plant.state, self.watchdog.tripped, frame)
+            self.recorder.write(t_s, self.pwm, self.plant.inputs, self.plant.state, self.watchdog.tripped, frame,
+                                 self.plant.out_of_band)
         for sink in self.sinks:
             sink(self.plant.t_s, self.plant.state)
 

@@ -34,6 +34,8 @@ DEFAULT_PORT = 4560
 FIELDS_ALL = (1 << 13) - 1
 ARMED_FLAG = mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
 LOCKSTEP_FLAG = 1  # HIL_ACTUATOR_CONTROLS.flags bit 0
+#: a used control beyond this magnitude (PX4 sends -1..1, motors 0..1) makes the message malformed
+CONTROL_LIMIT = 1.0 + 1e-6
 MG_PER_M_S2 = 1000.0 / G0_M_S2  #: HIL_STATE_QUATERNION accelerations are in milli-g
 #: fixed wing: which control index drives which output channel (PX4's classic roll, pitch, yaw, throttle group)
 WING_CONTROLS = {1: 0, 2: 1, 3: 3, 4: 2}
@@ -171,6 +173,7 @@ class Px4Server:
         self.armed = False
         self.last_frame: Any = None
         self._last_heartbeat = -math.inf
+        self._accepted: float | None = None
 
     def close(self) -> None:
         self.server.close()
@@ -201,6 +204,9 @@ class Px4Server:
                 out.append(self.msgs.rc(round(t_s * 1e3), self.rc_channels))
             self._last_heartbeat = t_s
         conn.sendall(b"".join(out))
+        if self._accepted is not None:  # the first state on a new connection: how long the (re)connect took
+            self.stats.reconnect_s.append(time.perf_counter() - self._accepted)
+            self._accepted = None
 
     def _absorb(self, data: bytes) -> bool:
         """Parse received bytes; True when an actuator message arrived."""
@@ -208,10 +214,9 @@ class Px4Server:
         fast = self.msgs.codec.actuator_controls(data)  # the common case: one whole actuator frame
         if fast is not None:
             controls, mode, _flags, data = fast
-            self._actuators(controls, mode)
+            got = self._actuators(controls, mode)
             if not data:
-                return True
-            got = True
+                return got
         try:
             msgs = self.mav.parse_buffer(data) or []
         except mavlink2.MAVError as err:  # robust_parsing makes this rare; count, resynchronise, go on
@@ -223,26 +228,32 @@ class Px4Server:
             if kind == "BAD_DATA":
                 self.stats.malformed += 1
             elif kind == "HIL_ACTUATOR_CONTROLS":
-                self._actuators(m.controls, m.mode)
-                got = True
+                got = self._actuators(m.controls, m.mode) or got
         return got
 
-    def _actuators(self, controls: Sequence[float], mode: int) -> None:
+    def _actuators(self, controls: Sequence[float], mode: int) -> bool:
+        """Take an actuator message; a malformed one (a used control non-finite or beyond +-1) is counted and
+        dropped without touching the state. True when taken."""
+        used = range(4) if self.plant.vehicle == "quadrotor" else (self.wing_controls or WING_CONTROLS).values()
+        if not all(-CONTROL_LIMIT <= controls[i] <= CONTROL_LIMIT for i in used):  # also catches NaN
+            self.stats.malformed += 1
+            return False
         self.armed = bool(mode & ARMED_FLAG)
         self.pwm = controls_to_pwm(controls, self.plant.vehicle, self.armed, self.wing_controls)
+        return True
 
     def _step(self) -> None:
         if self.pwm and not self.watchdog.tripped:
             self.plant.apply(self.pwm)
         self.plant.advance(self.dt_s)
-        self.stats.steps += 1
+        self.stats.step(self.plant.out_of_band)
 
     def _after_send(self) -> None:
         """Bookkeeping of the state just sent, off the autopilot's critical path: the log row (PWM that led to
         it, FMU inputs and outputs, the sensor readings sent) and the sinks."""
         if self.recorder is not None:
             self.recorder.write(self.plant.t_s, self.pwm, self.plant.inputs, self.plant.state, self.watchdog.tripped,
-                                self.last_frame)
+                                self.last_frame, self.plant.out_of_band)
         for sink in self.sinks:
             sink(self.plant.t_s, self.plant.state)
 
@@ -303,8 +314,10 @@ class Px4Server:
 
     def serve(self, stop: threading.Event | None = None, max_steps: int | None = None,
               accept_timeout_s: float | None = None) -> Stats:
-        """Accept PX4, run until ``stop``/``max_steps``; on a disconnect reset the FMU and accept again."""
+        """Accept PX4, run until ``stop``/``max_steps``; on a disconnect restart the FMU (the clock goes on: the
+        record stays one continuous log) and accept again."""
         self.server.settimeout(0.2)
+        self.plant.clock_at_least(self.dt_s)  # the first HIL_SENSOR carries a positive time
         waited = 0.0
         while not (stop is not None and stop.is_set()) and (max_steps is None or self.stats.steps < max_steps):
             try:
@@ -319,6 +332,7 @@ class Px4Server:
             if conn.family in (socket.AF_INET, socket.AF_INET6):
                 conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             self.watchdog.fed()
+            self._accepted = time.perf_counter()
             try:
                 run = self._run_lockstep if self.lockstep else self._run_realtime
                 ended = not run(conn, stop, max_steps)
@@ -328,11 +342,16 @@ class Px4Server:
             finally:
                 conn.close()
             if ended:
-                self.stats.reconnects += 1
-                self.plant.restart()
-                self.pwm, self.armed = {}, False
-                self.mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=51)
-                self.mav.robust_parsing = True
-                self.msgs = HilMessages(self.mav, self.plant.vehicle)
-                self._last_heartbeat = -math.inf
+                self._reconnecting()
         return self.stats
+
+    def _reconnecting(self) -> None:
+        """PX4 went away: a fresh FMU start state (on the same, continuing clock) and parser for the next one."""
+        self.stats.reconnects += 1
+        self.plant.restart()
+        self.plant.clock_at_least(self.plant.t_s + self.dt_s)  # the new connection's first time is a new one
+        self.pwm, self.armed = {}, False
+        self.mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=51)
+        self.mav.robust_parsing = True
+        self.msgs = HilMessages(self.mav, self.plant.vehicle)
+        self._last_heartbeat = -math.inf

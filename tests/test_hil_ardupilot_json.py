@@ -78,8 +78,10 @@ def test_at_rest_imu_reads_gravity_and_resends_and_restarts(server) -> None:
     sitl.sock.sendto(ServoPacket(RATE_HZ, RATE_HZ + 2, (1000,) * 16).pack(), server.transport.address)  # late
     st_now = sitl.exchange(RATE_HZ + 5, [1000] * 4)
     assert server.stats.out_of_order == 1 and st_now["timestamp"] == pytest.approx(1.0 + 3 / RATE_HZ)
-    back = sitl.exchange(1, [1000] * 4)  # frame_count back to 1: SITL restarted -> FMU reset
-    assert server.stats.restarts == 1 and back["timestamp"] == pytest.approx(1 / RATE_HZ)
+    back = sitl.exchange(1, [1000] * 4)  # frame_count back to 1: SITL restarted -> FMU restarted
+    # the clock goes on from the last time (never backwards), the vehicle is back at its start state
+    assert server.stats.restarts == 1 and back["timestamp"] == pytest.approx(st_now["timestamp"] + 1 / RATE_HZ)
+    assert back["position"] == pytest.approx([0, 0, 0], abs=0.02)
     sitl.sock.sendto(b"\x00\x01garbage", server.transport.address)
     sitl.exchange(2, [1000] * 4)  # still answering
     assert server.stats.malformed == 1
@@ -182,8 +184,9 @@ def test_outputs_sitl_cannot_take_restart_the_simulation(quadrotor_fmu: Path) ->
 
         plant.advance = runaway  # type: ignore[method-assign]
         state = json.loads(srv.handle(ServoPacket(400, 4, (1000,) * 16).pack()))
-        assert plant.fmu_errors == 1 and "float32" in plant.last_error and plant.t_s == 0.0
-        assert state["timestamp"] == 0.0 and np.isfinite(state["imu"]["accel_body"]).all()
+        assert plant.fmu_errors == 1 and "float32" in plant.last_error and plant.fmu_t_s == 0.0
+        assert plant.reinstantiations == 1  # a fresh instance, the clock goes on: time never goes backwards
+        assert state["timestamp"] == pytest.approx(4 / 400) and np.isfinite(state["imu"]["accel_body"]).all()
         restart = plant.restart
 
         def runaway_start() -> None:

@@ -132,13 +132,15 @@ def test_garbage_disconnect_and_reconnect(server) -> None:
     px4.read_step()
     px4.sock.sendall(b"\xfd\x09garbage-not-mavlink" * 5)
     px4.send_controls(0, [1200.0] * 4)
-    px4.read_step()
+    last = px4.read_step()["HIL_STATE_QUATERNION"]
+    start_alt = round(server.plant.host.start_value("home_height_m") * 1e3)
     assert server.stats.malformed >= 1
     px4.close()  # PX4 goes away mid-run
     again = FakePx4(server.address)
     try:
         first = again.read_step()["HIL_STATE_QUATERNION"]
-        assert first.time_usec == 0  # the FMU was re-initialised for the new connection
+        # the FMU restarted for the new connection; its clock goes on (one continuous record, never backwards)
+        assert first.time_usec > last.time_usec and first.alt == pytest.approx(start_alt, abs=20)
         assert server.stats.reconnects == 1
     finally:
         again.close()
@@ -260,7 +262,8 @@ def test_px4_over_an_in_memory_transport(quadrotor_fmu: Path, tmp_path: Path) ->
         rec.close()
     with (tmp_path / "px4.csv").open() as fh:
         rows = list(csv.DictReader(fh))
-    assert len(rows) >= 100 and float(rows[0]["time_s"]) == 0.0  # the start state, then one row per step
+    # the start state (at a positive time: PX4 takes 0 as no time), then one row per step
+    assert len(rows) >= 100 and float(rows[0]["time_s"]) == DT
     accel_z = np.array([float(r["accel_body_z_m_s2"]) for r in rows[1:]])
     sensed_z = np.array([float(r["sens_accel_z_m_s2"]) for r in rows[1:]])
     assert accel_z[45] == pytest.approx(-9.81, abs=0.05)  # at rest on the ground
@@ -283,7 +286,9 @@ def test_outputs_no_message_holds_restart_the_simulation(absorb_server) -> None:
         b.settimeout(2.0)
         msgs = mavlink2.MAVLink(None, 255, 0).parse_buffer(b.recv(65536))
         assert [m.get_type() for m in msgs][:2] == ["HIL_SENSOR", "HIL_STATE_QUATERNION"]
-        assert msgs[0].time_usec == 0 and abs(msgs[0].xacc) < 1.0  # the start state's reading, not 1e39
+        # the start state's reading (not 1e39) on a fresh instance, at the time the clock had reached
+        assert msgs[0].time_usec == round(srv.plant.t_s * 1e6) > 0 and abs(msgs[0].xacc) < 1.0
+        assert srv.plant.fmu_t_s == 0.0
         restart = srv.plant.restart
 
         def runaway_start() -> None:
