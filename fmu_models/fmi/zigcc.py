@@ -1,0 +1,79 @@
+"""Cross-compile C into shared libraries for linux64, win64 and darwin64 with zig's ``cc`` (the ``ziglang`` wheel).
+
+zig bundles clang, lld and the C libraries of every target, so one Linux machine builds all three FMI
+platforms with nothing but ``pip install ziglang``. Libraries are cached under ``jit.cache_dir()`` by the
+hash of their sources, flags and target, so a rebuild of unchanged code costs a file copy.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from fmu_models.fmi.codegen import CompileError
+from fmu_models.fmi.jit import cache_dir
+
+
+@dataclass(frozen=True)
+class Platform:
+    """One FMI 2.0 binary platform: folder name, zig target triple, library suffix."""
+
+    fmi_name: str
+    target: str
+    suffix: str
+
+
+PLATFORMS: tuple[Platform, ...] = (
+    Platform("linux64", "x86_64-linux-gnu.2.17", ".so"),
+    Platform("win64", "x86_64-windows-gnu", ".dll"),
+    Platform("darwin64", "x86_64-macos", ".dylib"),
+)
+
+#: flags of every native FMU library: only the fmi2 functions are exported, no build paths leak in
+CFLAGS = ("-O2", "-fvisibility=hidden", "-DCASADI_SYMBOL_EXPORT=", "-ffp-contract=off", "-fno-fast-math")
+
+
+def zig_cc() -> list[str]:
+    """The command that runs zig's C compiler (``python -m ziglang cc``); raises CompileError without it."""
+    try:
+        import ziglang  # noqa: F401
+    except ImportError as err:
+        raise CompileError("the ziglang wheel is not installed (pip install ziglang; `make` installs it)") from err
+    return [sys.executable, "-m", "ziglang", "cc"]
+
+
+def compile_shared(sources: list[Path], include_dirs: list[Path], platform: Platform, out: Path) -> Path:
+    """Compile ``sources`` into the shared library ``out`` for ``platform`` (cached by content hash)."""
+    flags = [*CFLAGS, "-target", platform.target, "-shared"]
+    if platform.fmi_name != "win64":
+        flags.append("-fPIC")
+    digest = hashlib.sha256()
+    for part in [*flags, *(s.name for s in sources)]:
+        digest.update(part.encode() + b"\0")
+    for src in sources:
+        digest.update(src.read_bytes())
+    for inc in include_dirs:
+        for h in sorted(inc.glob("*.h")):
+            digest.update(h.name.encode() + h.read_bytes())
+    cached = cache_dir() / "native" / f"{platform.fmi_name}_{digest.hexdigest()[:20]}{platform.suffix}"
+    if not cached.exists():
+        cached.parent.mkdir(parents=True, exist_ok=True)
+        partial = cached.with_name(f"{cached.name}.{os.getpid()}.tmp{platform.suffix}")
+        incs = [f"-I{d}" for d in include_dirs]
+        cmd = [*zig_cc(), *flags, *incs, "-o", str(partial), *(str(s) for s in sources)]
+        if platform.fmi_name == "linux64":
+            cmd.append("-lm")
+        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        if proc.returncode != 0:
+            raise CompileError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-4000:]}")
+        for extra in (partial.parent / f"{sources[0].stem}.lib", partial.parent / f"{sources[0].stem}.pdb"):
+            extra.unlink(missing_ok=True)  # the win64 import library and debug file zig writes beside the DLL
+        partial.replace(cached)  # atomic: concurrent builds never see a half-written library
+    out.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(cached, out)
+    return out
