@@ -13,9 +13,9 @@ import sys
 #: sub-command -> (module, one-line help). A module listed here must exist.
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "build": ("build_fmus", "build dist/quadrotor.fmu and dist/fixed_wing.fmu"),
-    "identify": ("identification.cli", "identify a thrust map (thrust) or aero derivatives (aero) from a log"),
-    "validate": ("identification.validate_cli", "replay a flight log through an FMU with FMPy and score it"),
-    "hil": ("hil_adapter.cli", "drive an FMU from an autopilot (PX4, ArduPilot JSON, MAVLink, NMEA)"),
+    "identify": ("uavfmu.commands.identify", "identify a thrust map (thrust) or aero derivatives (aero) from a log"),
+    "validate": ("uavfmu.commands.validate", "replay a flight log through an FMU with FMPy and score it"),
+    "hil": ("uavfmu.commands.hil", "drive an FMU from an autopilot (PX4, ArduPilot JSON, MAVLink, NMEA)"),
     "demo": ("uavfmu.demo", "end-to-end demo on simulated data"),
 }
 

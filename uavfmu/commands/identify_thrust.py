@@ -1,0 +1,185 @@
+"""``uavfmu identify thrust LOG[=MASS_KG] ...``: parse, call :func:`identification.thrust_workflow.identify_thrust`,
+print the per-flight summaries and the held-out table.
+
+Exit status: 0 the model beats every baseline on held-out data (or ``--force``), 2 bad input, 3 the model
+loses to a baseline (the parameter file is still written). ``--method paper`` runs paper 000's single-log
+workflow instead (Pearson gate, ANFIS of summed PWM; ``identification.cli``), exit 3 there = gate refused.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+EXIT_OK = 0
+EXIT_BAD_INPUT = 2
+EXIT_LOSES = 3
+#: options whose default differs between the two methods: (voltage workflow, paper workflow)
+METHOD_DEFAULTS = {
+    "mfs": (2, 3),
+    "order": (1, 1),
+    "epochs": (30, 100),
+    "pwm_idle_us": (1000.0, 1100.0),
+    "pwm_max_us": (2000.0, 1900.0),
+    "check_block_s": (5.0, 5.0),
+}
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Options of ``identify thrust`` (both methods)."""
+    p.add_argument("logs", nargs="+", metavar="LOG[=MASS_KG]",
+                   help="flight logs of one vehicle (.BIN, .ulg, .tlog, a ulog2csv folder), each with its mass")
+    p.add_argument("--mass", "--mass-kg", dest="mass_kg", type=float, help="mass [kg] of flights without =MASS")
+    p.add_argument("--out", type=Path, required=True, help="parameter JSON to write")
+    p.add_argument("--metrics", type=Path, help="metrics JSON (default: OUT with suffix .metrics.json)")
+    p.add_argument("--method", choices=("voltage", "paper"), default="voltage",
+                   help="voltage: per-motor voltage-aware model with cross-validation (default); paper: paper "
+                   "000's single-log ANFIS of summed PWM with the Pearson gate")
+    p.add_argument("--force", action="store_true",
+                   help="exit 0 even when a baseline beats the model (the warning stays); paper: skip the gate")
+    p.add_argument("--channel-map", type=Path, help="TOML/JSON [channels] overriding the log's motor mapping")
+    v = p.add_argument_group("voltage method")
+    v.add_argument("--calibrate", choices=("auto", "on", "off"), default="auto",
+                   help="per-flight hover calibration scale (auto: when no battery voltage is logged)")
+    v.add_argument("--no-voltage", action="store_true", help="ignore logged battery voltage")
+    v.add_argument("--folds", type=int, default=3, help="time blocks when a single flight is given (3)")
+    g = p.add_argument_group("data set and ANFIS (both methods)")
+    g.add_argument("--lowpass-hz", type=float, help="zero-phase low-pass cut-off [Hz] (default: none)")
+    g.add_argument("--max-lag-s", type=float, default=0.3, help="accelerometer lag search range +- [s] (0.3)")
+    g.add_argument("--motor-min-pwm-us", type=float, default=1150.0,
+                   help="airborne only with motor PWM above this [us] (voltage: the mean; paper: every motor)")
+    g.add_argument("--mfs", type=int, help="ANFIS membership functions (voltage 2, paper 3)")
+    g.add_argument("--epochs", type=int, help="hybrid-learning epochs (voltage 30, paper 100)")
+    g.add_argument("--check-block-s", type=float, help="checking data: every 5th block of this length [s] (5)")
+    g.add_argument("--pwm-idle-us", type=float, help="per-motor PWM of zero thrust [us] (voltage 1000, paper 1100)")
+    g.add_argument("--pwm-max-us", type=float, help="per-motor PWM of full throttle [us] (voltage 2000, paper 1900)")
+    _paper_arguments(p.add_argument_group("paper method only"))
+
+
+def _paper_arguments(a: Any) -> None:
+    from identification.thrust_dataset import PAPER_MIN_PEARSON
+
+    a.add_argument("--validate", type=Path, help="second log for validation (default: the last part of LOG)")
+    a.add_argument("--plots", type=Path, help="folder for the PNG figures (paper 000 Figs. 3-6)")
+    a.add_argument("--train-fraction", type=float, default=0.7, help="first fraction to train on (0.7)")
+    a.add_argument("--lag-s", type=float, help="accelerometer lag behind PWM [s] (default: estimated)")
+    a.add_argument("--min-altitude-m", type=float, default=0.5, help="airborne only above this altitude [m]")
+    a.add_argument("--extra-inputs", default="climb_rate_m_s,battery_voltage_V", help="extra candidate inputs")
+    a.add_argument("--min-pearson", type=float, default=PAPER_MIN_PEARSON, help="Pearson gate (0.85)")
+    a.add_argument("--mf-type", choices=("gaussian", "gbell"), default="gaussian")
+    a.add_argument("--order", type=int, choices=(0, 1), help="Takagi-Sugeno order (1; paper 000 used 0)")
+    a.add_argument("--step-size", type=float, default=0.01, help="initial gradient step kappa (0.01)")
+    a.add_argument("--kv-rpm-per-V", type=float, default=920.0, help="motor Kv [rpm/V] (920)")
+    a.add_argument("--battery-V", type=float, help="battery voltage [V] for k (default: logged median or 11.1)")
+    a.add_argument("--k-thrust-N-s2", type=float, help="use this k instead of deriving it")
+
+
+def _error(message: str) -> int:
+    print(f"uavfmu identify thrust: error: {message}", file=sys.stderr)
+    return EXIT_BAD_INPUT
+
+
+def parse_flights(items: list[str], default_mass: float | None) -> list[tuple[Path, float]]:
+    """``LOG[=MASS_KG]`` items -> (path, mass); ValueError naming the flight when a mass is missing/bad."""
+    out = []
+    for item in items:
+        path, mass_text = item, None
+        if "=" in item and not Path(item).exists():
+            path, mass_text = item.rsplit("=", 1)
+        if mass_text is None:
+            if default_mass is None:
+                raise ValueError(f"flight {path}: no mass (give {path}=MASS_KG or --mass)")
+            mass = default_mass
+        else:
+            try:
+                mass = float(mass_text)
+            except ValueError:
+                raise ValueError(f"flight {path}: mass = {mass_text!r} is not a number [kg]") from None
+        out.append((Path(path), mass))
+    return out
+
+
+def _defaults(args: argparse.Namespace) -> None:
+    k = 0 if args.method == "voltage" else 1
+    for name, values in METHOD_DEFAULTS.items():
+        if getattr(args, name, None) is None:
+            setattr(args, name, values[k])
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``identify thrust``; return the exit status."""
+    _defaults(args)
+    try:
+        flights = parse_flights(args.logs, args.mass_kg)
+    except ValueError as err:
+        return _error(str(err))
+    if args.method == "paper":
+        return _run_paper(args, flights)
+    return _run_voltage(args, flights)
+
+
+def _run_paper(args: argparse.Namespace, flights: list[tuple[Path, float]]) -> int:
+    from identification import cli as paper
+
+    if len(flights) != 1:
+        return _error(f"--method paper takes one log, got {len(flights)}; use --validate for a second one")
+    args.log, args.mass_kg = flights[0]
+    if not (math.isfinite(args.mass_kg)):
+        return _error(f"flight {args.log}: mass = {args.mass_kg}; allowed a finite number in [0.05, 50] kg")
+    return paper.run_thrust(args)
+
+
+def _run_voltage(args: argparse.Namespace, flights: list[tuple[Path, float]]) -> int:
+    from fmu_models.common.errors import ParameterError
+    from identification.anfis_train import AnfisTrainingError
+    from identification.flightlog import LogError
+    from identification.thrust_dataset import ThrustDataError
+    from identification.thrust_workflow import FlightSpec, ThrustConfig, identify_thrust
+
+    cfg = ThrustConfig(
+        flights=tuple(FlightSpec(p, m) for p, m in flights), out=args.out, metrics=args.metrics,
+        pwm_idle_us=args.pwm_idle_us, pwm_max_us=args.pwm_max_us, use_voltage=not args.no_voltage,
+        calibrate=args.calibrate, n_mfs=args.mfs, epochs=args.epochs, n_folds_single=args.folds,
+        motor_min_pwm_us=args.motor_min_pwm_us, max_lag_s=args.max_lag_s, lowpass_hz=args.lowpass_hz,
+        check_block_s=args.check_block_s, channel_map=args.channel_map, force=args.force,
+    )
+    try:
+        result = identify_thrust(cfg)
+    except (ThrustDataError, AnfisTrainingError, ParameterError, LogError, FileNotFoundError) as err:
+        return _error(str(err))
+    print(format_report(result))
+    for w in result.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    if not result.model_beats_baselines:
+        tail = " (--force: exit 0)" if args.force else " (exit 3; --force to exit 0)"
+        print(f"uavfmu identify thrust: MODEL LOSES to a baseline on held-out data{tail}", file=sys.stderr)
+    return result.exit_code
+
+
+def format_report(r: Any) -> str:
+    """Per-flight summaries, one held-out table (RMSE [N] / R^2 per predictor) and the verdict."""
+    lines = ["flights:"]
+    for f in r.flights:
+        v = f["voltage_range_V"]
+        volt = f"{v[0]:.2f}..{v[1]:.2f} V" if v else "no voltage"
+        lines.append(
+            f"  {f['flight']}: {f['mass_kg']} kg, {f['samples']} samples, summed PWM "
+            f"{f['pwm_sum_band_us'][0]:.0f}..{f['pwm_sum_band_us'][1]:.0f} us, {volt}, hover PWM "
+            f"{f['hover_pwm_mean_us']:.0f} us, mean -m a_z {f['mean_thrust_N']:.2f} N (m g {f['weight_N']:.2f})"
+        )
+    names = list(r.folds[0].baselines)
+    head = ["held-out", "n", "model (FMU)", *names]
+    rows = [[f.held_out, str(f.n_samples), f"{f.model.rmse_N:.3f} / {f.model.r2:.2f}",
+             *(f"{f.baselines[b].rmse_N:.3f} / {f.baselines[b].r2:.2f}" for b in names)] for f in r.folds]
+    rows.append(["pooled RMSE", str(sum(f.n_samples for f in r.folds)), f"{r.pooled_model_rmse_N:.3f}",
+                 *(f"{r.pooled_baseline_rmse_N[b]:.3f}" for b in names)])
+    widths = [max(len(x[i]) for x in [head, *rows]) for i in range(len(head))]
+    lines.append(f"held-out thrust RMSE [N] / R^2 ({r.metrics.get('cross_validation')}):")
+    lines += ["  " + "  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)) for row in [head, *rows]]
+    if r.calibration:
+        lines.append("per-flight calibration scale: " + ", ".join(f"{k} {v:.4f}" for k, v in r.calibration.items()))
+    lines.append(f"verdict: {r.metrics.get('verdict')}")
+    return "\n".join(lines)
