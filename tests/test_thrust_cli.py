@@ -14,6 +14,8 @@ from identification.anfis_train import predict
 from tests.test_thrust_dataset import K_TRUE_N_S2, MASS_KG, SyntheticLog, true_thrust_N
 from uavfmu.cli import main
 
+PAPER = ["identify", "thrust", "--method", "paper"]  #: paper 000 single-log workflow
+
 
 @pytest.fixture
 def logs(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> dict[str, Path]:
@@ -37,6 +39,8 @@ def test_gate_refuses_and_explains(logs: dict[str, Path], tmp_path: Path, capsys
         [
             "identify",
             "thrust",
+            "--method",
+            "paper",
             str(logs["noisy.bin"]),
             "--mass",
             "1.14",
@@ -61,6 +65,8 @@ def test_force_trains_anyway_and_records_it(logs: dict[str, Path], tmp_path: Pat
         [
             "identify",
             "thrust",
+            "--method",
+            "paper",
             str(logs["noisy.bin"]),
             "--mass",
             "1.14",
@@ -82,6 +88,8 @@ def test_identify_writes_params_metrics_and_plots(logs: dict[str, Path], tmp_pat
         [
             "identify",
             "thrust",
+            "--method",
+            "paper",
             str(logs["good.bin"]),
             "--mass",
             str(MASS_KG),
@@ -130,6 +138,8 @@ def test_params_build_a_quadrotor_fmu_with_that_map(logs: dict[str, Path], tmp_p
             [
                 "identify",
                 "thrust",
+                "--method",
+                "paper",
                 str(logs["good.bin"]),
                 "--mass",
                 "1.14",
@@ -152,17 +162,19 @@ def test_params_build_a_quadrotor_fmu_with_that_map(logs: dict[str, Path], tmp_p
 
 def test_bad_input_is_named(logs: dict[str, Path], tmp_path: Path, capsys) -> None:
     out = str(tmp_path / "p.json")
-    assert main(["identify", "thrust", str(tmp_path / "missing.bin"), "--mass", "1", "--out", out]) == 2
+    assert main([*PAPER, str(tmp_path / "missing.bin"), "--mass", "1", "--out", out]) == 2
     assert "missing.bin: log file not found" in capsys.readouterr().err
-    assert main(["identify", "thrust", str(logs["good.bin"]), "--mass", "-3", "--out", out]) == 2
+    assert main([*PAPER, str(logs["good.bin"]), "--mass", "-3", "--out", out]) == 2
     assert "mass_kg = -3.0" in capsys.readouterr().err
-    assert main(["identify", "thrust", str(logs["good.bin"]), "--mass", "1", "--out", out, "--mfs", "0"]) == 2
+    assert main([*PAPER, str(logs["good.bin"]), "--mass", "1", "--out", out, "--mfs", "0"]) == 2
     assert "n_mfs = 0" in capsys.readouterr().err
     assert (
         main(
             [
                 "identify",
                 "thrust",
+                "--method",
+                "paper",
                 str(logs["good.bin"]),
                 "--mass",
                 "1",
@@ -179,7 +191,7 @@ def test_bad_input_is_named(logs: dict[str, Path], tmp_path: Path, capsys) -> No
 
 def test_given_k_overrides_the_derivation(logs: dict[str, Path], tmp_path: Path) -> None:
     out = tmp_path / "params.json"
-    argv = ["identify", "thrust", str(logs["good.bin"]), "--mass", "1.14", "--out", str(out), "--epochs", "5"]
+    argv = [*PAPER, str(logs["good.bin"]), "--mass", "1.14", "--out", str(out), "--epochs", "5"]
     assert main([*argv, "--k-thrust-N-s2", "3e-6"]) == 0
     section = json.loads(out.read_text())["quadrotor"]
     assert section["k_thrust_N_s2"] == 3e-6 and "--k-thrust-N-s2" in section["k_thrust_source"]

@@ -23,7 +23,7 @@ def real_log() -> Path:
 
 def test_real_log_is_refused_by_the_paper_gate(real_log: Path, tmp_path: Path, capsys) -> None:
     out = tmp_path / "params.json"
-    rc = main(["identify", "thrust", str(real_log), "--mass", "1.14", "--out", str(out)])
+    rc = main(["identify", "thrust", "--method", "paper", str(real_log), "--mass", "1.14", "--out", str(out)])
     err = capsys.readouterr().err
     assert rc == 3 and not out.exists()
     assert "below the gate of 0.85" in err and "--force" in err
@@ -41,6 +41,8 @@ def test_anfis_beats_least_squares_polynomials_on_the_later_30_percent(
         [
             "identify",
             "thrust",
+            "--method",
+            "paper",
             str(real_log),
             "--mass",
             "1.14",
