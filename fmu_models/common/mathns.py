@@ -7,10 +7,17 @@ identification; they take a namespace ``xp`` from here instead of importing nump
 
 from __future__ import annotations
 
+import math
 from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
+
+#: plain-float backend (the HIL per-sample path, one value at a time)
+PY = SimpleNamespace(
+    exp=math.exp, fabs=math.fabs, fmax=max, fmin=min, sqrt=math.sqrt, sin=math.sin, cos=math.cos,
+    atan2=math.atan2, asin=math.asin, name="python",
+)
 
 #: numpy backend: elementwise over arrays of samples.
 NP = SimpleNamespace(
@@ -20,6 +27,10 @@ NP = SimpleNamespace(
     fmin=np.minimum,
     where=np.where,
     sqrt=np.sqrt,
+    sin=np.sin,
+    cos=np.cos,
+    atan2=np.arctan2,
+    asin=np.arcsin,
     name="numpy",
 )
 
@@ -31,5 +42,9 @@ CA = SimpleNamespace(
     fmin=ca.fmin,
     where=ca.if_else,
     sqrt=ca.sqrt,
+    sin=ca.sin,
+    cos=ca.cos,
+    atan2=ca.atan2,
+    asin=ca.asin,
     name="casadi",
 )

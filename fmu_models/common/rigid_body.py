@@ -10,15 +10,13 @@ from typing import Any
 
 import casadi as ca
 
+from fmu_models.common.mathns import CA
+from fmu_models.common.rotations import euler_to_quat, quat_to_dcm_rows, quat_to_euler
+
 
 def quat_to_dcm(q: Any) -> Any:
     """Rotation matrix ``R_b2n`` (body -> NED) of the unit quaternion ``q = [w, x, y, z]``."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    return ca.vertcat(
-        ca.horzcat(w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)),
-        ca.horzcat(2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)),
-        ca.horzcat(2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z),
-    )
+    return ca.vertcat(*(ca.horzcat(*row) for row in quat_to_dcm_rows(q[0], q[1], q[2], q[3])))
 
 
 def quat_derivative(q: Any, rates_body_rad_s: Any) -> Any:
@@ -35,25 +33,12 @@ def quat_derivative(q: Any, rates_body_rad_s: Any) -> Any:
 
 def euler_from_quat(q: Any) -> Any:
     """Roll, pitch, yaw [rad] (3-2-1) from the quaternion (paper 001 eq. 5)."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    roll = ca.atan2(2 * (w * x + y * z), w * w + z * z - x * x - y * y)
-    sin_pitch = ca.fmin(ca.fmax(2 * (w * y - x * z), -1.0), 1.0)
-    pitch = ca.asin(sin_pitch)
-    yaw = ca.atan2(2 * (w * z + x * y), w * w + x * x - y * y - z * z)
-    return ca.vertcat(roll, pitch, yaw)
+    return ca.vertcat(*quat_to_euler(q[0], q[1], q[2], q[3], CA))
 
 
 def quat_from_euler(roll_rad: Any, pitch_rad: Any, yaw_rad: Any) -> Any:
     """Unit quaternion [w, x, y, z] of 3-2-1 Euler angles [rad]."""
-    cr, sr = ca.cos(roll_rad / 2), ca.sin(roll_rad / 2)
-    cp, sp = ca.cos(pitch_rad / 2), ca.sin(pitch_rad / 2)
-    cy, sy = ca.cos(yaw_rad / 2), ca.sin(yaw_rad / 2)
-    return ca.vertcat(
-        cr * cp * cy + sr * sp * sy,
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-    )
+    return ca.vertcat(*euler_to_quat(roll_rad, pitch_rad, yaw_rad, CA))
 
 
 def inertia_matrix(Jxx: Any, Jyy: Any, Jzz: Any, Jxz: Any = 0.0) -> Any:
