@@ -24,7 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fmu_models.common.simulate import Simulator
 from fmu_models.fixed_wing.model import FixedWingModel
-from identification.oem import Manoeuvre, OutputError
+from identification.oem import Manoeuvre, OutputErrorEstimator
 from uavfmu.synthetic import OEM_FREE, OEM_OUTPUTS, OEM_SIGMA, identification_manoeuvres
 
 
@@ -37,7 +37,7 @@ def main() -> int:
     args = parser.parse_args()
     sim = Simulator(FixedWingModel())
     p = sim.params(density_altitude_scaling=0.0)
-    oe = OutputError(sim.model, p, OEM_FREE, OEM_OUTPUTS)  # compiles (once, cached) before any timing
+    oe = OutputErrorEstimator(sim.model, p, OEM_FREE, OEM_OUTPUTS)  # compiles (once, cached) before any timing
     true = p[oe.i_free].copy()
     rng = np.random.default_rng(0)
     data = identification_manoeuvres(oe, p, args.seconds_each, args.rate, args.count, rng, OEM_SIGMA)

@@ -108,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
     from fmu_models.signals.pwm_mapping import PwmMapping
     from identification import aero
     from identification.jsonio import write_json
-    from identification.oem import EstimationError, OutputError
+    from identification.oem import EstimationError, OutputErrorEstimator
     from identification.readers import read_log
 
     if not args.quiet:
@@ -138,7 +138,7 @@ def run(args: argparse.Namespace) -> int:
             for name, sign in STABILITY_SIGNS.items():
                 if name in free:
                     constraints.append(lambda th, n=name, s=sign: s * th[n] > 0)
-        oe = OutputError(model, p, free, outputs, bounds=bounds, constraints=constraints,
+        oe = OutputErrorEstimator(model, p, free, outputs, bounds=bounds, constraints=constraints,
                          estimate_states=_names(args.estimate_initial), estimate_biases=_names(args.biases))
         weight = _weight(args.sigma, outputs)
         fit = aero.manoeuvres(model, p, log, mapping, fit_segs, outputs, args.rate)

@@ -25,11 +25,12 @@ from tqdm import tqdm
 
 from fmu_models.common.model import VehicleModel, step_function
 from fmu_models.fmi.jit import compiled
+from identification.identifiability import Identifiability, analyse, input_excitation
 
 log = logging.getLogger(__name__)
 
 #: |correlation| above which two estimates are reported as not separable by the data
-CORRELATION_WARN = 0.95
+CORRELATION_WARN = 0.9
 #: Cramér-Rao std above this fraction of |estimate| is reported as poorly identified
 RELATIVE_STD_WARN = 0.5
 
@@ -61,7 +62,12 @@ class Iteration:
 
 @dataclass
 class Estimate:
-    """Result: estimates, Cramér-Rao bounds (coloured-residual corrected), correlations, convergence history."""
+    """Result: estimates, bounds, correlations, identifiability, convergence history.
+
+    ``values``/``crb_std``/... cover the whole parameter vector: the ``n_global`` model parameters first, then
+    the per-manoeuvre nuisance parameters (``m<j>.x0.<state>``, ``m<j>.bias.<output>``). ``std`` is the
+    printed 1-sigma bound of each and ``bound_method`` says which it is (see :data:`BOUND_METHODS`).
+    """
 
     names: list[str]
     values: np.ndarray
@@ -72,23 +78,77 @@ class Estimate:
     history: list[Iteration] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     converged: bool = False
+    n_global: int = -1
+    bootstrap_std: np.ndarray | None = None
+    bound_method: str = "cramer-rao-coloured"
+    identifiability: Identifiability | None = None
+
+    def __post_init__(self) -> None:
+        if self.n_global < 0:
+            self.n_global = len(self.names)
+
+    @property
+    def std(self) -> np.ndarray:
+        """The printed 1-sigma bound: the larger of the coloured-residual Cramér-Rao bound and the block
+        bootstrap over manoeuvres (derivatives; nuisance parameters keep the Cramér-Rao bound)."""
+        if self.bound_method == "max(cramer-rao-coloured, segment-bootstrap)" and self.bootstrap_std is not None:
+            out = self.crb_std.copy()
+            out[:self.n_global] = np.maximum(out[:self.n_global], self.bootstrap_std)
+            return out
+        return self.crb_std
+
+    def derivatives(self) -> dict[str, float]:
+        return {n: float(v) for n, v in zip(self.names[:self.n_global], self.values[:self.n_global], strict=True)}
+
+    def nuisance(self) -> dict[str, dict[str, float]]:
+        return {n: {"value": float(v), "crb_std": float(s)} for n, v, s in
+                zip(self.names[self.n_global:], self.values[self.n_global:], self.crb_std[self.n_global:],
+                    strict=True)}
 
     def table(self) -> str:
-        rows = [f"{'parameter':<28} {'estimate':>12} {'CR std':>10} {'white std':>10} {'std/|est| %':>12}"]
-        for n, v, s, w in zip(self.names, self.values, self.crb_std, self.crb_std_white, strict=True):
-            rows.append(f"{n:<28} {v:12.5g} {s:10.3g} {w:10.3g} {100 * s / max(abs(v), 1e-12):12.2f}")
+        """The derivatives: value, printed bound, its method, the other bounds, correlation warnings."""
+        boot = self.bootstrap_std if self.bootstrap_std is not None else np.full(self.n_global, np.nan)
+        rows = [f"{'parameter':<16} {'estimate':>11} {'bound(1s)':>10} {'CR col':>9} {'CR white':>9} "
+                f"{'bootstrap':>9} {'%':>7}  correlated with (|r| > 0.9)"]
+        std = self.std
+        for i in range(self.n_global):
+            n, v = self.names[i], self.values[i]
+            corr = [f"{self.names[k]} {self.correlation[i, k]:+.2f}" for k in range(len(self.names))
+                    if k != i and abs(self.correlation[i, k]) > 0.9]
+            rows.append(f"{n:<16} {v:11.5g} {std[i]:10.3g} {self.crb_std[i]:9.3g} {self.crb_std_white[i]:9.3g} "
+                        f"{boot[i]:9.3g} {100 * std[i] / max(abs(v), 1e-12):7.1f}  {', '.join(corr) or '-'}")
+        rows.append(f"bound: {self.bound_method}")
+        if len(self.names) > self.n_global:
+            rows.append(f"{len(self.names) - self.n_global} nuisance parameters (initial states, biases) estimated "
+                        "per manoeuvre: see 'nuisance' in the metrics JSON")
         return "\n".join(rows)
 
     def as_dict(self) -> dict[str, Any]:
+        std = self.std
+        boot = self.bootstrap_std
+        params = {}
+        for i, n in enumerate(self.names[:self.n_global]):
+            params[n] = {"value": float(self.values[i]), "std": float(std[i]), "bound_method": self.bound_method,
+                         "crb_std": float(self.crb_std[i]), "crb_std_white": float(self.crb_std_white[i]),
+                         "bootstrap_std": None if boot is None or not np.isfinite(boot[i]) else float(boot[i]),
+                         "ci95": [float(self.values[i] - 1.96 * std[i]), float(self.values[i] + 1.96 * std[i])]}
         return {
-            "parameters": {n: {"value": float(v), "crb_std": float(s), "crb_std_white": float(w)}
-                           for n, v, s, w in zip(self.names, self.values, self.crb_std, self.crb_std_white,
-                                                 strict=True)},
+            "parameters": params,
+            "nuisance": self.nuisance(),
+            "bound_method": self.bound_method,
+            "names": self.names,
             "correlation": np.round(self.correlation, 6).tolist(),
+            "identifiability": self.identifiability.as_dict() if self.identifiability else None,
             "iterations": [vars(h) for h in self.history],
             "converged": self.converged,
             "warnings": self.warnings,
         }
+
+
+#: how the printed bound is made (``Estimate.bound_method``)
+BOUND_METHODS = ("cramer-rao-coloured", "max(cramer-rao-coloured, segment-bootstrap)")
+#: fewest manoeuvres for which the block bootstrap over manoeuvres is computed
+BOOTSTRAP_MIN_SEGMENTS = 4
 
 
 def correlation_lags(r: np.ndarray) -> int:
@@ -131,7 +191,7 @@ def coloured_covariance(G: np.ndarray, r: np.ndarray, lags: int | None = None) -
     return 0.5 * (S + S.T)
 
 
-class OutputError:
+class OutputErrorEstimator:
     """Output-error problem for ``model``: free parameters ``free`` fitted to the outputs ``outputs``.
 
     ``estimate_states`` names states whose initial value is estimated per manoeuvre; ``estimate_biases``
@@ -466,9 +526,68 @@ class OutputError:
             g[idx] += Jw.T @ (r @ L.T).ravel()
         return M, g
 
+    def _segment_terms(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray
+                       ) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Per manoeuvre, the information ``A_j`` and gradient ``g_j`` of the model parameters with that
+        manoeuvre's nuisance parameters profiled out (Schur complement)."""
+        L = np.linalg.cholesky(W).T
+        ng, out = len(self.free), []
+        for r, J in zip(res, jacs, strict=True):
+            Jw = np.matmul(L, J).reshape(-1, J.shape[2])
+            M = Jw.T @ Jw
+            g = Jw.T @ (r @ L.T).ravel()
+            if M.shape[0] > ng:
+                K = M[:ng, ng:] @ np.linalg.pinv(M[ng:, ng:])
+                out.append((M[:ng, :ng] - K @ M[ng:, :ng], g[:ng] - K @ g[ng:]))
+            else:
+                out.append((M, g))
+        return out
+
+    def segment_bootstrap_std(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray, repeats: int = 400,
+                              seed: int = 0) -> np.ndarray | None:
+        """Block bootstrap over manoeuvres (one linearised Gauss-Newton step per resample from the estimate,
+        Hu & Kalbfleisch's estimating-function bootstrap): std of the model parameters, or None with fewer than
+        :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres. Whole manoeuvres are resampled, so coloured noise, per-record
+        disturbances and model mismatch that vary from record to record show in the spread."""
+        m = len(res)
+        if m < BOOTSTRAP_MIN_SEGMENTS or not self.free:
+            return None
+        terms = self._segment_terms(res, jacs, W)
+        A = np.stack([t[0] for t in terms])
+        g = np.stack([t[1] for t in terms])
+        rng = np.random.default_rng(seed)
+        reps = []
+        for _ in range(repeats):
+            w = np.bincount(rng.integers(0, m, m), minlength=m).astype(float)
+            Ab = np.einsum("j,jab->ab", w, A)
+            reps.append(np.linalg.lstsq(Ab, w @ g, rcond=None)[0])
+        return np.std(np.array(reps), axis=0, ddof=1) * np.sqrt(m / (m - 1.0))
+
+    def information(self, data: Sequence[Manoeuvre], theta: np.ndarray | None = None,
+                    weight: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
+        """Information matrix ``M`` of all estimated quantities at ``theta`` (default: the start), with the
+        given weighting or the inverse residual variance; for identifiability before the solve."""
+        data = list(data)
+        self._check(data, weight)
+        th = self._start(data, theta)
+        sims = [self.simulate(th, m, j) for j, m in enumerate(data)]
+        res = [m.y - s[0] for m, s in zip(data, sims, strict=True)]
+        if weight is None:
+            var = np.mean(np.vstack(res) ** 2, axis=0)
+            weight = np.diag(1.0 / np.maximum(var, 1e-300))
+        M, _ = self._normal_equations(res, [s[1] for s in sims], np.asarray(weight, float), len(th))
+        return M, self.names(data)
+
+    def identifiability(self, data: Sequence[Manoeuvre], theta: np.ndarray | None = None,
+                        weight: np.ndarray | None = None) -> Identifiability:
+        """Condition number, correlated pairs, input excitation and advice before the solve."""
+        M, names = self.information(data, theta, weight)
+        exc = input_excitation([m.u for m in data], list(self.model.inputs.index))
+        return analyse(M, names, len(self.free), exc)
+
     def _statistics(self, data: list[Manoeuvre], names: list[str], theta: np.ndarray, res: list[np.ndarray],
                     jacs: list[Any], W: np.ndarray, history: list[Iteration], converged: bool) -> Estimate:
-        """Cramér-Rao bounds (white and coloured-residual), correlation matrix, identifiability warnings."""
+        """Cramér-Rao bounds (white and coloured-residual), block bootstrap, correlations, identifiability."""
         n_total = len(theta)
         M, _ = self._normal_equations(res, jacs, W, n_total)
         M_inv = np.linalg.pinv(M)
@@ -482,16 +601,25 @@ class OutputError:
         std = np.sqrt(np.maximum(np.diag(cov), 0.0))
         d = np.maximum(std, 1e-300)
         corr = cov / np.outer(d, d)
+        boot = self.segment_bootstrap_std(res, jacs, W)
+        method = BOUND_METHODS[1] if boot is not None else BOUND_METHODS[0]
+        exc = input_excitation([m.u for m in data], list(self.model.inputs.index))
+        ident = analyse(M, names, len(self.free), exc, cov=cov)
+        printed = std.copy()
+        if boot is not None:
+            printed[:len(self.free)] = np.maximum(printed[:len(self.free)], boot)
         warnings = []
-        for i, n in enumerate(names):
-            if std[i] > RELATIVE_STD_WARN * abs(theta[i]):
-                warnings.append(f"{n}: Cramér-Rao std {std[i]:.3g} exceeds {RELATIVE_STD_WARN:.0%} of the estimate "
+        for i, n in enumerate(names[:len(self.free)]):
+            if printed[i] > RELATIVE_STD_WARN * abs(theta[i]):
+                warnings.append(f"{n}: std {printed[i]:.3g} exceeds {RELATIVE_STD_WARN:.0%} of the estimate "
                                 f"{theta[i]:.4g} - the data hardly identify it")
             for k in range(i + 1, n_total):
                 if abs(corr[i, k]) > CORRELATION_WARN:
                     warnings.append(f"{n} and {names[k]} are correlated ({corr[i, k]:+.3f}): the data cannot "
                                     "separate them")
+        warnings += [a for a in ident.advice if a not in warnings]
         for w in warnings:
             log.warning(w)
         resid_cov = np.cov(np.vstack(res).T, bias=True).reshape(len(self.outputs), len(self.outputs))
-        return Estimate(names, theta, std, std_white, corr, resid_cov, history, warnings, converged)
+        return Estimate(names, theta, std, std_white, corr, resid_cov, history, warnings, converged,
+                        n_global=len(self.free), bootstrap_std=boot, bound_method=method, identifiability=ident)

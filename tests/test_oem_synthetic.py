@@ -10,7 +10,7 @@ from scipy.signal import lfilter
 from fmu_models.common.simulate import Simulator
 from fmu_models.fixed_wing.model import FixedWingModel
 from fmu_models.fixed_wing.trim import trim
-from identification.oem import EstimationError, Manoeuvre, OutputError, coloured_covariance
+from identification.oem import EstimationError, Manoeuvre, OutputErrorEstimator, coloured_covariance
 from uavfmu.synthetic import OEM_FREE, OEM_OUTPUTS, OEM_SIGMA, identification_manoeuvres, multistep
 
 FREE = ["C_ell_p", "C_ell_delta_a", "C_ell_beta", "C_ell_r", "C_n_beta", "C_n_r", "C_n_delta_r", "C_Y_beta"]
@@ -47,9 +47,9 @@ def truth() -> tuple[Simulator, np.ndarray, Manoeuvre]:
 
 
 @pytest.fixture(scope="module")
-def oe(truth) -> OutputError:
+def oe(truth) -> OutputErrorEstimator:
     sim, p, _ = truth
-    return OutputError(sim.model, p, FREE, OUTPUTS)
+    return OutputErrorEstimator(sim.model, p, FREE, OUTPUTS)
 
 
 def perturbed(sim: Simulator, p: np.ndarray, frac: float = 0.3) -> np.ndarray:
@@ -97,7 +97,7 @@ def test_coloured_residuals_widen_the_bounds(truth, oe) -> None:
 
 def test_sensitivities_match_central_differences(truth) -> None:
     sim, p, m = truth
-    oe = OutputError(sim.model, p, FREE[:3], OUTPUTS, estimate_states=["rate_body_x_rad_s", "vel_body_y_m_s"],
+    oe = OutputErrorEstimator(sim.model, p, FREE[:3], OUTPUTS, estimate_states=["rate_body_x_rad_s", "vel_body_y_m_s"],
                      estimate_biases=["roll_rad"], compile=False)
     short = Manoeuvre(m.x0, m.u[:200], m.y[:200], DT)
     theta = oe._start([short], None) + np.array([0, 0, 0, 0.01, 0.2, 0.0])
@@ -113,7 +113,7 @@ def test_sensitivities_match_central_differences(truth) -> None:
 
 def test_compiled_and_virtual_machine_agree(truth, oe) -> None:
     sim, p, m = truth
-    vm = OutputError(sim.model, p, FREE, OUTPUTS, compile=False)
+    vm = OutputErrorEstimator(sim.model, p, FREE, OUTPUTS, compile=False)
     th = perturbed(sim, p)
     y1, J1, _ = oe.simulate(th, m)
     y2, J2, _ = vm.simulate(th, m)
@@ -124,7 +124,7 @@ def test_compiled_and_virtual_machine_agree(truth, oe) -> None:
 def test_several_manoeuvres_with_initial_states_and_biases(truth) -> None:
     """Two manoeuvres from different trims; each starts with an unknown roll rate and has a roll-angle bias."""
     sim, p, _ = truth
-    oe = OutputError(sim.model, p, FREE, OUTPUTS, estimate_states=["rate_body_x_rad_s"], estimate_biases=["roll_rad"])
+    oe = OutputErrorEstimator(sim.model, p, FREE, OUTPUTS, estimate_states=["rate_body_x_rad_s"], estimate_biases=["roll_rad"])
     i_p = sim.model.states.index["rate_body_x_rad_s"]
     true_local = [(0.05, 0.02), (-0.08, -0.03)]  # (initial roll rate rad/s, roll bias rad)
     data = []
@@ -144,7 +144,7 @@ def test_several_manoeuvres_with_initial_states_and_biases(truth) -> None:
 
 def test_constraint_rejects_steps_and_bounds_hold(truth, oe) -> None:
     sim, p, m = truth
-    oe_b = OutputError(sim.model, p, FREE, OUTPUTS, bounds={"C_ell_p": (-0.4, -0.35)},
+    oe_b = OutputErrorEstimator(sim.model, p, FREE, OUTPUTS, bounds={"C_ell_p": (-0.4, -0.35)},
                        constraints=[lambda th: th["C_n_r"] < -0.05], compile=False)
     est = oe_b.estimate([m], theta0=perturbed(sim, p), weight=np.diag(1.0 / SIGMA**2), max_iter=30)
     named = dict(zip(est.names, est.values, strict=True))
@@ -163,11 +163,11 @@ def test_diverging_start_is_refused(truth, oe) -> None:
 def test_bad_problems_are_rejected(truth, oe) -> None:
     sim, p, m = truth
     with pytest.raises(EstimationError, match="C_ell_pp"):
-        OutputError(sim.model, p, ["C_ell_pp"], OUTPUTS)
+        OutputErrorEstimator(sim.model, p, ["C_ell_pp"], OUTPUTS)
     with pytest.raises(EstimationError, match="state 'rate_x'"):
-        OutputError(sim.model, p, FREE, OUTPUTS, estimate_states=["rate_x"])
+        OutputErrorEstimator(sim.model, p, FREE, OUTPUTS, estimate_states=["rate_x"])
     with pytest.raises(EstimationError, match="not free"):
-        OutputError(sim.model, p, FREE, OUTPUTS, bounds={"C_L_0": (0, 1)})
+        OutputErrorEstimator(sim.model, p, FREE, OUTPUTS, bounds={"C_L_0": (0, 1)})
     with pytest.raises(EstimationError, match="lateral: outputs must be"):
         oe.estimate([Manoeuvre(m.x0, m.u, m.y[:, :2], DT, "lateral")])
     bad = m.y.copy()
@@ -194,12 +194,12 @@ def test_coloured_covariance_equals_the_double_sum_over_lags() -> None:
 
 
 @pytest.fixture(scope="module")
-def all_axes() -> tuple[OutputError, np.ndarray, list[Manoeuvre]]:
+def all_axes() -> tuple[OutputErrorEstimator, np.ndarray, list[Manoeuvre]]:
     """Issue 4's synthetic problem, shortened: 25 derivatives of all axes, 3-2-1-1 on all surfaces and throttle
     steps, four 8 s manoeuvres at 50 Hz from trims between 22 and 28 m/s, noise-free."""
     sim = Simulator(FixedWingModel())
     p = sim.params(density_altitude_scaling=0.0)
-    oe = OutputError(sim.model, p, OEM_FREE, OEM_OUTPUTS)
+    oe = OutputErrorEstimator(sim.model, p, OEM_FREE, OEM_OUTPUTS)
     return oe, p, identification_manoeuvres(oe, p, 8.0, 50.0, 4, None)
 
 

@@ -20,7 +20,7 @@ from fmu_models.fixed_wing.params import FixedWingParams
 from fmu_models.fixed_wing.trim import trim
 from fmu_models.signals.names import OUTPUT_TO_LOG
 from fmu_models.signals.pwm_mapping import PwmMapping, ardupilot_servo_reversed, default_mapping
-from identification.oem import Manoeuvre, OutputError
+from identification.oem import Manoeuvre, OutputErrorEstimator
 from uavfmu.scenarios import Recording
 
 #: ArduPlane's default outputs: SERVO1 aileron, SERVO2 elevator, SERVO3 throttle, SERVO4 rudder
@@ -136,7 +136,7 @@ OEM_OUTPUTS = ["roll_rad", "pitch_rad", "rate_body_x_rad_s", "rate_body_y_rad_s"
 OEM_SIGMA = np.array([0.003, 0.003, 0.005, 0.005, 0.005, 0.05, 0.05, 0.05, 0.1, 0.003])
 
 
-def identification_manoeuvres(oe: OutputError, p: np.ndarray, seconds: float, rate: float, count: int,
+def identification_manoeuvres(oe: OutputErrorEstimator, p: np.ndarray, seconds: float, rate: float, count: int,
                               rng: np.random.Generator | None, sigma: np.ndarray | None = None) -> list[Manoeuvre]:
     """``count`` manoeuvres of ``seconds`` at ``rate`` Hz cycling through four designs (lateral, longitudinal,
     all three surfaces, lateral + longitudinal), each from a trim between 22 and 28 m/s with a throttle step,
