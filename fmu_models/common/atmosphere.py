@@ -6,11 +6,12 @@ from typing import Any
 
 import casadi as ca
 
+from fmu_models.common.units import G0_M_S2
+
 T0_K = 288.15  #: sea-level temperature [K]
 P0_PA = 101325.0  #: sea-level pressure [Pa]
 LAPSE_K_M = 0.0065  #: temperature lapse rate [K/m]
 R_AIR_J_KG_K = 287.05287  #: specific gas constant of dry air [J/(kg K)]
-G0_M_S2 = 9.80665  #: standard gravity used by the ISA definition [m/s^2]
 EXPONENT = G0_M_S2 / (R_AIR_J_KG_K * LAPSE_K_M)  #: ~5.2559
 
 
