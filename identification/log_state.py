@@ -17,6 +17,46 @@ def resample_angle(sig: Signal, t_s: np.ndarray) -> np.ndarray:
     return np.angle(np.exp(1j * unwrapped))
 
 
+def unwrapped_angle(sig: Signal, t_s: np.ndarray) -> np.ndarray:
+    """An angle [rad] at ``t_s`` as one continuous series (no jump at the +-180 deg seam): differences of it
+    are true angular changes, so baselines and metrics need no special case."""
+    return np.interp(t_s, sig.t_s, np.unwrap(sig.values))
+
+
+#: a quadrotor's motors count as idle up to this far above the idle PWM (ArduCopter spins them at
+#: MOT_SPIN_ARMED, ~1060-1150 us, while armed on the ground)
+IDLE_MARGIN_US = 50.0
+#: heights above the ground level [m] below which the vehicle counts as on the ground
+GROUND_HEIGHT_M = {"quadrotor": 0.3, "fixed_wing": 1.0}
+#: a fixed wing below this airspeed [m/s] is taxiing or parked
+WING_GROUND_AIRSPEED_M_S = 8.0
+
+
+def ground_samples(log: FlightLog, vehicle: str, t_s: np.ndarray, idle_pwm_us: float) -> dict[str, np.ndarray]:
+    """Samples of ``t_s`` where the vehicle is on the ground, by criterion (plain-words name -> bool mask).
+
+    Criteria: the log's ``landed`` flag where logged; quadrotor motors all at idle (at most ``idle_pwm_us`` +
+    ``IDLE_MARGIN_US``); fixed wing below ``WING_GROUND_AIRSPEED_M_S``; height above the ground level below
+    ``GROUND_HEIGHT_M``, the ground level being the median altitude while on the ground by the other criteria
+    (no height criterion when the log never shows the vehicle on the ground).
+    """
+    out: dict[str, np.ndarray] = {}
+    if log.has("landed"):
+        out["landed flag set"] = hold(log.signal("landed"), t_s) > 0.5
+    if vehicle == "quadrotor":
+        pwm = np.max([hold(log.signal(f"motor_{k}_pwm_us"), t_s) for k in range(1, 5)], axis=0)
+        out[f"motors at idle (<= {idle_pwm_us + IDLE_MARGIN_US:g} us)"] = pwm <= idle_pwm_us + IDLE_MARGIN_US
+    elif log.has("airspeed_m_s"):
+        out[f"airspeed below {WING_GROUND_AIRSPEED_M_S:g} m/s"] = \
+            log.signal("airspeed_m_s").resample(t_s) < WING_GROUND_AIRSPEED_M_S
+    parked = np.any(list(out.values()), axis=0) if out else np.zeros(len(t_s), dtype=bool)
+    if log.has("altitude_m") and parked.any():
+        alt = log.signal("altitude_m").resample(t_s)
+        limit = GROUND_HEIGHT_M.get(vehicle, 0.3)
+        out[f"below {limit:g} m above the ground level"] = alt - float(np.median(alt[parked])) < limit
+    return out
+
+
 def hold(sig: Signal, t_s: np.ndarray) -> np.ndarray:
     """Zero-order hold of ``sig`` at ``t_s``: commanded outputs (servo PWM) hold between log samples."""
     idx = np.clip(np.searchsorted(sig.t_s, t_s, side="right") - 1, 0, len(sig.t_s) - 1)

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -97,3 +99,72 @@ def segment_metrics(measured: np.ndarray, model: np.ndarray, starts: np.ndarray)
             n=int(n),
         ))
     return out
+
+
+# --------------------------------------------------------------------------- baselines and skill
+def skill(rmse_model: float, rmse_baseline: float) -> float:
+    """``1 - RMSE_model / RMSE_baseline``: > 0 the model beats the baseline, 1 perfect, NaN when the baseline
+    is exact (nothing to beat)."""
+    if not (math.isfinite(rmse_model) and math.isfinite(rmse_baseline)) or rmse_baseline <= 0.0:
+        return float("nan")
+    return 1.0 - rmse_model / rmse_baseline
+
+
+@dataclass(frozen=True)
+class Score:
+    """A model's fit beside its two baselines over the same samples: persistence (the logged value at the
+    start of each replay window held over the window) and the window mean of the log (an oracle: it knows the
+    window's data). ``verdict`` is ``pass``, ``FAIL`` or ``n/a``, with a plain-words ``reason``."""
+
+    fit: FitMetrics
+    rmse_persistence: float
+    rmse_mean: float
+    verdict: str = "n/a"
+    reason: str = ""
+    gated: bool = True
+
+    @property
+    def skill_persistence(self) -> float:
+        return skill(self.fit.rmse, self.rmse_persistence)
+
+    @property
+    def skill_mean(self) -> float:
+        return skill(self.fit.rmse, self.rmse_mean)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {**self.fit.as_dict(), "rmse_persistence": self.rmse_persistence, "rmse_mean": self.rmse_mean,
+                "skill_persistence": self.skill_persistence, "skill_mean": self.skill_mean,
+                "verdict": self.verdict, "reason": self.reason, "gated": self.gated}
+
+
+def window_baselines(measured: np.ndarray, starts: np.ndarray, init_values: np.ndarray) -> tuple[np.ndarray,
+                                                                                                  np.ndarray]:
+    """Persistence and window-mean series of ``measured`` for the segments ``[starts[i], starts[i+1])``:
+    ``init_values[i]`` (the logged value at the window's re-initialisation) held, and the segment's mean."""
+    y = np.asarray(measured, dtype=float).ravel()
+    starts = np.asarray(starts, dtype=int)
+    counts = np.diff(np.append(starts, y.size))
+    finite = np.isfinite(y)
+    n_finite = np.add.reduceat(finite.astype(float), starts)
+    sums = np.add.reduceat(np.where(finite, y, 0.0), starts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        means = np.where(n_finite > 0, sums / np.maximum(n_finite, 1), np.nan)
+    return np.repeat(np.asarray(init_values, dtype=float), counts), np.repeat(means, counts)
+
+
+def segment_rmse(measured: np.ndarray, model: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """RMSE of each segment ``[starts[i], starts[i+1])`` over the samples finite in both (NaN if none)."""
+    y = np.asarray(measured, dtype=float).ravel()
+    m = np.asarray(model, dtype=float).ravel()
+    finite = np.isfinite(y) & np.isfinite(m)
+    e2 = np.where(finite, (y - m) ** 2, 0.0)
+    n = np.add.reduceat(finite.astype(float), starts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n > 0, np.sqrt(np.add.reduceat(e2, starts) / np.maximum(n, 1)), np.nan)
+
+
+def rmse(measured: np.ndarray, model: np.ndarray) -> float:
+    """RMSE over the samples finite in both (NaN if none)."""
+    e = np.asarray(measured, dtype=float) - np.asarray(model, dtype=float)
+    e = e[np.isfinite(e)]
+    return float(np.sqrt(np.mean(e * e))) if e.size else float("nan")

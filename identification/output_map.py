@@ -1,35 +1,50 @@
-"""Which FMU output is compared with which logged signal, with unit, frame and angle handling (TOML config).
+"""Which FMU output is compared with which logged signal, with unit, frame, angle handling and pass rules.
 
-```toml
-[thresholds]
-max_theil = 0.3                  # pass when Theil's U is below this (default for every signal)
+Config (TOML, checked by the typed schema :class:`OutputMapFile` of ``fmu_models.config``)::
 
-[signals.yaw_rad]                # FMU output
-log = "yaw_rad"                  # canonical log signal or raw "MSG.Field"
-log_unit = "rad"                 # unit of the log values; converted to the FMU output's unit (deg, cm, kn, ...)
-scale = 1.0                      # after unit conversion; -1 flips an axis (FLU -> FRD, up -> down)
-scale_by_param = ""              # multiply by an FMU parameter too (e.g. mass_kg: specific force -> force)
-offset = 0.0
-wrap = true                      # angle: compare modulo 2 pi
-max_theil = 0.5                  # per-signal threshold
-max_rmse = 0.02                  # also passes when the RMSE is below this (signal units): Theil's U means
-                                 # little for a signal that barely moves (attitude of a hovering quadrotor)
-```
+    [thresholds]
+    max_theil = 0.3                  # Theil's U below this (default for every signal)
+    min_skill_persistence = 0.0      # skill against persistence above this (default for every signal)
+
+    [signals.yaw_rad]                # FMU output
+    log = "yaw_rad"                  # canonical log signal or raw "MSG.Field"
+    log_unit = "rad"                 # unit of the log values; converted to the FMU output's unit
+    scale = 1.0                      # after unit conversion; -1 flips an axis (FLU -> FRD, up -> down)
+    scale_by_param = ""              # multiply by an FMU parameter too (e.g. mass_kg: specific force -> force)
+    offset = 0.0
+    wrap = true                      # angle: every metric and plot on the wrapped difference (-180..180 deg)
+    max_theil = 0.5                  # per-signal Theil threshold
+    max_rmse = 0.02                  # tolerance [signal unit]: also accurate enough below it; a window where
+                                     # the signal moves less than this is "n/a" (nothing to score)
+    min_skill_persistence = 0.0      # must beat holding the window's first logged value (always required)
+    min_skill_mean = 0.0             # optional: must beat the window mean of the log too
+    gate = true                      # false: scored and reported, but its verdict does not set the exit status
+
 A ``[signals]`` table replaces the vehicle's default map; ``[signals_extra]`` adds to it.
+
+Verdict of a signal over samples (one window, or all scored windows pooled), in this order: ``n/a`` when the
+signal and the model both stay within ``max_rmse`` of persistence (nothing to score); ``FAIL`` "loses to
+persistence" when ``1 - RMSE/RMSE_persistence <= min_skill_persistence``; ``FAIL`` when Theil's U is not below
+``max_theil`` (and the RMSE not below ``max_rmse``); ``FAIL`` when ``min_skill_mean`` is set and not met;
+else ``pass``. ``max_rmse`` can never pass a signal that loses to persistence.
 """
 
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+from pydantic import Field
+
+from fmu_models.config import ConfigError, FiniteFloat, PositiveFiniteFloat, Schema, read_config_file, validate_config
+from identification.metrics import FitMetrics, skill
 
 DEFAULT_MAX_THEIL = 0.3
+DEFAULT_MIN_SKILL = 0.0
 G0_M_S2 = 9.80665
 
 #: log unit -> (SI unit, factor)
@@ -39,10 +54,43 @@ UNIT_CONVERSIONS: dict[str, tuple[str, float]] = {
     "cm/s": ("m/s", 0.01), "kn": ("m/s", 1852 / 3600), "km/h": ("m/s", 1 / 3.6), "ft/s": ("m/s", 0.3048),
     "g": ("m/s2", G0_M_S2), "mG": ("m/s2", G0_M_S2 / 1000), "kN": ("N", 1000.0),
 }
+SI_UNITS = ("m", "rad", "m/s", "m/s2", "rad/s", "N", "1", "s")
 
 
-class OutputMapError(ValueError):
+class OutputMapError(ConfigError):
     """A bad output-map config or a unit that does not fit the FMU output; names file, signal and value."""
+
+
+Skill = Annotated[float, Field(ge=-100.0, lt=1.0, allow_inf_nan=False)]
+
+
+class SignalEntry(Schema):
+    """One ``[signals.<fmu output>]`` table."""
+
+    log: str | None = None
+    log_unit: str | None = None
+    scale: FiniteFloat = 1.0
+    scale_by_param: str | None = None
+    offset: FiniteFloat = 0.0
+    wrap: bool = False
+    max_theil: PositiveFiniteFloat | None = None
+    max_rmse: PositiveFiniteFloat | None = None
+    min_skill_persistence: Skill | None = None
+    min_skill_mean: Skill | None = None
+    gate: bool = True
+
+
+class Thresholds(Schema):
+    max_theil: PositiveFiniteFloat = DEFAULT_MAX_THEIL
+    min_skill_persistence: Skill = DEFAULT_MIN_SKILL
+
+
+class OutputMapFile(Schema):
+    """An output-map file."""
+
+    thresholds: Thresholds = Thresholds()
+    signals: dict[str, SignalEntry] | None = None
+    signals_extra: dict[str, SignalEntry] = Field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -56,10 +104,27 @@ class SignalMap:
     wrap: bool = False
     max_theil: float = DEFAULT_MAX_THEIL
     max_rmse: float | None = None
+    min_skill_persistence: float = DEFAULT_MIN_SKILL
+    min_skill_mean: float | None = None
+    gate: bool = True
 
-    def passes(self, theil_u: float, rmse: float) -> bool:
-        """Theil's U below ``max_theil``, or the RMSE within the absolute tolerance ``max_rmse``."""
-        return bool(theil_u < self.max_theil or (self.max_rmse is not None and rmse < self.max_rmse))
+    def judge(self, fit: FitMetrics, rmse_persistence: float, rmse_mean: float) -> tuple[str, str]:
+        """``(verdict, reason)`` of a fit beside its baselines; see the module docstring for the rules."""
+        tol = self.max_rmse
+        sp, sm = skill(fit.rmse, rmse_persistence), skill(fit.rmse, rmse_mean)
+        if fit.rmse <= (tol or 0.0) and rmse_persistence <= (tol or 0.0):
+            return "n/a", (f"moved less than its tolerance {tol:g} (persistence RMSE {rmse_persistence:.3g}): "
+                           "nothing to score" if tol else "constant and matched exactly: nothing to score")
+        if not sp > self.min_skill_persistence:  # NaN (persistence exact, model not) fails too
+            return "FAIL", (f"loses to persistence: skill {sp:+.2f} (RMSE {fit.rmse:.3g} against "
+                            f"{rmse_persistence:.3g} for holding the window's first logged value; needs > "
+                            f"{self.min_skill_persistence:g})")
+        if not (fit.theil_u < self.max_theil or (tol is not None and fit.rmse < tol)):
+            extra = f" and RMSE {fit.rmse:.3g} >= {tol:g}" if tol is not None else ""
+            return "FAIL", f"inaccurate: Theil U {fit.theil_u:.3f} >= {self.max_theil:g}{extra}"
+        if self.min_skill_mean is not None and not sm > self.min_skill_mean:
+            return "FAIL", f"loses to the window mean: skill {sm:+.2f} (needs > {self.min_skill_mean:g})"
+        return "pass", f"beats persistence (skill {sp:+.2f}), Theil U {fit.theil_u:.3f} < {self.max_theil:g}"
 
     def convert(self, values: np.ndarray, fmu_unit: str | None, params: Mapping[str, float]) -> np.ndarray:
         """Log values in the FMU output's unit and frame."""
@@ -67,24 +132,25 @@ class SignalMap:
         if self.log_unit:
             si, f = UNIT_CONVERSIONS.get(self.log_unit, (self.log_unit, 1.0))
             if fmu_unit and si != fmu_unit:
-                raise OutputMapError(f"signals.{self.fmu}: log unit {self.log_unit!r} converts to {si!r}, but the "
-                                     f"FMU output is in {fmu_unit!r}")
+                raise OutputMapError("output map", [f"signals.{self.fmu}: log unit {self.log_unit!r} converts to "
+                                                    f"{si!r}, but the FMU output is in {fmu_unit!r}"])
             factor *= f
         if self.scale_by_param:
             if self.scale_by_param not in params:
-                raise OutputMapError(f"signals.{self.fmu}.scale_by_param: {self.scale_by_param!r} is not an FMU "
-                                     "parameter")
+                raise OutputMapError("output map", [f"signals.{self.fmu}.scale_by_param: {self.scale_by_param!r} "
+                                                    "is not an FMU parameter"])
             factor *= params[self.scale_by_param]
         return np.asarray(values, dtype=float) * factor + self.offset
 
     def align(self, model: np.ndarray, measured: np.ndarray) -> np.ndarray:
-        """Model values brought within pi of the measurement for angles (``wrap``), else unchanged."""
+        """Model values brought within pi of the measurement for angles (``wrap``), else unchanged: the
+        difference of the two is then the wrapped error (-pi..pi) for every metric and plot."""
         if not self.wrap:
             return model
         return measured + (model - measured + math.pi) % (2 * math.pi) - math.pi
 
 
-#: absolute tolerances of the default maps: ~1 deg of attitude, ~2 deg/s of body rate (a few sensor sigmas)
+#: tolerances of the default maps: ~1 deg of attitude, ~2 deg/s of body rate (a few sensor sigmas)
 ANGLE_TOL_RAD, RATE_TOL_RAD_S = 0.02, 0.035
 
 
@@ -109,56 +175,52 @@ FIXED_WING = (
     SignalMap("accel_body_z_m_s2", "accel_body_z_m_s2"), SignalMap("altitude_m", "altitude_m"),
 )
 DEFAULTS = {"quadrotor": QUADROTOR, "fixed_wing": FIXED_WING}
-FIELDS = {"log": str, "log_unit": str, "scale": (int, float), "scale_by_param": str, "offset": (int, float),
-          "wrap": bool, "max_theil": (int, float), "max_rmse": (int, float)}
 
 
 def load(path: str | Path | None, vehicle: str) -> tuple[SignalMap, ...]:
-    """The vehicle's default map, or the map of a TOML file (every problem reported at once)."""
+    """The vehicle's default map, or the map of a TOML/JSON file (every problem reported at once)."""
     if vehicle not in DEFAULTS:
-        raise OutputMapError(f"no default output map for vehicle {vehicle!r} (known: {', '.join(DEFAULTS)})")
+        raise OutputMapError("output map", [f"no default output map for vehicle {vehicle!r} "
+                                            f"(known: {', '.join(DEFAULTS)})"])
     if path is None:
         return DEFAULTS[vehicle]
-    p = Path(path)
     try:
-        data = tomllib.loads(p.read_text())
-    except (OSError, tomllib.TOMLDecodeError) as err:
-        raise OutputMapError(f"{p}: cannot read the output map ({err})") from err
-    return from_dict(data, vehicle, str(p))
+        data = read_config_file(path)
+    except ConfigError as err:
+        raise OutputMapError(err.source, err.problems) from None
+    return from_dict(data, vehicle, str(path))
+
+
+def _unit_problems(table: str, fmu: str, entry: SignalEntry) -> list[str]:
+    problems = []
+    unit = entry.log_unit
+    if unit and unit not in UNIT_CONVERSIONS and "/" not in unit and unit not in SI_UNITS:
+        problems.append(f"{table}.{fmu}.log_unit = {unit!r}; known: {', '.join(UNIT_CONVERSIONS)} or an SI unit")
+    return problems
 
 
 def from_dict(data: Mapping[str, Any], vehicle: str, source: str = "output map") -> tuple[SignalMap, ...]:
-    problems: list[str] = []
-    limit = data.get("thresholds", {}).get("max_theil", DEFAULT_MAX_THEIL)
-    if not (isinstance(limit, int | float) and limit > 0):
-        problems.append(f"thresholds.max_theil = {limit!r}; allowed: a number > 0")
-        limit = DEFAULT_MAX_THEIL
-    base = {} if "signals" in data else {m.fmu: replace(m, max_theil=limit) for m in DEFAULTS[vehicle]}
-    for table in ("signals", "signals_extra"):
-        for fmu, raw in (data.get(table) or {}).items():
-            if not isinstance(raw, Mapping):
-                problems.append(f"{table}.{fmu} must be a table")
+    """Maps of a decoded config; :class:`OutputMapError` lists every problem with field, value and range."""
+    problems = [f"{table}.{fmu}: 'log' (the logged signal) is required"
+                for table in ("signals", "signals_extra") if isinstance(data.get(table), Mapping)
+                for fmu, raw in data[table].items() if isinstance(raw, Mapping) and "log" not in raw]
+    try:
+        cfg = validate_config(data, OutputMapFile, source)
+    except ConfigError as err:
+        raise OutputMapError(source, err.problems + problems) from None
+    th = cfg.thresholds
+    defaults = {"max_theil": th.max_theil, "min_skill_persistence": th.min_skill_persistence}
+    base = {} if cfg.signals is not None else {m.fmu: replace(m, **defaults) for m in DEFAULTS[vehicle]}
+    for table, entries in (("signals", cfg.signals or {}), ("signals_extra", cfg.signals_extra)):
+        for fmu, entry in entries.items():
+            found = _unit_problems(table, fmu, entry)
+            problems += found
+            if found or entry.log is None:
                 continue
-            unknown = [k for k in raw if k not in FIELDS]
-            if unknown:
-                problems.append(f"{table}.{fmu}: unknown field(s) {', '.join(unknown)} (known: {', '.join(FIELDS)})")
-            bad = [f"{k} = {v!r}" for k, v in raw.items() if k in FIELDS and not isinstance(v, FIELDS[k])]
-            if bad:
-                problems.append(f"{table}.{fmu}: wrong type: {', '.join(bad)}")
-            if "log" not in raw:
-                problems.append(f"{table}.{fmu}: 'log' (the logged signal) is required")
-            if unknown or bad or "log" not in raw:
-                continue
-            if raw.get("log_unit") and raw["log_unit"] not in UNIT_CONVERSIONS and "/" not in raw["log_unit"] \
-                    and raw["log_unit"] not in ("m", "rad", "m/s", "m/s2", "rad/s", "N", "1", "s"):
-                problems.append(f"{table}.{fmu}.log_unit = {raw['log_unit']!r}; known: "
-                                f"{', '.join(UNIT_CONVERSIONS)} or an SI unit")
-            for key in ("max_theil", "max_rmse"):
-                if key in raw and not raw[key] > 0:
-                    problems.append(f"{table}.{fmu}.{key} = {raw[key]!r}; allowed: > 0")
-            base[fmu] = SignalMap(fmu=fmu, **{"max_theil": limit, **raw})
+            given = {k: v for k, v in entry.model_dump().items() if v is not None}
+            base[fmu] = SignalMap(fmu=fmu, **{**defaults, **given})
     if problems:
-        raise OutputMapError(f"{source}: " + "; ".join(problems))
+        raise OutputMapError(source, problems)
     if not base:
-        raise OutputMapError(f"{source}: no signals to compare")
+        raise OutputMapError(source, ["no signals to compare"])
     return tuple(base.values())

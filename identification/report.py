@@ -67,10 +67,14 @@ def _signal_figures(res: ReplayResult) -> list[str]:
         meas, mod = res.measured[m.fmu], res.model[m.fmu]
         ax.plot(t, meas[::k], color="0.25", lw=0.9, label="log")
         ax.plot(t, mod[::k], color="tab:red", lw=0.9, label="FMU")
+        if m.fmu in res.persistence:
+            ax.plot(t, res.persistence[m.fmu][::k], color="tab:green", lw=0.7, ls="--", label="persistence")
         if edges:  # window starts, one collection (an axvline each costs ms per window)
             ax.vlines(edges, 0, 1, transform=ax.get_xaxis_transform(), color="tab:blue", lw=0.4, alpha=0.3)
-        _label(ax, f"FMU {m.fmu} against log {m.log}: Theil U {res.overall[m.fmu].theil_u:.3f}, "
-                   f"RMSE {res.overall[m.fmu].rmse:.3g}")
+        sc = res.scores[m.fmu]
+        _label(ax, f"FMU {m.fmu} against log {m.log}{' (wrapped angle, shown unwrapped)' if m.wrap else ''}: "
+                   f"{sc.verdict}, skill vs persistence {sc.skill_persistence:+.2f}, Theil U {sc.fit.theil_u:.3f}, "
+                   f"RMSE {sc.fit.rmse:.3g}")
         ax.set_xlim(t[0], t[-1])
         if row == 0:
             ax.legend(loc="upper right", fontsize=7)
@@ -101,36 +105,107 @@ def _signal_figures(res: ReplayResult) -> list[str]:
     return parts
 
 
-def validation_page(res: ReplayResult) -> str:
-    """One FMU against one log: identities, metrics with pass/fail, overlays, residuals."""
-    fmu, log = res.fmu, res.log
+def _fmt(x: float, spec: str) -> str:
+    return "-" if x is None or not np.isfinite(x) else format(x, spec)
+
+
+def _verdict_cell(verdict: str, gated: bool = True) -> str:
+    cls = {"pass": "pass", "FAIL": "fail"}.get(verdict, "")
+    return f"<span class='{cls}'>{html.escape(verdict)}{'' if gated or verdict != 'FAIL' else ' (not gated)'}</span>"
+
+
+def _verdict_table(res: ReplayResult) -> str:
     rows = []
     for m in res.maps:
-        r = res.overall[m.fmu]
-        ok = m.passes(r.theil_u, r.rmse)
-        limit = f"U < {m.max_theil:g}" + (f" or RMSE < {m.max_rmse:g}" if m.max_rmse is not None else "")
-        rows.append([m.fmu, m.log, f"{r.rmse:.4g}", f"{r.nrmse:.4f}", f"{r.theil_u:.3f}", limit,
-                     f"{r.fit_percent:.1f}", f"{r.r2:.3f}", f"{r.max_error:.4g}",
-                     f"<span class='{'pass' if ok else 'fail'}'>{'pass' if ok else 'FAIL'}</span>"])
+        s, w = res.scores[m.fmu], res.window_counts(m.fmu)
+        rows.append([m.fmu, _verdict_cell(s.verdict, m.gate), _fmt(s.skill_persistence, "+.2f"),
+                     _fmt(s.skill_mean, "+.2f"), f"{w['pass']} / {w['FAIL']} / {w['n/a']}", html.escape(s.reason)])
+    return _table(["signal", "verdict", "skill vs persistence", "skill vs window mean", "windows pass / FAIL / n/a",
+                   "reason"], rows, raw=True)
+
+
+def _metrics_table(res: ReplayResult) -> str:
+    rows = []
+    for m in res.maps:
+        s = res.scores[m.fmu]
+        r = s.fit
+        rule = f"skill > {m.min_skill_persistence:g} and (U < {m.max_theil:g}" + (
+            f" or RMSE < {m.max_rmse:g})" if m.max_rmse is not None else ")")
+        rows.append([m.fmu, m.log, f"{r.rmse:.4g}", _fmt(s.rmse_persistence, ".4g"), _fmt(s.rmse_mean, ".4g"),
+                     _fmt(r.nrmse, ".4f"), f"{r.theil_u:.3f}", _fmt(r.fit_percent, ".1f"), _fmt(r.r2, ".3f"),
+                     f"{r.max_error:.4g}", rule])
+    return _table(["FMU output", "log signal", "RMSE", "RMSE persistence", "RMSE window mean", "NRMSE", "Theil U",
+                   "fit %", "R²", "max error", "pass when"], rows)
+
+
+def _horizon_section(res: ReplayResult) -> list[str]:
+    hs = sorted({row.horizon_s for rows in res.horizons.values() for row in rows})
+    if not hs:
+        return ["<p>No prediction horizon fits in a replay window.</p>"]
+    rows = []
+    for name, hrows in res.horizons.items():
+        by = {r.horizon_s: r for r in hrows}
+        rows.append([name, *(f"{by[h].rmse:.3g} / {by[h].rmse_persistence:.3g} "
+                             f"({_fmt(by[h].skill_persistence, '+.2f')})" if h in by else "-" for h in hs)])
+    fig, ax = plots.figure(figsize=(6.0, 3.2), layout=None)
+    fig.subplots_adjust(left=0.12, right=0.7, top=0.95, bottom=0.16)
+    for name, hrows in res.horizons.items():
+        ax.plot([r.horizon_s for r in hrows], [r.skill_persistence for r in hrows], "o-", ms=3, lw=1, label=name)
+    ax.axhline(0.0, color="k", lw=0.8)
+    ax.set_xlabel("prediction horizon [s] (restart from the logged state)")
+    ax.set_ylabel("skill vs persistence")
+    ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7)
+    n = max((r.n for rows_ in res.horizons.values() for r in rows_), default=0)
+    return [_table(["signal", *(f"{h:g} s: RMSE FMU / persistence (skill)" for h in hs)], rows),
+            f"<p>Each horizon: the error at that lead time after each of {n} restarts from the logged state.</p>",
+            _png(fig)]
+
+
+def _one_step_section(res: ReplayResult) -> str:
+    if not res.one_step:
+        return "<p>No accelerometer in the log or the FMU: no one-step force check.</p>"
+    rows = [[k, f"{s.fit.rmse:.3g}", _fmt(s.rmse_mean, ".3g"), _fmt(s.skill_mean, "+.2f"), f"{s.fit.n}",
+             html.escape(s.reason)] for k, s in res.one_step.items()]
+    return ("<p>The FMU's specific force (accelerometer output) for the logged state and inputs at each restart, "
+            "against the logged accelerometer: a wrong force model shows here, a drifting integration does not.</p>"
+            + _table(["output", "RMSE [m/s²]", "RMSE of the log's mean", "skill vs mean", "samples", "note"], rows))
+
+
+def _log_notes(res: ReplayResult) -> list[str]:
+    notes = [f"{sum(res.included)} of {len(res.windows)} replay windows scored, each re-initialised from the logged "
+             "state (the first sample of each window is the initial condition and is not scored)."]
+    if res.excluded:
+        why = ", ".join(f"{k}: {v} windows" for k, v in res.ground.items())
+        notes.append(f"{res.excluded} windows excluded with the vehicle on the ground ({why}); "
+                     "--include-ground scores them.")
+    notes += [f"log warning: {w}" for w in res.log["warnings"]]
+    notes += [f"data quality: {w}" for w in res.log.get("quality_lines", [])]
+    return [f"<p>{html.escape(n)}</p>" for n in notes]
+
+
+def validation_page(res: ReplayResult) -> str:
+    """One FMU against one log: the verdict table first, then metrics beside the baselines, horizons, the
+    one-step force check, identities, overlays with the persistence baseline, residuals."""
+    fmu, log = res.fmu, res.log
     params = _table(["parameter", "value"], [[k, f"{v:.6g}"] for k, v in fmu["parameters"].items()])
-    verdict = "all signals pass" if not res.failed else f"FAILED: {', '.join(res.failed)}"
+    verdict = "all gated signals pass" if not res.failed else f"FAILED: {', '.join(res.failed)}"
     parts = [
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>uavfmu validation</title><style>{STYLE}</style>"
         "</head><body>",
         f"<h1>{html.escape(fmu['model_name'])} against {html.escape(log['path'])}</h1>",
-        f"<p class='{'fail' if res.failed else 'pass'}'>{html.escape(verdict)}</p>",
-        "<h2>Metrics</h2>",
-        _table(["FMU output", "log signal", "RMSE", "NRMSE", "Theil U", "pass when", "fit %", "R²", "max error",
-                "result"], rows, raw=True),
-        f"<p>{len(res.windows)} replay window(s), each re-initialised from the logged state; the first sample of "
-        "each window is the initial condition and is not scored.</p>",
+        _verdict_table(res),
+        f"<p class='{'fail' if res.failed else 'pass'}'>{html.escape(verdict)}. A signal passes only when it beats "
+        "persistence (the logged value at the window start, held) and meets its accuracy threshold.</p>",
+        *_log_notes(res),
+        "<h2>Metrics beside the baselines</h2>", _metrics_table(res),
+        "<h2>Error against prediction horizon</h2>", *_horizon_section(res),
+        "<h2>One-step force check</h2>", _one_step_section(res),
         "<h2>FMU</h2>",
         _table(["field", "value"], [[k, fmu[k]] for k in ("path", "model_name", "guid", "generation_tool",
                                                            "generated")] + [["overrides", fmu["overrides"]]]),
         f"<details><summary>parameters used ({len(fmu['parameters'])})</summary>{params}</details>",
         "<h2>Log</h2>",
         _table(["field", "value"], [[k, log[k]] for k in ("path", "format", "vehicle", "duration_s", "sha256")]),
-        *(f"<p>reader warning: {html.escape(w)}</p>" for w in log["warnings"]),
         "<h2>Signals</h2>", *_signal_figures(res), "</body></html>",
     ]
     return "\n".join(parts)
@@ -142,11 +217,12 @@ def index_page(results: Sequence[dict[str, Any]]) -> str:
     for r in results:
         link = f"<a href='{html.escape(r['report'])}'>report</a>" if r.get("report") else ""
         cls = {"pass": "pass"}.get(r["status"], "fail")
-        worst = f"{r['worst_theil']:.3f}" if r.get("worst_theil") is not None else ""
+        sig = r.get("signals") or {}
+        why = "; ".join(f"{s}: {sig[s]['reason']}" for s in r.get("failed", []) if s in sig)
         rows.append([html.escape(r["fmu"]), html.escape(r["log"]), f"<span class='{cls}'>{r['status']}</span>",
-                     worst, html.escape(", ".join(r.get("failed", []))), html.escape(r.get("error", "")), link])
+                     html.escape(why), html.escape(r.get("error", "")), link])
     n_bad = sum(r["status"] != "pass" for r in results)
     return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>uavfmu batch validation</title>"
             f"<style>{STYLE}</style></head><body><h1>Batch validation: {len(results)} runs, {n_bad} not passing"
-            "</h1>" + _table(["FMU", "log", "status", "worst Theil U", "failed signals", "error", ""], rows, raw=True)
+            "</h1>" + _table(["FMU", "log", "status", "failed signals and why", "error", ""], rows, raw=True)
             + "</body></html>")

@@ -1,39 +1,117 @@
-"""Replay a flight log's inputs through an FMU with FMPy and score its outputs against the log.
+"""Replay a flight log's inputs through an FMU with FMPy and score its outputs against the log, beside the
+simplest rivals.
 
 Nothing of the Python model is imported: ``fmpy.simulate_fmu`` drives the FMU (``fmu_models.fmi.host``) with
-the recorded inputs as a structured input array. Full-length replay, or segment-wise replay in windows each
-re-initialised from the logged state (the usual way open-loop-unstable vehicles are judged), scored per
-window and over all windows together.
+the recorded inputs as a structured input array. The log is cut into windows of ``window_s`` seconds, each
+re-initialised from the logged state (the usual way open-loop-unstable vehicles are judged; 0: one
+full-length replay). Every signal is scored per window and over all scored windows pooled, beside two
+baselines over the same samples: persistence (the logged value at the window start held) and the window mean
+of the log. The verdict rules are those of :mod:`identification.output_map`: a model that loses to
+persistence fails. Windows where the vehicle is on the ground are not replayed unless ``include_ground``.
+Prediction horizons (error at a lead time after each restart from the logged state) and a one-step check of
+the force model (the FMU's accelerometer output for the logged state and inputs) come from the same replay.
 """
 
 from __future__ import annotations
 
 import hashlib
 import itertools
+import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+from pydantic import Field, model_validator
 
+from fmu_models.config import ConfigError, Schema, validate_config
 from fmu_models.fmi.host import FmuHost, FmuRunError
 from fmu_models.signals.pwm_mapping import PwmMapping
 from identification.flightlog import FlightLog, LogError
-from identification.log_state import hold, initial_values_at, mapped_inputs, resample_angle
-from identification.metrics import FitMetrics, fit_metrics, segment_metrics
+from identification.log_state import (
+    ground_samples,
+    hold,
+    initial_values_at,
+    mapped_inputs,
+    unwrapped_angle,
+)
+from identification.metrics import (
+    FitMetrics,
+    MetricsError,
+    Score,
+    fit_metrics,
+    rmse,
+    segment_metrics,
+    segment_rmse,
+    skill,
+    window_baselines,
+)
 from identification.output_map import SignalMap
 
 WING_INPUTS = ("aileron_rad", "elevator_rad", "rudder_rad", "throttle")
+ACCEL = ("accel_body_x_m_s2", "accel_body_y_m_s2", "accel_body_z_m_s2")
+DEFAULT_HORIZONS_S = (0.1, 0.5, 1.0, 2.0)
+#: bytes a replay holds per grid sample and signal (measured, model, baselines, masks, metric temporaries),
+#: measured on a 335 s log, with headroom
+BYTES_PER_SAMPLE_SIGNAL = 160
+BYTES_PER_SAMPLE_BASE = 400
 
 
-class ValidationError(ValueError):
-    """Inputs or signals missing or mismatched; the message names what."""
+class ValidationInputError(ValueError):
+    """Validation inputs missing, mismatched or too large; the message names what and how to proceed.
+
+    (Named apart from FMPy's ``ValidationError``, which reports modelDescription findings.)
+    """
+
+
+Horizon = Annotated[float, Field(gt=0, le=3600, allow_inf_nan=False)]
+
+
+class ValidationOptions(Schema):
+    """Options that size a replay, range-checked before anything is allocated."""
+
+    rate_hz: float = Field(50.0, gt=0, le=2000, allow_inf_nan=False)
+    window_s: float = Field(2.0, ge=0, le=86400, allow_inf_nan=False)  # 0: one full-length replay
+    horizons_s: list[Horizon] = Field(default_factory=lambda: list(DEFAULT_HORIZONS_S), max_length=32)
+    include_ground: bool = False
+    max_memory_mb: float = Field(2048.0, gt=0, le=1e6, allow_inf_nan=False)
+
+    @model_validator(mode="after")
+    def _window_holds_two_samples(self) -> ValidationOptions:
+        if 0 < self.window_s < 2.0 / self.rate_hz:
+            raise ValueError(f"window_s = {self.window_s:g} s holds fewer than 2 samples at rate_hz = "
+                             f"{self.rate_hz:g} (allowed: 0 for one full-length window, or >= {2 / self.rate_hz:g})")
+        return self
+
+
+def options(source: str = "validate options", **values: Any) -> ValidationOptions:
+    """:class:`ValidationOptions` from keyword values (None dropped); ``ConfigError`` lists every problem."""
+    return validate_config({k: v for k, v in values.items() if v is not None}, ValidationOptions, source)
+
+
+@dataclass(frozen=True)
+class HorizonRow:
+    """Error at lead time ``horizon_s`` after each restart from the logged state, over ``n`` restarts."""
+
+    horizon_s: float
+    rmse: float
+    rmse_persistence: float
+    n: int
+
+    @property
+    def skill_persistence(self) -> float:
+        return skill(self.rmse, self.rmse_persistence)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"horizon_s": self.horizon_s, "rmse": self.rmse, "rmse_persistence": self.rmse_persistence,
+                "skill_persistence": self.skill_persistence, "n": self.n}
 
 
 @dataclass
 class ReplayResult:
-    """Scored replay: per-signal model and measured values over the scored samples, metrics, identities."""
+    """Scored replay: per-signal model, measured and persistence values over the scored grid, metrics,
+    baselines and verdicts (pooled and per window), horizons, the one-step force check, identities."""
 
     fmu: dict[str, Any]
     log: dict[str, Any]
@@ -45,10 +123,31 @@ class ReplayResult:
     overall: dict[str, FitMetrics]
     maps: tuple[SignalMap, ...]
     start_values: dict[str, float] = field(default_factory=dict)
+    scores: dict[str, Score] = field(default_factory=dict)
+    window_scores: list[dict[str, Score]] = field(default_factory=list)
+    included: list[bool] = field(default_factory=list)
+    ground: dict[str, int] = field(default_factory=dict)
+    persistence: dict[str, np.ndarray] = field(default_factory=dict)
+    horizons: dict[str, list[HorizonRow]] = field(default_factory=dict)
+    one_step: dict[str, Score] = field(default_factory=dict)
+    options: dict[str, Any] = field(default_factory=dict)
 
     @property
     def failed(self) -> list[str]:
-        return [m.fmu for m in self.maps if not m.passes(self.overall[m.fmu].theil_u, self.overall[m.fmu].rmse)]
+        """Gated signals whose pooled verdict is FAIL."""
+        return [m.fmu for m in self.maps if self.scores[m.fmu].verdict == "FAIL" and m.gate]
+
+    @property
+    def excluded(self) -> int:
+        return sum(not k for k in self.included)
+
+    def window_counts(self, name: str) -> dict[str, int]:
+        """How many scored windows gave each verdict for signal ``name``."""
+        out = {"pass": 0, "FAIL": 0, "n/a": 0}
+        for w in self.window_scores:
+            if name in w:
+                out[w[name].verdict] += 1
+        return out
 
 
 def vehicle_of(host: FmuHost) -> str:
@@ -56,13 +155,16 @@ def vehicle_of(host: FmuHost) -> str:
     try:
         return host.vehicle
     except FmuRunError as err:
-        raise ValidationError(str(err)) from None
+        raise ValidationInputError(str(err)) from None
 
 
 def log_identity(log: FlightLog, path: Path) -> dict[str, Any]:
     digest = hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else ""
+    quality = getattr(log, "quality", None)
     return {"path": str(path), "format": log.fmt, "vehicle": log.vehicle, "duration_s": round(log.duration_s, 3),
-            "sha256": digest, "warnings": list(log.warnings)}
+            "sha256": digest, "warnings": list(log.warnings),
+            "quality": quality.to_dict() if quality is not None else None,
+            "quality_lines": list(quality.lines()) if quality is not None else []}
 
 
 def fmu_identity(host: FmuHost, start_values: Mapping[str, float]) -> dict[str, Any]:
@@ -84,59 +186,222 @@ def log_inputs(vehicle: str, log: FlightLog, t_s: np.ndarray, mapping: PwmMappin
     return {n: u[:, i] for i, n in enumerate(WING_INPUTS)}
 
 
-def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalMap], rate_hz: float = 50.0,
-           window_s: float | None = 2.0, start_values: Mapping[str, float] | None = None,
-           mapping: PwmMapping | None = None, t_range: tuple[float, float] | None = None,
-           progress: Callable[[int, int], None] | None = None) -> ReplayResult:
-    """Replay ``log`` through the FMU of ``host`` on a ``rate_hz`` grid and score the signals of ``maps``."""
+def _check_inputs(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalMap],
+                  overrides: Mapping[str, float]) -> str:
     vehicle = vehicle_of(host)
-    overrides = dict(start_values or {})
     unknown = [n for n in overrides if n not in host.variables]
     if unknown:
-        raise ValidationError(f"--set: {', '.join(unknown)} not variables of {host.path.name}")
+        raise ValidationInputError(f"--set: {', '.join(unknown)} not variables of {host.path.name}")
     missing_out = [m.fmu for m in maps if m.fmu not in host.variables]
     if missing_out:
-        raise ValidationError(f"output map: {', '.join(missing_out)} not outputs of {host.path.name}")
+        raise ValidationInputError(f"output map: {', '.join(missing_out)} not outputs of {host.path.name}")
     absent = [m.log for m in maps if not log.has(m.log)]
     motors = [f"motor_{k}_pwm_us" for k in range(1, 5)] if vehicle == "quadrotor" else []
     absent_in = [n for n in motors if not log.has(n)]
     if absent or absent_in:
         what = [f"inputs {', '.join(absent_in)}"] if absent_in else []
         what += [f"output-map signals {', '.join(absent)}"] if absent else []
-        raise ValidationError(f"{log_path}: missing logged {'; '.join(what)}")
+        raise ValidationInputError(f"{log_path}: missing logged {'; '.join(what)}")
+    return vehicle
+
+
+def memory_estimate_bytes(n_samples: int, n_signals: int) -> int:
+    """Bytes a replay of ``n_samples`` grid samples and ``n_signals`` compared signals holds at its peak."""
+    return int(n_samples) * (BYTES_PER_SAMPLE_BASE + BYTES_PER_SAMPLE_SIGNAL * max(1, n_signals))
+
+
+def replay_grid(log: FlightLog, log_path: Path, vehicle: str, opts: ValidationOptions, n_signals: int,
+                t_range: tuple[float, float] | None = None) -> np.ndarray:
+    """The replay's time grid [s], after checking that it fits in ``opts.max_memory_mb`` (a log with a time
+    jump, or a high rate, would otherwise allocate gigabytes before any message)."""
     first = log.signal("motor_1_pwm_us" if vehicle == "quadrotor" else "roll_rad")
-    t0, t1 = (first.t_s[0], first.t_s[-1]) if t_range is None else t_range
-    t = np.arange(t0, t1, 1.0 / rate_hz)
+    t0, t1 = (float(first.t_s[0]), float(first.t_s[-1])) if t_range is None else t_range
+    dt = 1.0 / opts.rate_hz
+    n = int(np.ceil((t1 - t0) / dt)) if t1 > t0 else 0  # np.arange(t0, t1, dt) without allocating first
+    need = memory_estimate_bytes(n, n_signals)
+    if need > opts.max_memory_mb * 2**20:
+        raise ValidationInputError(
+            f"{log_path}: the replay would need about {need / 2**20:,.0f} MB ({n:,} samples: the log spans "
+            f"{t1 - t0:,.1f} s at rate_hz = {opts.rate_hz:g}), above the limit of {opts.max_memory_mb:g} MB. "
+            "Lower --rate-hz, check the log for a time jump, or raise --max-memory-mb.")
+    t = t0 + np.arange(n) * dt
     if len(t) < 3:
-        raise ValidationError(f"{log_path}: fewer than 3 samples at {rate_hz:g} Hz between {t0:g} and {t1:g} s")
+        raise ValidationInputError(f"{log_path}: fewer than 3 samples at {opts.rate_hz:g} Hz between {t0:g} and "
+                                   f"{t1:g} s")
+    return t
+
+
+def _measured(maps: Sequence[SignalMap], log: FlightLog, t: np.ndarray, host: FmuHost,
+              params: Mapping[str, float]) -> dict[str, np.ndarray]:
+    """Log signals on the grid in the FMU's units; angles with ``wrap`` as one continuous series."""
+    out = {}
+    for m in maps:
+        sig = log.signal(m.log)
+        out[m.fmu] = m.convert(unwrapped_angle(sig, t) if m.wrap else sig.resample(t), host.unit(m.fmu), params)
+    return out
+
+
+def _ground_windows(log: FlightLog, vehicle: str, t: np.ndarray, edges: Sequence[int], idle_pwm_us: float
+                    ) -> tuple[list[bool], dict[str, int]]:
+    """Per window: on the ground at any of its samples; and for each criterion the windows it excludes."""
+    masks = ground_samples(log, vehicle, t, idle_pwm_us)
+    bounds = list(zip(edges[:-1], np.asarray(edges[1:]) + 1, strict=True))
+    counts: dict[str, int] = {}
+    any_ground = np.zeros(len(bounds), dtype=bool)
+    for reason, mask in masks.items():
+        hit = np.array([bool(mask[a:b].any()) for a, b in bounds], dtype=bool)
+        counts[reason] = int(hit.sum())
+        any_ground |= hit
+    return [not g for g in any_ground], {k: v for k, v in counts.items() if v}
+
+
+def _simulate_windows(host: FmuHost, t: np.ndarray, inputs: Mapping[str, np.ndarray], maps: Sequence[SignalMap],
+                      measured: Mapping[str, np.ndarray], starts: list[dict[str, float]], edges: Sequence[int],
+                      included: Sequence[bool], extra: Sequence[str],
+                      progress: Callable[[int, int], None] | None) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """Model outputs on the grid (NaN outside the included windows' predicted samples) and the FMU's
+    ``extra`` outputs at each included window's start (the one-step check), NaN for excluded windows."""
+    n = len(t)
+    model = {m.fmu: np.full(n, np.nan) for m in maps}
+    first = np.full((len(edges) - 1, len(extra)), np.nan)
+    names = [m.fmu for m in maps] + [e for e in extra if e not in {m.fmu for m in maps}]
+    for i, (a, b) in enumerate(itertools.pairwise(edges)):
+        if included[i]:
+            res = host.simulate(t[a:b + 1], {k: v[a:b + 1] for k, v in inputs.items()}, names, starts[i])
+            for m in maps:  # sample a is the re-initialisation itself: score the predicted samples a+1..b
+                model[m.fmu][a + 1:b + 1] = m.align(res[m.fmu][1:], measured[m.fmu][a + 1:b + 1])
+            first[i] = [res[e][0] for e in extra]
+        if progress:
+            progress(i + 1, len(edges) - 1)
+    return model, first
+
+
+def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalMap], rate_hz: float = 50.0,
+           window_s: float | None = 2.0, start_values: Mapping[str, float] | None = None,
+           mapping: PwmMapping | None = None, t_range: tuple[float, float] | None = None,
+           progress: Callable[[int, int], None] | None = None, *, include_ground: bool = False,
+           horizons_s: Sequence[float] = DEFAULT_HORIZONS_S, max_memory_mb: float = 2048.0) -> ReplayResult:
+    """Replay ``log`` through the FMU of ``host`` on a ``rate_hz`` grid and score the signals of ``maps``."""
+    opts = options(rate_hz=rate_hz, window_s=window_s or 0.0, include_ground=include_ground,
+                   horizons_s=list(horizons_s), max_memory_mb=max_memory_mb)
+    overrides = dict(start_values or {})
+    vehicle = _check_inputs(host, log, log_path, maps, overrides)
+    t = replay_grid(log, log_path, vehicle, opts, len(maps), t_range)
     try:
         inputs = log_inputs(vehicle, log, t, mapping)
     except LogError as err:
-        raise ValidationError(str(err)) from err
+        raise ValidationInputError(str(err)) from err
     params = {n: host.start_value(n) for n, v in host.variables.items() if v.causality == "parameter"}
     params.update(overrides)
-    measured = {m.fmu: m.convert(resample_angle(log.signal(m.log), t) if m.wrap else log.signal(m.log).resample(t),
-                                 host.unit(m.fmu), params) for m in maps}
+    measured = _measured(maps, log, t, host, params)
     n = len(t)
-    step = n - 1 if not window_s else max(1, round(window_s * rate_hz))
+    step = n - 1 if not opts.window_s else max(1, round(opts.window_s * opts.rate_hz))
     edges = [*range(0, n - 1, step), n - 1]
-    model = {m.fmu: np.full(n, np.nan) for m in maps}
-    windows = []
-    starts = initial_values_at(log, t[edges[:-1]], forward_from_airspeed=vehicle == "fixed_wing")
-    for i, (a, b) in enumerate(itertools.pairwise(edges)):
-        start = {**starts[i], **overrides}
-        res = host.simulate(t[a:b + 1], {k: v[a:b + 1] for k, v in inputs.items()}, [m.fmu for m in maps], start)
-        for m in maps:  # sample a is the re-initialisation itself: score the predicted samples a+1..b
-            model[m.fmu][a + 1:b + 1] = m.align(res[m.fmu][1:], measured[m.fmu][a + 1:b + 1])
-        windows.append((float(t[a]), float(t[b])))
-        if progress:
-            progress(i + 1, len(edges) - 1)
-    keep = slice(1, n)
-    overall = {m.fmu: fit_metrics(measured[m.fmu][keep], model[m.fmu][keep]) for m in maps}
-    # each window scores its predicted samples a+1..b: in the kept series they start at a
-    seg = {m.fmu: segment_metrics(measured[m.fmu][keep], model[m.fmu][keep], np.array(edges[:-1]))
-           for m in maps}
-    per_window = [{m.fmu: seg[m.fmu][i] for m in maps} for i in range(len(windows))]
-    return ReplayResult(fmu_identity(host, overrides), log_identity(log, log_path), t[keep],
-                        {k: v[keep] for k, v in model.items()}, {k: v[keep] for k, v in measured.items()},
-                        windows, per_window, overall, tuple(maps), overrides)
+    included, ground = [True] * (len(edges) - 1), {}
+    if not opts.include_ground:
+        included, ground = _ground_windows(log, vehicle, t, edges, params.get("pwm_idle_us", 1100.0))
+        if not any(included):
+            raise ValidationInputError(f"{log_path}: every replay window has the vehicle on the ground "
+                                       f"({'; '.join(ground)}); use --include-ground to score them anyway")
+    starts = [{**s, **overrides} for s in initial_values_at(log, t[edges[:-1]],
+                                                            forward_from_airspeed=vehicle == "fixed_wing")]
+    extra = [a for a in ACCEL if a in host.variables and log.has(a)]
+    model, first = _simulate_windows(host, t, inputs, maps, measured, starts, edges, included, extra, progress)
+    res = ReplayResult(fmu_identity(host, overrides), log_identity(log, log_path), t[1:],
+                       {k: v[1:] for k, v in model.items()}, {k: v[1:] for k, v in measured.items()},
+                       [(float(t[a]), float(t[b])) for a, b in itertools.pairwise(edges)],
+                       [], {}, tuple(maps), overrides, included=list(included), ground=ground,
+                       options=opts.model_dump())
+    _score(res, np.asarray(edges), {m.fmu: measured[m.fmu][edges[:-1]] for m in maps})
+    res.horizons = _horizons(maps, measured, model, edges, included, opts)
+    res.one_step = _one_step(log, t[edges[:-1]], first, extra)
+    return res
+
+
+def _score(res: ReplayResult, edges: np.ndarray, init: Mapping[str, np.ndarray]) -> None:
+    """Fill ``res`` with pooled and per-window metrics, baselines and verdicts of the included windows."""
+    starts = edges[:-1]
+    counts = np.diff(edges)
+    keep = np.repeat(np.asarray(res.included), counts)
+    inc = np.flatnonzero(res.included)
+    starts_c = np.concatenate([[0], np.cumsum(counts[inc])[:-1]]).astype(int)
+    per_window: dict[str, tuple[list[FitMetrics], np.ndarray, np.ndarray]] = {}
+    for m in res.maps:
+        y = res.measured[m.fmu]
+        pers, mean = window_baselines(y, starts, init[m.fmu])
+        res.persistence[m.fmu] = np.where(keep, pers, np.nan)
+        y_c, m_c, p_c, w_c = y[keep], res.model[m.fmu][keep], pers[keep], mean[keep]
+        try:
+            fit = fit_metrics(y_c, m_c)
+        except MetricsError as err:
+            raise ValidationInputError(f"{m.fmu}: {err} (no finite FMU value in the scored windows)") from None
+        rp, rm = rmse(y_c, p_c), rmse(y_c, w_c)
+        res.overall[m.fmu] = fit
+        res.scores[m.fmu] = Score(fit, rp, rm, *m.judge(fit, rp, rm), gated=m.gate)
+        per_window[m.fmu] = (segment_metrics(y_c, m_c, starts_c), segment_rmse(y_c, p_c, starts_c),
+                             segment_rmse(y_c, w_c, starts_c))
+    res.window_metrics, res.window_scores = [], []
+    slot = {int(w): k for k, w in enumerate(inc)}
+    maps = {m.fmu: m for m in res.maps}
+    for i in range(len(res.windows)):
+        if i not in slot:
+            res.window_metrics.append({})
+            res.window_scores.append({})
+            continue
+        k = slot[i]
+        fits = {s: v[0][k] for s, v in per_window.items()}
+        res.window_metrics.append(fits)
+        res.window_scores.append({s: Score(fits[s], float(v[1][k]), float(v[2][k]),
+                                           *maps[s].judge(fits[s], float(v[1][k]), float(v[2][k])),
+                                           gated=maps[s].gate)
+                                  for s, v in per_window.items()})
+
+
+def _horizons(maps: Sequence[SignalMap], measured: Mapping[str, np.ndarray], model: Mapping[str, np.ndarray],
+              edges: Sequence[int], included: Sequence[bool], opts: ValidationOptions) -> dict[str, list[HorizonRow]]:
+    """Error at each lead time after the restarts of the included windows (horizons longer than a window are
+    left out: each restart runs one window)."""
+    a = np.asarray(edges[:-1])[np.asarray(included)]
+    b = np.asarray(edges[1:])[np.asarray(included)]
+    out: dict[str, list[HorizonRow]] = {m.fmu: [] for m in maps}
+    for h in sorted(opts.horizons_s):
+        k = round(h * opts.rate_hz)
+        ok = (k >= 1) & (a + k <= b)
+        if not np.any(ok):
+            continue
+        idx, base = a[ok] + k, a[ok]
+        for m in maps:
+            y = measured[m.fmu]
+            out[m.fmu].append(HorizonRow(float(h), rmse(y[idx], model[m.fmu][idx]), rmse(y[idx], y[base]),
+                                         int(ok.sum())))
+    return out
+
+
+def _one_step(log: FlightLog, t0: np.ndarray, first: np.ndarray, extra: Sequence[str]) -> dict[str, Score]:
+    """The FMU's specific force for the logged state and inputs at each restart against the logged
+    accelerometer: a wrong force model shows here, a drifting integration does not. Baseline: the log's mean
+    over the same instants (persistence has no meaning at zero lead)."""
+    out: dict[str, Score] = {}
+    for j, name in enumerate(extra):
+        y = log.signal(name).resample(t0)
+        ok = np.isfinite(first[:, j])
+        if ok.sum() < 2:
+            continue
+        fit = fit_metrics(y[ok], first[ok, j])
+        base = rmse(y[ok], np.full(int(ok.sum()), float(np.mean(y[ok]))))
+        sm = skill(fit.rmse, base)
+        verdict = "pass" if sm > 0 else "FAIL"
+        reason = (f"force model {'beats' if sm > 0 else 'loses to'} the log's mean specific force "
+                  f"(skill {sm:+.2f})")
+        out[name] = Score(fit, float("nan"), base, verdict, reason, gated=False)
+    return out
+
+
+def check_options(**values: Any) -> ValidationOptions:
+    """Range-checked options; ``ValidationInputError`` with one line per problem named as its command-line
+    option (never a traceback)."""
+    try:
+        return options("options", **values)
+    except ConfigError as err:
+        lines = [re.sub(r"^field (\w+)", lambda g: "--" + g.group(1).replace("_", "-"), p) for p in err.problems]
+        raise ValidationInputError("; ".join(lines)) from None

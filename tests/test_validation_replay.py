@@ -12,7 +12,7 @@ import pytest
 from fmu_models.fmi.host import FmuHost, FmuRunError
 from identification import output_map
 from identification.readers import read_log
-from identification.validation import ValidationError, replay
+from identification.validation import ValidationInputError, replay
 from uavfmu import synthetic
 from uavfmu.scenarios import QuadrotorAutopilot, fly, published_thrust_inverse
 
@@ -61,7 +61,7 @@ def test_yaw_is_compared_modulo_two_pi() -> None:
 def test_missing_signal_and_unit_mismatch_are_named(quadrotor_fmu: Path, quad_log: Path) -> None:
     log = read_log(quad_log)
     del log.signals["yaw_rad"]
-    with FmuHost(quadrotor_fmu) as host, pytest.raises(ValidationError, match="yaw_rad"):
+    with FmuHost(quadrotor_fmu) as host, pytest.raises(ValidationInputError, match="yaw_rad"):
         replay(host, log, quad_log, output_map.QUADROTOR)
     maps = output_map.from_dict({"signals": {"altitude_m": {"log": "altitude_m", "log_unit": "deg"}}}, "quadrotor")
     with FmuHost(quadrotor_fmu) as host, pytest.raises(output_map.OutputMapError, match=r"deg.*rad.*'m'"):

@@ -10,7 +10,6 @@ line each and name the field; any other exception (a traceback) fails the test.
 
 from __future__ import annotations
 
-import argparse
 import copy
 import json
 import math
@@ -218,11 +217,10 @@ def _hil_config() -> Family:
 
 
 def _manifest() -> Family:
-    from identification import validate_cli
+    from identification.validation_workflow import load_manifest
 
     def load(path: Path) -> Any:
-        args = argparse.Namespace(window_s=None, rate_hz=50.0, max_theil=None)
-        return validate_cli._jobs_from_manifest(path, args)
+        return load_manifest(path, {"rate_hz": 50.0})
 
     def base() -> dict[str, Any]:
         return {"defaults": {"window_s": 10.0, "rate_hz": 50.0, "max_theil": 0.3},

@@ -1,0 +1,299 @@
+"""The validation workflow as library functions: one FMU against one log (:func:`validate`), a job that never
+raises (:func:`validate_job`, for batches), a batch of FMU x log jobs in worker processes
+(:func:`validate_batch`) and the batch manifest (:func:`load_manifest`). Each returns
+:class:`ValidationResult` objects; ``uavfmu validate`` only parses arguments and prints their ``lines()``.
+
+Batch manifest (TOML; paths relative to it; ``fmu`` and ``log`` may be lists: every pair runs)::
+
+    [defaults]
+    window_s = 2.0
+    [[job]]
+    fmu = ["dist/quadrotor.fmu", "dist/quadrotor_identified.fmu"]
+    log = "flight.bin"
+    set = { mass_kg = 1.2 }
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from pydantic import Field
+
+from fmu_models.config import (
+    ConfigError,
+    FiniteFloat,
+    PositiveFiniteFloat,
+    Schema,
+    read_config_file,
+    validate_config,
+)
+from fmu_models.fmi.host import FmuRunError
+from identification.validation import Horizon, ReplayResult, ValidationOptions, options
+
+MAX_JOBS = 10_000
+
+
+class ManifestError(ConfigError):
+    """A bad batch manifest; one line per problem with job, field, value and allowed range."""
+
+
+class JobEntry(Schema):
+    """One ``[[job]]`` (or the ``[defaults]``) of a batch manifest."""
+
+    fmu: str | list[str] | None = None
+    log: str | list[str] | None = None
+    map: str | None = None
+    mapping: str | None = None
+    channel_map: str | None = None
+    set: dict[str, FiniteFloat] = Field(default_factory=dict)
+    window_s: float | None = Field(None, ge=0, le=86400, allow_inf_nan=False)
+    rate_hz: float | None = Field(None, gt=0, le=2000, allow_inf_nan=False)
+    horizons_s: list[Horizon] | None = Field(None, max_length=32)
+    include_ground: bool | None = None
+    max_memory_mb: PositiveFiniteFloat | None = None
+    max_theil: PositiveFiniteFloat | None = None
+
+
+class Manifest(Schema):
+    defaults: JobEntry = JobEntry()
+    job: list[JobEntry] = Field(min_length=1, max_length=MAX_JOBS)
+
+
+@dataclass(frozen=True)
+class ValidationJob:
+    """One FMU against one log, with everything that shapes the run."""
+
+    fmu: Path
+    log: Path
+    options: ValidationOptions = field(default_factory=ValidationOptions)
+    output_map: Path | None = None
+    mapping: Path | None = None
+    channel_map: Path | None = None
+    start_values: Mapping[str, float] = field(default_factory=dict)
+    max_theil: float | None = None
+    report_dir: Path | None = None
+
+
+@dataclass
+class ValidationResult:
+    """Outcome of one job: ``status`` pass | fail | error, per-signal pooled scores with verdicts and
+    reasons, window counts, log warnings; ``replay`` holds the full arrays (None across processes)."""
+
+    fmu: str
+    log: str
+    status: str = "error"
+    error: str = ""
+    signals: dict[str, dict[str, Any]] = field(default_factory=dict)
+    failed: list[str] = field(default_factory=list)
+    windows: int = 0
+    excluded: int = 0
+    ground: dict[str, int] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    one_step: dict[str, dict[str, Any]] = field(default_factory=dict)
+    report: str | None = None
+    replay: ReplayResult | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (no arrays)."""
+        keys = ("fmu", "log", "status", "error", "signals", "failed", "windows", "excluded", "ground", "warnings",
+                "one_step", "report")
+        return {k: getattr(self, k) for k in keys}
+
+    def lines(self) -> list[str]:
+        """The console summary: verdict per signal with skills and reason, exclusions and log warnings."""
+        return summary_lines(self)
+
+
+def _load_maps(job: ValidationJob, vehicle: str) -> tuple:
+    from identification import output_map
+
+    maps = output_map.load(job.output_map, vehicle)
+    if job.max_theil is not None:
+        maps = tuple(replace(m, max_theil=float(job.max_theil)) for m in maps)
+    return maps
+
+
+def validate(job: ValidationJob, progress: Callable[[int, int], None] | None = None) -> ValidationResult:
+    """Replay, score and (with ``job.report_dir``) write ``report.html`` and ``metrics.json``.
+
+    Raises ``ValidationInputError``, ``ConfigError`` (output map, PWM mapping), ``LogError`` or ``FmuRunError``
+    naming the file and what is wrong.
+    """
+    from fmu_models.fmi.host import FmuHost
+    from fmu_models.signals.pwm_mapping import PwmMapping
+    from identification.readers import read_log
+    from identification.validation import replay, vehicle_of
+
+    log = read_log(job.log, channel_map=job.channel_map)
+    o = job.options
+    with FmuHost(job.fmu) as host:
+        maps = _load_maps(job, vehicle_of(host))
+        mapping = PwmMapping.load(job.mapping) if job.mapping else None
+        res = replay(host, log, job.log, maps, rate_hz=o.rate_hz, window_s=o.window_s or None,
+                     start_values=dict(job.start_values), mapping=mapping, progress=progress,
+                     include_ground=o.include_ground, horizons_s=o.horizons_s, max_memory_mb=o.max_memory_mb)
+    out = result_of(res, job)
+    if job.report_dir is not None:
+        write_report(res, out, Path(job.report_dir))
+    return out
+
+
+def result_of(res: ReplayResult, job: ValidationJob) -> ValidationResult:
+    """The summary object of a scored replay."""
+    signals = {}
+    for m in res.maps:
+        s = res.scores[m.fmu]
+        signals[m.fmu] = {**s.as_dict(), "log_signal": m.log, "max_theil": m.max_theil, "max_rmse": m.max_rmse,
+                          "min_skill_persistence": m.min_skill_persistence, "min_skill_mean": m.min_skill_mean,
+                          "windows": res.window_counts(m.fmu)}
+    warnings = [*res.log["warnings"], *res.log.get("quality_lines", [])]
+    return ValidationResult(str(job.fmu), str(job.log), "fail" if res.failed else "pass", "", signals,
+                            res.failed, len(res.windows), res.excluded, dict(res.ground), warnings,
+                            {k: v.as_dict() for k, v in res.one_step.items()}, None, res)
+
+
+def metrics_document(res: ReplayResult, out: ValidationResult) -> dict[str, Any]:
+    """``metrics.json``: identities, options, pooled and per-window scores with skills and verdicts,
+    horizons, the one-step force check, ground exclusions and the log's data quality."""
+    return {
+        "fmu": res.fmu, "log": res.log, "options": res.options, "status": out.status, "failed": out.failed,
+        "windows": res.windows, "included": res.included,
+        "excluded": {"windows": res.excluded, "by_reason": res.ground,
+                     "note": "a window is excluded when the vehicle is on the ground at any of its samples"},
+        "signals": out.signals,
+        "per_window": [{"t_s": list(w), "included": inc, "signals": {k: v.as_dict() for k, v in ws.items()}}
+                       for w, inc, ws in zip(res.windows, res.included, res.window_scores, strict=True)],
+        "horizons": {k: [r.as_dict() for r in rows] for k, rows in res.horizons.items()},
+        "one_step": out.one_step,
+        "quality": res.log.get("quality"),
+    }
+
+
+def write_report(res: ReplayResult, out: ValidationResult, rdir: Path) -> None:
+    from identification import report
+    from identification.jsonio import write_json
+
+    rdir.mkdir(parents=True, exist_ok=True)
+    (rdir / "report.html").write_text(report.validation_page(res))
+    write_json(rdir / "metrics.json", metrics_document(res, out))
+    out.report = str(rdir / "report.html")
+
+
+def validate_job(job: ValidationJob) -> ValidationResult:
+    """:func:`validate` that never raises for bad input or a failing FMU (a batch must go on); the arrays
+    are dropped (results cross process boundaries)."""
+    try:
+        out = validate(job)
+    except (FmuRunError, OSError, ValueError, KeyError) as err:  # LogError, ConfigError, ... are ValueErrors
+        return ValidationResult(str(job.fmu), str(job.log), "error", error=str(err).strip("'\""))
+    out.replay = None
+    return out
+
+
+def validate_batch(jobs: Sequence[ValidationJob], workers: int = 2,
+                   progress: Callable[[int, int], None] | None = None) -> list[ValidationResult]:
+    """Every job in its own worker process (an FMU is native code: one that crashes must not take the batch
+    down); results in the order of ``jobs``."""
+    results: list[ValidationResult] = [ValidationResult(str(j.fmu), str(j.log)) for j in jobs]
+    with ProcessPoolExecutor(max_workers=max(1, min(workers, 64))) as pool:
+        futures = {pool.submit(validate_job, job): k for k, job in enumerate(jobs)}
+        for done, fut in enumerate(as_completed(futures), 1):
+            k = futures[fut]
+            try:
+                results[k] = fut.result()
+            except Exception as err:  # a worker that died (segfault in an FMU) raises BrokenProcessPool here
+                results[k].error = f"worker process failed: {type(err).__name__}: {err}"
+            if progress:
+                progress(done, len(jobs))
+    return results
+
+
+def load_manifest(path: Path, base_options: Mapping[str, Any] | None = None,
+                  report_root: Path | None = None) -> list[ValidationJob]:
+    """Jobs of a batch manifest (every ``fmu`` x ``log`` pair of each ``[[job]]``; paths relative to the
+    manifest); ``ManifestError`` lists every problem."""
+    try:
+        data = read_config_file(path)
+    except ConfigError as err:
+        raise ManifestError(err.source, err.problems) from None
+    try:
+        man = validate_config(data, Manifest, str(path))
+    except ConfigError as err:
+        raise ManifestError(str(path), err.problems) from None
+    base, problems, jobs = path.parent, [], []
+    for i, raw in enumerate(man.job):
+        entry = {**man.defaults.model_dump(exclude_none=True), **raw.model_dump(exclude_none=True)}
+        if "fmu" not in entry or "log" not in entry:
+            problems.append(f"job.{i}: needs 'fmu' and 'log'")
+            continue
+        try:
+            opts = options(str(path), **{**(base_options or {}), **{k: entry[k] for k in _OPTION_KEYS if k in entry}})
+        except ConfigError as err:
+            problems += [f"job.{i}: {p}" for p in err.problems]
+            continue
+        for f in _as_list(entry["fmu"]):
+            for lg in _as_list(entry["log"]):
+                jobs.append(ValidationJob(
+                    base / f, base / lg, opts, *(base / entry[k] if k in entry else None
+                                                 for k in ("map", "mapping", "channel_map")),
+                    dict(entry.get("set", {})), entry.get("max_theil")))
+    if problems:
+        raise ManifestError(str(path), problems)
+    if report_root is not None:
+        jobs = [replace(j, report_dir=report_root / f"{k:03d}_{j.fmu.stem}__{j.log.stem}")
+                for k, j in enumerate(jobs)]
+    return jobs
+
+
+_OPTION_KEYS = ("window_s", "rate_hz", "horizons_s", "include_ground", "max_memory_mb")
+
+
+def _as_list(v: str | list[str]) -> list[str]:
+    return v if isinstance(v, list) else [v]
+
+
+def _fmt(x: Any, spec: str) -> str:
+    return "-" if x is None or (isinstance(x, float) and x != x) else format(x, spec)
+
+
+def summary_lines(r: ValidationResult) -> list[str]:
+    """Console lines of one result (see :meth:`ValidationResult.lines`)."""
+    head = f"{Path(r.fmu).name} x {Path(r.log).name}: "
+    if r.status == "error":
+        return [head + f"ERROR {r.error}"]
+    ungated = [s for s, v in r.signals.items() if v["verdict"] == "FAIL" and not v["gated"]]
+    na = [s for s, v in r.signals.items() if v["verdict"] == "n/a"]
+    verdict = "PASS" if r.status == "pass" else f"FAIL ({len(r.failed)} of {len(r.signals)} signals fail: " \
+                                                 f"{', '.join(r.failed)})"
+    out = [head + verdict]
+    scored = r.windows - r.excluded
+    out.append(f"  {scored} of {r.windows} replay windows scored" + (
+        f"; {r.excluded} excluded with the vehicle on the ground ("
+        + ", ".join(f"{why}: {n}" for why, n in r.ground.items()) + "); --include-ground scores them"
+        if r.excluded else ""))
+    out += [f"  log warning: {w}" for w in r.warnings]
+    out.append(f"  {'signal':<18} {'verdict':<7} {'skill/pers':>10} {'skill/mean':>10} {'RMSE':>9} {'Theil U':>7} "
+               f"{'R^2':>7} {'windows pass/FAIL/n/a':>21}  reason")
+    for s, v in r.signals.items():
+        w = v["windows"]
+        tag = v["verdict"] + ("" if v["gated"] or v["verdict"] != "FAIL" else "*")
+        out.append(f"  {s:<18} {tag:<7} {_fmt(v['skill_persistence'], '+10.2f')} {_fmt(v['skill_mean'], '+10.2f')} "
+                   f"{_fmt(v['rmse'], '9.3g')} {_fmt(v['theil_u'], '7.3f')} {_fmt(v['r2'], '7.2f')} "
+                   f"{w['pass']:>9}/{w['FAIL']}/{w['n/a']:<6}  {v['reason']}")
+    if ungated:
+        out.append(f"  * not gated (reported only): {', '.join(ungated)}")
+    if na:
+        out.append(f"  n/a: {', '.join(na)} stayed within tolerance of persistence: neither pass nor fail")
+    for name, v in r.one_step.items():
+        out.append(f"  one-step force check {name}: RMSE {_fmt(v['rmse'], '.3g')} m/s2, {v['reason']}")
+    return out
+
+
+def batch_summary(results: Sequence[ValidationResult]) -> str:
+    n_fail = sum(r.status == "fail" for r in results)
+    n_err = sum(r.status == "error" for r in results)
+    return f"{len(results)} runs: {len(results) - n_fail - n_err} pass, {n_fail} fail, {n_err} error"
