@@ -228,10 +228,7 @@ class Stats:
             self.active_s += gap
         self.last_step = now
         self.steps += 1
-        if out_of_band:
-            if not self.out_of_band:
-                log.warning("PWM above idle left the thrust map's trained band (counted per step in the summary "
-                            "and the record's out_of_band column)")
+        if out_of_band:  # reported once, with the count, in the summary (and per step in the record)
             self.out_of_band += 1
 
     def percentile(self, q: float) -> float:
@@ -274,7 +271,8 @@ class Stats:
         s = self.summary(plant)
         return (f"t={s.get('sim_time_s', 0):8.2f}s steps={s['steps']} rate={self.live_rate_hz():.0f}/s "
                 f"rtt p50={s['latency_p50_ms']:.3f}ms p99={s['latency_p99_ms']:.3f}ms overruns={s['overruns']} "
-                f"dropped={s['dropped']} malformed={s['malformed']} fmu_errors={s.get('fmu_errors', 0)}")
+                f"dropped={s['dropped']} malformed={s['malformed']} fmu_errors={s.get('fmu_errors', 0)}"
+                + (f" out_of_band={self.out_of_band}" if self.out_of_band else ""))
 
 
 #: sensor readings sent to the autopilot, recorded beside the FMU's true outputs

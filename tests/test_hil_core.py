@@ -126,3 +126,47 @@ def test_busy_poll_setting_is_checked() -> None:
         assert tr.recv(0.01) is None  # no spin, a short blocking wait, nothing came
     finally:
         tr.close()
+
+
+def test_out_of_band_only_above_idle_and_counted_per_step(quadrotor_fmu: Path, tmp_path: Path) -> None:
+    """Disarmed motors (1000 us) and idle are not out of band; above idle but outside the trained band is,
+    counted per step and recorded in the out_of_band column."""
+    from hil_adapter.core import Recorder
+    from identification.readers import read_log
+
+    plant = Plant(quadrotor_fmu)
+    stats = Stats()
+    rec = Recorder(tmp_path / "oob.csv", [1, 2, 3, 4], list(plant.inputs), plant.outputs)
+    idle = plant.host.start_value("pwm_idle_us")
+    top = plant.host.start_value("anfis_band_hi_us") / 4
+    try:
+        for pwm, expected in ((1000.0, False), (idle, False), (top + 100.0, True), (1000.0, False)):
+            for _ in range(5):
+                plant.apply(dict.fromkeys(range(1, 5), pwm))
+                plant.advance(0.004)
+                stats.step(plant.out_of_band)
+                rec.write(plant.t_s, dict.fromkeys(range(1, 5), pwm), plant.inputs, plant.state,
+                          out_of_band=plant.out_of_band)
+                assert plant.out_of_band is expected, pwm
+    finally:
+        rec.close()
+        plant.close()
+    assert stats.out_of_band == 5 and stats.summary()["out_of_band_steps"] == 5
+    assert read_log(rec.path).signal("out_of_band").values.tolist() == [0.0] * 10 + [1.0] * 5 + [0.0] * 5
+
+
+def test_rates_count_stepping_time_only() -> None:
+    """The summary rate leaves out waits (autopilot not yet connected, after it stopped); the live rate is over
+    the last stretch of stepping and drops to 0 when stepping stops."""
+    stats = Stats()
+    time.sleep(0.3)  # waiting for the autopilot
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < 0.2:
+        stats.step()
+        time.sleep(0.001)
+    stepping = time.perf_counter() - t0
+    time.sleep(0.3)  # the autopilot stopped
+    expected = stats.steps / stepping
+    assert stats.rate_hz == pytest.approx(expected, rel=0.15)
+    assert stats.live_rate_hz() == pytest.approx(expected, rel=0.15)
+    assert stats.live_rate_hz() == 0.0  # nothing stepped since the last call

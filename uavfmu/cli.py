@@ -12,7 +12,7 @@ import sys
 
 #: sub-command -> (module, one-line help). A module listed here must exist.
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
-    "build": ("build_fmus", "build dist/quadrotor.fmu and dist/fixed_wing.fmu"),
+    "build": ("uavfmu.commands.build", "build dist/quadrotor.fmu and dist/fixed_wing.fmu (native or pythonfmu)"),
     "identify": ("uavfmu.commands.identify", "identify a thrust map (thrust) or aero derivatives (aero) from a log"),
     "validate": ("uavfmu.commands.validate", "replay a flight log through an FMU with FMPy and score it"),
     "hil": ("uavfmu.commands.hil", "drive an FMU from an autopilot (PX4, ArduPilot JSON, MAVLink, NMEA)"),

@@ -164,7 +164,9 @@ class QuadrotorModel:
             x = N_MOTORS * effective_pwm(
                 u[i], volt, pv.pwm_idle_us, pv.battery_nominal_V, pv.thrust_voltage_exponent, _CA
             )
-            flag = ca.fmax(flag, out_of_band(x, pv.anfis_band_lo_us, pv.anfis_band_hi_us, _CA))
+            # at or below idle the thrust is simply 0 (a disarmed motor at 1000 us): not out of band
+            above_idle = ca.if_else(u[i] > pv.pwm_idle_us, 1.0, 0.0)
+            flag = ca.fmax(flag, above_idle * out_of_band(x, pv.anfis_band_lo_us, pv.anfis_band_hi_us, _CA))
         return flag
 
     def motor_thrust(self, x: Any, u: Any, p: Any) -> list[Any]:
