@@ -25,6 +25,8 @@ import numpy as np
 
 REAL_QUAD_LOG = ("quadrotor", "arducopter_x_quad_real_218.BIN")
 ROLL_FREE = "C_ell_p,C_ell_delta_a"
+#: output maps the demo validates with (None: the vehicle's default map)
+DEMO_MAPS: dict[str, Path | None] = {}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -107,13 +109,13 @@ def identify(logs: dict[str, Path], work: Path, force_gate: bool = False) -> tup
     merged: dict[str, Any] = {}
     found: dict[str, Any] = {}
     if "quadrotor" in logs:
+        from identification.thrust_workflow import FlightSpec, ThrustConfig, identify_thrust
+
         out = work / "quadrotor_identified.json"
-        rc = main(["identify", "thrust", str(logs["quadrotor"]), "--mass", "1.14", "--out", str(out),
-                   "--plots", str(work / "plots" / "thrust"), *(["--force"] if force_gate else [])])
-        if rc != 0:
-            raise SystemExit(f"demo: thrust identification failed (exit {rc})")
+        thrust = identify_thrust(ThrustConfig(flights=(FlightSpec(Path(logs["quadrotor"]), 1.14),), out=out,
+                                              force=force_gate))
         merged.update(json.loads(out.read_text()))
-        found["thrust"] = json.loads(out.with_suffix(".metrics.json").read_text())
+        found["thrust"] = thrust.metrics
     if "fixed_wing" in logs:
         out = work / "fixed_wing_identified.json"
         rc = main(["identify", "aero", str(logs["fixed_wing"]), "--free", ROLL_FREE, "--outputs",
@@ -131,7 +133,6 @@ def identify(logs: dict[str, Path], work: Path, force_gate: bool = False) -> tup
 def run(args: argparse.Namespace) -> int:
     from build_fmus import build
     from fmu_models.fixed_wing.params import FixedWingParams
-    from uavfmu.cli import main
 
     t_start = time.perf_counter()
     out: Path = args.out
@@ -157,12 +158,8 @@ def run(args: argparse.Namespace) -> int:
     rebuilt = {p.stem: p for p in build(params, work / "identified_fmus", only)}
     print(f"[{time.perf_counter() - t_start:5.1f} s] rebuilt with the identified parameters: "
           f"{', '.join(str(p) for p in rebuilt.values())}")
-    manifest = work / "validate.toml"
-    jobs = [f"[[job]]\nfmu = '{rebuilt[v].resolve()}'\nlog = '{Path(logs[v]).resolve()}'\n" for v in only]
-    manifest.write_text("[defaults]\nwindow_s = 2.0\nrate_hz = 50.0\n" + "".join(jobs))
     report_dir = work / "report"
-    rc = main(["validate", "--batch", str(manifest), "--report", str(report_dir), "--jobs", "2", "--quiet"])
-    results = json.loads((report_dir / "results.json").read_text())
+    results = validate_rebuilt(rebuilt, logs, report_dir)
 
     print("\n=== uavfmu demo summary ===")
     for title, rows in checks.items():
@@ -171,11 +168,12 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {k:<36} {v:10.4f}")
     if "thrust" in found:
         m = found["thrust"]
-        print("thrust map identified from the quadrotor log (ANFIS, paper 000)")
-        print(f"  {'validation RMSE [N], R^2':<36} {m['validation_rmse_N']:10.4f} {m['validation_r2']:8.3f}")
+        print(f"thrust model identified from the quadrotor log (per-motor ANFIS, {m['cross_validation']})")
+        print(f"  {'held-out RMSE [N], model (FMU)':<36} {m['pooled_model_rmse_N']:10.4f}")
+        for name, value in m["pooled_baseline_rmse_N"].items():
+            print(f"  {'  baseline ' + name:<36} {value:10.4f}")
+        print(f"  {'verdict':<36} {m['verdict']}")
         print(f"  {'trained band [us summed]':<36} {m['band_us'][0]:10.0f} {m['band_us'][1]:8.0f}")
-        if m.get("gate_forced"):
-            print(f"  {'Pearson gate':<36} {'forced':>10}")
     if "aero" in found:
         truth = FixedWingParams()
         est = found["aero"]["estimate"]["parameters"]
@@ -185,14 +183,37 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {name:<16} {e['value']:10.4f} +- {e['crb_std']:.4f} (CR)   truth {getattr(truth, name):8.4f}")
         theil = found["aero"]["metrics"]["validation"]["roll_rad"]["theil_u"]
         print(f"  {'held-out roll angle Theil U':<36} {theil:10.4f}")
-    print("validation of the rebuilt FMUs against the logs (FMPy, 2 s windows)")
-    for r in results:
-        if r["status"] == "error":
-            print(f"  {Path(r['fmu']).name:<16} ERROR {r['error']}")
-            continue
-        worst = max(r["signals"], key=lambda s: r["signals"][s]["theil_u"])
-        print(f"  {Path(r['fmu']).name:<16} {r['status'].upper():<5} {len(r['signals'])} signals, worst Theil U "
-              f"{r['signals'][worst]['theil_u']:.3f} ({worst})")
-    print(f"report: {report_dir / 'index.html'}")
+    failures = print_validation(results, report_dir)
     print(f"total time {time.perf_counter() - t_start:.1f} s")
-    return 0 if rc in (0, 1) else rc
+    return 1 if failures else 0
+
+
+def validate_rebuilt(rebuilt: dict[str, Path], logs: dict[str, Path], report_dir: Path) -> list[Any]:
+    """Each rebuilt FMU against its log (library batch: worker processes), with the HTML report."""
+    from identification.validation import options
+    from identification.validation_workflow import ValidationJob, validate_batch, write_batch_report
+
+    opts = options(window_s=2.0, rate_hz=50.0)
+    jobs = [ValidationJob(rebuilt[v].resolve(), Path(logs[v]).resolve(), opts, output_map=DEMO_MAPS.get(v),
+                          report_dir=report_dir / f"{k:03d}_{rebuilt[v].stem}__{Path(logs[v]).stem}")
+            for k, v in enumerate(rebuilt)]
+    results = validate_batch(jobs, workers=2)
+    write_batch_report(results, report_dir)
+    return results
+
+
+def print_validation(results: list[Any], report_dir: Path) -> list[str]:
+    """The validation verdicts, then what failed in plain words; returns those failure lines."""
+    from identification.validation_workflow import failure_lines
+
+    print("validation of the rebuilt FMUs against the logs (FMPy, 2 s windows; verdicts against persistence)")
+    for r in results:
+        print("\n".join("  " + line for line in r.lines()))
+    failures = failure_lines(results)
+    if failures:
+        print("VALIDATION FAILED - what failed, in plain words:")
+        print("\n".join(f"  - {line}" for line in failures))
+    else:
+        print("every gated signal of every rebuilt FMU beats persistence and meets its threshold")
+    print(f"report: {report_dir / 'index.html'}")
+    return failures
