@@ -21,13 +21,22 @@ def shared_data(*parts: str) -> Path:
 
 @pytest.fixture(scope="session")
 def built_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """``{"quadrotor": Path, "fixed_wing": Path}``: both FMUs with default parameters, built once."""
+    """``{"quadrotor": Path, "fixed_wing": Path}``: both FMUs (native backend) with default parameters, built once."""
     from build_fmus import MODELS, build
 
     out = tmp_path_factory.mktemp("fmus")
     available = [m for m in MODELS if importlib.util.find_spec(f"fmu_models.{m}.model") is not None]
     paths = build(None, out, available)
     return {p.stem: p for p in paths}
+
+
+@pytest.fixture(scope="session")
+def python_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Both FMUs built with the pythonfmu backend (``uavfmu build --backend python``), once."""
+    from build_fmus import build
+
+    out = tmp_path_factory.mktemp("python_fmus")
+    return {p.stem: p for p in build(None, out, backend="python")}
 
 
 @pytest.fixture(scope="session")

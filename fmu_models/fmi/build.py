@@ -20,7 +20,7 @@ from typing import Any
 from pythonfmu.builder import FmuBuilder
 
 from fmu_models.common.model import Variable, VehicleModel
-from fmu_models.fmi import codegen, shim
+from fmu_models.fmi import codegen, fmuzip, shim
 from fmu_models.fmi.postprocess import rewrite_fmu
 
 log = logging.getLogger(__name__)
@@ -37,7 +37,7 @@ class {cls}(VehicleSlave):
 
     spec_file = "{name}_spec.json"
 '''
-VERSION = "0.1.0"
+VERSION = fmuzip.package_version()
 
 
 def _var(v: Variable, warning: str = "") -> dict[str, Any]:
@@ -76,8 +76,9 @@ def build_fmu(
     warnings: dict[str, str] | None = None,
     documentation: Path | None = None,
     compile_c: bool = True,
+    params_file: Path | None = None,
 ) -> Path:
-    """Build ``out_dir/<model.name>.fmu`` and return its path."""
+    """Build ``out_dir/<model.name>.fmu`` and return its path (reproducible: see ``fmuzip.build_epoch``)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     spec = model_spec(model, warnings)
@@ -119,7 +120,8 @@ def build_fmu(
             sys.modules.pop(model.name, None)
     fmu = Path(fmu)
     variables = {v["name"]: v for v in spec["inputs"] + spec["params"] + spec["outputs"]}
-    rewrite_fmu(fmu, variables, _shim_files(fmu, model.name, compiler if compile_c else None))
+    rewrite_fmu(fmu, variables, _shim_files(fmu, model.name, compiler if compile_c else None),
+                fmuzip.build_epoch(params_file))
     return fmu
 
 

@@ -6,13 +6,14 @@ flags both. This rewrites modelDescription.xml inside the .fmu from the model's 
 
 from __future__ import annotations
 
-import shutil
-import tempfile
+import hashlib
+import uuid
 import zipfile
 from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree as ET
 
+from fmu_models.fmi import fmuzip
 from fmu_models.fmi.units import BASES, parse_unit
 
 
@@ -74,18 +75,27 @@ def complete_model_description(xml_text: bytes, variables: dict[str, dict[str, A
 
 
 def rewrite_fmu(
-    fmu: Path, variables: dict[str, dict[str, Any]], files: dict[str, bytes] | None = None
+    fmu: Path, variables: dict[str, dict[str, Any]], files: dict[str, bytes] | None = None, epoch: int | None = None
 ) -> None:
-    """Complete modelDescription.xml in the ``fmu`` zip; add or replace ``files`` (archive name -> bytes)."""
-    files = dict(files or {})
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / fmu.name
-        with zipfile.ZipFile(fmu) as zin, zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zout:
-            for item in zin.infolist():
-                data = files.pop(item.filename, None) or zin.read(item.filename)
-                if item.filename == "modelDescription.xml":
-                    data = complete_model_description(data, variables)
-                zout.writestr(item.filename, data)
-            for name, data in files.items():
-                zout.writestr(name, data)
-        shutil.move(out, fmu)
+    """Complete modelDescription.xml in the ``fmu`` zip; add or replace ``files`` (archive name -> bytes).
+
+    The archive is rewritten reproducibly (``fmuzip.write_fmu``): ``generationDateAndTime`` from ``epoch``
+    (default ``fmuzip.build_epoch()``) and a GUID hashed from the FMU's contents replace pythonfmu's clock
+    time and random GUID, so two builds of the same sources and parameters are byte-identical.
+    """
+    epoch = fmuzip.build_epoch() if epoch is None else epoch
+    with zipfile.ZipFile(fmu) as zin:
+        members = {item.filename: zin.read(item.filename) for item in zin.infolist()}
+    members.update(files or {})
+    root = ET.fromstring(complete_model_description(members["modelDescription.xml"], variables))
+    root.set("generationDateAndTime", fmuzip.iso_date(epoch))
+    root.set("version", fmuzip.package_version())
+    root.set("guid", "")
+    digest = hashlib.sha256(ET.tostring(root))
+    for name in sorted(members):
+        if name != "modelDescription.xml":
+            digest.update(name.encode() + b"\0" + members[name])
+    root.set("guid", "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, f"uavfmu:{digest.hexdigest()}")) + "}")
+    members["modelDescription.xml"] = (
+        '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n").encode()
+    fmuzip.write_fmu(fmu, members, epoch)

@@ -42,7 +42,8 @@ typedef enum {
 #define MASK_SetupExperiment Instantiated
 #define MASK_EnterInitializationMode Instantiated
 #define MASK_ExitInitializationMode InitializationMode
-#define MASK_Terminate (StepComplete | StepFailed)
+/* Error too: importers commonly terminate after a failed step; harmless, and the instance stays resettable */
+#define MASK_Terminate (StepComplete | StepFailed | Error)
 #define MASK_Reset ALL_LIVE
 #define MASK_GetValue (InitializationMode | StepComplete | StepFailed | StepCanceled | Terminated | Error)
 #define MASK_SetValue (Instantiated | InitializationMode | StepComplete)
@@ -270,6 +271,25 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component comp) {
     return fmi2OK;
 }
 
+/* Python's repr of a float (shortest round-trip, "3100.0", "nan"), so messages read as the pythonfmu backend's */
+static const char* num(double v, char* buf, size_t n) {
+    if (v != v) return "nan";
+    if (isinf(v)) return v > 0 ? "inf" : "-inf";
+    int prec = 1;
+    for (; prec <= 17; ++prec) {
+        snprintf(buf, n, "%.*e", prec - 1, v);
+        if (strtod(buf, NULL) == v) break;
+    }
+    double a = fabs(v);
+    if (a == 0.0 || (a >= 1e-4 && a < 1e16)) {
+        const char* e = strchr(buf, 'e');
+        int exp10 = e ? atoi(e + 1) : 0;
+        int decimals = prec - 1 - exp10;
+        snprintf(buf, n, "%.*f", decimals < 1 ? 1 : decimals, v);
+    }
+    return buf;
+}
+
 /* "" if every value of kind (input or parameter) is finite and inside [min, max], else a message */
 static int check_values(Instance* c, int causality, const char* when) {
     const uavfmu_model_info* m = c->model;
@@ -279,9 +299,10 @@ static int check_values(Instance* c, int causality, const char* when) {
         if (v->causality != causality) continue;
         double val = arr[v->index];
         if (val != val || (v->has_min && val < v->min) || (v->has_max && val > v->max) || isinf(val)) {
-            fail(c, fmi2Error, "%s: %s %s = %g is outside its allowed range [%g, %g]", when,
-                 causality == UAVFMU_INPUT ? "input" : "parameter", v->name, val,
-                 v->has_min ? v->min : -INFINITY, v->has_max ? v->max : INFINITY);
+            char a[40], b[40], d[40];
+            fail(c, fmi2Error, "%s: %s %s = %s is outside its allowed range [%s, %s]", when,
+                 causality == UAVFMU_INPUT ? "input" : "parameter", v->name, num(val, a, sizeof a),
+                 v->has_min ? num(v->min, b, sizeof b) : "None", v->has_max ? num(v->max, d, sizeof d) : "None");
             return 1;
         }
     }
@@ -466,7 +487,9 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real currentCommunicationPoint, fm
     if (!isfinite(t) || fabs(t - c->time) > 1e-9 * (fabs(c->time) > 1.0 ? fabs(c->time) : 1.0))
         return fail(c, fmi2Error, "fmi2DoStep: currentCommunicationPoint %.17g is not the last communication point "
                     "%.17g", t, c->time);
-    if (check_values(c, UAVFMU_INPUT, "fmi2DoStep") || (c->params_dirty && check_values(c, UAVFMU_PARAMETER, "fmi2DoStep"))) {
+    char when[64];
+    snprintf(when, sizeof when, "t = %g s", t);
+    if (check_values(c, UAVFMU_INPUT, when) || (c->params_dirty && check_values(c, UAVFMU_PARAMETER, when))) {
         c->state = Error;
         return fmi2Error;
     }
@@ -636,7 +659,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component comp, fmi2FMUstate FMUstate) {
     c->state = s->state;
     c->time = s->time;
     c->start_time = s->start_time;
-    c->params_dirty = s->params_dirty;
+    c->params_dirty = 1; /* re-checked before the next step, as after any parameter change */
     c->init_valid = s->init_valid;
     return fmi2OK;
 }
