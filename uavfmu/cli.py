@@ -10,6 +10,8 @@ import argparse
 import importlib
 import sys
 
+from uavfmu import __version__
+
 #: sub-command -> (module, one-line help). A module listed here must exist.
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "build": ("uavfmu.commands.build", "build dist/quadrotor.fmu and dist/fixed_wing.fmu (native or pythonfmu)"),
@@ -23,6 +25,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """Return the top-level parser; with ``only`` set, import just that sub-command."""
     parser = argparse.ArgumentParser(prog="uavfmu", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"uavfmu {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for name, (module_name, help_text) in SUBCOMMANDS.items():
         sp = sub.add_parser(name, help=help_text)
@@ -42,7 +45,8 @@ def main(argv: list[str] | None = None) -> int:
     """Parse ``argv`` and run the chosen sub-command; return its exit status."""
     argv = sys.argv[1:] if argv is None else argv
     first = next((a for a in argv if not a.startswith("-")), None)
-    parser = build_parser(only=first if first in SUBCOMMANDS else None)
+    only = first if first in SUBCOMMANDS else "" if "--version" in argv else None  # --version: import nothing
+    parser = build_parser(only=only)
     args = parser.parse_args(argv)
     if not hasattr(args, "_run"):
         parser.error(f"sub-command '{args.command}' is not available in this installation")
