@@ -168,6 +168,7 @@ class Plant:
             self.step_times.append(time.perf_counter() - t0)
         except FmuRunError as err:
             self.fail(str(err))
+            self.clock_at_least(self.t_s + dt_s)  # the failed step's time has passed: the next time is a new one
         return self.state
 
     def fail(self, reason: str) -> None:

@@ -55,3 +55,101 @@ def serving(server: Any, **serve_kwargs: Any) -> Iterator[Any]:
     finally:
         stop.set()
         th.join(timeout=10)
+
+
+class LockstepPx4Client:
+    """A minimal PX4 SITL stand-in over TCP: answers each HIL_SENSOR with HIL_ACTUATOR_CONTROLS and checks that
+    the time it is sent never goes backwards. Runs until the adapter closes the connection (or ``max_s``)."""
+
+    def __init__(self, port: int, controls: float = 0.0, max_s: float = 30.0) -> None:
+        self.port, self.controls, self.max_s = port, controls, max_s
+        self.steps = 0
+        self.backwards = 0
+        self.times_us: list[int] = []
+        self.connected = threading.Event()
+        self.error = ""
+
+    def run(self) -> None:
+        import socket
+        import time
+
+        from pymavlink.dialects.v20 import common as mavlink2
+
+        deadline = time.monotonic() + self.max_s
+        sock = None
+        while sock is None and time.monotonic() < deadline:
+            try:
+                sock = socket.create_connection(("127.0.0.1", self.port), timeout=0.2)
+            except OSError:
+                time.sleep(0.02)
+        if sock is None:
+            self.error = "could not connect"
+            return
+        self.connected.set()
+        sock.settimeout(2.0)
+        mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+        last = -1
+        try:
+            while time.monotonic() < deadline:
+                data = sock.recv(65536)
+                if not data:
+                    return  # the adapter stopped
+                for m in mav.parse_buffer(data) or []:
+                    if m.get_type() != "HIL_SENSOR":
+                        continue
+                    self.backwards += m.time_usec <= last
+                    last = m.time_usec
+                    self.times_us.append(last)
+                    self.steps += 1
+                    sock.sendall(mav.hil_actuator_controls_encode(
+                        m.time_usec, [self.controls] * 16, mavlink2.MAV_MODE_FLAG_SAFETY_ARMED, 1).pack(mav))
+        except OSError as err:  # reset by the adapter on its way out: fine
+            self.error = str(err) if not isinstance(err, ConnectionError) else ""
+        finally:
+            sock.close()
+
+
+def free_tcp_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def sigint_sessions(fmu: str, sessions: int, seed: int) -> int:
+    """Run ``sessions`` lockstep PX4 sessions through ``hil_adapter.session.serve`` in this process's main
+    thread, each stopped by a SIGINT at a random moment; prints one line per session and a total. Exit
+    status 0 when every session ended with a summary and no client saw time go backwards."""
+    import os
+    import random
+    import signal
+    import time
+
+    from hil_adapter.session import serve
+
+    rng = random.Random(seed)
+    bad = 0
+    for k in range(sessions):
+        port = free_tcp_port()
+        client = LockstepPx4Client(port, controls=rng.choice([0.0, 0.3, 0.6]))
+        delay = rng.uniform(0.0, 0.25)
+
+        def interrupt(c: LockstepPx4Client = client, d: float = delay) -> None:
+            if c.connected.wait(10.0):
+                time.sleep(d)
+            os.kill(os.getpid(), signal.SIGINT)
+
+        threads = [threading.Thread(target=client.run), threading.Thread(target=interrupt)]
+        for th in threads:
+            th.start()
+        result = serve(fmu, "px4", port=port)
+        for th in threads:
+            th.join(timeout=10)
+        ok = (result.stopped_by == "signal SIGINT" and "steps" in result.summary and client.backwards == 0
+              and not client.error and result.summary["sim_time_s"] > 0)
+        bad += not ok
+        print(f"session {k}: {'ok' if ok else 'FAILED'} stopped_by={result.stopped_by} steps={client.steps} "
+              f"backwards={client.backwards} delay={delay:.3f}s {client.error}", flush=True)
+    print(f"sigint sessions: {sessions}, failed: {bad}", flush=True)
+    return 0 if bad == 0 else 1

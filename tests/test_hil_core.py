@@ -25,12 +25,13 @@ def test_fmu_error_restarts_instead_of_crashing(quadrotor_fmu: Path) -> None:
         plant.inputs = {**plant.inputs, "pwm_1_us": 3000.0}  # beyond the FMU's input range: fmi2Error
         state = plant.advance(0.01)
         assert plant.fmu_errors == 1 and "pwm_1_us" in plant.last_error
-        # the clock goes on (never backwards), the FMU starts afresh on a new instance (no fmi2Reset after an error)
-        assert plant.t_s == pytest.approx(0.1) and plant.fmu_t_s == 0.0 and plant.reinstantiations == 1
+        # the clock goes on past the failed step (never backwards, never repeated), the FMU starts afresh on a new
+        # instance (no fmi2Reset after an error)
+        assert plant.t_s == pytest.approx(0.11) and plant.fmu_t_s == 0.0 and plant.reinstantiations == 1
         assert state["altitude_m"] == pytest.approx(0.0, abs=0.05)
         plant.apply({1: 1500, 2: 1500, 3: 1500, 4: 1500})
         plant.advance(0.01)  # the new instance steps on from its own time 0
-        assert plant.t_s == pytest.approx(0.11) and plant.fmu_errors == 1
+        assert plant.t_s == pytest.approx(0.12) and plant.fmu_errors == 1
         with pytest.raises(MappingError, match="channel 2"):
             plant.apply({1: 1500, 3: 1500, 4: 1500})
     finally:
