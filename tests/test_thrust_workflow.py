@@ -1,0 +1,217 @@
+"""``identify_thrust`` (issue 13): many flights, voltage, the FMU's own thrust function, baselines, CV.
+
+Synthetic flights check the physics and the error paths; the shared PX4 and Erle logs check the
+done-when figures (skipped when ../shared/data is absent).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import identification.readers as readers
+from fmu_models.quadrotor.params import QuadrotorParams
+from identification.thrust_dataset import ThrustDataError
+from identification.thrust_workflow import (
+    FlightSpec,
+    ThrustConfig,
+    fmu_total_thrust,
+    identify_thrust,
+)
+from tests.conftest import shared_data
+
+G = 9.80665
+K_N = 9.0  #: synthetic motor: T_i = K_N * (u_i * V / 11.1)^2, u = (pwm - 1000)/1000
+
+
+class VoltLog:
+    """FlightLog stand-in: four motors swinging around hover, battery sagging, thrust ~ (u V)^2."""
+
+    def __init__(self, mass_kg: float, v0: float, v1: float, seed: int, noise: float = 0.3,
+                 voltage: bool = True, duration_s: float = 80.0) -> None:
+        rng = np.random.default_rng(seed)
+        t = np.arange(0.0, duration_s, 0.02)
+        volt = np.linspace(v0, v1, t.size)
+        u_hover = np.sqrt(mass_kg * G / 4 / K_N) * 11.1 / volt  # command for hover at this voltage
+        swing = 0.08 * np.sin(2 * np.pi * t / 3.0)[:, None] + 0.05 * rng.standard_normal((t.size, 1))
+        diff = 0.06 * np.sin(2 * np.pi * t[:, None] / np.array([1.1, 1.7, 2.3, 2.9]))
+        u = np.clip(u_hover[:, None] + swing + diff, 0.08, 0.95)
+        pwm = 1000.0 + 1000.0 * u
+        thrust = (K_N * (u * volt[:, None] / 11.1) ** 2).sum(axis=1)
+        self.signals = {f"motor_{k + 1}_pwm_us": (t, pwm[:, k]) for k in range(4)}
+        self.signals["accel_body_z_m_s2"] = (t, -thrust / mass_kg + noise * rng.standard_normal(t.size))
+        self.signals["armed"] = (t, np.ones(t.size))
+        if voltage:
+            self.signals["battery_voltage_v"] = (t, volt)
+        self.path = f"synthetic-{seed}"
+
+    def signal(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        if name not in self.signals:
+            raise KeyError(name)
+        return self.signals[name]
+
+
+@pytest.fixture
+def fake_logs(monkeypatch: pytest.MonkeyPatch) -> dict[str, VoltLog]:
+    """Flight 'name' -> synthetic log; ``read_log`` returns it for a path of that name."""
+    made: dict[str, VoltLog] = {}
+    monkeypatch.setattr(readers, "read_log", lambda p, channel_map=None: made[Path(p).name])
+    return made
+
+
+def _cfg(names: list[tuple[str, float]], **kw: object) -> ThrustConfig:
+    return ThrustConfig(flights=tuple(FlightSpec(Path(n), m) for n, m in names), **kw)  # type: ignore[arg-type]
+
+
+def test_voltage_model_transfers_between_flights_and_beats_baselines(fake_logs: dict[str, VoltLog]) -> None:
+    fake_logs["a"] = VoltLog(1.3, 12.4, 10.8, seed=1)
+    fake_logs["b"] = VoltLog(1.0, 11.6, 10.2, seed=2)
+    fake_logs["c"] = VoltLog(1.15, 12.0, 10.5, seed=3)
+    r = identify_thrust(_cfg([("a", 1.3), ("b", 1.0), ("c", 1.15)]))
+    assert r.metrics["voltage_compensation"] and r.model_beats_baselines and r.exit_code == 0
+    for f in r.folds:  # noise 0.3 m/s^2 x ~1.1 kg: the model should sit near the noise floor
+        assert f.model.rmse_N < 0.5 < f.baselines["constant m g"].rmse_N
+        assert f.model.rmse_N < min(s.rmse_N for s in f.baselines.values())
+    # physics of the written model: zero at idle, monotone in command, more thrust at higher voltage
+    p = r.params
+    pwm = np.linspace(900.0, 2100.0, 400)[:, None].repeat(4, axis=1)
+    for v in (10.0, 11.1, 12.6):
+        t = fmu_total_thrust(p, pwm, np.full(400, v))
+        assert np.all(t[pwm[:, 0] <= p.pwm_idle_us] == 0.0)
+        assert np.all(np.diff(t) >= -1e-9) and np.all(np.isfinite(t))
+    hover = np.full((1, 4), 1600.0)
+    assert fmu_total_thrust(p, hover, np.array([12.0]))[0] > fmu_total_thrust(p, hover, np.array([10.5]))[0]
+    # true thrust at 1600 us and 11 V: 4 K (0.6 * 11 / 11.1)^2
+    truth = 4 * K_N * (0.6 * 11.0 / 11.1) ** 2
+    assert fmu_total_thrust(p, hover, np.array([11.0]))[0] == pytest.approx(truth, rel=0.05)
+
+
+def test_one_flight_uses_time_blocked_folds(fake_logs: dict[str, VoltLog], tmp_path: Path) -> None:
+    fake_logs["solo"] = VoltLog(1.2, 12.3, 10.6, seed=4)
+    out = tmp_path / "p.json"
+    r = identify_thrust(_cfg([("solo", 1.2)], out=out, n_folds_single=3))
+    assert [f.held_out for f in r.folds] == [f"solo block {b}/3" for b in (1, 2, 3)]
+    m = json.loads(out.with_suffix(".metrics.json").read_text())
+    assert m["cross_validation"] == "3 time blocks" and len(m["folds"]) == 3
+    assert m["flights"][0]["samples"] > 1000 and m["flights"][0]["voltage_range_V"][0] == pytest.approx(10.6, abs=0.05)
+    section = json.loads(out.read_text())["quadrotor"]
+    assert QuadrotorParams.from_dict(section).battery_nominal_V == pytest.approx(r.params.battery_nominal_V)
+
+
+def test_without_voltage_the_model_loses_honestly_and_force_keeps_the_warning(
+    fake_logs: dict[str, VoltLog], tmp_path: Path
+) -> None:
+    """Same vehicle, batteries at different voltages, none logged: a static map cannot transfer."""
+    fake_logs["hi"] = VoltLog(1.2, 12.6, 12.4, seed=5, voltage=False)
+    fake_logs["lo"] = VoltLog(1.2, 10.4, 10.2, seed=6, voltage=False)
+    out = tmp_path / "p.json"
+    r = identify_thrust(_cfg([("hi", 1.2), ("lo", 1.2)], out=out, calibrate="off"))
+    assert not r.model_beats_baselines and r.exit_code == 3
+    assert any("LOSES" in w for w in r.warnings) and out.exists()
+    assert json.loads(out.with_suffix(".metrics.json").read_text())["model_beats_baselines"] is False
+    forced = identify_thrust(_cfg([("hi", 1.2), ("lo", 1.2)], calibrate="off", force=True))
+    assert forced.exit_code == 0 and any("LOSES" in w for w in forced.warnings)
+    # per-flight hover calibration recovers the level of each flight
+    cal = identify_thrust(_cfg([("hi", 1.2), ("lo", 1.2)], calibrate="on"))
+    for f in cal.folds:
+        assert f.model.rmse_N < f.baselines["constant m g"].rmse_N
+    assert set(cal.calibration) == {"hi", "lo"}
+
+
+@pytest.mark.parametrize("mass", [0.0, -1.0, float("nan"), float("inf")])
+def test_bad_mass_names_flight_and_field(mass: float) -> None:
+    with pytest.raises(ThrustDataError, match=r"flight f8\.csv: field mass_kg"):
+        identify_thrust(_cfg([("f8.csv", mass)]))
+
+
+def test_bad_logs_name_flight_and_field(fake_logs: dict[str, VoltLog]) -> None:
+    log = VoltLog(1.2, 12.0, 11.0, seed=7)
+    del log.signals["motor_3_pwm_us"]
+    fake_logs["nomotor"] = log
+    with pytest.raises(ThrustDataError, match=r"flight nomotor.*motor_3_pwm_us"):
+        identify_thrust(_cfg([("nomotor", 1.2)]))
+    log = VoltLog(1.2, 12.0, 11.0, seed=8)
+    t = log.signals["motor_1_pwm_us"][0]
+    for k in range(1, 5):
+        log.signals[f"motor_{k}_pwm_us"] = (t, np.full(t.size, 1050.0))
+    fake_logs["ground"] = log
+    with pytest.raises(ThrustDataError, match=r"flight ground: only 0 airborne samples"):
+        identify_thrust(_cfg([("ground", 1.2)]))
+    for bad in (0.0, math.nan):
+        log = VoltLog(1.2, 12.0, 11.0, seed=9)
+        log.signals["battery_voltage_v"] = (t, np.full(t.size, bad))
+        fake_logs["flat"] = log
+        with pytest.raises(ThrustDataError, match=r"flight flat: field 'battery_voltage_v'.*zero or NaN"):
+            identify_thrust(_cfg([("flat", 1.2)]))
+
+
+# --------------------------------------------------------------------------- shared real logs
+PX4 = (("drone1-8", 1.32), ("drone1-10", 1.085))
+ERLE = ("arducopter_x_quad_real_218.BIN", "arducopter_x_quad_real_104.BIN", "arducopter_x_quad_real_105.BIN")
+
+
+def _px4_flights() -> tuple[FlightSpec, ...]:
+    return tuple(FlightSpec(shared_data("quadrotor_px4_csv", n), m) for n, m in PX4)
+
+
+def _erle_flights() -> tuple[FlightSpec, ...]:
+    return tuple(FlightSpec(shared_data("quadrotor", n), 1.14) for n in ERLE)
+
+
+@pytest.mark.slow
+def test_px4_lofo_fmu_thrust_matches_best_polynomial_and_fmu_evaluates_it(tmp_path: Path) -> None:
+    """Done-when: LOFO RMSE <= 1.02 x best polynomial, far below the constant; the FMU built from the
+    same parameter file gives exactly the thrust that was scored."""
+    out = tmp_path / "px4.json"
+    r = identify_thrust(ThrustConfig(flights=_px4_flights(), out=out))
+    polys = {k: v for k, v in r.pooled_baseline_rmse_N.items() if k.startswith("poly")}
+    assert r.pooled_model_rmse_N <= 1.02 * min(polys.values())
+    assert r.pooled_model_rmse_N < 0.5 * r.pooled_baseline_rmse_N["constant m g"]
+    for f in r.folds:
+        assert f.model.rmse_N <= 1.02 * min(v.rmse_N for k, v in f.baselines.items() if k.startswith("poly"))
+    _fmu_matches_scored_function(out, r.params)
+
+
+def _fmu_matches_scored_function(params_file: Path, p: QuadrotorParams) -> None:
+    from fmpy import extract, instantiate_fmu, read_model_description
+
+    from build_fmus import build
+
+    fmu = build(params_file, params_file.parent / "fmu", ["quadrotor"])[0]
+    md = read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    unz = extract(str(fmu))
+    inst = instantiate_fmu(unz, md)
+    rng = np.random.default_rng(0)
+    pwm = rng.uniform(1050.0, 2000.0, (40, 4))
+    volt = rng.uniform(9.5, 12.6, 40)
+    want = fmu_total_thrust(p, pwm, volt)
+    inst.setupExperiment(startTime=0.0)
+    inst.enterInitializationMode()
+    inst.exitInitializationMode()
+    got = []
+    for k, (row, v) in enumerate(zip(pwm, volt, strict=True)):
+        inst.setReal([vr[f"pwm_{i}_us"] for i in range(1, 5)] + [vr["battery_voltage_V"]], [*row, v])
+        inst.doStep(currentCommunicationPoint=k * 1e-4, communicationStepSize=1e-4)
+        got.append(inst.getReal([vr["thrust_total_N"]])[0])
+    inst.terminate()
+    inst.freeInstance()
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_erle_calibrated_beats_constant_and_uncalibrated_reports_the_winner() -> None:
+    cal = identify_thrust(ThrustConfig(flights=_erle_flights(), calibrate="on"))
+    for f in cal.folds:
+        assert f.model.rmse_N < f.baselines["constant m g"].rmse_N, f.held_out
+    assert all(0.8 < s < 1.25 for s in cal.calibration.values())
+    raw = identify_thrust(ThrustConfig(flights=_erle_flights(), calibrate="off"))
+    best = min(raw.pooled_baseline_rmse_N.values())
+    assert raw.model_beats_baselines == (raw.pooled_model_rmse_N < best)
+    if not raw.model_beats_baselines:
+        assert raw.exit_code == 3 and any("LOSES" in w for w in raw.warnings)
+    assert all(f.best_baseline in f.baselines for f in raw.folds)
