@@ -109,8 +109,10 @@ def initial_state(model: VehicleModel, p: np.ndarray, log: FlightLog, t0_s: floa
 
 
 def manoeuvres(model: VehicleModel, p: np.ndarray, log: FlightLog, mapping: PwmMapping,
-               segments: Sequence[Segment], outputs: Sequence[str], rate_hz: float) -> list[Manoeuvre]:
-    """One :class:`Manoeuvre` per segment: inputs at ``t_k``, measurements at ``t_{k+1}``."""
+               segments: Sequence[Segment], outputs: Sequence[str], rate_hz: float,
+               input_delay_s: float = 0.0) -> list[Manoeuvre]:
+    """One :class:`Manoeuvre` per segment: inputs at ``t_k``, measurements at ``t_{k+1}``; with
+    ``input_delay_s`` the surfaces act the logged command of ``t_k - delay`` (command -> surface lag)."""
     out = []
     end = log.duration_s
     init = init_function(model)
@@ -120,7 +122,7 @@ def manoeuvres(model: VehicleModel, p: np.ndarray, log: FlightLog, mapping: PwmM
         t = grid(seg, rate_hz)
         if len(t) < 3:
             raise SegmentError(f"segment {seg} holds fewer than 3 samples at {rate_hz:g} Hz")
-        u = log_inputs(model, log, mapping, t[:-1])
+        u = log_inputs(model, log, mapping, np.maximum(t[:-1] - input_delay_s, 0.0))
         y = log_outputs(log, outputs, t[1:])
         if not np.all(np.isfinite(y)):
             bad = [outputs[i] for i in range(len(outputs)) if not np.all(np.isfinite(y[:, i]))]

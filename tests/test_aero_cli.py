@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
@@ -12,10 +13,10 @@ from build_fmus import split_params
 from fmu_models.fixed_wing.params import FixedWingParams
 from fmu_models.signals.pwm_mapping import MappingError
 from identification import aero
-from identification.aero_cli import EXIT_BAD_INPUT, EXIT_OK
 from tests.conftest import shared_data
 from uavfmu import synthetic
-from uavfmu.cli import main
+from uavfmu.commands import identify_aero
+from uavfmu.commands.identify_aero import EXIT_BAD_INPUT, EXIT_OK
 
 FREE = ["C_ell_p", "C_ell_delta_a", "C_n_r", "C_n_delta_r"]
 
@@ -35,7 +36,9 @@ def synthetic_log(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 
 def run_cli(*args: object) -> int:
-    return main(["identify", "aero", *map(str, args), "--quiet"])
+    parser = argparse.ArgumentParser()
+    identify_aero.add_arguments(parser)
+    return identify_aero.run(parser.parse_args([*map(str, args), "--quiet"]))
 
 
 def test_noise_free_log_gives_back_the_truth(synthetic_log, capsys) -> None:
@@ -44,7 +47,8 @@ def test_noise_free_log_gives_back_the_truth(synthetic_log, capsys) -> None:
     rc = run_cli(synthetic_log["log"], "--init", synthetic_log["init"], "--mapping", synthetic_log["mapping"],
                  "--free", ",".join(FREE), "--outputs", "roll_rad,rate_body_x_rad_s,rate_body_z_rad_s",
                  "--segments", "0:9,20:29", "--validate-segments", "10:19,30:39", "--out", out, "--plots", d / "plots",
-                 "--sigma", "roll_rad=0.01,rate_body_x_rad_s=0.01,rate_body_z_rad_s=0.01")
+                 "--sigma", "roll_rad=0.01,rate_body_x_rad_s=0.01,rate_body_z_rad_s=0.01", "--nuisance", "none",
+                 "--max-delay", "0")
     assert rc == EXIT_OK, capsys.readouterr().err
     identified = FixedWingParams.load(out)  # the file loads as the FMU build loads it
     assert set(split_params(json.loads(out.read_text()))) == {"fixed_wing"}
@@ -56,7 +60,7 @@ def test_noise_free_log_gives_back_the_truth(synthetic_log, capsys) -> None:
         assert m["theil_u"] < 1e-3, output
     assert metrics["fit_segments"] == ["0:9", "20:29"]
     assert metrics["estimate"]["converged"]
-    for png in ("fit.png", "validation.png", "residuals.png", "parameters.png"):
+    for png in ("fit.png", "validation.png", "residuals.png", "parameters.png", "correlation.png"):
         assert (d / "plots" / png).stat().st_size > 10_000
     assert "roll_rad" in capsys.readouterr().out
 

@@ -1,0 +1,392 @@
+"""``identify aero`` as a library: fixed-wing derivatives from a flight log by output error, typed in and out.
+
+:func:`identify_aero` takes a read log, its PWM mapping, start parameters and :class:`AeroOptions`, and returns
+an :class:`AeroResult`: estimates with their bounds (and which bound), nuisance parameters apart, the
+identifiability before and after the solve, the chosen nuisance set and input delay, fit metrics per output
+on fitted and held-out segments. Steps after the solve that fail (scoring, plots) are recorded in
+``failures``; the estimate is kept. :func:`write_results` writes the parameter file and the metrics JSON first,
+then the plots.
+
+Nuisance parameters (Jategaonkar ch. 5; Klein & Morelli ch. 6): with ``nuisance="auto"`` the fit is run
+without and with per-segment initial body rates and output biases of the gyro and accelerometer outputs, and
+the set with the lower Akaike criterion ``n ln det R + 2 k`` is kept. A command -> surface delay (0 to
+``max_delay_s``) is scanned at the estimate; if the best delay lowers the criterion it is refitted with it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fmu_models.fixed_wing.model import FixedWingModel
+from fmu_models.fixed_wing.params import FixedWingParams
+from fmu_models.signals.pwm_mapping import PwmMapping
+from identification import aero
+from identification.flightlog import FlightLog
+from identification.identifiability import Identifiability, select_free
+from identification.metrics import FitMetrics
+from identification.oem import Estimate, EstimationError, Manoeuvre, OutputErrorEstimator
+
+#: sign constraints that keep the identified model stable (paper 001 rejects diverging models)
+STABILITY_SIGNS = {"C_ell_p": -1, "C_m_q": -1, "C_n_r": -1, "C_m_alpha": -1, "C_n_beta": +1}
+#: per-segment nuisance candidates of ``nuisance="auto"``
+AUTO_STATES = ("rate_body_x_rad_s", "rate_body_y_rad_s", "rate_body_z_rad_s")
+AUTO_BIASES = ("rate_body_x_rad_s", "rate_body_y_rad_s", "rate_body_z_rad_s", "accel_body_x_m_s2",
+               "accel_body_y_m_s2", "accel_body_z_m_s2")
+
+
+@dataclass(frozen=True)
+class AeroOptions:
+    """What to estimate and how. ``free="auto"`` picks a well-conditioned set; ``nuisance`` is "auto", "none"
+    or "given" (use ``estimate_initial`` and ``biases`` as listed)."""
+
+    free: Sequence[str] | str = "auto"
+    outputs: Sequence[str] = aero.DEFAULT_OUTPUTS
+    segments: Sequence[aero.Segment] | None = None
+    validate_segments: Sequence[aero.Segment] | None = None
+    window_s: float = 2.0
+    rate_hz: float = 50.0
+    nuisance: str = "auto"
+    estimate_initial: Sequence[str] = ()
+    biases: Sequence[str] = ()
+    bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
+    sigma: dict[str, float] | None = None
+    stability_constraints: bool = True
+    max_iter: int = 40
+    horizon_s: float = 1.0
+    max_delay_s: float = 0.1
+    progress: bool = False
+
+
+@dataclass
+class Fit:
+    """One output-error fit: its estimator, data and estimate, and the information criterion."""
+
+    oe: OutputErrorEstimator
+    data: list[Manoeuvre]
+    estimate: Estimate
+    aic: float
+    delay_s: float = 0.0
+
+
+@dataclass
+class AeroResult:
+    """Everything ``identify aero`` found; ``as_dict()`` is the metrics JSON."""
+
+    free: list[str]
+    outputs: list[str]
+    fit_segments: list[aero.Segment]
+    validation_segments: list[aero.Segment]
+    start: dict[str, float]
+    before: Identifiability
+    fit: Fit
+    identified: dict[str, Any]
+    nuisance_choice: str
+    scores: dict[str, dict[str, FitMetrics]] = field(default_factory=dict)
+    replay: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=dict)
+    failures: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    baselines: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    @property
+    def losing_outputs(self) -> list[str]:
+        """Held-out outputs where a rival (persistence, segment mean) has a lower RMSE than the model."""
+        return [n for n, b in self.baselines.items() if b["loses_to"]]
+
+    @property
+    def estimate(self) -> Estimate:
+        return self.fit.estimate
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "free": self.free, "outputs": self.outputs,
+            "fit_segments": [str(s) for s in self.fit_segments],
+            "validation_segments": [str(s) for s in self.validation_segments],
+            "start": self.start, "estimate": self.estimate.as_dict(),
+            "identifiability_before": self.before.as_dict(),
+            "nuisance_choice": self.nuisance_choice, "input_delay_s": self.fit.delay_s,
+            "metrics": {k: {n: m.as_dict() for n, m in v.items()} for k, v in self.scores.items()},
+            "failures": self.failures, "notes": self.notes,
+            "baselines_validation": self.baselines, "losing_outputs": self.losing_outputs,
+        }
+
+    def summary(self) -> str:
+        est = self.estimate
+        lines = ["identifiability before the solve:", *("  " + x for x in self.before.lines()), "", est.table()]
+        if not est.converged:
+            lines.append("NOT CONVERGED within max_iter; the estimates are the last accepted iterate")
+        lines.append(f"nuisance: {self.nuisance_choice}; command -> surface delay {self.fit.delay_s * 1e3:.0f} ms")
+        if self.scores:
+            lines.append(f"{'output':<22} " + " ".join(f"{'Theil U ' + k:>20}" for k in self.scores))
+            for name in next(iter(self.scores.values())):
+                lines.append(f"{name:<22} " + " ".join(f"{self.scores[k][name].theil_u:>20.3f}" for k in self.scores))
+        for n in self.losing_outputs:
+            lines.append(f"LOSES on held-out {n}: {', '.join(self.baselines[n]['loses_to'])} has a lower RMSE "
+                         f"({self.baselines[n]['rmse']})")
+        lines += [f"note: {n}" for n in self.notes]
+        lines += [f"warning: {w}" for w in est.warnings] + [f"FAILED after the solve: {f}" for f in self.failures]
+        return "\n".join(lines)
+
+
+class AeroInputError(ValueError):
+    """Options that name unknown parameters, outputs or states, or give bad bounds."""
+
+
+def _check_names(model: FixedWingModel, opt: AeroOptions) -> None:
+    """Every name the options give must be known to the model (all problems in one message)."""
+    bad = []
+    if opt.free != "auto":
+        bad += [f"parameter {n!r}" for n in opt.free if n not in model.params.index]
+        bad += [f"bounds for {n!r} (not free)" for n in opt.bounds if n not in opt.free]
+    bad += [f"output {n!r}" for n in opt.outputs if n not in model.outputs.index]
+    bad += [f"state {n!r}" for n in opt.estimate_initial if n not in model.states.index]
+    bad += [f"biased output {n!r} (not fitted)" for n in opt.biases if n not in opt.outputs]
+    bad += [f"bounds {n}={lo:g}:{hi:g} (need finite lo < hi)" for n, (lo, hi) in opt.bounds.items()
+            if not lo < hi]
+    if bad:
+        raise AeroInputError(f"not known to the fixed-wing model or not valid: {', '.join(bad)}")
+
+
+def _weight(sigma: dict[str, float] | None, outputs: list[str]) -> np.ndarray | None:
+    """``sigma`` per output into W = B^-1 (paper 001 eq. 9)."""
+    if not sigma:
+        return None
+    if set(sigma) != set(outputs) or not all(v > 0 and math.isfinite(v) for v in sigma.values()):
+        raise ValueError(f"sigma needs a positive value for each fitted output ({', '.join(outputs)}), got {sigma}")
+    return np.diag([1.0 / sigma[n] ** 2 for n in outputs])
+
+
+def _segments(log: FlightLog, opt: AeroOptions) -> tuple[list[aero.Segment], list[aero.Segment]]:
+    if opt.segments:
+        return list(opt.segments), list(opt.validate_segments or [])
+    auto = aero.airborne_segments(log, opt.window_s)
+    if len(auto) < 2:
+        raise aero.SegmentError(f"{log.source}: fewer than two airborne windows of {opt.window_s:g} s; "
+                                "give segments")
+    return auto[0::2], list(opt.validate_segments or auto[1::2])
+
+
+def _estimator(model: FixedWingModel, p: np.ndarray, free: list[str], opt: AeroOptions, states: Sequence[str],
+               biases: Sequence[str]) -> OutputErrorEstimator:
+    constraints = []
+    if opt.stability_constraints:
+        for name, sign in STABILITY_SIGNS.items():
+            if name in free:
+                constraints.append(lambda th, n=name, s=sign: s * th[n] > 0)
+    return OutputErrorEstimator(model, p, free, list(opt.outputs), bounds=opt.bounds, constraints=constraints,
+                                estimate_states=list(states), estimate_biases=list(biases))
+
+
+def _aic(est: Estimate, data: list[Manoeuvre]) -> float:
+    """Akaike criterion of an ML output-error fit: ``n ln det R + 2 k`` (R the residual covariance)."""
+    n = sum(m.y.shape[0] for m in data)
+    sign, logdet = np.linalg.slogdet(est.residual_cov)
+    return float(n * logdet + 2 * len(est.values)) if sign > 0 else float("inf")
+
+
+def _fit(oe: OutputErrorEstimator, data: list[Manoeuvre], opt: AeroOptions, weight: np.ndarray | None,
+         delay_s: float = 0.0) -> Fit:
+    est = oe.estimate(data, weight=weight, max_iter=opt.max_iter, progress=opt.progress, horizon_s=opt.horizon_s)
+    return Fit(oe, data, est, _aic(est, data), delay_s)
+
+
+def _choose_free(model: FixedWingModel, p: np.ndarray, data: list[Manoeuvre], opt: AeroOptions) -> list[str]:
+    """``free="auto"``: the well-conditioned subset of the candidates at the start values."""
+    from identification.identifiability import AUTO_CANDIDATES
+
+    probe = OutputErrorEstimator(model, p, list(AUTO_CANDIDATES), list(opt.outputs))
+    M, names = probe.information(data)
+    chosen = select_free(M, names, theta=p[probe.i_free])
+    if not chosen:
+        raise EstimationError("free=auto: no candidate derivative is identifiable from these records")
+    return chosen
+
+
+def _nuisance_fits(model: FixedWingModel, p: np.ndarray, free: list[str], data: list[Manoeuvre],
+                   opt: AeroOptions, weight: np.ndarray | None) -> tuple[Fit, str, list[str]]:
+    """The fit with the nuisance set of ``opt.nuisance``; "auto" keeps the lower Akaike criterion."""
+    notes: list[str] = []
+    if opt.nuisance == "given":
+        return _fit(_estimator(model, p, free, opt, opt.estimate_initial, opt.biases), data, opt, weight), \
+            "given", notes
+    plain = _fit(_estimator(model, p, free, opt, (), ()), data, opt, weight)
+    if opt.nuisance == "none":
+        return plain, "none", notes
+    biases = [b for b in AUTO_BIASES if b in opt.outputs]
+    try:
+        rich = _fit(_estimator(model, p, free, opt, AUTO_STATES, biases), data, opt, weight)
+    except EstimationError as err:
+        notes.append(f"per-segment initial rates and biases not estimable ({err}); fitted without")
+        return plain, "none", notes
+    if rich.aic < plain.aic:
+        return rich, f"per-segment initial rates and biases of {', '.join(biases)} (AIC {rich.aic:.0f} < " \
+            f"{plain.aic:.0f} without)", notes
+    return plain, f"none (per-segment states and biases did not lower the AIC: {rich.aic:.0f} >= {plain.aic:.0f})", \
+        notes
+
+
+def _delay(model: FixedWingModel, p: np.ndarray, log: FlightLog, mapping: PwmMapping,
+           segs: list[aero.Segment], fit: Fit, opt: AeroOptions, weight: np.ndarray | None) -> Fit:
+    """Scan command -> surface delays of whole samples at the estimate; refit with the best if it lowers
+    the Akaike criterion by more than 2 (one more parameter)."""
+    steps = round(opt.max_delay_s * opt.rate_hz)
+    if steps < 1:
+        return fit
+    oe, theta = fit.oe, fit.estimate.values
+    best, best_cost = 0, _plain_cost(oe, theta, fit.data)
+    for d in range(1, steps + 1):
+        data = aero.manoeuvres(model, p, log, mapping, segs, opt.outputs, opt.rate_hz, d / opt.rate_hz)
+        cost = _plain_cost(oe, theta, data)
+        if cost < best_cost:
+            best, best_cost = d, cost
+    if best == 0:
+        return fit
+    data = aero.manoeuvres(model, p, log, mapping, segs, opt.outputs, opt.rate_hz, best / opt.rate_hz)
+    new = _fit(oe, data, opt, weight, best / opt.rate_hz)
+    return new if new.aic + 2.0 < fit.aic else fit
+
+
+def _plain_cost(oe: OutputErrorEstimator, theta: np.ndarray, data: list[Manoeuvre]) -> float:
+    """``n ln det R`` of the residuals at ``theta`` (no sensitivities)."""
+    res = np.vstack([m.y - oe.simulate(theta, m, j, sensitivities=False)[0] for j, m in enumerate(data)])
+    sign, logdet = np.linalg.slogdet(np.atleast_2d(np.cov(res.T, bias=True)))
+    return float(res.shape[0] * logdet) if sign > 0 else float("inf")
+
+
+def identify_aero(log: FlightLog, mapping: PwmMapping, init: FixedWingParams, opt: AeroOptions) -> AeroResult:
+    """Estimate the derivatives; raises ``ValueError`` subclasses (bad segments, names, ...) and
+    ``EstimationError`` before a solve exists; failures after it are kept in ``AeroResult.failures``."""
+    model = FixedWingModel(init)
+    _check_names(model, opt)
+    p = np.array(model.params.starts(), dtype=float)
+    outputs = list(opt.outputs)
+    weight = _weight(opt.sigma, outputs)
+    fit_segs, val_segs = _segments(log, opt)
+    data = aero.manoeuvres(model, p, log, mapping, fit_segs, outputs, opt.rate_hz)
+    free = _choose_free(model, p, data, opt) if opt.free == "auto" else list(opt.free)
+    probe = _estimator(model, p, free, opt, (), ())
+    before = probe.identifiability(data, weight=weight)
+    start = {n: float(p[i]) for n, i in zip(free, probe.i_free, strict=True)}
+    fit, choice, notes = _nuisance_fits(model, p, free, data, opt, weight)
+    result = AeroResult(free, outputs, fit_segs, val_segs, start, before, fit, {}, choice, notes=notes)
+    result.identified = {**init.to_dict(), **fit.estimate.derivatives()}
+    if opt.free == "auto":
+        notes.append(f"free=auto chose {', '.join(free)}")
+    try:
+        result.fit = fit = _delay(model, p, log, mapping, fit_segs, fit, opt, weight)
+        result.identified = {**init.to_dict(), **fit.estimate.derivatives()}
+    except (ValueError, EstimationError) as err:
+        result.failures.append(f"delay scan: {err}")
+    _score(result, model, p, log, mapping, opt)
+    return result
+
+
+def _score(result: AeroResult, model: FixedWingModel, p: np.ndarray, log: FlightLog, mapping: PwmMapping,
+           opt: AeroOptions) -> None:
+    """Fit metrics on the fitted segments (with their nuisance parameters) and held-out ones (without)."""
+    fit = result.fit
+    try:
+        result.replay["fit"] = _replay(fit.oe, fit.estimate.values, fit.data, result.fit_segments, opt.rate_hz)
+        if result.validation_segments:
+            val = aero.manoeuvres(model, p, log, mapping, result.validation_segments, result.outputs, opt.rate_hz,
+                                  fit.delay_s)
+            theta = fit.estimate.values[:fit.estimate.n_global]
+            result.replay["validation"] = _replay(fit.oe, theta, val, result.validation_segments, opt.rate_hz)
+        for k, (y, m, _t) in result.replay.items():
+            result.scores[k] = aero.score(y, m, result.outputs)
+        if "validation" in result.replay:
+            result.baselines = _baselines(result.replay["validation"], val, result.outputs)
+    except (ValueError, EstimationError, FloatingPointError) as err:
+        result.failures.append(f"scoring: {err}")
+
+
+def _baselines(replay: tuple[np.ndarray, np.ndarray, np.ndarray], data: list[Manoeuvre], outputs: list[str]
+               ) -> dict[str, dict[str, Any]]:
+    """RMSE per held-out output of the model and of the simplest rivals: persistence (each segment's first
+    measurement held) and each segment's mean; ``loses_to`` names a rival with a lower RMSE."""
+    y, m, _ = replay
+    cuts = np.cumsum([d.y.shape[0] for d in data])[:-1]
+    hold = np.vstack([np.repeat(seg[:1], len(seg), axis=0) for seg in np.split(y, cuts)])
+    mean = np.vstack([np.repeat(seg.mean(axis=0, keepdims=True), len(seg), axis=0) for seg in np.split(y, cuts)])
+    out = {}
+    for i, n in enumerate(outputs):
+        rm = {"model": float(np.sqrt(np.mean((y[:, i] - m[:, i]) ** 2))),
+              "persistence": float(np.sqrt(np.mean((y[:, i] - hold[:, i]) ** 2))),
+              "segment_mean": float(np.sqrt(np.mean((y[:, i] - mean[:, i]) ** 2)))}
+        rivals = [k for k in ("persistence", "segment_mean") if rm[k] < rm["model"]]
+        out[n] = {"rmse": rm, "loses_to": rivals}
+    return out
+
+
+def _replay(oe: OutputErrorEstimator, theta: np.ndarray, data: list[Manoeuvre], segs: Sequence[aero.Segment],
+            rate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Measured and simulated outputs over all segments, with their log times."""
+    ys, ms, ts = [], [], []
+    for j, (m, s) in enumerate(zip(data, segs, strict=True)):
+        y, _, _ = oe.simulate(theta, m, j, sensitivities=False)
+        ys.append(m.y)
+        ms.append(y)
+        ts.append(s.t0_s + np.arange(1, len(y) + 1) / rate)
+    return np.vstack(ys), np.vstack(ms), np.concatenate(ts)
+
+
+def write_results(result: AeroResult, out: Path, metrics: Path, log_name: str, rate_hz: float,
+                  plots_dir: Path | None = None) -> None:
+    """Parameter file and metrics JSON first (the estimates are never lost), then the plots."""
+    from identification.jsonio import write_json
+
+    est = result.estimate
+    write_json(out, {"fixed_wing": result.identified, "_identification": {
+        "method": "output error (identification.oem)", "log": log_name, "free": result.free,
+        "bound_method": est.bound_method,
+        "std": {n: float(s) for n, s in zip(result.free, est.std[:est.n_global], strict=True)}}})
+    write_json(metrics, {"log": log_name, "rate_hz": rate_hz, **result.as_dict()})
+    if plots_dir is None:
+        return
+    try:
+        _plots(result, plots_dir, rate_hz)
+    except (OSError, ValueError, RuntimeError) as err:
+        result.failures.append(f"plots: {err}")
+        write_json(metrics, {"log": log_name, "rate_hz": rate_hz, **result.as_dict()})
+
+
+def _plots(result: AeroResult, folder: Path, rate_hz: float) -> None:
+    from identification import plots
+
+    dt, est, outs = 1.0 / rate_hz, result.estimate, result.outputs
+    for key, title in (("fit", "fit segments"), ("validation", "held-out segments")):
+        if key in result.replay and key in result.scores:
+            y, m, t = result.replay[key]
+            plots.aero_overlay(folder / f"{key}.png", title, t, y, m, outs, dt,
+                               {n: s.theil_u for n, s in result.scores[key].items()})
+    if "fit" in result.replay:
+        y, m, t = result.replay["fit"]
+        plots.aero_residuals(folder / "residuals.png", t, y - m, outs, dt)
+    n = est.n_global
+    plots.aero_parameters(folder / "parameters.png", result.free, np.array(list(result.start.values())),
+                          est.values[:n], est.std[:n], result.fit.oe.lower, result.fit.oe.upper)
+    correlation_plot(folder / "correlation.png", est.names[:n], est.correlation[:n, :n])
+
+
+def correlation_plot(path: Path, names: Sequence[str], corr: np.ndarray) -> Path:
+    """The derivatives' correlation matrix as a heat map, |r| > 0.9 cells outlined."""
+    from identification import plots
+
+    k = len(names)
+    fig, ax = plots.figure(figsize=(max(4.0, 0.5 * k + 2.5), max(3.5, 0.5 * k + 2.0)))
+    im = ax.imshow(corr, vmin=-1.0, vmax=1.0, cmap="RdBu_r")
+    ax.set_xticks(range(k), names, rotation=60, ha="right", fontsize=7)
+    ax.set_yticks(range(k), names, fontsize=7)
+    for i in range(k):
+        for j in range(k):
+            if i != j and abs(corr[i, j]) > 0.9:
+                ax.add_patch(plots.plt.Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, lw=2, ec="k"))
+            ax.text(j, i, f"{corr[i, j]:.2f}", ha="center", va="center", fontsize=6)
+    fig.colorbar(im, ax=ax, label="correlation (|r| > 0.9 outlined)")
+    ax.set_title("parameter correlation (from the information matrix)")
+    return plots.save(fig, path)

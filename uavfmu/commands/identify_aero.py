@@ -1,0 +1,162 @@
+"""``uavfmu identify aero``: fixed-wing stability and control derivatives from a flight log (output error).
+
+``uavfmu identify aero LOG [--init params.json] --free C_ell_p,C_ell_delta_a,...|auto --out identified.json
+[--segments t0:t1,...] [--validate-segments t0:t1,...] [--plots DIR]``
+
+Inputs are the log's servo PWM through the HIL adapter's PWM mapping (``--mapping FILE.toml``, else the
+log's ArduPilot ``SERVOn_*`` parameters; pull = nose up and right rudder = nose right map to the FMU's uavbook
+signs). Without ``--segments`` the airborne part of the log is cut into windows of ``--window`` seconds;
+every other window is fitted and the rest held out. Before the solve the identifiability of the free set is
+printed (condition number, correlated pairs, input excitation, advice); ``--free auto`` picks a
+well-conditioned set. Per-segment initial rates and gyro/accelerometer biases are estimated when they lower
+the Akaike criterion (``--nuisance auto``; ``--estimate-initial``/``--biases`` give them by hand), and a
+command -> surface delay is scanned up to ``--max-delay``. The work is ``identification.aero_identify``;
+this module parses and prints.
+
+Exit status: 0 done, 2 bad input (unreadable log, unknown parameter or output, bad segment or mapping),
+3 the estimation failed (diverging start, no descent), 4 done but a rival (persistence, segment mean) beats
+the model on a held-out output, 5 estimates written but a late step (scoring, plots) failed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import math
+import sys
+from pathlib import Path
+
+EXIT_OK, EXIT_BAD_INPUT, EXIT_FAILED, EXIT_BASELINE_WINS, EXIT_LATE_FAILURE = 0, 2, 3, 4, 5
+
+
+def _names(text: str | None) -> list[str]:
+    return [s.strip() for s in (text or "").split(",") if s.strip()]
+
+
+def _bounded(lo: float, hi: float, kind: type = float):  # type: ignore[no-untyped-def]
+    def parse(text: str) -> float:
+        try:
+            v = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not (math.isfinite(v) and lo <= v <= hi):
+            raise argparse.ArgumentTypeError(f"{text} outside the allowed range {lo:g}..{hi:g}")
+        return v
+    return parse
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.description = __doc__.split("\n\n")[0]
+    p.add_argument("log", type=Path, help="flight log (.bin/.log DataFlash, .tlog, .ulg, .csv)")
+    p.add_argument("--free", required=True, help="comma-separated parameters to estimate, or 'auto'")
+    p.add_argument("--out", type=Path, required=True, help="identified parameter file (JSON) to write")
+    p.add_argument("--init", type=Path, help="start parameters (JSON; default: built-in Aerosonde)")
+    p.add_argument("--outputs", help="comma-separated model outputs to fit (default: attitude, body rates, "
+                   "accelerations incl. lateral, airspeed)")
+    p.add_argument("--segments", help="fit segments t0:t1,... in seconds from log start")
+    p.add_argument("--validate-segments", help="held-out segments t0:t1,... scored with the identified model")
+    p.add_argument("--window", type=_bounded(0.2, 600.0), default=2.0, help="automatic segment length [s] (2)")
+    p.add_argument("--rate", type=_bounded(1.0, 1000.0), default=50.0, help="resampling rate [Hz] (50)")
+    p.add_argument("--mapping", type=Path, help="PWM mapping TOML (default: from the log's SERVOn_* parameters)")
+    p.add_argument("--channel-map", type=Path, help="channel map for the log reader (TOML/JSON)")
+    p.add_argument("--nuisance", choices=("auto", "none"), default="auto",
+                   help="per-segment initial rates and output biases: auto (kept when they lower the AIC), none")
+    p.add_argument("--estimate-initial", help="states whose initial value is estimated per segment (by hand)")
+    p.add_argument("--biases", help="outputs given a constant bias per segment (by hand)")
+    p.add_argument("--max-delay", type=_bounded(0.0, 1.0), default=0.1,
+                   help="longest command -> surface delay scanned [s] (0 turns the scan off; 0.1)")
+    p.add_argument("--bounds", help="bounds name=lo:hi,... on free parameters")
+    p.add_argument("--sigma", help="fixed weighting B = diag(sigma^2): output=sigma,... for every fitted output "
+                   "(default: maximum likelihood)")
+    p.add_argument("--no-stability-constraints", action="store_true",
+                   help="allow sign changes of C_ell_p, C_m_q, C_n_r, C_m_alpha, C_n_beta")
+    p.add_argument("--max-iter", type=_bounded(1, 1000, int), default=40)
+    p.add_argument("--horizon", type=_bounded(0.05, 600.0), default=1.0,
+                   help="continuation: first fitted span per segment [s], doubled up to the whole segment")
+    p.add_argument("--plots", type=Path, help="folder for PNG plots (fit, validation, residuals, parameters, "
+                   "correlation)")
+    p.add_argument("--metrics", type=Path, help="metrics JSON (default: OUT with suffix .metrics.json)")
+    p.add_argument("--quiet", action="store_true", help="no progress display")
+
+
+def _error(message: str) -> int:
+    print(f"uavfmu identify aero: error: {message}", file=sys.stderr)
+    return EXIT_BAD_INPUT
+
+
+def _pairs(text: str | None, option: str) -> dict[str, str]:
+    out = {}
+    for item in _names(text):
+        name, sep, value = item.partition("=")
+        if not sep:
+            raise ValueError(f"{option}: {item!r} is not name=value")
+        out[name.strip()] = value.strip()
+    return out
+
+
+def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
+    from identification import aero
+    from identification.aero_identify import AeroOptions
+
+    bounds = {}
+    for n, rng in _pairs(args.bounds, "--bounds").items():
+        try:
+            lo, hi = (float(v) for v in rng.split(":"))
+        except ValueError:
+            raise ValueError(f"--bounds: {n}={rng!r} is not name=lo:hi") from None
+        bounds[n] = (lo, hi)
+    sigma = None
+    if args.sigma:
+        try:
+            sigma = {n: float(v) for n, v in _pairs(args.sigma, "--sigma").items()}
+        except ValueError:
+            raise ValueError(f"--sigma: {args.sigma!r} is not output=number,...") from None
+    outputs = _names(args.outputs) or list(aero.DEFAULT_OUTPUTS)
+    if sigma is not None and (set(sigma) != set(outputs) or not all(v > 0 and math.isfinite(v)
+                                                                     for v in sigma.values())):
+        raise ValueError(f"--sigma needs a positive value for each fitted output ({', '.join(outputs)}), "
+                         f"got {args.sigma!r}")
+    given = bool(args.estimate_initial or args.biases)
+    free = "auto" if args.free.strip() == "auto" else _names(args.free)
+    return AeroOptions(
+        free=free, outputs=tuple(outputs),
+        segments=aero.parse_segments(args.segments) if args.segments else None,
+        validate_segments=aero.parse_segments(args.validate_segments, "--validate-segments")
+        if args.validate_segments else None,
+        window_s=args.window, rate_hz=args.rate, nuisance="given" if given else args.nuisance,
+        estimate_initial=_names(args.estimate_initial), biases=_names(args.biases), bounds=bounds, sigma=sigma,
+        stability_constraints=not args.no_stability_constraints, max_iter=args.max_iter, horizon_s=args.horizon,
+        max_delay_s=args.max_delay, progress=not args.quiet)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Read, estimate, write, print; see the module docstring."""
+    from fmu_models.common.errors import ParameterError
+    from fmu_models.fixed_wing.params import FixedWingParams
+    from fmu_models.signals.pwm_mapping import PwmMapping
+    from identification.aero_identify import AeroInputError, identify_aero, write_results
+    from identification.oem import EstimationError
+    from identification.readers import read_log
+
+    if not args.quiet:
+        logging.basicConfig(level=logging.ERROR, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        opt = _options(args)
+        init = FixedWingParams.load(args.init) if args.init else FixedWingParams()
+        log = read_log(args.log, channel_map=args.channel_map)
+        mapping = PwmMapping.load(args.mapping) if args.mapping else PwmMapping.from_ardupilot(log.params)
+        result = identify_aero(log, mapping, init, opt)
+    except AeroInputError as err:
+        return _error(str(err))
+    except EstimationError as err:
+        print(f"uavfmu identify aero: estimation failed: {err}", file=sys.stderr)
+        return EXIT_FAILED
+    except (OSError, ValueError, KeyError, ParameterError) as err:  # LogError, MappingError, ConfigError, ...
+        return _error(str(err).strip("'\""))
+    metrics = args.metrics or args.out.with_suffix(".metrics.json")
+    write_results(result, args.out, metrics, str(args.log), args.rate, args.plots)
+    print(result.summary())
+    print(f"parameters: {args.out}\nmetrics: {metrics}")
+    if result.failures:
+        return EXIT_LATE_FAILURE
+    return EXIT_BASELINE_WINS if result.losing_outputs else EXIT_OK
