@@ -7,14 +7,12 @@ signals of docs/interfaces.md, keeps every raw field as ``MSG.Field`` and the PA
 from __future__ import annotations
 
 import math
-import struct
 from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-from pymavlink import DFReader
 
-from identification.flightlog import FlightLog, LogError, Signal, add_battery
+from identification.flightlog import DataQuality, FlightLog, LogError, Signal, add_battery, sanitize_log
 
 DEG = math.pi / 180.0
 #: ArduPilot SERVOn_FUNCTION values
@@ -57,40 +55,112 @@ SKIPPED = ("FMT", "FMTU", "UNIT", "MULT", "MSG")
 Columns = dict[str, dict[str, np.ndarray]]
 
 
-def _scan_binary(path: Path) -> tuple[Columns, dict[str, float], list[str]]:
-    """Columns of every message type of a binary log, decoded with numpy per type.
+HEADER = bytes((HEAD1, HEAD2))
 
-    pymavlink's DFReader builds one Python object per message (about 30 us each: 2 s for a 5-minute log);
-    here one pass finds the message offsets and numpy decodes each type's rows at once. Stops at the first
-    damaged header, keeping what came before.
-    """
-    data = path.read_bytes()
+
+def _resync(data: bytes, start: int, lengths: dict[int, int]) -> int:
+    """Offset of the next plausible message at or after ``start``: the two sync bytes, a known type, and the
+    next message's sync bytes right after its length (or the end of the file); ``len(data)`` when none."""
+    n = len(data)
+    p = data.find(HEADER, start)
+    while p != -1 and p + 3 <= n:
+        length = lengths.get(data[p + 2])
+        if length is not None:
+            end = p + length
+            if end == n or (end + 2 <= n and data[end] == HEAD1 and data[end + 1] == HEAD2):
+                return p
+        p = data.find(HEADER, p + 1)
+    return n
+
+
+def _walk(data: bytes, quality: DataQuality) -> tuple[dict[int, tuple[str, str, list[str]]], dict[int, int],
+                                                      dict[int, list[int]], int]:
+    """Message offsets by type. A message counts when its type is known and the next message (or the end of
+    the file) follows right after it, or when it does not overlap the next plausible message (damage right
+    after it); otherwise the bytes up to the next plausible message are skipped and counted
+    (resynchronisation), so one damaged byte costs about one message, not the rest of the log."""
     n = len(data)
     lengths: dict[int, int] = {FMT_ID: FMT_LEN}
     formats: dict[int, tuple[str, str, list[str]]] = {}
     offsets: dict[int, list[int]] = defaultdict(list)
-    pos = 0
+    pos, count = 0, 0
     while pos + 3 <= n:
-        if data[pos] != HEAD1 or data[pos + 1] != HEAD2:
-            break
-        mid = data[pos + 2]
-        length = lengths.get(mid)
-        if length is None or pos + length > n:
-            break
-        if mid == FMT_ID:
-            t_id, t_len = data[pos + 3], data[pos + 4]
-            name = data[pos + 5:pos + 9].rstrip(b"\0").decode("ascii", "replace")
-            fmt = data[pos + 9:pos + 25].rstrip(b"\0").decode("ascii", "replace")
-            cols = data[pos + 25:pos + 89].rstrip(b"\0").decode("ascii", "replace").split(",")
-            lengths[t_id] = t_len
-            formats[t_id] = (name, fmt, cols)
-        else:
-            offsets[mid].append(pos)
-        pos += length
-    warnings = []
+        length = lengths.get(data[pos + 2]) if data[pos] == HEAD1 and data[pos + 1] == HEAD2 else None
+        end = pos + (length or n)
+        if length is not None and (end == n or (end + 2 <= n and data[end] == HEAD1 and data[end + 1] == HEAD2)):
+            mid = data[pos + 2]
+            count += 1
+            if mid == FMT_ID:
+                _define(data, pos, lengths, formats)
+            else:
+                offsets[mid].append(pos)
+            pos = end
+            continue
+        nxt = _resync(data, pos + 1, lengths)
+        if length is not None and end <= nxt:  # intact message followed by damage: keep it (no overlap)
+            count += 1
+            if data[pos + 2] == FMT_ID:
+                _define(data, pos, lengths, formats)
+            else:
+                offsets[data[pos + 2]].append(pos)
+            pos = end
+            if nxt == pos:
+                continue
+        quality.add_damage(pos, nxt - pos, max(1, data.count(HEADER, pos, nxt)))
+        pos = nxt
     if pos < n:
-        warnings.append(f"{path}: {n - pos} of {n} bytes at the end could not be parsed and were dropped "
-                        "(truncated or corrupt tail)")
+        quality.add_damage(pos, n - pos)
+    quality.messages_total = count + quality.messages_skipped
+    return formats, lengths, offsets, count
+
+
+def _define(data: bytes, pos: int, lengths: dict[int, int], formats: dict[int, tuple[str, str, list[str]]]) -> None:
+    """Record one FMT message; a type already defined keeps its first definition (a damaged FMT cannot
+    redefine it), a length too short for the header is ignored."""
+    t_id, t_len = data[pos + 3], data[pos + 4]
+    if t_id in lengths or t_len < 3:
+        return
+    name = data[pos + 5:pos + 9].rstrip(b"\0").decode("ascii", "replace")
+    fmt = data[pos + 9:pos + 25].rstrip(b"\0").decode("ascii", "replace")
+    cols = data[pos + 25:pos + 89].rstrip(b"\0").decode("ascii", "replace").split(",")
+    lengths[t_id] = t_len
+    formats[t_id] = (name, fmt, cols)
+
+
+def _row_dtype(name: str, fmt: str, cols: list[str], length: int) -> np.dtype | None:
+    """numpy record layout of one message type, or None when the FMT does not describe ``length`` bytes."""
+    fields, skip = [], 3
+    if len(fmt) != len(cols) or len(set(cols)) != len(cols):
+        return None
+    for ch, col in zip(fmt, cols, strict=True):
+        if ch in NUMERIC_FORMATS:
+            size, kind = np.dtype(NUMERIC_FORMATS[ch][0]).itemsize, NUMERIC_FORMATS[ch][0]
+        elif ch in OTHER_SIZES:
+            size, kind = OTHER_SIZES[ch], f"S{OTHER_SIZES[ch]}"
+        else:
+            return None
+        fields.append((col, kind, skip))
+        skip += size
+    if not fields or skip != length:
+        return None
+    try:
+        return np.dtype({"names": [f[0] for f in fields], "formats": [f[1] for f in fields],
+                         "offsets": [f[2] for f in fields], "itemsize": length})
+    except (ValueError, TypeError):
+        return None
+
+
+def _scan_binary(path: Path, quality: DataQuality) -> tuple[Columns, dict[str, float], list[str]]:
+    """Columns of every message type of a binary log, decoded with numpy per type.
+
+    pymavlink's DFReader builds one Python object per message (about 30 us each: 2 s for a 5-minute log);
+    here one pass finds the message offsets and numpy decodes each type's rows at once. Damaged stretches are
+    skipped up to the next plausible message and counted in ``quality``.
+    """
+    data = path.read_bytes()
+    quality.bytes_total = len(data)
+    formats, lengths, offsets, _ = _walk(data, quality)
+    warnings = []
     buf = np.frombuffer(data, dtype=np.uint8)
     out: Columns = {}
     params: dict[str, float] = {}
@@ -98,22 +168,10 @@ def _scan_binary(path: Path) -> tuple[Columns, dict[str, float], list[str]]:
         if mid not in formats:
             continue
         name, fmt, cols = formats[mid]
-        fields, skip = [], 3
-        for ch, col in zip(fmt, cols, strict=False):
-            if ch in NUMERIC_FORMATS:
-                fields.append((col, NUMERIC_FORMATS[ch][0], skip))
-                skip += np.dtype(NUMERIC_FORMATS[ch][0]).itemsize
-            elif ch in OTHER_SIZES:
-                fields.append((col, f"S{OTHER_SIZES[ch]}", skip))
-                skip += OTHER_SIZES[ch]
-            else:
-                warnings.append(f"{path}: message {name} has unknown format character {ch!r}; skipped")
-                fields = []
-                break
-        if not fields or skip != lengths[mid]:
+        dtype = _row_dtype(name, fmt, cols, lengths[mid])
+        if dtype is None:
+            warnings.append(f"{path}: message {name} has a format {fmt!r} that does not fit its length; skipped")
             continue
-        dtype = np.dtype({"names": [f[0] for f in fields], "formats": [f[1] for f in fields],
-                          "offsets": [f[2] for f in fields], "itemsize": lengths[mid]})
         idx = np.asarray(offs)[:, None] + np.arange(lengths[mid])
         rows = buf[idx].view(dtype).ravel()
         if name == "PARM":
@@ -123,40 +181,73 @@ def _scan_binary(path: Path) -> tuple[Columns, dict[str, float], list[str]]:
         if name in SKIPPED:
             continue
         out[name] = {}
-        for (col, _, _), ch in zip(fields, fmt, strict=False):
+        for col, ch in zip(cols, fmt, strict=True):
             if ch in NUMERIC_FORMATS:
                 mul = NUMERIC_FORMATS[ch][1]
                 v = rows[col].astype(float)
                 out[name][col] = v * mul if mul else v
+    if quality.bytes_skipped:
+        warnings.append(f"{path}: {quality.bytes_skipped} of {len(data)} bytes could not be parsed and were "
+                        f"skipped ({quality.messages_skipped} damaged message(s)); the rest was kept")
     return out, params, warnings
 
 
-def _scan_text(path: Path) -> tuple[Columns, dict[str, float], list[str]]:
-    """Text ``.log`` files through pymavlink's DFReader (rare, and small)."""
-    try:
-        reader = DFReader.DFReader_text(str(path))
-    except (OSError, ValueError, IndexError, KeyError) as err:
-        raise LogError(f"{path}: not a readable DataFlash log ({err})") from err
-    rows: dict[str, list[dict]] = defaultdict(list)
+def _scan_text(path: Path, quality: DataQuality) -> tuple[Columns, dict[str, float], list[str]]:
+    """Text ``.log`` files (``NAME, v1, v2, ...`` lines after their ``FMT`` lines); bad lines are skipped
+    and counted."""
+    raw = path.read_bytes()
+    quality.bytes_total = len(raw)
+    formats: dict[str, tuple[str, list[str]]] = {}
+    rows: dict[str, list[list[float]]] = defaultdict(list)
     params: dict[str, float] = {}
-    warnings = []
-    while True:
-        try:
-            msg = reader.recv_msg()
-        except (struct.error, ValueError, IndexError, KeyError) as err:
-            warnings.append(f"{path}: stopped at a damaged message ({err})")
-            break
-        if msg is None:
-            break
-        mtype = msg.get_type()
-        if mtype == "PARM":
-            params[str(msg.Name)] = float(msg.Value)
-        elif mtype not in SKIPPED:
-            rows[mtype].append({k: v for k, v in msg.to_dict().items() if isinstance(v, int | float)})
+    offset = 0
+    for line in raw.split(b"\n"):
+        size = len(line) + 1
+        text = line.decode("ascii", "replace").strip()
+        offset += size
+        if not text:
+            continue
+        quality.messages_total += 1
+        if not _text_line(text, formats, rows, params):
+            quality.add_damage(offset - size, size)
     out: Columns = {}
-    for mtype, rs in rows.items():
-        out[mtype] = {k: np.array([r.get(k, np.nan) for r in rs], dtype=float) for k in rs[0]}
+    for name, rs in rows.items():
+        fmt, cols = formats[name]
+        arr = np.array(rs, dtype=float).reshape(-1, len(cols))
+        out[name] = {c: arr[:, j] for j, (c, ch) in enumerate(zip(cols, fmt, strict=True)) if ch not in "nNZa"}
+    warnings = []
+    if quality.messages_skipped:
+        warnings.append(f"{path}: {quality.messages_skipped} damaged line(s) skipped")
     return out, params, warnings
+
+
+def _text_line(text: str, formats: dict[str, tuple[str, list[str]]], rows: dict[str, list[list[float]]],
+               params: dict[str, float]) -> bool:
+    """Parse one text line into ``formats``/``rows``/``params``; False when it is damaged."""
+    parts = [p.strip() for p in text.split(",")]
+    name = parts[0]
+    if name == "FMT":
+        if len(parts) < 6 or not parts[3] or len(parts[4]) != len(parts) - 5:
+            return False
+        if parts[3] not in formats and all(ch in NUMERIC_FORMATS or ch in OTHER_SIZES for ch in parts[4]):
+            formats[parts[3]] = (parts[4], parts[5:])
+        return True
+    if name not in formats:
+        return name in SKIPPED
+    fmt, cols = formats[name]
+    if len(parts) - 1 != len(cols):
+        return False
+    values = []
+    try:
+        for ch, v in zip(fmt, parts[1:], strict=True):
+            values.append(math.nan if ch in "nNZa" else float(v))
+    except ValueError:
+        return False
+    if name == "PARM" and "Name" in cols and "Value" in cols:
+        params[parts[1 + cols.index("Name")]] = values[cols.index("Value")]
+    elif name not in SKIPPED:
+        rows[name].append(values)
+    return True
 
 
 def _times(mtype: str, cols: dict[str, np.ndarray]) -> np.ndarray | None:
@@ -190,7 +281,10 @@ def read_dataflash(path: Path, channel_map: dict[str, int] | None = None) -> Fli
     """
     if not path.is_file():
         raise LogError(f"{path}: not a readable DataFlash log (file not found)")
-    columns, params, warnings = _scan_binary(path) if path.suffix.lower() == ".bin" else _scan_text(path)
+    quality = DataQuality(str(path))
+    with path.open("rb") as fh:
+        binary = path.suffix.lower() == ".bin" or fh.read(2) == HEADER
+    columns, params, warnings = (_scan_binary if binary else _scan_text)(path, quality)
     timed: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]] = {}
     for mtype, cols in columns.items():
         t = _times(mtype, cols)
@@ -198,18 +292,18 @@ def read_dataflash(path: Path, channel_map: dict[str, int] | None = None) -> Fli
             continue
         inst = "I" if "I" in cols else "Inst" if "Inst" in cols else None
         if inst and len(cols[inst]):
-            keep = cols[inst] == np.min(cols[inst])
+            keep = cols[inst] == np.nanmin(cols[inst])
             t, cols = t[keep], {k: v[keep] for k, v in cols.items()}
         timed[mtype] = (t, cols)
     if not timed:
         raise LogError(f"{path}: no timestamped messages found (empty or not a DataFlash log)")
-    t0 = min(float(np.min(t)) for t, _ in timed.values())
+    starts = [float(np.min(t[np.isfinite(t)])) for t, _ in timed.values() if np.isfinite(t).any()]
+    t0 = min(starts) if starts else 0.0
     signals: dict[str, Signal] = {}
     for mtype, (t, cols) in timed.items():
-        order = np.argsort(t, kind="stable")
-        ts = t[order] - t0
+        ts = t - t0  # file order: sanitize_log sorts and cleans the time axis
         for fld, vals in cols.items():
-            signals[f"{mtype}.{fld}"] = Signal(f"{mtype}.{fld}", ts, vals[order], "", f"raw {mtype}.{fld}")
+            signals[f"{mtype}.{fld}"] = Signal(f"{mtype}.{fld}", ts, vals, "", f"raw {mtype}.{fld}")
     for name, mtype, fld, scale, unit in CANONICAL:
         key = f"{mtype}.{fld}"
         if key in signals and name not in signals:
@@ -227,7 +321,7 @@ def read_dataflash(path: Path, channel_map: dict[str, int] | None = None) -> Fli
         signals["altitude_m"] = Signal("altitude_m", s.t_s, s.values, "m", "from BARO.Alt")
     if "CTUN.CRt" in signals:
         s = signals["CTUN.CRt"]
-        scale = 0.01 if np.nanmax(np.abs(s.values)) > 50 else 1.0  # old logs: cm/s
+        scale = 0.01 if np.nanpercentile(np.abs(s.values), 99) > 50 else 1.0  # cm/s (robust to a bad sample)
         signals["climb_rate_m_s"] = Signal("climb_rate_m_s", s.t_s, s.values * scale, "m/s", "from CTUN.CRt")
     # servo outputs: RCOU C1.. (new) or Ch1.. (old)
     for n in range(1, 33):
@@ -266,4 +360,4 @@ def read_dataflash(path: Path, channel_map: dict[str, int] | None = None) -> Fli
                 vs.append(state)
         if len(ts) > 1:
             signals["armed"] = Signal("armed", np.array(ts), np.array(vs), "1", "from EV armed/disarmed events")
-    return FlightLog(str(path), "dataflash", signals, params, vehicle, warnings)
+    return sanitize_log(FlightLog(str(path), "dataflash", signals, params, vehicle, warnings), quality)
