@@ -199,21 +199,31 @@ def _channel_map() -> Family:
 
 
 def _hil_config() -> Family:
-    from hil_adapter import cli as hil_cli
+    from hil_adapter.config import load_hil_config
 
     def base() -> dict[str, Any]:
         return {"network": {"host": "127.0.0.1", "port": 4560},
                 "timing": {"mode": "lockstep", "rate_hz": 250, "busy_poll_us": 500},
                 "watchdog": {"timeout_s": 0.5, "mode": "throttle_off"},
-                "nmea": {"port": "/dev/null", "baud": 9600, "rate_hz": 5.0}}
+                "nmea": {"port": "/dev/null", "baud": 9600, "rate_hz": 5.0},
+                "px4": {"rc_channels": [1500, 1500, 1000, 1500], "wing_controls": {"1": 0, "2": 1}},
+                "start": {"init_pos_down_m": -10.0},
+                "sensors": {"seed": 3, "gps": {"rate_hz": 5.0, "eph_m": 1.0}, "accel": {"noise_std": 0.02}},
+                "mapping": {"channels": {"aileron_rad": {"source": 1, **_CHANNEL}}}}
 
     def fields() -> list[tuple[Path_, str]]:
         return [(("network", "host"), STRING), (("network", "port"), INT), (("timing", "mode"), CHOICE),
                 (("timing", "rate_hz"), NONNEG), (("timing", "busy_poll_us"), NONNEG),
                 (("watchdog", "timeout_s"), NONNEG), (("watchdog", "mode"), CHOICE), (("nmea", "baud"), INT),
-                (("nmea", "rate_hz"), NONNEG), (("network",), TABLE), (("timing",), TABLE)]
+                (("nmea", "rate_hz"), NONNEG), (("network",), TABLE), (("timing",), TABLE),
+                (("px4", "rc_channels", 0), INT), (("px4", "wing_controls", "1"), INT),
+                (("start", "init_pos_down_m"), NUMBER), (("sensors", "seed"), INT),
+                (("sensors", "gps", "rate_hz"), NONNEG), (("sensors", "accel", "noise_std"), NONNEG),
+                (("mapping", "channels", "aileron_rad", "source"), CHANNEL),
+                (("mapping", "channels", "aileron_rad", "max_us"), NONNEG)]
 
-    return Family("HIL config", ".toml", base, hil_cli.load_config, fields, ((), ("network",), ("timing",)))
+    return Family("HIL config", ".toml", base, load_hil_config, fields,
+                  ((), ("network",), ("timing",), ("sensors", "gps"), ("mapping", "channels", "aileron_rad")))
 
 
 def _manifest() -> Family:
