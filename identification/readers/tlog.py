@@ -10,11 +10,12 @@ from pathlib import Path
 import numpy as np
 from pymavlink import mavutil
 
-from identification.flightlog import FlightLog, LogError, Signal, add_battery
+from identification.flightlog import DataQuality, FlightLog, LogError, Signal, add_battery, sanitize_log
 
 MAV_MODE_FLAG_SAFETY_ARMED = 128
 G0 = 9.80665
 UINT16_MAX = 65535
+MAX_CONSECUTIVE_ERRORS = 1000
 
 # canonical <- (message, field, scale)
 FIELDS = [
@@ -50,35 +51,57 @@ def _battery(signals: dict[str, Signal]) -> None:
         add_battery(signals, volt.t_s, v, c, f"{mtype}.{vkey}")
 
 
+def _read_messages(conn: object, path: Path, quality: DataQuality
+                   ) -> tuple[dict[str, list[tuple[float, dict]]], dict[str, float], list[str]]:
+    """Every decodable message by type as ``(time [s], numeric fields)``; undecodable frames are counted
+    (their bytes as skipped); reading stops after ``MAX_CONSECUTIVE_ERRORS`` exceptions in a row."""
+    rows: dict[str, list[tuple[float, dict]]] = defaultdict(list)
+    params: dict[str, float] = {}
+    warnings: list[str] = []
+    errors = 0
+    while True:
+        try:
+            msg = conn.recv_match()  # type: ignore[attr-defined]
+            if msg is None:
+                break
+            mtype = msg.get_type()
+            quality.messages_total += 1
+            if mtype == "BAD_DATA":
+                nbytes = len(msg.get_msgbuf() or b"")
+                quality.add_damage(int(getattr(conn, "offset", 0) or 0) - nbytes, nbytes)
+                continue
+            if mtype == "PARAM_VALUE":
+                params[str(msg.param_id).rstrip("\0")] = float(msg.param_value)
+                continue
+            d = {k: v for k, v in msg.to_dict().items() if isinstance(v, int | float) and not isinstance(v, bool)}
+            if mtype == "BATTERY_STATUS":
+                d["voltage_mV"] = _cell_sum_mv(msg)
+            rows[mtype].append((float(getattr(msg, "_timestamp", 0.0)), d))
+            errors = 0
+        except Exception as err:  # pymavlink raises many kinds on damaged frames
+            quality.messages_total += 1
+            quality.messages_skipped += 1
+            errors += 1
+            if errors > MAX_CONSECUTIVE_ERRORS:
+                warnings.append(f"{path}: stopped after {errors} undecodable frames in a row ({err}); "
+                                "the messages before were kept")
+                break
+    if quality.messages_skipped:
+        warnings.append(f"{path}: {quality.messages_skipped} undecodable frame(s) skipped")
+    return rows, params, warnings
+
+
 def read_tlog(path: Path) -> FlightLog:
     try:
         conn = mavutil.mavlink_connection(str(path), dialect="ardupilotmega")
-    except (OSError, ValueError) as err:
-        raise LogError(f"{path}: cannot open as a MAVLink telemetry log ({err})") from err
-    rows: dict[str, list[tuple[float, dict]]] = defaultdict(list)
-    params: dict[str, float] = {}
-    bad = 0
-    while True:
-        try:
-            msg = conn.recv_match()
-        except (ValueError, IndexError, KeyError) as err:
-            bad += 1
-            if bad > 1000:
-                raise LogError(f"{path}: too many undecodable MAVLink frames ({err})") from err
-            continue
-        if msg is None:
-            break
-        mtype = msg.get_type()
-        if mtype == "BAD_DATA":
-            bad += 1
-            continue
-        if mtype == "PARAM_VALUE":
-            params[str(msg.param_id)] = float(msg.param_value)
-            continue
-        d = {k: v for k, v in msg.to_dict().items() if isinstance(v, int | float) and not isinstance(v, bool)}
-        if mtype == "BATTERY_STATUS":
-            d["voltage_mV"] = _cell_sum_mv(msg)
-        rows[mtype].append((float(getattr(msg, "_timestamp", 0.0)), d))
+    except Exception as err:  # pymavlink raises bare exceptions on unreadable files
+        raise LogError(f"{path}: cannot open as a MAVLink telemetry log ({type(err).__name__}: {err})") from err
+    quality = DataQuality(str(path))
+    quality.bytes_total = path.stat().st_size
+    try:
+        rows, params, warnings = _read_messages(conn, path, quality)
+    finally:
+        conn.close()
     if not rows:
         raise LogError(f"{path}: no MAVLink messages found (empty or not a .tlog)")
     t0 = min(r[0][0] for r in rows.values())
@@ -103,5 +126,4 @@ def read_tlog(path: Path) -> FlightLog:
         s = signals["HEARTBEAT.base_mode"]
         armed = (s.values.astype(int) & MAV_MODE_FLAG_SAFETY_ARMED) > 0
         signals["armed"] = Signal("armed", s.t_s, armed.astype(float), "1", "from HEARTBEAT.base_mode")
-    warnings = [f"{path}: {bad} undecodable frame(s) skipped"] if bad else []
-    return FlightLog(str(path), "tlog", signals, params, None, warnings)
+    return sanitize_log(FlightLog(str(path), "tlog", signals, params, None, warnings), quality)

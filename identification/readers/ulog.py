@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from pyulog import ULog
 
-from identification.flightlog import FlightLog, LogError, Signal, add_battery
+from identification.flightlog import DataQuality, FlightLog, LogError, Signal, add_battery, sanitize_log
 
 ARMING_STATE_ARMED = 2  #: vehicle_status.arming_state value for armed
 
@@ -87,7 +87,13 @@ def read_ulog(path: Path) -> FlightLog:
         signals["armed"] = Signal("armed", s.t_s, (s.values == ARMING_STATE_ARMED).astype(float), "1",
                                   "from vehicle_status.arming_state")
     warnings: list[str] = []
+    quality = DataQuality(str(path))
+    quality.bytes_total = path.stat().st_size
+    quality.messages_total = sum(len(d.data["timestamp"]) for d in ulog.data_list)
     if getattr(ulog, "file_corruption", False):
         warnings.append(f"{path}: pyulog reports a corrupt section; the readable messages were kept")
-    return FlightLog(str(path), "ulog", signals, {k: float(v) for k, v in ulog.initial_parameters.items()},
-                     "quadrotor" if "motor_1_pwm_us" in signals else None, warnings)
+        quality.messages_skipped += 1  # pyulog skips to the next sync marker without saying how much
+    params = {k: float(v) for k, v in ulog.initial_parameters.items() if isinstance(v, int | float)}
+    log = FlightLog(str(path), "ulog", signals, params, "quadrotor" if "motor_1_pwm_us" in signals else None,
+                    warnings)
+    return sanitize_log(log, quality)
