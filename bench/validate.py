@@ -23,7 +23,8 @@ import numpy as np
 
 from build_fmus import build
 from fmu_models.fmi import host as fmu_host
-from identification.validate_cli import validate_one
+from identification.validation import options
+from identification.validation_workflow import ValidationJob, validate_job
 from uavfmu import synthetic
 from uavfmu.scenarios import QuadrotorAutopilot, fly, published_thrust_inverse, quadrotor_profile
 
@@ -62,15 +63,16 @@ def main() -> int:
 
                 fmu_host.FmuHost.simulate = timed  # type: ignore[method-assign]
                 t0 = time.perf_counter()
-                res = validate_one({"fmu": str(fmu), "log": str(log), "window_s": args.window,
-                                    "rate_hz": args.rate, "report": report})
+                res = validate_job(ValidationJob(fmu, log, options(window_s=args.window, rate_hz=args.rate),
+                                                 report_dir=Path(report) if report else None))
                 figures[label].append((time.perf_counter() - t0, stepping))
                 fmu_host.FmuHost.simulate = original  # type: ignore[method-assign]
-    if res["status"] == "error":
-        print(f"validation failed: {res['error']}")
+    if res.status == "error":
+        print(f"validation failed: {res.error}")
         return 1
     print(f"log: {args.seconds:.0f} s at {args.rate:.0f} Hz, windows of {args.window:g} s, "
-          f"{len(res['signals'])} signals")
+          f"{len(res.signals)} signals, "
+          f"{res.windows - res.excluded} of {res.windows} windows airborne")
     for label, samples in figures.items():
         shares = [1 - st / tot for tot, st in samples]
         total, stepping = samples[int(np.argsort(shares)[len(shares) // 2])]  # the run with the median share

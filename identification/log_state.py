@@ -37,8 +37,8 @@ def ground_samples(log: FlightLog, vehicle: str, t_s: np.ndarray, idle_pwm_us: f
 
     Criteria: the log's ``landed`` flag where logged; quadrotor motors all at idle (at most ``idle_pwm_us`` +
     ``IDLE_MARGIN_US``); fixed wing below ``WING_GROUND_AIRSPEED_M_S``; height above the ground level below
-    ``GROUND_HEIGHT_M``, the ground level being the median altitude while on the ground by the other criteria
-    (no height criterion when the log never shows the vehicle on the ground).
+    ``GROUND_HEIGHT_M``, the ground level being the median altitude while on the ground by the other criteria,
+    else the first altitude of a log that starts at its lowest point (else no height criterion).
     """
     out: dict[str, np.ndarray] = {}
     if log.has("landed"):
@@ -50,10 +50,15 @@ def ground_samples(log: FlightLog, vehicle: str, t_s: np.ndarray, idle_pwm_us: f
         out[f"airspeed below {WING_GROUND_AIRSPEED_M_S:g} m/s"] = \
             log.signal("airspeed_m_s").resample(t_s) < WING_GROUND_AIRSPEED_M_S
     parked = np.any(list(out.values()), axis=0) if out else np.zeros(len(t_s), dtype=bool)
-    if log.has("altitude_m") and parked.any():
+    if log.has("altitude_m") and len(t_s):
         alt = log.signal("altitude_m").resample(t_s)
         limit = GROUND_HEIGHT_M.get(vehicle, 0.3)
-        out[f"below {limit:g} m above the ground level"] = alt - float(np.median(alt[parked])) < limit
+        if parked.any():
+            level: float | None = float(np.median(alt[parked]))
+        else:  # a log that starts at its lowest point starts on the ground (a take-off without idle)
+            level = float(alt[0]) if alt[0] - float(np.min(alt)) < limit else None
+        if level is not None:
+            out[f"below {limit:g} m above the ground level"] = alt - level < limit
     return out
 
 

@@ -186,6 +186,23 @@ def log_inputs(vehicle: str, log: FlightLog, t_s: np.ndarray, mapping: PwmMappin
     return {n: u[:, i] for i, n in enumerate(WING_INPUTS)}
 
 
+def other_inputs(host: FmuHost, log: FlightLog, t_s: np.ndarray, given: Mapping[str, np.ndarray]
+                 ) -> tuple[dict[str, np.ndarray], list[str]]:
+    """The FMU's remaining real inputs (e.g. battery voltage): from the log's signal of the same name (case
+    aside) where logged, else held at the FMU's start value; with a note for each one held."""
+    logged = {n.lower(): n for n in log.signals if "." not in n}
+    out, notes = {}, []
+    for name, v in host.variables.items():
+        if v.causality != "input" or v.type != "Real" or name in given:
+            continue
+        if name.lower() in logged:
+            out[name] = log.signal(logged[name.lower()]).resample(t_s)
+        else:
+            out[name] = np.full(len(t_s), host.start_value(name))
+            notes.append(f"FMU input {name} is not in the log: held at its start value {host.start_value(name):g}")
+    return out, notes
+
+
 def _check_inputs(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalMap],
                   overrides: Mapping[str, float]) -> str:
     vehicle = vehicle_of(host)
@@ -291,15 +308,22 @@ def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalM
         inputs = log_inputs(vehicle, log, t, mapping)
     except LogError as err:
         raise ValidationInputError(str(err)) from err
+    more, notes = other_inputs(host, log, t, inputs)
+    inputs.update(more)
     params = {n: host.start_value(n) for n, v in host.variables.items() if v.causality == "parameter"}
     params.update(overrides)
     measured = _measured(maps, log, t, host, params)
     n = len(t)
     step = n - 1 if not opts.window_s else max(1, round(opts.window_s * opts.rate_hz))
     edges = [*range(0, n - 1, step), n - 1]
-    included, ground = [True] * (len(edges) - 1), {}
-    if not opts.include_ground:
-        included, ground = _ground_windows(log, vehicle, t, edges, params.get("pwm_idle_us", 1100.0))
+    included, ground, on_ground = [True] * (len(edges) - 1), {}, None
+    idle = params.get("pwm_idle_us", 1100.0)
+    if not opts.include_ground and len(edges) == 2:  # one full-length replay: leave out the ground samples
+        masks = ground_samples(log, vehicle, t, idle)
+        on_ground = np.any(list(masks.values()), axis=0) if masks else None
+        ground = {f"{k} (samples)": int(v.sum()) for k, v in masks.items() if v.any()}
+    elif not opts.include_ground:
+        included, ground = _ground_windows(log, vehicle, t, edges, idle)
         if not any(included):
             raise ValidationInputError(f"{log_path}: every replay window has the vehicle on the ground "
                                        f"({'; '.join(ground)}); use --include-ground to score them anyway")
@@ -307,11 +331,17 @@ def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalM
                                                             forward_from_airspeed=vehicle == "fixed_wing")]
     extra = [a for a in ACCEL if a in host.variables and log.has(a)]
     model, first = _simulate_windows(host, t, inputs, maps, measured, starts, edges, included, extra, progress)
+    if on_ground is not None:
+        if on_ground[1:].all():
+            raise ValidationInputError(f"{log_path}: the vehicle is on the ground throughout; use --include-ground")
+        for v in model.values():
+            v[on_ground] = np.nan
     res = ReplayResult(fmu_identity(host, overrides), log_identity(log, log_path), t[1:],
                        {k: v[1:] for k, v in model.items()}, {k: v[1:] for k, v in measured.items()},
                        [(float(t[a]), float(t[b])) for a, b in itertools.pairwise(edges)],
                        [], {}, tuple(maps), overrides, included=list(included), ground=ground,
                        options=opts.model_dump())
+    res.log["warnings"] += notes
     _score(res, np.asarray(edges), {m.fmu: measured[m.fmu][edges[:-1]] for m in maps})
     res.horizons = _horizons(maps, measured, model, edges, included, opts)
     res.one_step = _one_step(log, t[edges[:-1]], first, extra)

@@ -275,6 +275,9 @@ def summary_lines(r: ValidationResult) -> list[str]:
         f"; {r.excluded} excluded with the vehicle on the ground ("
         + ", ".join(f"{why}: {n}" for why, n in r.ground.items()) + "); --include-ground scores them"
         if r.excluded else ""))
+    if r.ground and not r.excluded:
+        why = ", ".join(f"{k}: {n}" for k, n in r.ground.items())
+        out.append(f"  left out with the vehicle on the ground: {why}; --include-ground scores them")
     out += [f"  log warning: {w}" for w in r.warnings]
     out.append(f"  {'signal':<18} {'verdict':<7} {'skill/pers':>10} {'skill/mean':>10} {'RMSE':>9} {'Theil U':>7} "
                f"{'R^2':>7} {'windows pass/FAIL/n/a':>21}  reason")
@@ -297,3 +300,30 @@ def batch_summary(results: Sequence[ValidationResult]) -> str:
     n_fail = sum(r.status == "fail" for r in results)
     n_err = sum(r.status == "error" for r in results)
     return f"{len(results)} runs: {len(results) - n_fail - n_err} pass, {n_fail} fail, {n_err} error"
+
+
+def write_batch_report(results: Sequence[ValidationResult], root: Path) -> Path:
+    """``index.html`` (one row per run, failures with their reasons, links) and ``results.json`` in ``root``."""
+    from identification import report
+    from identification.jsonio import write_json
+
+    root.mkdir(parents=True, exist_ok=True)
+    rows = [r.as_dict() for r in results]
+    for row in rows:
+        if row.get("report"):
+            row["report"] = str(Path(row["report"]).resolve().relative_to(root.resolve()))
+    (root / "index.html").write_text(report.index_page(rows))
+    write_json(root / "results.json", rows)
+    return root / "index.html"
+
+
+def failure_lines(results: Sequence[ValidationResult]) -> list[str]:
+    """What failed, in plain words: one line per failing gated signal or erroring run (empty when all pass)."""
+    out = []
+    for r in results:
+        run = f"{Path(r.fmu).name} against {Path(r.log).name}"
+        if r.status == "error":
+            out.append(f"{run} could not be validated: {r.error}")
+        for s in r.failed:
+            out.append(f"{run}: {s} fails - {r.signals[s]['reason']}")
+    return out

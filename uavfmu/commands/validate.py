@@ -110,23 +110,13 @@ def _run_one(job: object, args: argparse.Namespace) -> int:
 def _run_batch(jobs: list, args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from identification import report
-    from identification.jsonio import write_json
-    from identification.validation_workflow import batch_summary, validate_batch
+    from identification.validation_workflow import batch_summary, validate_batch, write_batch_report
 
     with tqdm(total=len(jobs), desc="validate", disable=args.quiet) as bar:
         results = validate_batch(jobs, args.jobs, progress=lambda done, total: bar.update(1))
     for r in results:
         print("\n".join(r.lines()))
     print(batch_summary(results))
-    root = args.report
-    if root:
-        root.mkdir(parents=True, exist_ok=True)
-        rows = [r.as_dict() for r in results]
-        for row in rows:
-            if row.get("report"):
-                row["report"] = str(Path(row["report"]).resolve().relative_to(root.resolve()))
-        (root / "index.html").write_text(report.index_page(rows))
-        write_json(root / "results.json", rows)
-        print(f"report: {root / 'index.html'}")
+    if args.report:
+        print(f"report: {write_batch_report(results, args.report)}")
     return EXIT_FAIL if any(r.status != "pass" for r in results) else EXIT_PASS
