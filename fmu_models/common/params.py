@@ -86,7 +86,7 @@ def _shown(value: Any) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def _problem_line(err: Mapping[str, Any], cls: type, known: list[str]) -> str:
+def _problem_line(err: Mapping[str, Any], cls: type, known: list[str], retired: Mapping[str, str]) -> str:
     """One line for one schema error: field, value, and the allowed range or choices."""
     loc = [str(p) for p in err.get("loc", ())]
     name = ".".join(loc) or "(top level)"
@@ -94,6 +94,8 @@ def _problem_line(err: Mapping[str, Any], cls: type, known: list[str]) -> str:
     value = err.get("input")
     meta = {f.name: f.metadata for f in numeric_fields(cls)}.get(loc[0] if len(loc) == 1 else "")
     rng = f"[{meta['min']}, {meta['max']}] {meta['unit']}" if meta else ""
+    if kind == "extra_forbidden" and name in retired:
+        return f"{name} is no longer a parameter: {retired[name]}"
     if kind == "extra_forbidden":
         close = difflib.get_close_matches(name, known, n=1)
         return f"{name} is not a parameter" + (f" (did you mean {close[0]}?)" if close else "")
@@ -125,11 +127,13 @@ def _flatten(values: Mapping[str, Any], sections: tuple[str, ...], source: str) 
 
 
 def validate_params(
-    cls: type, values: Any, source: str, extra: ExtraFields | None = None, sections: tuple[str, ...] = ()
+    cls: type, values: Any, source: str, extra: ExtraFields | None = None, sections: tuple[str, ...] = (),
+    retired: Mapping[str, str] | None = None,
 ) -> dict[str, Any]:
     """Check a mapping of parameters of ``cls``; return the given ones (validated, numbers as floats).
 
-    Raises :class:`ParameterError` listing every problem (type, finiteness, range, unknown key) at once.
+    Raises :class:`ParameterError` listing every problem (type, finiteness, range, unknown key) at once;
+    ``retired`` maps a removed or renamed key to what to do instead (its message replaces "not a parameter").
     """
     if not isinstance(values, Mapping):
         raise ParameterError(source, [f"expected a table of parameters, found {type(values).__name__}"])
@@ -139,7 +143,8 @@ def validate_params(
         model = schema.model_validate(data)
     except PydanticValidationError as err:
         known = sorted(schema.model_fields)
-        raise ParameterError(source, [_problem_line(e, cls, known) for e in err.errors(include_url=False)]) from None
+        lines = [_problem_line(e, cls, known, retired or {}) for e in err.errors(include_url=False)]
+        raise ParameterError(source, lines) from None
     return {k: getattr(model, k) for k in model.model_fields_set}
 
 

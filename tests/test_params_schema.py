@@ -1,0 +1,93 @@
+"""Parameter files as strict schemas generated from the dataclass metadata (fmu_models.common.params)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fmu_models.common.errors import ParameterError
+from fmu_models.common.params import numeric_fields, read_json, validate_params
+from fmu_models.config import ConfigError
+from fmu_models.fixed_wing.params import FixedWingParams
+from fmu_models.quadrotor.params import QuadrotorParams
+
+
+def _problems(values: dict, cls: type = QuadrotorParams) -> list[str]:
+    with pytest.raises(ParameterError) as info:
+        cls.from_dict(values, source="p.json")
+    assert isinstance(info.value, ConfigError) and isinstance(info.value, ValueError)
+    assert "p.json" in str(info.value)
+    return info.value.problems
+
+
+@pytest.mark.parametrize("bad", [True, False, "1.14", None, [1.0], {"kg": 1.0}, math.nan, math.inf, -math.inf])
+def test_mass_of_the_wrong_kind_is_refused_naming_field_value_and_range(bad: object) -> None:
+    (line,) = _problems({"mass_kg": bad})
+    assert line.startswith("mass_kg = ") and "\n" not in line
+    assert "[0.05, 50.0] kg" in line
+
+
+@pytest.mark.parametrize("bad", [-1.14, 0.0, 1e-3, 51])
+def test_mass_out_of_range_is_refused(bad: float) -> None:
+    (line,) = _problems({"mass_kg": bad})
+    assert line == f"mass_kg = {float(bad)!r} is outside the allowed range [0.05, 50.0] kg"
+
+
+def test_every_problem_is_listed_at_once_with_a_did_you_mean() -> None:
+    lines = _problems({"mass_kg": True, "Jxx_kg_m2": "0.007", "arm_lenght_m": 0.2, "frame": "hexa"})
+    assert len(lines) == 4
+    assert "arm_lenght_m is not a parameter (did you mean arm_length_m?)" in lines
+    assert any(line.startswith("frame = 'hexa'") for line in lines)
+
+
+def test_integers_are_numbers_and_stored_as_floats() -> None:
+    p = QuadrotorParams.from_dict({"mass_kg": 2})
+    assert p.mass_kg == 2.0 and isinstance(p.mass_kg, float)
+
+
+def test_fixed_wing_propulsion_table_is_checked_like_the_top_level() -> None:
+    lines = _problems({"propulsion": {"D_prop_m": "big", "ncells": 1.5}, "C_ell_p": math.nan}, FixedWingParams)
+    assert len(lines) == 3 and any(line.startswith("D_prop_m = 'big' is not a number") for line in lines)
+    assert _problems({"propulsion": [1, 2]}, FixedWingParams) == ["propulsion = [1, 2] is not a table of parameters"]
+
+
+def test_a_retired_key_says_what_to_do() -> None:
+    @dataclasses.dataclass(frozen=True)
+    class P:
+        a: float = dataclasses.field(default=1.0, metadata={"unit": "m", "min": 0.0, "max": 2.0, "description": ""})
+
+    with pytest.raises(ParameterError) as info:
+        validate_params(P, {"old_a": 1.0}, "x.json", retired={"old_a": "renamed a"})
+    assert info.value.problems == ["old_a is no longer a parameter: renamed a"]
+
+
+def test_unreadable_files_name_the_file(tmp_path) -> None:
+    with pytest.raises(ParameterError, match=r"missing\.json"):
+        read_json(tmp_path / "missing.json")
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"quadrotor": {"mass_kg": 1.2,}}')
+    with pytest.raises(ParameterError, match=r"bad\.json.*\n.*not valid JSON"):
+        QuadrotorParams.load(bad)
+
+
+@settings(max_examples=150, deadline=None, derandomize=True)
+@given(st.data())
+def test_any_value_inside_the_declared_range_is_taken_exactly(data: st.DataObject) -> None:
+    cls = data.draw(st.sampled_from([QuadrotorParams, FixedWingParams]))
+    f = data.draw(st.sampled_from(numeric_fields(cls)))
+    lo, hi = f.metadata["min"], f.metadata["max"]
+    if cls is QuadrotorParams and f.name == "pwm_idle_us":
+        hi = 1400.0  # 4 x idle must stay below the thrust map's band (5800 us summed): a cross-field rule
+    value = data.draw(st.floats(lo if lo is not None else -1e6, hi if hi is not None else 1e6))
+    assert getattr(cls.from_dict({f.name: value}), f.name) == value
+
+
+def test_physical_lower_bounds_of_masses_and_inertias_are_positive() -> None:
+    for cls in (QuadrotorParams, FixedWingParams):
+        for f in numeric_fields(cls):
+            if f.name == "mass_kg" or (f.name.startswith("J") and f.name != "Jxz_kg_m2" and "rotor" not in f.name):
+                assert f.metadata["min"] > 0, f"{cls.__name__}.{f.name} allows {f.metadata['min']}"
