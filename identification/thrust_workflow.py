@@ -38,6 +38,7 @@ from identification.thrust_dataset import (
     ThrustDatasetConfig,
     build_thrust_dataset,
     interleaved_blocks,
+    interval_means,
 )
 
 N_MOTORS = 4
@@ -93,6 +94,7 @@ class Flight:
     pwm_us: np.ndarray
     volt_V: np.ndarray | None
     hover: np.ndarray
+    yaw_rate: np.ndarray | None = None
 
     @property
     def weight_N(self) -> float:
@@ -100,7 +102,8 @@ class Flight:
 
     def take(self, idx: np.ndarray) -> Flight:
         v = None if self.volt_V is None else self.volt_V[idx]
-        return Flight(self.spec, self.data.subset(idx), self.pwm_us[idx], v, self.hover[idx])
+        r = None if self.yaw_rate is None else self.yaw_rate[idx]
+        return Flight(self.spec, self.data.subset(idx), self.pwm_us[idx], v, self.hover[idx], r)
 
 
 @dataclass(frozen=True)
@@ -192,7 +195,23 @@ def load_flight(spec: FlightSpec, cfg: ThrustConfig) -> Flight:
     hover = np.abs(climb) < HOVER_CLIMB_M_S if climb is not None else np.ones(data.n_samples, bool)
     if not hover.any():
         hover = np.ones(data.n_samples, bool)
-    return Flight(spec, data, pwm, volt, hover)
+    return Flight(spec, data, pwm, volt, hover, _yaw_rate(log, data))
+
+
+def _yaw_rate(log: Any, data: ThrustDataset) -> np.ndarray | None:
+    """Mean body-z gyro [rad/s] over each PWM sample interval, or None when not logged."""
+    try:
+        g = log.signal("gyro_body_z_rad_s")
+    except KeyError:
+        return None
+    t, v = (g if isinstance(g, tuple) else (g.t_s, g.values))
+    t, v = np.asarray(t, float), np.asarray(v, float)
+    edges = np.empty(2 * data.n_samples)
+    edges[0::2] = data.time_s
+    edges[1::2] = data.time_s + data.sample_period_s
+    mean, _ = interval_means(t, v, edges)
+    r = mean[0::2]
+    return r if np.isfinite(r).mean() > 0.9 else None
 
 
 def flight_summary(f: Flight) -> dict[str, Any]:
@@ -361,8 +380,11 @@ def identify_thrust(cfg: ThrustConfig) -> ThrustResult:
     cal = {}
     if calibrate:
         cal = {f.spec.name: hover_scale(fmu_total_thrust(final, f.pwm_us, _volt(f, spec)), f) for f in flights}
+    yaw, yaw_note = _yaw(flights, final, spec, cal)
+    if yaw is not None:
+        final = dataclasses.replace(final, b_drag_N_m_s2=yaw.b_drag_N_m_s2)
     summaries = tuple(flight_summary(f) for f in flights)
-    warnings = list(notes)
+    warnings = list(notes) + ([yaw_note] if yaw_note else [])
     if not wins:
         best = min(pooled_b, key=pooled_b.get)  # type: ignore[arg-type]
         warnings.append(
@@ -372,8 +394,30 @@ def identify_thrust(cfg: ThrustConfig) -> ThrustResult:
     result = ThrustResult(final, tuple(results), pooled_m, pooled_b, wins, summaries, cal,
                           warnings=tuple(warnings))
     result.metrics.update(_metrics(result, cfg, spec, calibrate))
+    result.metrics["yaw"] = yaw.as_dict() if yaw is not None else {"skipped": yaw_note}
     _write(result, cfg)
     return result
+
+
+def _yaw(flights: list[Flight], p: QuadrotorParams, spec: ModelSpec, cal: dict[str, float]) -> tuple[Any, str]:
+    """Yaw torque per thrust from the flights' yaw response (None and a note when it cannot be done)."""
+    from identification.yaw_torque import identify_yaw_torque, spin_thrust, windows
+
+    if any(f.yaw_rate is None for f in flights):
+        return None, "yaw torque not identified: a flight has no gyro_body_z_rad_s"
+    ms = []
+    for f in flights:
+        per_motor = np.stack([fmu_total_thrust(p, f.pwm_us[:, [i] * N_MOTORS], _volt(f, spec)) / N_MOTORS
+                              for i in range(N_MOTORS)], axis=1) * cal.get(f.spec.name, 1.0)
+        ok = np.isfinite(f.yaw_rate)  # type: ignore[arg-type]
+        seg = np.where(ok, f.data.segment, -1)
+        ms += windows(f.data.time_s, seg, spin_thrust(per_motor), np.nan_to_num(f.yaw_rate),  # type: ignore[arg-type]
+                      f.data.sample_period_s)
+    ms = [m for m in ms if np.all(np.isfinite(m.y))]
+    try:
+        return identify_yaw_torque(ms, p), ""
+    except ValueError as err:
+        return None, f"yaw torque not identified: {err}"
 
 
 def _metrics(r: ThrustResult, cfg: ThrustConfig, spec: ModelSpec, calibrate: bool) -> dict[str, Any]:

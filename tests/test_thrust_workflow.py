@@ -215,3 +215,31 @@ def test_erle_calibrated_beats_constant_and_uncalibrated_reports_the_winner() ->
     if not raw.model_beats_baselines:
         assert raw.exit_code == 3 and any("LOSES" in w for w in raw.warnings)
     assert all(f.best_baseline in f.baselines for f in raw.folds)
+
+
+@pytest.mark.slow
+def test_erle_yaw_torque_replay_no_worse_than_holding_yaw_rate() -> None:
+    """Issue 13 item 6: c = b/k by output error with its CR bound; replaying PWM with it is no worse than
+    holding the logged yaw rate, also on a flight left out of the fit."""
+    from identification.thrust_workflow import _volt, load_flight, model_spec
+    from identification.yaw_torque import identify_yaw_torque, replay_rmse, spin_thrust, windows
+
+    r = identify_thrust(ThrustConfig(flights=_erle_flights(), calibrate="on"))
+    yaw = r.metrics["yaw"]
+    assert yaw["n_windows"] > 50 and 0.0 < yaw["crb_std_m"] < abs(yaw["torque_per_thrust_m"])
+    assert yaw["rmse_identified_rad_s"] <= yaw["rmse_hold_rad_s"] < yaw["rmse_default_rad_s"]
+    assert r.params.b_drag_N_m_s2 == pytest.approx(yaw["b_drag_N_m_s2"])
+    # held out: fit c on 218 and 104, replay 105 with it
+    cfg = ThrustConfig(flights=_erle_flights())
+    flights = [load_flight(f, cfg) for f in cfg.flights]
+    spec, _ = model_spec(flights, cfg)
+
+    def wins(f: object) -> list:
+        per_motor = np.stack([fmu_total_thrust(r.params, f.pwm_us[:, [i] * 4], _volt(f, spec)) / 4
+                              for i in range(4)], axis=1) * r.calibration[f.spec.name]
+        return windows(f.data.time_s, f.data.segment, spin_thrust(per_motor), f.yaw_rate, f.data.sample_period_s)
+
+    fit = identify_yaw_torque(wins(flights[0]) + wins(flights[1]), r.params)
+    held = wins(flights[2])
+    jzz = r.params.Jzz_kg_m2
+    assert replay_rmse(held, max(fit.torque_per_thrust_m, 0.0), jzz) <= replay_rmse(held, 0.0, jzz)
