@@ -14,10 +14,12 @@ def read_log(path: str | Path, *, channel_map: dict | str | Path | None = None, 
     names). For DataFlash, ``channel_map`` maps canonical names to output channels (``{"motor_1_pwm_us": 3}``)
     and overrides the log's SERVOn_FUNCTION mapping.
     """
-    if isinstance(channel_map, str | Path):
-        from identification.channel_map import load_channel_map
+    from identification.channel_map import load_channel_map, validate_channel_map
 
+    if isinstance(channel_map, str | Path):
         channel_map = load_channel_map(channel_map)
+    elif channel_map is not None:
+        channel_map = validate_channel_map(channel_map, "channel_map argument")
     p = Path(path)
     if not p.exists():
         raise LogError(f"{p}: no such file")
@@ -31,7 +33,11 @@ def read_log(path: str | Path, *, channel_map: dict | str | Path | None = None, 
     if kind in ("bin", "log", "dataflash"):
         from identification.readers.dataflash import read_dataflash
 
-        return read_dataflash(p, channel_map=channel_map)
+        columns = sorted(k for k, v in (channel_map or {}).items() if isinstance(v, str))
+        if columns:
+            raise LogError(f"{p}: channel map entries {', '.join(columns)} name CSV columns; a DataFlash log needs "
+                           "output channel numbers 1..32")
+        return read_dataflash(p, channel_map=channel_map)  # type: ignore[arg-type]
     if kind in ("ulg", "ulog"):
         from identification.readers.ulog import read_ulog
 
