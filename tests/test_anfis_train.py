@@ -219,3 +219,23 @@ def test_bad_data_is_named() -> None:
         train_anfis(np.full(100, 6000.0), y)
     with pytest.raises(AnfisTrainingError, match="fewer than the 12 consequent parameters"):
         train_anfis(x[:5], y[:5], AnfisTrainConfig(n_mfs=6, order=1))
+
+
+def test_per_motor_training_recovers_a_known_motor_curve() -> None:
+    """Total thrust of four different motors trains one map F with T_i = F(4 pwm_i)/4."""
+    from identification.anfis_train import is_monotone, train_anfis_motors
+
+    rng = np.random.default_rng(3)
+    pwm = rng.uniform(1200.0, 1900.0, (3000, 4))
+
+    def motor(p: np.ndarray) -> np.ndarray:
+        return 8.0 * ((p - 1000.0) / 1000.0) ** 2  # N per motor
+
+    y = motor(pwm).sum(axis=1) + 0.05 * rng.standard_normal(3000)
+    res = train_anfis_motors(pwm[:2400], y[:2400], AnfisTrainConfig(n_mfs=2, order=1, epochs=20),
+                             (pwm[2400:], y[2400:]))
+    grid = np.linspace(1250.0, 1850.0, 50)
+    got = predict(res.amap, 4 * grid) / 4
+    np.testing.assert_allclose(got, motor(grid), atol=0.05)
+    assert is_monotone(res.amap) and res.amap.input_range[0][0] >= 4 * 1200.0
+    assert res.check_rmse is not None and min(res.check_rmse) < 0.07
