@@ -1,24 +1,31 @@
-"""Cost of one 1 ms co-simulation step (set inputs + doStep + get outputs) through FMPy's FMU2Slave.
+"""Cost of one 1 ms co-simulation step (set inputs + doStep + get outputs), both vehicles, one run.
 
-For each of our FMUs, next to two references measured in the same run:
-(a) pythonfmu's floor: a trivial pythonfmu FMU with the same numbers of inputs and outputs, whose
-    ``do_step`` only copies one input to the outputs;
-(b) JSBSim's F450 quadrotor (``jsbsim`` from PyPI, a bench extra) stepped at 1 ms through its Python API,
-    setting 4 throttle commands and reading as many outputs as our FMU exposes.
-Targets (issue 2): each FMU <= 2.0x JSBSim's F450 step and <= 1.5x the pythonfmu floor.
+References measured in the same run: JSBSim's F450 quadrotor (``jsbsim``, a bench extra) stepped at 1 ms
+through its Python API with 4 throttle commands and as many outputs as our FMU exposes, and a do-nothing
+native FMU (the same FMI layer over a model that copies one input) with the same numbers of inputs and outputs.
 
-Run: ``.venv/bin/python bench/fmu_step.py [--steps N]``.
+Per vehicle:
+(a) native FMU through FMPy's ``fmi2SetReal``/``fmi2DoStep``/``fmi2GetReal`` with ctypes arrays allocated once
+    (how a tuned host and our HIL loop drive it): target <= 0.5x JSBSim;
+(b) native FMU through FMPy's convenience API (``setReal``/``getReal`` with lists): target <= 1.3x the
+    do-nothing native FMU through the same API;
+(c) the C host (tests/native_host.c, no Python): target <= 2 us per step;
+and, for comparison, the pythonfmu backend through the convenience API.
+
+Run: ``.venv/bin/python bench/fmu_step.py [--steps N]``. Exit status 1 when a target is missed.
 """
 
 from __future__ import annotations
 
 import argparse
+import ctypes
 import statistics
+import subprocess
 import sys
 import tempfile
-import textwrap
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
@@ -26,53 +33,68 @@ from fmpy.fmi2 import FMU2Slave
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-TRIVIAL = '''
-from pythonfmu import Fmi2Causality, Fmi2Slave, Real
+from fmu_models.common.model import Layout, Variable  # noqa: E402
+from fmu_models.fmi import fmuzip, native_build, zigcc  # noqa: E402
+from fmu_models.fmi.fmus import build_fmus  # noqa: E402
+
+CASES = {
+    "quadrotor": {f"pwm_{i}_us": 1530.0 for i in range(1, 5)},
+    "fixed_wing": {"aileron_rad": 0.0, "elevator_rad": -0.1, "rudder_rad": 0.0, "throttle": 0.6},
+}
+NULL_MODEL_C = """#include "uavfmu_model.h"
+int uavfmu_initialize(const double* u, const double* p, double* x0, double* y0) {
+  (void)p; x0[0] = 0.0; for (int i = 0; i < uavfmu_model.ny; ++i) y0[i] = u[0]; return 0; }
+int uavfmu_advance(const double* x, const double* u, const double* p, const double* h, double* x_out, double* y) {
+  (void)p; (void)h; x_out[0] = x[0]; y[0] = u[0]; return 0; }
+"""
 
 
-class Floor(Fmi2Slave):
-    """{n_in} inputs, {n_out} outputs, do_step copies."""
-
-    def __init__(self, **kwargs):
-        super().__init__(**kwargs)
-        self.u = [1000.0] * {n_in}
-        self.y = [0.0] * {n_out}
-        for i in range({n_in}):
-            self.register_variable(Real(f"u{{i}}", causality=Fmi2Causality.input, start=1000.0,
-                                        getter=lambda i=i: self.u[i], setter=lambda v, i=i: self.u.__setitem__(i, v)))
-        for i in range({n_out}):
-            self.register_variable(Real(f"y{{i}}", causality=Fmi2Causality.output, getter=lambda i=i: self.y[i]))
-
-    def do_step(self, current_time, step_size):
-        self.y[0] = self.u[0]
-        return True
-'''
-
-
-def build_floor(n_in: int, n_out: int, out_dir: Path) -> Path:
-    from pythonfmu import FmuBuilder
-
-    out_dir.mkdir(parents=True, exist_ok=True)
-    script = out_dir / "floor.py"
-    script.write_text(textwrap.dedent(TRIVIAL.format(n_in=n_in, n_out=n_out)))
-    return Path(FmuBuilder.build_FMU(script, dest=out_dir))
+def build_null_fmu(n_in: int, n_out: int, out_dir: Path) -> Path:
+    """A native FMU whose step only copies input 0 to output 0 (the FMI layer's own cost)."""
+    model = SimpleNamespace(
+        name="null", description="do-nothing reference for bench/fmu_step.py",
+        states=Layout((Variable("x", "1", "unused state"),)),
+        inputs=Layout(tuple(Variable(f"u{i}", "1", "input", start=1000.0) for i in range(n_in))),
+        params=Layout((Variable("step_internal_s", "s", "internal step", start=0.001, min=1e-6, max=1.0),)),
+        outputs=Layout(tuple(Variable(f"y{i}", "1", "output") for i in range(n_out))),
+        state_limits=(1e300,),
+    )
+    guid = f"{{null-{n_in}-{n_out}}}"
+    src = out_dir / "null_src"
+    src.mkdir(parents=True, exist_ok=True)
+    (src / "null_model.c").write_text(NULL_MODEL_C)
+    (src / "null_description.c").write_text(native_build.description_c(model, guid, {}))
+    for h in (*native_build.FMI_HEADERS, "uavfmu_model.h", "fmi2_cs.c"):
+        base = native_build.NATIVE / ("include" if h in native_build.FMI_HEADERS else "") / h
+        (src / h).write_bytes(base.read_bytes())
+    lib = zigcc.compile_shared([src / "fmi2_cs.c", src / "null_model.c", src / "null_description.c"], [src],
+                               zigcc.PLATFORMS[0], out_dir / "null.so")
+    files = {"modelDescription.xml": native_build.model_description(model, guid, fmuzip.iso_date(0)),
+             "binaries/linux64/null.so": lib.read_bytes()}
+    return fmuzip.write_fmu(out_dir / "null.fmu", files, 0)
 
 
-def time_fmu(fmu: Path, inputs: dict[str, float], outputs: list[str], steps: int, repeats: int = 5) -> float:
-    """Median seconds per step over ``repeats`` runs of ``steps`` steps."""
+def open_slave(fmu: Path) -> tuple[FMU2Slave, dict[str, int]]:
     md = read_model_description(str(fmu))
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    s = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu)),
-                  modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bench")
+    s = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu)), modelIdentifier=md.coSimulation.modelIdentifier,
+                  instanceName="bench")
     s.instantiate()
     s.setupExperiment(startTime=0.0)
     s.enterInitializationMode()
     s.exitInitializationMode()
-    in_vr = [vr[n] for n in inputs]
-    in_val = list(inputs.values())
-    out_vr = [vr[n] for n in outputs]
-    t = 0.0
-    runs = []
+    return s, {v.name: v.valueReference for v in md.modelVariables}
+
+
+def real_outputs(fmu: Path) -> list[str]:
+    md = read_model_description(str(fmu))
+    return [v.name for v in md.modelVariables if v.causality == "output" and v.type == "Real"]
+
+
+def time_convenience(fmu: Path, inputs: dict[str, float], outputs: list[str], steps: int, repeats: int) -> float:
+    """Median s per step through FMPy's ``setReal``/``doStep``/``getReal`` with Python lists."""
+    s, vr = open_slave(fmu)
+    in_vr, in_val, out_vr = [vr[n] for n in inputs], list(inputs.values()), [vr[n] for n in outputs]
+    t, runs = 0.0, []
     for _ in range(repeats):
         t0 = time.perf_counter()
         for _ in range(steps):
@@ -86,7 +108,48 @@ def time_fmu(fmu: Path, inputs: dict[str, float], outputs: list[str], steps: int
     return statistics.median(runs)
 
 
-def time_jsbsim(n_out: int, steps: int, repeats: int = 5) -> float:
+def time_fast(fmu: Path, inputs: dict[str, float], outputs: list[str], steps: int, repeats: int) -> float:
+    """Median s per step through FMPy's ``fmi2SetReal``/``fmi2DoStep``/``fmi2GetReal``, arrays made once."""
+    s, vr = open_slave(fmu)
+    n_in, n_out = len(inputs), len(outputs)
+    in_vr = (ctypes.c_uint * n_in)(*[vr[n] for n in inputs])
+    in_val = (ctypes.c_double * n_in)(*inputs.values())
+    out_vr = (ctypes.c_uint * n_out)(*[vr[n] for n in outputs])
+    out_val = (ctypes.c_double * n_out)()
+    c, set_real, do_step, get_real = s.component, s.fmi2SetReal, s.fmi2DoStep, s.fmi2GetReal
+    t, runs = 0.0, []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            set_real(c, in_vr, n_in, in_val)
+            do_step(c, t, 0.001, 1)
+            get_real(c, out_vr, n_out, out_val)
+            t += 0.001
+        runs.append((time.perf_counter() - t0) / steps)
+    s.terminate()
+    s.freeInstance()
+    return statistics.median(runs)
+
+
+def time_c_host(fmu: Path, inputs: dict[str, float], outputs: list[str], steps: int, work: Path) -> float:
+    """Median s per step of the C host (tests/native_host.c) over 7 runs after one untimed run."""
+    exe = work / "native_host"
+    if not exe.exists():
+        cmd = [*zigcc.zig_cc(), "-target", "x86_64-linux-gnu", "-O2", f"-I{native_build.NATIVE / 'include'}",
+               "-o", str(exe), str(REPO / "tests" / "native_host.c"), "-ldl"]
+        subprocess.run(cmd, check=True, capture_output=True)
+    md = read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    d = Path(extract(str(fmu)))
+    proc = subprocess.run(
+        [str(exe), str(d / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"), md.guid,
+         d.as_uri(), str(steps), "0.001", ",".join(f"{vr[k]}={v}" for k, v in inputs.items()),
+         ",".join(str(vr[n]) for n in outputs), str(work / "host.csv"), "8"],
+        capture_output=True, text=True, check=True)
+    return float(proc.stdout.split()[-1]) * 1e-6
+
+
+def time_jsbsim(n_out: int, steps: int, repeats: int) -> float:
     import jsbsim
 
     fdm = jsbsim.FGFDMExec(None)
@@ -113,38 +176,59 @@ def time_jsbsim(n_out: int, steps: int, repeats: int = 5) -> float:
     return statistics.median(runs)
 
 
+def measure(name: str, native: Path, python: Path, work: Path, steps: int) -> dict[str, float]:
+    """Seconds per step of every variant of one vehicle, and its references."""
+    inputs = CASES[name]
+    outputs = real_outputs(native)
+    null = build_null_fmu(len(inputs), len(outputs), work / f"null_{name}")
+    null_in = {f"u{i}": v for i, v in enumerate(inputs.values())}
+    null_out = [f"y{i}" for i in range(len(outputs))]
+    try:
+        jsb = time_jsbsim(len(outputs), steps, 5)
+    except ImportError:
+        jsb = float("nan")
+    return {
+        "outputs": len(outputs),
+        "fast": time_fast(native, inputs, outputs, steps, 5),
+        "conv": time_convenience(native, inputs, outputs, steps, 5),
+        "null_conv": time_convenience(null, null_in, null_out, steps, 5),
+        "null_fast": time_fast(null, null_in, null_out, steps, 5),
+        "host": time_c_host(native, inputs, outputs, steps, work),
+        "python": time_convenience(python, inputs, outputs, steps, 5),
+        "jsbsim": jsb,
+    }
+
+
+def report(results: dict[str, dict[str, float]]) -> int:
+    us = 1e6
+    print(f"{'FMU':<11} {'out':>4} {'(a) fast':>9} {'JSBSim':>8} {'a/JSB':>6} {'(b) conv':>9} {'null conv':>10} "
+          f"{'b/null':>7} {'(c) C host':>11} {'null fast':>10} {'pythonfmu':>10}   (us per 1 ms step)")
+    missed = []
+    for name, r in results.items():
+        a, b = r["fast"] / r["jsbsim"], r["conv"] / r["null_conv"]
+        print(f"{name:<11} {r['outputs']:>4} {r['fast'] * us:>9.2f} {r['jsbsim'] * us:>8.2f} {a:>6.2f} "
+              f"{r['conv'] * us:>9.2f} {r['null_conv'] * us:>10.2f} {b:>7.2f} {r['host'] * us:>11.3f} "
+              f"{r['null_fast'] * us:>10.2f} {r['python'] * us:>10.2f}")
+        missed += [f"{name} (a) {a:.2f}x JSBSim > 0.5x"] if not a <= 0.5 else []
+        missed += [f"{name} (b) {b:.2f}x null > 1.3x"] if not b <= 1.3 else []
+        missed += [f"{name} (c) {r['host'] * us:.2f} us > 2 us"] if not r["host"] * us <= 2.0 else []
+    print("targets: (a) <= 0.5x JSBSim, (b) <= 1.3x the do-nothing native FMU, (c) <= 2 us per step")
+    print("MISSED: " + "; ".join(missed) if missed else "all targets met")
+    return 1 if missed else 0
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=4000)
     args = parser.parse_args()
-    from build_fmus import build
-
+    if not 100 <= args.steps <= 1_000_000:
+        parser.error(f"--steps {args.steps} is outside [100, 1000000]")
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
-        fmus = {p.stem: p for p in build(None, out)}
-        cases = {
-            "quadrotor": {f"pwm_{i}_us": 1530.0 for i in range(1, 5)},
-            "fixed_wing": {"aileron_rad": 0.0, "elevator_rad": -0.1, "rudder_rad": 0.0, "throttle": 0.6},
-        }
-        print(f"{'FMU':<11} {'outputs':>7} {'ours us':>8} {'floor us':>9} {'JSBSim us':>10} "
-              f"{'/floor':>7} {'/JSBSim':>8}")
-        for name, inputs in cases.items():
-            if name not in fmus:
-                continue
-            md = read_model_description(str(fmus[name]))
-            outputs = [v.name for v in md.modelVariables if v.causality == "output" and v.type == "Real"]
-            floor = build_floor(len(inputs), len(outputs), out / f"floor_{name}")
-            floor_inputs = {f"u{i}": v for i, v in enumerate(inputs.values())}
-            t_ours = time_fmu(fmus[name], inputs, outputs, args.steps)
-            t_floor = time_fmu(floor, floor_inputs, [f"y{i}" for i in range(len(outputs))], args.steps)
-            try:
-                t_jsb = time_jsbsim(len(outputs), args.steps)
-            except ImportError:
-                t_jsb = float("nan")
-            print(f"{name:<11} {len(outputs):>7} {t_ours * 1e6:>8.1f} {t_floor * 1e6:>9.1f} {t_jsb * 1e6:>10.1f} "
-                  f"{t_ours / t_floor:>7.2f} {t_ours / t_jsb:>8.2f}")
-        print("targets: /floor <= 1.5, /JSBSim <= 2.0")
-    return 0
+        native = {p.stem: p for p in build_fmus(None, out / "native").fmus}
+        python = {p.stem: p for p in build_fmus(None, out / "python", backend="python").fmus}
+        results = {name: measure(name, native[name], python[name], out, args.steps) for name in CASES}
+    return report(results)
 
 
 if __name__ == "__main__":
