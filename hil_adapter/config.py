@@ -115,17 +115,24 @@ def load_hil_config(path: str | Path | None) -> HilConfig:
         try:
             sensor_suite(cfg)
         except (ValueError, TypeError) as err:
-            problems.append(f"[sensors] {err}")
+            problems += _lines("[sensors]", err)
     if cfg.mapping is not None:
         from fmu_models.signals.pwm_mapping import PwmMapping
 
         try:
             PwmMapping.from_dict(cfg.mapping, "[mapping]")
         except (ValueError, TypeError, AttributeError) as err:
-            problems.append(str(err))
+            problems += _lines("[mapping]", err)
     if problems:
         raise ConfigError(str(path), problems)
     return cfg
+
+
+def _lines(section: str, err: Exception) -> list[str]:
+    """One line per problem of a section checked by its own module (a ``ConfigError`` already has them)."""
+    if isinstance(err, ConfigError):
+        return [f"{section} {p}" for p in err.problems]
+    return [f"{section} " + " ".join(str(err).split())]
 
 
 def sensor_suite(cfg: HilConfig) -> Any:

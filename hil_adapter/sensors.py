@@ -229,23 +229,36 @@ class DiffPressureConfig(_Checked):
 @dataclass(frozen=True)
 class GpsConfig(_Checked):
     """GPS receiver: fix rate [Hz], latency [s] (a fix delivered at t describes the state at t - latency),
-    the reported accuracies eph/epv [m], fix type (MAVLink GPS_FIX_TYPE: 3 = 3D), satellites, and white
-    noise std of the position (horizontal per axis / vertical) [m] and of the NED velocity [m/s]."""
+    the reported accuracies eph/epv [m], fix type (MAVLink GPS_FIX_TYPE: 3 = 3D), satellites.
+
+    Position error = a first-order Gauss-Markov process per axis (what receivers show: errors that wander
+    slowly, from atmosphere and multipath) plus white noise: ``e(t+dt) = exp(-dt/tau) e(t) + std *
+    sqrt(1 - exp(-2 dt/tau)) n``, stationary std ``pos_gm_std_h_m`` (north and east) / ``pos_gm_std_v_m``
+    (down) [m], time constant ``pos_gm_tau_s`` [s], started in its stationary distribution. The defaults
+    follow PX4's Gazebo GPS plugin: correlation time 60 s; its random walk of 2 (horizontal) and 4 (vertical)
+    (m/s)/sqrt(Hz) at 5 Hz settles to a std of about 1 m and 2 m; its white noise (2e-4 m/sqrt(Hz)) is
+    negligible. White position noise (``pos_noise_std_*``) trips PX4's preflight drift check, so it is 0 by
+    default. NED velocity: white noise std [m/s]."""
 
     rate_hz: float = 5.0
     latency_s: float = 0.1
     eph_m: float = 1.0
-    epv_m: float = 1.5
+    epv_m: float = 2.0
     fix_type: int = 3
     satellites: int = 10
-    pos_noise_std_h_m: float = 0.5
-    pos_noise_std_v_m: float = 0.8
+    pos_gm_std_h_m: float = 1.0
+    pos_gm_std_v_m: float = 2.0
+    pos_gm_tau_s: float = 60.0
+    pos_noise_std_h_m: float = 0.0
+    pos_noise_std_v_m: float = 0.0
     vel_noise_std_m_s: float = 0.05
     SECTION: ClassVar[str] = "gps"
     SPEC: ClassVar[Mapping[str, _Spec]] = {
         "rate_hz": _Spec("float", 0.1, 100.0, "Hz"), "latency_s": _Spec("float", 0.0, 1.0, "s"),
         "eph_m": _Spec("float", 0.0, 600.0, "m"), "epv_m": _Spec("float", 0.0, 600.0, "m"),
         "fix_type": _Spec("int", 0, 8, ""), "satellites": _Spec("int", 0, 255, ""),
+        "pos_gm_std_h_m": _Spec("float", 0.0, 100.0, "m"), "pos_gm_std_v_m": _Spec("float", 0.0, 100.0, "m"),
+        "pos_gm_tau_s": _Spec("float", 0.1, 3600.0, "s"),
         "pos_noise_std_h_m": _Spec("float", 0.0, 100.0, "m"), "pos_noise_std_v_m": _Spec("float", 0.0, 100.0, "m"),
         "vel_noise_std_m_s": _Spec("float", 0.0, 10.0, "m/s")}
 
@@ -293,7 +306,8 @@ class SensorConfig:
         d = cls()
         return cls(accel=replace(d.accel, **zero), gyro=replace(d.gyro, **zero), mag=replace(d.mag, **zero),
                    baro=replace(d.baro, **zero), diff_pressure=replace(d.diff_pressure, **zero),
-                   gps=replace(d.gps, pos_noise_std_h_m=0.0, pos_noise_std_v_m=0.0, vel_noise_std_m_s=0.0))
+                   gps=replace(d.gps, pos_noise_std_h_m=0.0, pos_noise_std_v_m=0.0, vel_noise_std_m_s=0.0,
+                               pos_gm_std_h_m=0.0, pos_gm_std_v_m=0.0))
 
 
 # ------------------------------------------------------------------------------------------ frames
@@ -401,6 +415,10 @@ class SensorSuite:
                                        "baro": 0.0, "diff_pressure": 0.0}
         self._bias3 = {name: [float(v) for v in np.broadcast_to(getattr(self.config, name).bias, 3)]
                        for name in ("accel", "gyro", "mag")}
+        gps = self.config.gps
+        z = self._normals("gps", 3)  # the Gauss-Markov errors start in their stationary distribution
+        self._gps_err = [gps.pos_gm_std_h_m * z[0], gps.pos_gm_std_h_m * z[1], gps.pos_gm_std_v_m * z[2]]
+        self._gps_err_t: float | None = None
         self._restart_clock()
 
     def _restart_clock(self) -> None:
@@ -453,16 +471,17 @@ class SensorSuite:
         # next fix on the fixed grid t0 + k / rate (one fix per sample at most, missed slots are skipped)
         self._gps_k = math.floor((t_s - self._gps_t0 + _TIME_EPS_S) * cfg.rate_hz) + 1
         s = self._state_at(target)
-        z = self._normals("gps", 6)
+        z = self._normals("gps", 9)
+        err_n, err_e, err_d = self._gauss_markov(s.t_s, z[6:9])
         r_m, r_n = (float(r) for r in radii_of_curvature(math.radians(s.lat_deg)))
         cos_lat = max(math.cos(math.radians(s.lat_deg)), 1e-9)
-        lat = s.lat_deg + math.degrees(cfg.pos_noise_std_h_m * float(z[0]) / (r_m + s.height_m))
-        lon = _wrap_deg(s.lon_deg + math.degrees(cfg.pos_noise_std_h_m * float(z[1]) /
-                                                 ((r_n + s.height_m) * cos_lat)))
-        if cfg.pos_noise_std_h_m == 0.0:
+        north, east = err_n + cfg.pos_noise_std_h_m * z[0], err_e + cfg.pos_noise_std_h_m * z[1]
+        lat = s.lat_deg + math.degrees(north / (r_m + s.height_m))
+        lon = _wrap_deg(s.lon_deg + math.degrees(east / ((r_n + s.height_m) * cos_lat)))
+        if east == 0.0:
             lon = s.lon_deg  # exact (wrapping may change the last bit)
-        alt = s.height_m + cfg.pos_noise_std_v_m * float(z[2])
-        vn, ve, vd = (v + cfg.vel_noise_std_m_s * float(n) for v, n in zip(s.vel_ned_m_s, z[3:], strict=True))
+        alt = s.height_m - err_d + cfg.pos_noise_std_v_m * float(z[2])
+        vn, ve, vd = (v + cfg.vel_noise_std_m_s * float(n) for v, n in zip(s.vel_ned_m_s, z[3:6], strict=True))
         speed = math.hypot(vn, ve)
         course = math.degrees(math.atan2(ve, vn)) % 360.0 if speed > 0.0 else 0.0
         if course >= 360.0:  # -tiny % 360 rounds to 360.0
@@ -470,6 +489,18 @@ class SensorSuite:
         return GpsFix(time_s=s.t_s, lat_deg=lat, lon_deg=lon, alt_msl_m=alt, vel_ned_m_s=(vn, ve, vd),
                       ground_speed_m_s=speed, course_deg=course, eph_m=cfg.eph_m, epv_m=cfg.epv_m,
                       fix_type=cfg.fix_type, satellites=cfg.satellites)
+
+    def _gauss_markov(self, t_s: float, z: list[float]) -> list[float]:
+        """The position error [m] (north, east, down) at fix time ``t_s``, advanced from the last fix."""
+        cfg, e = self.config.gps, self._gps_err
+        if self._gps_err_t is not None and t_s > self._gps_err_t:
+            phi = math.exp(-(t_s - self._gps_err_t) / cfg.pos_gm_tau_s)
+            drive = math.sqrt(max(1.0 - phi * phi, 0.0))
+            e[0] = phi * e[0] + cfg.pos_gm_std_h_m * drive * z[0]
+            e[1] = phi * e[1] + cfg.pos_gm_std_h_m * drive * z[1]
+            e[2] = phi * e[2] + cfg.pos_gm_std_v_m * drive * z[2]
+        self._gps_err_t = t_s
+        return e
 
     def _state_at(self, target: float) -> _GpsState:
         """The state at ``target`` from the history, linearly interpolated; the oldest one before it."""

@@ -48,7 +48,8 @@ def noise_free(**sections) -> SensorConfig:
 
 def quiet_gps(**settings) -> GpsConfig:
     """A GPS without position and velocity noise."""
-    return GpsConfig(**{"pos_noise_std_h_m": 0.0, "pos_noise_std_v_m": 0.0, "vel_noise_std_m_s": 0.0, **settings})
+    return GpsConfig(**{"pos_noise_std_h_m": 0.0, "pos_noise_std_v_m": 0.0, "vel_noise_std_m_s": 0.0,
+                        "pos_gm_std_h_m": 0.0, "pos_gm_std_v_m": 0.0, **settings})
 
 
 # ------------------------------------------------------------------------------------------ noise-free physics
@@ -179,7 +180,8 @@ def test_gps_latency_between_samples_interpolates() -> None:
 
 def test_gps_fix_fields() -> None:
     cfg = GpsConfig(rate_hz=10.0, latency_s=0.0, eph_m=2.5, epv_m=4.0, fix_type=3, satellites=12,
-                    pos_noise_std_h_m=0.0, pos_noise_std_v_m=0.0, vel_noise_std_m_s=0.0)
+                    pos_noise_std_h_m=0.0, pos_noise_std_v_m=0.0, vel_noise_std_m_s=0.0, pos_gm_std_h_m=0.0,
+                    pos_gm_std_v_m=0.0)
     suite = SensorSuite(noise_free(gps=cfg))
     fix = suite.sample(0.0, outputs(vel_north_m_s=3.0, vel_east_m_s=4.0, height_m=432.1)).gps
     assert fix is not None
@@ -239,7 +241,7 @@ def test_white_noise_has_the_configured_std() -> None:
         baro=replace(SensorConfig.noise_free().baro, noise_std=3.0),
         diff_pressure=replace(SensorConfig.noise_free().diff_pressure, noise_std=0.7),
         gps=GpsConfig(rate_hz=100.0, latency_s=0.0, pos_noise_std_h_m=1.5, pos_noise_std_v_m=2.5,
-                      vel_noise_std_m_s=0.2),
+                      vel_noise_std_m_s=0.2, pos_gm_std_h_m=0.0, pos_gm_std_v_m=0.0),
     )
     suite = SensorSuite(cfg, seed=11)
     truth = outputs(airspeed_m_s=0.0)
@@ -369,3 +371,29 @@ def test_optional_and_unused_outputs_may_be_absent() -> None:
     for name in ("roll_rad", "pitch_rad", "yaw_rad", "altitude_m"):
         del out[name]
     assert SensorSuite().sample(0.0, out).diff_pressure_pa == 0.0
+
+
+def test_gps_position_error_is_gauss_markov_with_the_configured_time_constant() -> None:
+    """At rest, the GPS position error's autocorrelation at lag L is exp(-L / tau) (first-order Gauss-Markov),
+    its std the configured one; the time constant fitted from the lag-1 correlation matches tau."""
+    tau, rate = 2.0, 10.0
+    gps = quiet_gps(rate_hz=rate, latency_s=0.0, pos_gm_std_h_m=1.2, pos_gm_std_v_m=2.0, pos_gm_tau_s=tau)
+    suite = SensorSuite(noise_free(gps=gps), seed=4)
+    r_m = 6.36e6  # meridian radius of curvature near 47 deg, for degrees -> metres (only ratios matter)
+    north, down, rest = [], [], outputs()
+    n = round(1000 * tau * rate)  # 1000 time constants: the correlation estimates are good to about 0.05
+    for k in range(n):
+        fix = suite.sample(k / rate, rest).gps
+        north.append(math.radians(fix.lat_deg - rest["lat_deg"]) * r_m)
+        down.append(rest["height_m"] - fix.alt_msl_m)
+    for err, std in ((np.array(north), 1.2), (np.array(down), 2.0)):
+        err = err - err.mean()
+        assert np.std(err) == pytest.approx(std, rel=0.1)
+        for lag_s in (0.5 * tau, tau, 2 * tau):
+            lag = round(lag_s * rate)
+            rho = np.dot(err[:-lag], err[lag:]) / np.dot(err, err)
+            assert rho == pytest.approx(math.exp(-lag_s / tau), abs=0.06), lag_s
+        rho1 = np.dot(err[:-1], err[1:]) / np.dot(err, err)
+        assert -1.0 / rate / math.log(rho1) == pytest.approx(tau, rel=0.1)
+    white = np.diff(north)  # not white noise: consecutive fixes differ by far less than the std
+    assert np.std(white) < 0.4 * 1.2
