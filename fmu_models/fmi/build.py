@@ -134,6 +134,7 @@ def _shim_files(fmu: Path, model_identifier: str, compiler: str | None) -> dict[
         if arc not in z.namelist():
             return {}
         original = z.read(arc)
+        rows = shim.variable_table(z.read("modelDescription.xml"))
     with tempfile.TemporaryDirectory() as tmp:
-        lib = shim.build_shim(model_identifier, Path(tmp), compiler)
+        lib = shim.build_shim(model_identifier, Path(tmp), compiler, rows)
         return {arc: lib.read_bytes(), f"binaries/linux64/{model_identifier}_pythonfmu.so": original}

@@ -1,19 +1,41 @@
-"""A forwarding FMI 2.0 binary in front of pythonfmu's, so model errors reach the importer as fmi2Error.
+"""A guarding FMI 2.0 binary in front of pythonfmu's: the FMI state machine and every argument are checked
+before pythonfmu sees a call, so a wrong call is an fmi2Error with a logged message, never a crash.
 
-pythonfmu's export library returns fmi2Discard when ``do_step`` returns False and fmi2Fatal for any Python
-exception, never fmi2Error (see PythonFMU's ``fmi_functions.cpp``). The FMI 2.0 standard asks for
-fmi2Error when a step cannot be computed but the instance may be reset or freed, which is exactly the
-case of a NaN input or a diverging integration. No library offers such a shim, so this generates one:
-``<id>.so`` loads pythonfmu's library (shipped beside it as ``<id>_pythonfmu.so``) and forwards every call,
-mapping doStep's fmi2Discard (our slave returns False only on an error it has logged) to fmi2Error.
-The slave never raises into pythonfmu: pythonfmu's handling of a Python exception corrupts the host. pythonfmu forwards
-log messages only when logging is on, so the shim turns it on: the slave logs nothing but warnings and
-errors, which FMI 2.0 expects to reach the importer whatever its debug-logging setting.
+``<id>.so`` (this shim) loads pythonfmu's library (shipped beside it as ``<id>_pythonfmu.so``) and forwards
+the calls that pass its checks. Why a C layer, and what it protects against in pythonfmu 0.7's export library
+(``PySlaveInstance.cpp``, ``fmi2.cpp``; all reproduced here, see tests/robustness/test_fmi_sequences.py):
+
+* Any Python exception in the slave (a bad value reference, a value of the wrong type, setting an output, a
+  foreign FMU state) makes pythonfmu return fmi2Fatal after *releasing the slave's Python objects* in
+  ``handle_py_exception``; ``fmi2FreeInstance`` then releases them a second time (``cleanPyObject`` runs again
+  in the destructor) and ``fmi2Reset`` re-releases the dead instance: a double ``Py_DECREF`` of the slave
+  class and instance, i.e. heap corruption and a segfault two calls later. So the shim refuses every call that
+  could raise (value references and types against the modelDescription table compiled in, causality of set
+  variables, NULL arrays, the FMI 2.0 state machine, ``doStep`` time continuity, FMU-state ownership and
+  serialised-state integrity). If pythonfmu still reports fmi2Fatal, the instance is quarantined: every call
+  but ``fmi2FreeInstance`` returns fmi2Error, and free does not hand the released instance back to
+  pythonfmu (a deliberate leak of one broken instance instead of a double free).
+* pythonfmu keeps its interpreter guard in a static ``std::shared_ptr`` *and* resets it from an
+  ``__attribute__((destructor))``. At ``exit()`` the C++ static destructor runs first (it is an atexit
+  handler), then ``_dl_fini`` runs the library destructor on the destroyed ``shared_ptr``: a decrement in
+  freed memory (the malloc chunk's list pointer when the block sits in a bin), and a virtual call plus a
+  second ``delete`` when the stale count reads 1. That is the intermittent ``corrupted double-linked list``
+  abort at the exit of a process that loaded a pythonfmu FMU (issue 14). The shim registers an exit handler
+  *after* loading pythonfmu's library (exit handlers run in reverse order of registration, so it runs
+  before pythonfmu's static destructor) that releases the guard through pythonfmu's own
+  ``finalizePythonInterpreter``; both later releases then see an empty pointer.
+* pythonfmu returns fmi2Discard when ``do_step`` returns False; the FMI 2.0 standard asks for fmi2Error when a
+  step cannot be computed (NaN input, divergence) but the instance may be reset or freed: mapped here.
+
+pythonfmu forwards log messages only when logging is on, so the shim turns it on: the slave logs nothing but
+warnings and errors, which FMI 2.0 expects to reach the importer whatever its debug-logging setting.
 """
 
 from __future__ import annotations
 
+import zipfile
 from pathlib import Path
+from xml.etree import ElementTree as ET
 
 import fmpy
 
@@ -21,116 +43,479 @@ from fmu_models.fmi.codegen import compile_library
 
 HEADERS = Path(fmpy.__file__).parent / "c-code"
 
-# (name, parameters) of every FMI 2.0 Co-Simulation function that returns fmi2Status
-STATUS_FUNCTIONS: list[tuple[str, str]] = [
-    ("fmi2SetDebugLogging", "fmi2Component c, fmi2Boolean a, size_t n, const fmi2String b[]"),
-    ("fmi2SetupExperiment", "fmi2Component c, fmi2Boolean a, fmi2Real b, fmi2Real d, fmi2Boolean e, fmi2Real g"),
-    ("fmi2EnterInitializationMode", "fmi2Component c"),
-    ("fmi2ExitInitializationMode", "fmi2Component c"),
-    ("fmi2Terminate", "fmi2Component c"),
-    ("fmi2Reset", "fmi2Component c"),
-    ("fmi2GetReal", "fmi2Component c, const fmi2ValueReference a[], size_t n, fmi2Real b[]"),
-    ("fmi2GetInteger", "fmi2Component c, const fmi2ValueReference a[], size_t n, fmi2Integer b[]"),
-    ("fmi2GetBoolean", "fmi2Component c, const fmi2ValueReference a[], size_t n, fmi2Boolean b[]"),
-    ("fmi2GetString", "fmi2Component c, const fmi2ValueReference a[], size_t n, fmi2String b[]"),
-    ("fmi2SetReal", "fmi2Component c, const fmi2ValueReference a[], size_t n, const fmi2Real b[]"),
-    ("fmi2SetInteger", "fmi2Component c, const fmi2ValueReference a[], size_t n, const fmi2Integer b[]"),
-    ("fmi2SetBoolean", "fmi2Component c, const fmi2ValueReference a[], size_t n, const fmi2Boolean b[]"),
-    ("fmi2SetString", "fmi2Component c, const fmi2ValueReference a[], size_t n, const fmi2String b[]"),
-    ("fmi2GetFMUstate", "fmi2Component c, fmi2FMUstate* a"),
-    ("fmi2SetFMUstate", "fmi2Component c, fmi2FMUstate a"),
-    ("fmi2FreeFMUstate", "fmi2Component c, fmi2FMUstate* a"),
-    ("fmi2SerializedFMUstateSize", "fmi2Component c, fmi2FMUstate a, size_t* n"),
-    ("fmi2SerializeFMUstate", "fmi2Component c, fmi2FMUstate a, fmi2Byte b[], size_t n"),
-    ("fmi2DeSerializeFMUstate", "fmi2Component c, const fmi2Byte b[], size_t n, fmi2FMUstate* a"),
-    ("fmi2GetDirectionalDerivative", "fmi2Component c, const fmi2ValueReference a[], size_t n, "
-     "const fmi2ValueReference b[], size_t m, const fmi2Real d[], fmi2Real e[]"),
-    ("fmi2SetRealInputDerivatives", "fmi2Component c, const fmi2ValueReference a[], size_t n, "
-     "const fmi2Integer b[], const fmi2Real d[]"),
-    ("fmi2GetRealOutputDerivatives", "fmi2Component c, const fmi2ValueReference a[], size_t n, "
-     "const fmi2Integer b[], fmi2Real d[]"),
-    ("fmi2DoStep", "fmi2Component c, fmi2Real a, fmi2Real b, fmi2Boolean d"),
-    ("fmi2CancelStep", "fmi2Component c"),
-    ("fmi2GetStatus", "fmi2Component c, const fmi2StatusKind a, fmi2Status* b"),
-    ("fmi2GetRealStatus", "fmi2Component c, const fmi2StatusKind a, fmi2Real* b"),
-    ("fmi2GetIntegerStatus", "fmi2Component c, const fmi2StatusKind a, fmi2Integer* b"),
-    ("fmi2GetBooleanStatus", "fmi2Component c, const fmi2StatusKind a, fmi2Boolean* b"),
-    ("fmi2GetStringStatus", "fmi2Component c, const fmi2StatusKind a, fmi2String* b"),
-]
+#: (value reference, type letter R/I/B/S, settable: 0 never, 1 before exitInitializationMode, 2 also while stepping)
+VarRow = tuple[int, str, int]
 
-#: status mappings per function: pythonfmu's status -> the one the standard asks for
-REMAP = {
-    "fmi2DoStep": "if (s == fmi2Discard) s = fmi2Error;",
+_TYPES = {"Real": "R", "Integer": "I", "Enumeration": "I", "Boolean": "B", "String": "S"}
+
+
+def variable_table(model_description: bytes) -> list[VarRow]:
+    """The shim's table of every ScalarVariable of a modelDescription.xml, sorted by value reference."""
+    root = ET.fromstring(model_description)
+    rows: list[VarRow] = []
+    for sv in root.iter("ScalarVariable"):
+        kind = next((_TYPES[c.tag] for c in sv if c.tag in _TYPES), None)
+        if kind is None:
+            continue
+        causality = sv.get("causality", "local")
+        variability = sv.get("variability", "continuous")
+        settable = 0
+        if causality == "input":
+            settable = 2
+        elif causality == "parameter":
+            settable = 2 if variability == "tunable" else 1
+        rows.append((int(sv.get("valueReference")), kind, settable))
+    return sorted(rows)
+
+
+def fmu_variable_table(fmu: Path) -> list[VarRow]:
+    with zipfile.ZipFile(fmu) as z:
+        return variable_table(z.read("modelDescription.xml"))
+
+
+C_CORE = r"""
+/* Generated by uavfmu (fmu_models/fmi/shim.py): FMI 2.0 state machine and argument checks in front of
+   pythonfmu's library, which it loads from the same folder. */
+#define _GNU_SOURCE
+#include <dlfcn.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "fmi2Functions.h"
+
+typedef struct { fmi2ValueReference vr; char type; char settable; } VarInfo;
+@TABLE@
+
+enum { S_INSTANTIATED = 1, S_INIT = 2, S_STEPPING = 4, S_TERMINATED = 8, S_ERROR = 16, S_FATAL = 32 };
+#define S_ANY (S_INSTANTIATED | S_INIT | S_STEPPING | S_TERMINATED | S_ERROR)
+#define S_GET (S_INIT | S_STEPPING | S_TERMINATED | S_ERROR)
+#define S_SET (S_INSTANTIATED | S_INIT | S_STEPPING)
+#define INST_MAGIC 0x7561766675696e73ULL
+#define STATE_MAGIC 0x7561766673746174ULL
+#define MAX_NVR 1000000u
+static const char SER_MAGIC[8] = {'U', 'A', 'V', 'F', 'M', 'U', 'S', '1'};
+enum { SER_HEADER = 8 + 8 + 8 + 8 + 8 };  /* magic, model key, payload checksum, time, machine state */
+
+typedef struct State { uint64_t magic; struct Inst* owner; fmi2FMUstate real; double time; int mstate;
+                       struct State* next; } State;
+typedef struct Inst { uint64_t magic; struct Inst* next; fmi2Component real; int state; double time;
+                      fmi2CallbackFunctions cb; char name[128]; State* states; } Inst;
+
+static Inst* live = NULL;
+static void* real_lib = NULL;
+static int exiting = 0;
+static char load_error[1024] = "";
+
+static void release_python_guard(void) {
+  /* before pythonfmu's own static destructor (see fmu_models/fmi/shim.py): empty its shared_ptr properly */
+  void (*fin)(void) = real_lib ? (void (*)(void))dlsym(real_lib, "finalizePythonInterpreter") : NULL;
+  exiting = 1;
+  if (fin) fin();
 }
 
+static void* sym(const char* name) {
+  if (!real_lib) {
+    Dl_info info; char path[4096];
+    if (!dladdr((void*)&sym, &info) || !info.dli_fname) { snprintf(load_error, sizeof load_error, "dladdr failed");
+      return NULL; }
+    strncpy(path, info.dli_fname, sizeof path - 1); path[sizeof path - 1] = 0;
+    char* slash = strrchr(path, '/');
+    if (slash) slash[1] = 0; else path[0] = 0;
+    strncat(path, "@REAL@", sizeof path - strlen(path) - 1);
+    real_lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!real_lib) { snprintf(load_error, sizeof load_error, "%s", dlerror()); return NULL; }
+    atexit(release_python_guard);  /* registered after pythonfmu's static destructors: runs before them */
+  }
+  return dlsym(real_lib, name);
+}
+#define REAL(fn) static fn##TYPE* f = NULL; if (!f) f = (fn##TYPE*)sym(#fn); if (!f) return fmi2Error
 
-def _args(params: str) -> str:
-    return ", ".join(p.strip().split()[-1].strip("*").split("[")[0] for p in params.split(","))
+static void say(const Inst* in, fmi2Status s, const char* fmt, ...) {
+  char buf[1024]; va_list ap;
+  if (!in || !in->cb.logger) return;
+  va_start(ap, fmt); vsnprintf(buf, sizeof buf, fmt, ap); va_end(ap);
+  in->cb.logger(in->cb.componentEnvironment, in->name, s, s == fmi2Error ? "logStatusError" : "logAll", "%s", buf);
+}
+
+static const char* state_name(int s) {
+  switch (s) {
+    case S_INSTANTIATED: return "instantiated"; case S_INIT: return "initialization mode";
+    case S_STEPPING: return "initialized (stepping)"; case S_TERMINATED: return "terminated";
+    case S_ERROR: return "error (only get, reset or free)"; default: return "fatal (only free)";
+  }
+}
+
+static Inst* find(fmi2Component c) {
+  for (Inst* in = live; in; in = in->next) if ((void*)in == c && in->magic == INST_MAGIC) return in;
+  return NULL;
+}
+
+/* The live instance c if fn is allowed in its state, else NULL after logging why. */
+static Inst* enter(fmi2Component c, const char* fn, int allowed) {
+  Inst* in = find(c);
+  if (!in) return NULL;  /* NULL, freed or foreign handle: no logger to tell */
+  if (!(in->state & allowed)) {
+    say(in, fmi2Error, "%s is not allowed in state %s (FMI 2.0 co-simulation state machine)", fn,
+        state_name(in->state));
+    return NULL;
+  }
+  return in;
+}
+
+static fmi2Status after(Inst* in, const char* fn, fmi2Status s) {
+  if (s == fmi2Fatal) {
+    in->state = S_FATAL;
+    say(in, fmi2Error, "%s: the model failed fatally; the instance is quarantined (only fmi2FreeInstance)", fn);
+  } else if (s == fmi2Error) {
+    in->state = S_ERROR;
+  }
+  return s;
+}
+
+static const VarInfo* lookup(fmi2ValueReference vr) {
+  size_t lo = 0, hi = NVARS;
+  while (lo < hi) { size_t mid = (lo + hi) / 2; if (VARS[mid].vr < vr) lo = mid + 1; else hi = mid; }
+  return (lo < NVARS && VARS[lo].vr == vr) ? &VARS[lo] : NULL;
+}
+
+static int check_refs(Inst* in, const char* fn, const fmi2ValueReference vr[], size_t nvr, const void* values,
+                      char type, int setting) {
+  if (nvr == 0) return 1;
+  if (nvr > MAX_NVR) { say(in, fmi2Error, "%s: nvr = %zu exceeds %u", fn, nvr, MAX_NVR); return 0; }
+  if (!vr || !values) { say(in, fmi2Error, "%s: NULL %s array for nvr = %zu", fn, vr ? "value" : "vr", nvr);
+    return 0; }
+  for (size_t i = 0; i < nvr; ++i) {
+    const VarInfo* v = lookup(vr[i]);
+    if (!v) { say(in, fmi2Error, "%s: value reference %u (index %zu) is not a variable of this FMU", fn, vr[i], i);
+      return 0; }
+    if (v->type != type) { say(in, fmi2Error, "%s: value reference %u is of type %c, not %c", fn, vr[i], v->type, type);
+      return 0; }
+    if (setting && (v->settable == 0 || (v->settable == 1 && (in->state & S_STEPPING)))) {
+      say(in, fmi2Error, "%s: value reference %u is not settable %s (only inputs and %s parameters)", fn, vr[i],
+          v->settable ? "after initialization" : "", v->settable ? "tunable" : "");
+      return 0;
+    }
+    if (setting && type == 'S' && !((const fmi2String*)values)[i]) {
+      say(in, fmi2Error, "%s: NULL string for value reference %u", fn, vr[i]); return 0; }
+  }
+  return 1;
+}
+"""
+
+C_LIFECYCLE = r"""
+const char* fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+const char* fmi2GetVersion(void) { return fmi2Version; }
+
+fmi2Component fmi2Instantiate(fmi2String n, fmi2Type t, fmi2String g, fmi2String r,
+                              const fmi2CallbackFunctions* cb, fmi2Boolean v, fmi2Boolean l) {
+  (void)l;  /* always on: our slave logs only warnings and errors, which an importer must see */
+  if (!cb || !cb->logger || !n || !r || !g) return NULL;
+  fmi2InstantiateTYPE* f = (fmi2InstantiateTYPE*)sym("fmi2Instantiate");
+  if (!f) { cb->logger(cb->componentEnvironment, n, fmi2Error, "logStatusError", "cannot load @REAL@: %s",
+                       load_error); return NULL; }
+  if (t != fmi2CoSimulation) { cb->logger(cb->componentEnvironment, n, fmi2Error, "logStatusError",
+                               "this FMU supports co-simulation only (fmuType %d)", (int)t); return NULL; }
+  Inst* in = (Inst*)calloc(1, sizeof(Inst));
+  if (!in) return NULL;
+  in->cb = *cb;
+  snprintf(in->name, sizeof in->name, "%s", n);
+  in->real = f(n, t, g, r, cb, v, fmi2True);
+  if (!in->real) { free(in); return NULL; }
+  in->magic = INST_MAGIC; in->state = S_INSTANTIATED; in->time = 0.0;
+  in->next = live; live = in;
+  return in;
+}
+
+static void drop_states(Inst* in) {
+  fmi2FreeFMUstateTYPE* ff = (fmi2FreeFMUstateTYPE*)sym("fmi2FreeFMUstate");
+  while (in->states) {
+    State* s = in->states; in->states = s->next;
+    if (ff && in->state != S_FATAL) ff(in->real, &s->real);
+    s->magic = 0; free(s);
+  }
+}
+
+void fmi2FreeInstance(fmi2Component c) {
+  Inst* in = find(c);
+  if (!in) return;  /* NULL, already freed or foreign: ignoring it is the only safe answer */
+  drop_states(in);
+  fmi2FreeInstanceTYPE* f = (fmi2FreeInstanceTYPE*)sym("fmi2FreeInstance");
+  /* pythonfmu already released a fatal instance's Python objects: freeing it would release them again */
+  if (f && in->state != S_FATAL) f(in->real);
+  for (Inst** p = &live; *p; p = &(*p)->next) if (*p == in) { *p = in->next; break; }
+  in->magic = 0;
+  free(in);
+}
+
+fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cats[]) {
+  Inst* in = enter(c, "fmi2SetDebugLogging", S_ANY);
+  if (!in) return fmi2Error;
+  if (n > 0 && !cats) { say(in, fmi2Error, "fmi2SetDebugLogging: NULL categories for n = %zu", n); return fmi2Error; }
+  for (size_t i = 0; i < n; ++i) if (!cats[i]) { say(in, fmi2Error, "fmi2SetDebugLogging: NULL category %zu", i);
+    return fmi2Error; }
+  REAL(fmi2SetDebugLogging);
+  (void)on;  /* warnings and errors always reach the importer */
+  return after(in, "fmi2SetDebugLogging", f(in->real, fmi2True, n, cats));
+}
+
+fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean td, fmi2Real tol, fmi2Real t0, fmi2Boolean sd,
+                               fmi2Real t1) {
+  Inst* in = enter(c, "fmi2SetupExperiment", S_INSTANTIATED);
+  if (!in) return fmi2Error;
+  if (!isfinite(t0) || (sd && !(isfinite(t1) && t1 >= t0)) || (td && !(isfinite(tol) && tol > 0))) {
+    say(in, fmi2Error, "fmi2SetupExperiment: start %g, stop %g (defined %d), tolerance %g (defined %d): start "
+        "must be finite, stop finite and >= start, tolerance finite and > 0", t0, t1, sd, tol, td);
+    return fmi2Error;
+  }
+  REAL(fmi2SetupExperiment);
+  fmi2Status s = after(in, "fmi2SetupExperiment", f(in->real, td, tol, t0, sd, t1));
+  if (s <= fmi2Warning) in->time = t0;
+  return s;
+}
+
+static fmi2Status transition(fmi2Component c, const char* fn, int allowed, int next) {
+  Inst* in = enter(c, fn, allowed);
+  if (!in) return fmi2Error;
+  fmi2Status (*f)(fmi2Component) = (fmi2Status (*)(fmi2Component))sym(fn);
+  if (!f) return fmi2Error;
+  fmi2Status s = after(in, fn, f(in->real));
+  if (s <= fmi2Warning) in->state = next;
+  return s;
+}
+
+fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
+  return transition(c, "fmi2EnterInitializationMode", S_INSTANTIATED, S_INIT);
+}
+fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
+  return transition(c, "fmi2ExitInitializationMode", S_INIT, S_STEPPING);
+}
+fmi2Status fmi2Terminate(fmi2Component c) { return transition(c, "fmi2Terminate", S_STEPPING, S_TERMINATED); }
+
+fmi2Status fmi2Reset(fmi2Component c) {
+  fmi2Status s = transition(c, "fmi2Reset", S_ANY, S_INSTANTIATED);
+  Inst* in = find(c);
+  if (in && s <= fmi2Warning) in->time = 0.0;
+  return s;
+}
+"""
+
+C_VALUES = r"""
+#define GETSET(NAME, CTYPE, LETTER, SETTING, ALLOWED)                                              \
+  fmi2Status NAME(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, CTYPE value[]) {     \
+    Inst* in = enter(c, #NAME, ALLOWED);                                                           \
+    if (!in || !check_refs(in, #NAME, vr, nvr, value, LETTER, SETTING)) return fmi2Error;          \
+    if (nvr == 0) return fmi2OK;                                                                   \
+    REAL(NAME);                                                                                    \
+    return after(in, #NAME, f(in->real, vr, nvr, value));                                          \
+  }
+GETSET(fmi2GetReal, fmi2Real, 'R', 0, S_GET)
+GETSET(fmi2GetInteger, fmi2Integer, 'I', 0, S_GET)
+GETSET(fmi2GetBoolean, fmi2Boolean, 'B', 0, S_GET)
+GETSET(fmi2GetString, fmi2String, 'S', 0, S_GET)
+GETSET(fmi2SetReal, const fmi2Real, 'R', 1, S_SET)
+GETSET(fmi2SetInteger, const fmi2Integer, 'I', 1, S_SET)
+GETSET(fmi2SetBoolean, const fmi2Boolean, 'B', 1, S_SET)
+GETSET(fmi2SetString, const fmi2String, 'S', 1, S_SET)
+
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_prior) {
+  Inst* in = enter(c, "fmi2DoStep", S_STEPPING);
+  if (!in) return fmi2Error;
+  double tol = 1e-9 * (fabs(in->time) > 1.0 ? fabs(in->time) : 1.0);
+  if (!isfinite(t) || !isfinite(h) || !(h > 0.0)) {
+    say(in, fmi2Error, "fmi2DoStep: communication point %g and step size %g must be finite, step size > 0", t, h);
+    return fmi2Error;
+  }
+  if (fabs(t - in->time) > tol) {
+    say(in, fmi2Error, "fmi2DoStep: communication point %.17g s does not continue the last one (%.17g s)",
+        t, in->time);
+    return fmi2Error;
+  }
+  REAL(fmi2DoStep);
+  fmi2Status s = f(in->real, t, h, no_set_prior);
+  if (s == fmi2Discard) s = fmi2Error;  /* our slave returns False only after logging an error */
+  s = after(in, "fmi2DoStep", s);
+  if (s <= fmi2Warning) in->time = t + h;
+  return s;
+}
+
+static fmi2Status unsupported(fmi2Component c, const char* fn) {
+  Inst* in = enter(c, fn, S_ANY);
+  if (in) say(in, fmi2Error, "%s is not supported by this FMU", fn);
+  return fmi2Error;
+}
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference a[], size_t n,
+    const fmi2ValueReference b[], size_t m, const fmi2Real d[], fmi2Real e[]) {
+  (void)a; (void)n; (void)b; (void)m; (void)d; (void)e; return unsupported(c, "fmi2GetDirectionalDerivative"); }
+fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference a[], size_t n,
+    const fmi2Integer b[], const fmi2Real d[]) {
+  (void)a; (void)n; (void)b; (void)d; return unsupported(c, "fmi2SetRealInputDerivatives"); }
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference a[], size_t n,
+    const fmi2Integer b[], fmi2Real d[]) {
+  (void)a; (void)n; (void)b; (void)d; return unsupported(c, "fmi2GetRealOutputDerivatives"); }
+fmi2Status fmi2CancelStep(fmi2Component c) { return unsupported(c, "fmi2CancelStep"); }
+fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind k, fmi2Status* v) {
+  (void)k; (void)v; return unsupported(c, "fmi2GetStatus"); }
+fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind k, fmi2Integer* v) {
+  (void)k; (void)v; return unsupported(c, "fmi2GetIntegerStatus"); }
+fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind k, fmi2Boolean* v) {
+  (void)k; (void)v; return unsupported(c, "fmi2GetBooleanStatus"); }
+fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind k, fmi2String* v) {
+  (void)k; (void)v; return unsupported(c, "fmi2GetStringStatus"); }
+fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind k, fmi2Real* v) {
+  Inst* in = enter(c, "fmi2GetRealStatus", S_STEPPING | S_ERROR | S_TERMINATED);
+  if (!in) return fmi2Error;
+  if (k != fmi2LastSuccessfulTime || !v) {
+    say(in, fmi2Error, "fmi2GetRealStatus: only fmi2LastSuccessfulTime with a non-NULL value"); return fmi2Error; }
+  *v = in->time;
+  return fmi2OK;
+}
+"""
+
+C_STATES = r"""
+static State* owned(Inst* in, const char* fn, fmi2FMUstate s) {
+  for (State* p = in->states; p; p = p->next) if ((void*)p == s && p->magic == STATE_MAGIC) return p;
+  say(in, fmi2Error, "%s: this FMU state was not made by this instance (or was freed)", fn);
+  return NULL;
+}
+
+fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate* out) {
+  Inst* in = enter(c, "fmi2GetFMUstate", S_ANY);
+  if (!in) return fmi2Error;
+  if (!out) { say(in, fmi2Error, "fmi2GetFMUstate: NULL state pointer"); return fmi2Error; }
+  State* st = *out ? owned(in, "fmi2GetFMUstate", *out) : NULL;
+  if (*out && !st) return fmi2Error;
+  REAL(fmi2GetFMUstate);
+  fmi2FMUstate real = NULL;
+  fmi2Status s = after(in, "fmi2GetFMUstate", f(in->real, &real));
+  if (s > fmi2Warning) return s;
+  if (st) {  /* overwrite an existing state: release the old snapshot */
+    fmi2FreeFMUstateTYPE* ff = (fmi2FreeFMUstateTYPE*)sym("fmi2FreeFMUstate");
+    if (ff) ff(in->real, &st->real);
+  } else {
+    st = (State*)calloc(1, sizeof(State));
+    if (!st) { say(in, fmi2Error, "fmi2GetFMUstate: out of memory"); return fmi2Error; }
+    st->magic = STATE_MAGIC; st->owner = in; st->next = in->states; in->states = st;
+  }
+  st->real = real; st->time = in->time; st->mstate = in->state;
+  *out = st;
+  return s;
+}
+
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate s) {
+  Inst* in = enter(c, "fmi2SetFMUstate", S_ANY);
+  State* st = in ? owned(in, "fmi2SetFMUstate", s) : NULL;
+  if (!st) return fmi2Error;
+  REAL(fmi2SetFMUstate);
+  fmi2Status r = after(in, "fmi2SetFMUstate", f(in->real, st->real));
+  if (r <= fmi2Warning) { in->time = st->time; in->state = st->mstate; }
+  return r;
+}
+
+fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate* s) {
+  Inst* in = enter(c, "fmi2FreeFMUstate", S_ANY);
+  if (!in) return fmi2Error;
+  if (!s || !*s) return fmi2OK;  /* freeing NULL is a no-op */
+  State* st = owned(in, "fmi2FreeFMUstate", *s);
+  if (!st) return fmi2Error;
+  REAL(fmi2FreeFMUstate);
+  fmi2Status r = after(in, "fmi2FreeFMUstate", f(in->real, &st->real));
+  for (State** p = &in->states; *p; p = &(*p)->next) if (*p == st) { *p = st->next; break; }
+  st->magic = 0; free(st);
+  *s = NULL;
+  return r;
+}
+
+static uint64_t fnv(const fmi2Byte* b, size_t n) {
+  uint64_t h = 1469598103934665603ULL;
+  for (size_t i = 0; i < n; ++i) { h ^= (unsigned char)b[i]; h *= 1099511628211ULL; }
+  return h;
+}
+
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate s, size_t* n) {
+  Inst* in = enter(c, "fmi2SerializedFMUstateSize", S_ANY);
+  State* st = in ? owned(in, "fmi2SerializedFMUstateSize", s) : NULL;
+  if (!st) return fmi2Error;
+  if (!n) { say(in, fmi2Error, "fmi2SerializedFMUstateSize: NULL size pointer"); return fmi2Error; }
+  REAL(fmi2SerializedFMUstateSize);
+  size_t m = 0;
+  fmi2Status r = after(in, "fmi2SerializedFMUstateSize", f(in->real, st->real, &m));
+  if (r <= fmi2Warning) *n = m + SER_HEADER;
+  return r;
+}
+
+fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate s, fmi2Byte b[], size_t n) {
+  Inst* in = enter(c, "fmi2SerializeFMUstate", S_ANY);
+  State* st = in ? owned(in, "fmi2SerializeFMUstate", s) : NULL;
+  if (!st) return fmi2Error;
+  REAL(fmi2SerializedFMUstateSize);
+  size_t m = 0;
+  if (after(in, "fmi2SerializeFMUstate", f(in->real, st->real, &m)) > fmi2Warning) return fmi2Error;
+  if (!b || n != m + SER_HEADER) {
+    say(in, fmi2Error, "fmi2SerializeFMUstate: buffer %s of %zu bytes, the state needs %zu", b ? "" : "NULL", n,
+        m + SER_HEADER);
+    return fmi2Error;
+  }
+  fmi2SerializeFMUstateTYPE* g = (fmi2SerializeFMUstateTYPE*)sym("fmi2SerializeFMUstate");
+  if (!g) return fmi2Error;
+  fmi2Status r = after(in, "fmi2SerializeFMUstate", g(in->real, st->real, b + SER_HEADER, m));
+  if (r > fmi2Warning) return r;
+  uint64_t key = MODEL_KEY, sum = fnv(b + SER_HEADER, m), ms = (uint64_t)st->mstate;
+  memcpy(b, SER_MAGIC, 8); memcpy(b + 8, &key, 8); memcpy(b + 16, &sum, 8); memcpy(b + 24, &st->time, 8);
+  memcpy(b + 32, &ms, 8);
+  return r;
+}
+
+fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n, fmi2FMUstate* out) {
+  Inst* in = enter(c, "fmi2DeSerializeFMUstate", S_ANY);
+  if (!in) return fmi2Error;
+  uint64_t key = 0, sum = 0, ms = 0; double t = 0.0;
+  if (!b || !out || n < SER_HEADER) {
+    say(in, fmi2Error, "fmi2DeSerializeFMUstate: %s", !b || !out ? "NULL argument" : "shorter than the header");
+    return fmi2Error;
+  }
+  memcpy(&key, b + 8, 8); memcpy(&sum, b + 16, 8); memcpy(&t, b + 24, 8); memcpy(&ms, b + 32, 8);
+  if (memcmp(b, SER_MAGIC, 8) || key != MODEL_KEY || sum != fnv(b + SER_HEADER, n - SER_HEADER) || !isfinite(t)
+      || !(ms == S_INSTANTIATED || ms == S_INIT || ms == S_STEPPING || ms == S_TERMINATED || ms == S_ERROR)) {
+    say(in, fmi2Error, "fmi2DeSerializeFMUstate: not a serialised state of this model (or damaged)");
+    return fmi2Error;
+  }
+  REAL(fmi2DeSerializeFMUstate);
+  fmi2FMUstate real = NULL;
+  fmi2Status r = after(in, "fmi2DeSerializeFMUstate", f(in->real, b + SER_HEADER, n - SER_HEADER, &real));
+  if (r > fmi2Warning) return r;
+  State* st = (State*)calloc(1, sizeof(State));
+  if (!st) { say(in, fmi2Error, "fmi2DeSerializeFMUstate: out of memory"); return fmi2Error; }
+  st->magic = STATE_MAGIC; st->owner = in; st->real = real; st->time = t; st->mstate = (int)ms;
+  st->next = in->states; in->states = st;
+  *out = st;
+  return r;
+}
+"""
 
 
-def shim_source(real_library_name: str) -> str:
-    """C source of the forwarding library."""
-    out = [
-        "/* Generated by uavfmu (fmu_models/fmi/shim.py): forwards to pythonfmu, maps statuses. */",
-        "#define _GNU_SOURCE",
-        "#include <dlfcn.h>",
-        "#include <stdio.h>",
-        "#include <string.h>",
-        '#include "fmi2Functions.h"',
-        "static void* real_lib = NULL;",
-        "static char load_error[1024] = \"\";",
-        "static void* sym(const char* name) {",
-        "  if (!real_lib) {",
-        "    Dl_info info; char path[4096];",
-        "    if (!dladdr((void*)&sym, &info) || !info.dli_fname) { snprintf(load_error, sizeof load_error,"
-        ' "dladdr failed"); return NULL; }',
-        "    strncpy(path, info.dli_fname, sizeof path - 1); path[sizeof path - 1] = 0;",
-        "    char* slash = strrchr(path, '/');",
-        "    if (slash) slash[1] = 0; else path[0] = 0;",
-        f'    strncat(path, "{real_library_name}", sizeof path - strlen(path) - 1);',
-        "    real_lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);",
-        '    if (!real_lib) { snprintf(load_error, sizeof load_error, "%s", dlerror()); return NULL; }',
-        "  }",
-        "  return dlsym(real_lib, name);",
-        "}",
-        "const char* fmi2GetTypesPlatform(void) {",
-        "  fmi2GetTypesPlatformTYPE* f = (fmi2GetTypesPlatformTYPE*)sym(\"fmi2GetTypesPlatform\");",
-        "  return f ? f() : fmi2TypesPlatform;",
-        "}",
-        "const char* fmi2GetVersion(void) {",
-        "  fmi2GetVersionTYPE* f = (fmi2GetVersionTYPE*)sym(\"fmi2GetVersion\");",
-        '  return f ? f() : "2.0";',
-        "}",
-        "fmi2Component fmi2Instantiate(fmi2String n, fmi2Type t, fmi2String g, fmi2String r,",
-        "                              const fmi2CallbackFunctions* cb, fmi2Boolean v, fmi2Boolean l) {",
-        "  fmi2InstantiateTYPE* f = (fmi2InstantiateTYPE*)sym(\"fmi2Instantiate\");",
-        "  if (!f) { if (cb && cb->logger) cb->logger(cb->componentEnvironment, n, fmi2Fatal, \"logStatusFatal\",",
-        f'        "cannot load {real_library_name}: %s", load_error); return NULL; }}',
-        "  (void)l;  /* always on: our slave logs only warnings and errors, which an importer must see */",
-        "  return f(n, t, g, r, cb, v, fmi2True);",
-        "}",
-        "void fmi2FreeInstance(fmi2Component c) {",
-        "  fmi2FreeInstanceTYPE* f = (fmi2FreeInstanceTYPE*)sym(\"fmi2FreeInstance\");",
-        "  if (f) f(c);",
-        "}",
-    ]
-    for name, params in STATUS_FUNCTIONS:
-        out += [
-            f"fmi2Status {name}({params}) {{",
-            f'  static {name}TYPE* fn = NULL; if (!fn) fn = ({name}TYPE*)sym("{name}");',
-            "  if (!fn) return fmi2Fatal;",
-            f"  fmi2Status s = fn({_args(params)});",
-            f"  {REMAP.get(name, '')}",
-            "  return s;",
-            "}",
-        ]
-    return "\n".join(out) + "\n"
+def _table_c(rows: list[VarRow], model_identifier: str) -> str:
+    body = ",\n".join(f"  {{{vr}u, '{kind}', {settable}}}" for vr, kind, settable in rows) or "  {0u, 0, 0}"
+    key = 1469598103934665603
+    for ch in f"{model_identifier}:{rows}".encode():
+        key = ((key ^ ch) * 1099511628211) % (1 << 64)
+    return (f"static const VarInfo VARS[] = {{\n{body}\n}};\n"
+            f"static const size_t NVARS = {len(rows)};\n"
+            f"#define MODEL_KEY 0x{key:016x}ULL\n")
 
 
-def build_shim(model_identifier: str, out_dir: Path, compiler: str) -> Path:
-    """Compile ``<id>.so`` forwarding to ``<id>_pythonfmu.so``; return its path."""
+def shim_source(real_library_name: str, rows: list[VarRow] | None = None, model_identifier: str = "") -> str:
+    """C source of the guarding library for the variables ``rows`` (``variable_table``)."""
+    core = C_CORE.replace("@TABLE@", _table_c(rows or [], model_identifier or real_library_name))
+    return (core + C_LIFECYCLE + C_VALUES + C_STATES).replace("@REAL@", real_library_name)
+
+
+def build_shim(model_identifier: str, out_dir: Path, compiler: str, rows: list[VarRow] | None = None) -> Path:
+    """Compile ``<id>.so`` guarding and forwarding to ``<id>_pythonfmu.so``; return its path."""
     src = out_dir / f"{model_identifier}_shim.c"
-    src.write_text(shim_source(f"{model_identifier}_pythonfmu.so"))
+    src.write_text(shim_source(f"{model_identifier}_pythonfmu.so", rows, model_identifier))
     lib = out_dir / f"{model_identifier}.so"
     compile_library(src, lib, compiler, extra=["-I", str(HEADERS), "-ldl"])
     return lib
