@@ -619,7 +619,7 @@ class OutputErrorEstimator:
                                     "separate them")
         warnings += [a for a in ident.advice if a not in warnings]
         for w in warnings:
-            log.warning(w)
+            log.info(w)  # the caller prints Estimate.warnings once (several fits run per identify call)
         resid_cov = np.cov(np.vstack(res).T, bias=True).reshape(len(self.outputs), len(self.outputs))
         return Estimate(names, theta, std, std_white, corr, resid_cov, history, warnings, converged,
                         n_global=len(self.free), bootstrap_std=boot, bound_method=method, identifiability=ident)
