@@ -1,7 +1,10 @@
 """Cost of validating one FMU on a 300 s log at 100 Hz: FMU stepping (FMPy's simulate_fmu loop and the FMU)
 against our own overhead (reading the log, mapping inputs, initial states, metrics, report with plots).
 
-Target (issue 5): our overhead below 25 % of the total. Module imports (matplotlib, ~0.5 s) are process
+Target (issue 14): the validation overhead (read the log, map inputs, initial states, score against the
+baselines, horizons, one-step check) below 25 % of the time spent stepping the FMU; printed as overhead /
+stepping for the metrics-only run, and for the run that also draws the HTML report (matplotlib figures: a
+separate, reported cost, the one part that does not scale with the FMU). Module imports (matplotlib, ~0.5 s) are process
 start-up, paid once per batch, and happen before the clock starts. Each configuration runs ``--repeat`` times
 (the first report of the process pays the font loading once, as a batch worker does); the median is
 shown. The log is a closed-loop flight of the quadrotor FMU, made (untimed) before the measurement.
@@ -46,7 +49,6 @@ def main() -> int:
         import identification.report  # noqa: F401  (imports matplotlib: process start-up, paid once per batch)
 
         original = fmu_host.FmuHost.simulate
-        figures: dict[str, tuple[float, float]] = {}
         runs = (("metrics only", None), ("with HTML report", str(d / "report")))
         figures: dict[str, list[tuple[float, float]]] = {label: [] for label, _ in runs}
         for _ in range(args.repeat):  # medians of several runs: this machine's timings scatter by +-20 %
@@ -74,12 +76,13 @@ def main() -> int:
           f"{len(res.signals)} signals, "
           f"{res.windows - res.excluded} of {res.windows} windows airborne")
     for label, samples in figures.items():
-        shares = [1 - st / tot for tot, st in samples]
-        total, stepping = samples[int(np.argsort(shares)[len(shares) // 2])]  # the run with the median share
+        ratios = [(tot - st) / st for tot, st in samples]
+        total, stepping = samples[int(np.argsort(ratios)[len(ratios) // 2])]  # the run with the median ratio
         overhead = total - stepping
         print(f"{label:<17} total {total:.2f} s = FMU stepping {stepping:.2f} s + our overhead {overhead:.2f} s: "
-              f"overhead share {100 * overhead / total:.1f} % (median of {len(samples)}; all: "
-              f"{', '.join(f'{100 * x:.0f}' for x in sorted(shares))} %; target < 25 %)")
+              f"overhead / stepping {100 * overhead / stepping:.1f} % (median of {len(samples)}; all: "
+              f"{', '.join(f'{100 * x:.0f}' for x in sorted(ratios))} %)"
+              + ("; target < 25 %" if label == "metrics only" else "; figures included, no target"))
     return 0
 
 
