@@ -5,12 +5,19 @@ and an instance left holding a logger callback that Python has collected crashes
 instance and its logger callback belong to one object whose ``close()`` always frees the instance, and
 ``simulate_fmu`` runs on it (``fmu_instance=``), so validation uses FMPy's own simulation loop with a
 structured input array, and an FMU error becomes a message instead of a crash.
+
+The host also refuses, before the binary sees them, the calls FMI 2.0 forbids (a step before ``start`` or
+after ``terminate``, a step that does not continue the last communication point, calls on a freed instance),
+whatever the FMU's backend. After a fatal status the instance is freed and instantiated afresh
+(``reinstantiate``; ``start`` does it by itself), never reset: FMI 2.0 allows only ``fmi2FreeInstance`` then,
+and pythonfmu's library crashes on anything else (fmu_models/fmi/shim.py).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from ctypes import c_char_p, c_int, c_void_p
+from ctypes import Array, c_char_p, c_double, c_int, c_uint, c_void_p
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -51,18 +58,54 @@ class FmuHost:
         self._vr = {n: v.valueReference for n, v in self.variables.items()}
         #: value-reference lists by the tuple of names they serve: built once, reused every step
         self._refs: dict[tuple[str, ...], list[int]] = {}
+        #: ctypes value-reference and value arrays by names, made once: the step path calls FMPy's fmi2SetReal/
+        #: fmi2DoStep/fmi2GetReal on them (FMPy's setReal/getReal build new arrays every call)
+        self._arrays: dict[tuple[str, ...], tuple[Array, Array]] = {}
         self.messages: list[tuple[str, str]] = []
         self._callbacks = fmi2CallbackFunctions()
         self._callbacks.logger = fmi2CallbackLoggerTYPE(self._on_log)
         self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        self.instance_name = instance_name
+        self.slave: FMU2Slave | None = None
+        #: ``instantiated``, ``stepping``, ``terminated``, ``error`` (reset allowed) or ``fatal`` (free only)
+        self.phase = "instantiated"
+        #: the next communication point a step must start at [s]
+        self.time_s = 0.0
+        self.instantiate()
+
+    def instantiate(self) -> None:
+        """A fresh instance (after ``close`` or a fatal status); ``FmuRunError`` when the FMU refuses."""
+        self._free()
         try:
-            self.slave = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzip,
-                                   modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=instance_name)
-            self.slave.instantiate(callbacks=self._callbacks, loggingOn=False)
+            slave = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzip,
+                              modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=self.instance_name)
+            slave.instantiate(callbacks=self._callbacks, loggingOn=False)
         except Exception as err:  # FMPy raises plain Exception for a missing binary or failed instantiate
-            raise FmuRunError(f"{fmu}: cannot instantiate ({err}){self._tail()}") from err
-        self._used = False
+            raise FmuRunError(f"{self.path}: cannot instantiate ({err}){self._tail()}") from err
+        self.slave = slave
+        self.phase, self.time_s, self._used = "instantiated", 0.0, False
+
+    def reinstantiate(self) -> None:
+        """Free the instance and instantiate it afresh: the only way on after a fatal status (never reset)."""
+        self.instantiate()
+
+    @property
+    def fatal(self) -> bool:
+        """The FMU returned fmi2Fatal: only ``reinstantiate`` (or ``close``) may follow."""
+        return self.phase == "fatal"
+
+    def _failed(self, err: Exception) -> None:
+        """Record the FMI status of a failed call (FMPy's FMICallException carries it)."""
+        self.phase = "fatal" if getattr(err, "status", None) == 4 or self.phase == "fatal" else "error"
+
+    def _live(self, what: str) -> FMU2Slave:
+        if self.slave is None:
+            raise FmuRunError(f"{self.path.name}: {what} on a closed FMU instance")
+        if self.phase == "fatal":
+            raise FmuRunError(f"{self.path.name}: {what} refused: the instance failed fatally; reinstantiate() it "
+                              f"(FMI 2.0 allows only fmi2FreeInstance after fmi2Fatal){self._tail()}")
+        return self.slave
 
     def _on_log(self, env: c_void_p, name: c_char_p, status: c_int, category: c_char_p, message: c_char_p) -> None:
         text = message.decode(errors="replace") if isinstance(message, bytes) else str(message)
@@ -78,10 +121,23 @@ class FmuHost:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
+    def _free(self) -> None:
+        slave, self.slave = getattr(self, "slave", None), None
+        if slave is not None:
+            slave.freeInstance()
+
     def close(self) -> None:
-        if getattr(self, "slave", None) is not None:
-            self.slave.freeInstance()
-            self.slave = None
+        """Free the instance and delete the extracted FMU (idempotent)."""
+        self._free()
+        unzip, self.unzip = getattr(self, "unzip", None), None
+        if unzip:
+            shutil.rmtree(unzip, ignore_errors=True)
+
+    def __del__(self) -> None:  # an unclosed host frees its instance while its logger callback still exists
+        try:
+            self.close()
+        except Exception:  # never raise from a finaliser (interpreter shutdown)
+            pass
 
     def start_value(self, name: str) -> float:
         """The modelDescription start value of a variable (KeyError naming it when absent)."""
@@ -143,6 +199,15 @@ class FmuHost:
             found = self._refs[key] = [self._vr[n] for n in key]
         return found
 
+    def _io(self, names: Sequence[str] | Mapping[str, float]) -> tuple[Array, Array]:
+        """Preallocated (value references, values) ctypes arrays of ``names``."""
+        key = tuple(names)
+        found = self._arrays.get(key)
+        if found is None:
+            refs = self.refs(key)
+            found = self._arrays[key] = ((c_uint * len(refs))(*refs), (c_double * len(refs))())
+        return found
+
     @property
     def vehicle(self) -> str:
         """``quadrotor`` (motor PWM inputs) or ``fixed_wing`` (surface and throttle inputs) of our FMUs."""
@@ -155,7 +220,9 @@ class FmuHost:
 
     def set(self, values: Mapping[str, float]) -> None:
         try:
-            self.slave.setReal(self.refs(values), [float(v) for v in values.values()])
+            vr, buf = self._io(values)
+            buf[:] = [float(v) for v in values.values()]
+            self.slave.fmi2SetReal(self.slave.component, vr, len(vr), buf)
         except KeyError as err:
             raise FmuRunError(f"{self.path.name}: no variable {err}") from None
         except Exception as err:
@@ -166,10 +233,12 @@ class FmuHost:
         if inputs:
             self.set(inputs)
         try:
-            self.slave.doStep(currentCommunicationPoint=t_s, communicationStepSize=dt_s)
+            self.slave.fmi2DoStep(self.slave.component, t_s, dt_s, 1)
         except Exception as err:
             raise FmuRunError(f"{self.path.name}: step at t = {t_s:.4f} s failed ({err}){self._tail()}") from err
 
     def get(self, names: Sequence[str]) -> dict[str, float]:
-        vals = self.slave.getReal(self.refs(names))
+        vr, buf = self._io(names)
+        self.slave.fmi2GetReal(self.slave.component, vr, len(vr), buf)
+        vals = buf[:]
         return dict(zip(names, vals, strict=True))
