@@ -202,3 +202,124 @@ def test_battery_from_ulog_and_csv(tmp_path: Path) -> None:
     log = read_log(f, channel_map={"battery_voltage_v": "vbat", "battery_current_a": "ibat"})
     np.testing.assert_allclose(log.signal("battery_voltage_v").values, [12.5, 12.4])
     np.testing.assert_allclose(log.signal("battery_current_a").t_s, [0.0, 0.1])
+
+
+def _flip(src: bytes, offset: int, bit: int) -> bytes:
+    b = bytearray(src)
+    b[offset] ^= 1 << bit
+    return bytes(b)
+
+
+# (2, 0) turns RCOU (type 134) into IMU2 (135, same length): structurally valid, so not detectable without a
+# checksum; (3, 1) is a payload bit; the others break the header and must be skipped and reported.
+@pytest.mark.parametrize("byte, bit, detectable", [(0, 0, True), (1, 5, True), (2, 7, True), (2, 3, True),
+                                                   (2, 0, False), (3, 1, False)])
+def test_one_flipped_bit_keeps_the_flight_and_says_what_was_lost(tmp_path: Path, byte: int, bit: int,
+                                                                 detectable: bool) -> None:
+    """Issue 16: one flipped bit 10 % into the Erle log kept 33 of 335 s; now >= 95 % and the damage is named."""
+    path = shared_data("quadrotor", "arducopter_x_quad_real_218.BIN")
+    src = path.read_bytes()
+    clean = read_log(path)
+    assert clean.quality.ok and clean.quality.lines() == []
+    header = src.find(b"\xa3\x95", len(src) // 10)  # sync bytes, type byte and first payload byte of a message
+    bad = tmp_path / "flipped.BIN"
+    bad.write_bytes(_flip(src, header + byte, bit))
+    log = read_log(bad)
+    q = log.quality
+    assert q.time_kept_s >= 0.95 * clean.quality.time_kept_s
+    assert log.duration_s == pytest.approx(clean.duration_s, abs=1.0)
+    assert len(log.signal("accel_body_z_m_s2").t_s) >= 0.99 * len(clean.signal("accel_body_z_m_s2").t_s)
+    if detectable:
+        assert 0 < q.bytes_skipped < 200 and q.messages_skipped >= 1
+        assert any("flipped.BIN" in line and "skipped" in line for line in q.lines())
+        assert q.damage_fraction < 0.01
+
+
+def test_time_jump_is_split_off_not_gridded(tmp_path: Path) -> None:
+    """A +1e6 s time jump 80 % into a log: the far part is dropped and reported, the duration stays 8 s."""
+    from uavfmu.dataflash_writer import write_log
+
+    t = np.arange(1000) * 0.01
+    t_jump = np.where(t >= 8.0, t + 1e6, t)
+    f = write_log(tmp_path / "jump.bin", {"IMU": (t_jump, {"AccZ": -9.8, "GyrX": 0.1}),
+                                         "ATT": (t_jump[::10], {"Roll": 1.0})})
+    log = read_log(f)
+    q = log.quality
+    assert log.duration_s == pytest.approx(7.99, abs=0.02)
+    assert q.jumps and q.jumps[0][1] == pytest.approx(1e6, rel=1e-3)
+    assert q.samples_beyond_jumps == 200 + 20 and q.dropped_segments[0][0] == pytest.approx(1.99, abs=0.02)
+    assert q.time_kept_s == pytest.approx(7.99, abs=0.02) and q.time_total_s == pytest.approx(7.99 + 1.99, abs=0.05)
+    assert q.damage_fraction == pytest.approx(0.2, abs=0.01)
+    assert any("time jump" in line and "jump.bin" in line for line in q.lines())
+
+
+def test_single_corrupt_timestamps_and_backward_time_in_csv(tmp_path: Path) -> None:
+    t = np.arange(200) * 0.1
+    t_bad = t.copy()
+    t_bad[50] = 5e7            # one corrupt stamp far away: a one-sample segment, dropped
+    t_bad[100] = 3.0           # one corrupt stamp inside the log: an isolated outlier, dropped
+    t_bad[[150, 151]] = t_bad[[151, 150]]  # two rows swapped: put back in order
+    rows = "\n".join(f"{float(a)!r},{-9.8 + 0.001 * k!r}" for k, a in enumerate(t_bad))
+    f = tmp_path / "t.csv"
+    f.write_text("time_s,az\n" + rows + "\n")
+    log = read_log(f, channel_map={"accel_body_z_m_s2": "az"})
+    s, q = log.signal("accel_body_z_m_s2"), log.quality
+    assert np.all(np.diff(s.t_s) > 0) and s.t_s.size == 198
+    assert q.samples_beyond_jumps == 1 and q.time_outliers == 1 and q.backward_steps == 1
+    assert q.samples_reordered == 2 and log.duration_s == pytest.approx(19.9)
+    assert len(q.lines()) >= 3 and all("t.csv" in line for line in q.lines())
+
+
+def test_gaps_non_finite_and_duplicates_are_counted(tmp_path: Path) -> None:
+    t = np.r_[np.arange(100) * 0.1, 20.0 + np.arange(100) * 0.1]  # a 10.1 s pause without data
+    vals = np.full(t.size, -9.8)
+    vals[[3, 7]] = np.nan
+    lines = [f"{float(a)!r},{float(v)!r}" for a, v in zip(t, vals, strict=True)]
+    lines.insert(20, lines[19])  # a duplicated row
+    f = tmp_path / "g.csv"
+    f.write_text("time_s,az\n" + "\n".join(lines) + "\n")
+    log = read_log(f, channel_map={"accel_body_z_m_s2": "az"})
+    q = log.quality
+    assert q.gap_count == 1 and q.gaps[0] == pytest.approx((9.9, 10.1))
+    assert q.time_kept_s == pytest.approx(29.9 - 10.1) and q.time_total_s == pytest.approx(29.9)
+    assert q.non_finite_samples == 2 and np.isfinite(log.signal("accel_body_z_m_s2").values).all()
+    assert q.duplicate_samples == 1 and not q.ok
+
+
+def test_check_quality_refuses_damaged_logs_unless_forced(tmp_path: Path) -> None:
+    import json
+
+    from identification.flightlog import check_quality
+
+    t = np.arange(100) * 0.1
+    t[60:] += 1e6  # 40 % beyond a time jump
+    f = tmp_path / "d.csv"
+    f.write_text("time_s,az\n" + "\n".join(f"{float(a)!r},-9.8" for a in t) + "\n")
+    log = read_log(f, channel_map={"accel_body_z_m_s2": "az"})
+    with pytest.raises(LogError, match=r"d\.csv: 40\.0 % of the log is damaged.*--force"):
+        check_quality(log, force=False, max_damage=0.05)
+    check_quality(log, force=True)
+    check_quality(log, max_damage=0.5)
+    d = log.quality.to_dict()
+    assert json.loads(json.dumps(d, allow_nan=False))["samples_beyond_jumps"] == 40 and d["ok"] is False
+    clean = read_log(f.with_name("c.csv") if f.with_name("c.csv").write_text("time_s,az\n0,1\n0.1,2\n") else f)
+    assert clean.quality.ok and clean.quality.damage_fraction == 0.0 and clean.quality.lines() == []
+    check_quality(clean)
+
+
+def test_channel_map_schema_errors_name_file_field_value_and_range(tmp_path: Path) -> None:
+    from fmu_models.config import ConfigError
+
+    cfg = tmp_path / "map.toml"
+    cfg.write_text("[channels]\nmotor_1_pwm_us = true\nmotor_2_pwm_us = 0\nmotor_3_pwm_us = 2.5\n")
+    with pytest.raises(ConfigError) as err:
+        read_log(shared_data("quadrotor", "arducopter_x_quad_real_218.BIN"), channel_map=cfg)
+    text = str(err.value)
+    assert isinstance(err.value, LogError) and "map.toml" in text and len(err.value.problems) == 3
+    assert "channels.motor_1_pwm_us = True" in text and "channels.motor_2_pwm_us = 0" in text
+    assert "allowed: 1..32" in text and "channels.motor_3_pwm_us = 2.5" in text
+    cfg.write_text("[channels]\nmotor_1_pwm_us = 'C3'\n")
+    with pytest.raises(LogError, match="name CSV columns"):
+        read_log(shared_data("quadrotor", "arducopter_x_quad_real_218.BIN"), channel_map=cfg)
+    with pytest.raises(ConfigError, match=r"(?s)channel_map argument.*channels\.x = -1"):
+        read_log(tmp_path / "nope.csv", channel_map={"x": -1})
