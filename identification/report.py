@@ -152,8 +152,9 @@ def _horizon_section(res: ReplayResult) -> list[str]:
     for name, hrows in res.horizons.items():
         ax.plot([r.horizon_s for r in hrows], [r.skill_persistence for r in hrows], "o-", ms=3, lw=1, label=name)
     ax.axhline(0.0, color="k", lw=0.8)
+    ax.set_ylim(-2.0, 1.05)  # below -2 (RMSE three times persistence's) the curves leave the frame
     ax.set_xlabel("prediction horizon [s] (restart from the logged state)")
-    ax.set_ylabel("skill vs persistence")
+    ax.set_ylabel("skill vs persistence (clipped at -2)")
     ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7)
     n = max((r.n for rows_ in res.horizons.values() for r in rows_), default=0)
     return [_table(["signal", *(f"{h:g} s: RMSE FMU / persistence (skill)" for h in hs)], rows),

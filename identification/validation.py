@@ -52,8 +52,8 @@ from identification.output_map import SignalMap
 WING_INPUTS = ("aileron_rad", "elevator_rad", "rudder_rad", "throttle")
 ACCEL = ("accel_body_x_m_s2", "accel_body_y_m_s2", "accel_body_z_m_s2")
 DEFAULT_HORIZONS_S = (0.1, 0.5, 1.0, 2.0)
-#: bytes a replay holds per grid sample and signal (measured, model, baselines, masks, metric temporaries),
-#: measured on a 335 s log, with headroom
+#: bytes a replay holds per grid sample: an upper estimate of 20 float64 arrays per compared signal (measured,
+#: model, baselines, masks, metric temporaries) and 50 for the grid, inputs and initial states
 BYTES_PER_SAMPLE_SIGNAL = 160
 BYTES_PER_SAMPLE_BASE = 400
 
