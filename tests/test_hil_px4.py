@@ -347,3 +347,28 @@ def test_reconnect_is_fast_and_the_record_stays_continuous(quadrotor_fmu: Path, 
         rows = list(csv.DictReader(fh))
     t_rows = [float(r["time_s"]) for r in rows]
     assert len(rows) >= len(times) and all(b > a for a, b in itertools.pairwise(t_rows))
+
+
+def test_first_packet_has_positive_time_and_the_vehicle_rests_on_its_gear(quadrotor_fmu: Path) -> None:
+    """The model starts at its ground-contact equilibrium: from the first packet (at a positive time) the
+    accelerometer reads -g, with no settling transient."""
+    plant = Plant(quadrotor_fmu)
+    port_srv = Px4Server(plant, SensorSuite(SensorConfig.noise_free()), port=0, dt_s=DT,
+                         watchdog=Watchdog(timeout_s=2.0))
+    try:
+        with serving(port_srv):
+            px4 = FakePx4(port_srv.address)
+            try:
+                readings = []
+                for k in range(50):  # 0.2 s
+                    sensor = px4.read_step()["HIL_SENSOR"]
+                    readings.append((sensor.time_usec, sensor.zacc, sensor.xacc))
+                    px4.send_controls(k, [1000.0] * 4)
+            finally:
+                px4.close()
+    finally:
+        port_srv.close()
+        plant.close()
+    assert readings[0][0] > 0
+    g = 9.808  # WGS-84 normal gravity near 47 deg latitude
+    assert all(abs(z + g) < 0.02 and abs(x) < 1e-3 for _, z, x in readings), readings[:5]

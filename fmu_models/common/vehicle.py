@@ -140,17 +140,24 @@ def nav_outputs(x: Any, force_body_N: Any, mass_kg: Any, on_ground: Any) -> list
 
 
 def initial_body_state(pv: Any) -> Any:
-    """The 16 body states from the ``INIT_PARAMS`` (named view ``pv``); geodetic from home + NED offset."""
+    """The 16 body states from the ``INIT_PARAMS`` (named view ``pv``); geodetic from home + NED offset.
+
+    A vehicle started on the ground (``init_pos_down_m >= 0``) starts at its ground-contact equilibrium in
+    heave: sunk ``g / ground_wn_rad_s^2`` (1 mm at 100 rad/s), so the gear carries its weight from t = 0
+    and the accelerometer reads -g at once instead of a free-fall transient.
+    """
     q0 = quat_from_euler(pv.init_roll_rad, pv.init_pitch_rad, pv.init_yaw_rad)
     lat0 = pv.home_lat_deg * math.pi / 180.0
     h_home = pv.home_height_m
     r_m, r_n = wgs84.radii_of_curvature(lat0)
     lat = lat0 + pv.init_pos_north_m / (r_m + h_home)
     lon = pv.home_lon_deg * math.pi / 180.0 + pv.init_pos_east_m / ((r_n + h_home) * ca.cos(lat0))
+    settle = wgs84.normal_gravity(lat, h_home) / pv.ground_wn_rad_s**2
+    down = pv.init_pos_down_m + ca.if_else(pv.init_pos_down_m >= 0, settle, 0.0)
     return ca.vertcat(
         pv.init_pos_north_m,
         pv.init_pos_east_m,
-        pv.init_pos_down_m,
+        down,
         pv.init_vel_body_x_m_s,
         pv.init_vel_body_y_m_s,
         pv.init_vel_body_z_m_s,
@@ -160,7 +167,7 @@ def initial_body_state(pv: Any) -> Any:
         pv.init_rate_body_z_rad_s,
         lat,
         lon,
-        h_home - pv.init_pos_down_m,
+        h_home - down,
     )
 
 
