@@ -15,9 +15,9 @@ and pythonfmu's library crashes on anything else (fmu_models/fmi/shim.py).
 
 from __future__ import annotations
 
+import shutil
 from collections.abc import Mapping, Sequence
 from ctypes import Array, c_char_p, c_double, c_int, c_uint, c_void_p
-import shutil
 from pathlib import Path
 from typing import Any
 
@@ -160,17 +160,17 @@ class FmuHost:
         rows["time"] = t_s - t_s[0]
         for n, v in inputs.items():
             rows[n] = v
-        if self._used:
-            self.slave.reset()
-        self._used = True
+        self._fresh()
         self.messages.clear()
         try:
-            res: Any = simulate_fmu(self.unzip, model_description=self.md, fmu_instance=self.slave,
+            res: Any = simulate_fmu(self.unzip, model_description=self.md, fmu_instance=self._live("simulate"),
                                     start_values=dict(start_values or {}), input=rows, output=list(outputs),
                                     step_size=dt, output_interval=dt, stop_time=float(rows["time"][-1]),
                                     validate=False)
         except Exception as err:  # FMPy raises plain Exception (FMICallException) for fmi2Error/fmi2Fatal
+            self._failed(err)
             raise FmuRunError(f"{self.path.name}: {err}{self._tail()}") from err
+        self.phase = "terminated"  # simulate_fmu terminates an instance it was given (and does not free it)
         if len(res) != len(t_s):
             raise FmuRunError(f"{self.path.name}: {len(res)} result rows for {len(t_s)} samples")
         return res
@@ -178,18 +178,48 @@ class FmuHost:
     # -------------------------------------------------------------- step-by-step (HIL, closed-loop scenarios)
     def start(self, start_values: Mapping[str, float] | None = None) -> None:
         """(Re-)initialise the instance at time 0 with ``start_values``; ``FmuRunError`` on failure."""
+        self._fresh()
+        self.messages.clear()
+        slave = self._live("start")
         try:
-            if self._used:
-                self.slave.reset()
-            self._used = True
-            self.messages.clear()
-            self.slave.setupExperiment(startTime=0.0)
+            slave.setupExperiment(startTime=0.0)
             if start_values:
                 self.set(start_values)
-            self.slave.enterInitializationMode()
-            self.slave.exitInitializationMode()
+            slave.enterInitializationMode()
+            slave.exitInitializationMode()
+        except FmuRunError:
+            raise
         except Exception as err:  # FMPy raises FMICallException (an Exception) for fmi2Error
+            self._failed(err)
             raise FmuRunError(f"{self.path.name}: initialisation failed ({err}){self._tail()}") from err
+        self.phase, self.time_s = "stepping", 0.0
+
+    def _fresh(self) -> None:
+        """An instance at time 0 for a new run: reset a used one, re-instantiate a fatal or closed one."""
+        if self.slave is None or self.phase == "fatal":
+            if self.unzip is None:
+                raise FmuRunError(f"{self.path.name}: the host is closed")
+            self.instantiate()
+        elif self._used:
+            try:
+                self.slave.reset()
+            except Exception as err:  # a reset the FMU refuses: start over on a new instance
+                self._failed(err)
+                self.instantiate()
+        self._used = True
+        self.phase, self.time_s = "instantiated", 0.0
+
+    def terminate(self) -> None:
+        """End the run (``fmi2Terminate``); only ``get``, ``start`` (reset) or ``close`` may follow."""
+        slave = self._live("terminate")
+        if self.phase != "stepping":
+            raise FmuRunError(f"{self.path.name}: terminate refused in phase {self.phase} (start() first)")
+        try:
+            slave.terminate()
+        except Exception as err:
+            self._failed(err)
+            raise FmuRunError(f"{self.path.name}: terminate failed ({err}){self._tail()}") from err
+        self.phase = "terminated"
 
     def refs(self, names: Sequence[str]) -> list[int]:
         """Value references of ``names`` (cached: the same inputs and outputs are exchanged every step)."""
@@ -219,26 +249,45 @@ class FmuHost:
                           "aileron_rad, elevator_rad, rudder_rad, throttle")
 
     def set(self, values: Mapping[str, float]) -> None:
+        slave = self._live("set")
         try:
             vr, buf = self._io(values)
             buf[:] = [float(v) for v in values.values()]
-            self.slave.fmi2SetReal(self.slave.component, vr, len(vr), buf)
+            slave.fmi2SetReal(slave.component, vr, len(vr), buf)
         except KeyError as err:
             raise FmuRunError(f"{self.path.name}: no variable {err}") from None
         except Exception as err:
+            self._failed(err)
             raise FmuRunError(f"{self.path.name}: setting {', '.join(values)} failed ({err}){self._tail()}") from err
 
     def step(self, t_s: float, dt_s: float, inputs: Mapping[str, float] | None = None) -> None:
         """Set ``inputs`` and advance one communication step; ``FmuRunError`` with the FMU's messages."""
+        slave = self._live("step")
+        if self.phase != "stepping":
+            raise FmuRunError(f"{self.path.name}: step refused in phase {self.phase} (start() first"
+                              f"{'; reset with start()' if self.phase in ('error', 'terminated') else ''})")
+        if not (dt_s > 0.0 and abs(t_s - self.time_s) <= 1e-9 * max(1.0, abs(self.time_s)) and dt_s < 1e300):
+            raise FmuRunError(f"{self.path.name}: step refused: t = {t_s!r} s, dt = {dt_s!r} s; the step must start "
+                              f"at the last communication point {self.time_s!r} s with 0 < dt (finite)")
         if inputs:
             self.set(inputs)
         try:
-            self.slave.fmi2DoStep(self.slave.component, t_s, dt_s, 1)
+            slave.fmi2DoStep(slave.component, t_s, dt_s, 1)
         except Exception as err:
+            self._failed(err)
             raise FmuRunError(f"{self.path.name}: step at t = {t_s:.4f} s failed ({err}){self._tail()}") from err
+        self.time_s = t_s + dt_s
 
     def get(self, names: Sequence[str]) -> dict[str, float]:
-        vr, buf = self._io(names)
-        self.slave.fmi2GetReal(self.slave.component, vr, len(vr), buf)
-        vals = buf[:]
-        return dict(zip(names, vals, strict=True))
+        slave = self._live("get")
+        if self.phase == "instantiated":
+            raise FmuRunError(f"{self.path.name}: get refused before start() (FMI 2.0: no outputs yet)")
+        try:
+            vr, buf = self._io(names)
+            slave.fmi2GetReal(slave.component, vr, len(vr), buf)
+        except KeyError as err:
+            raise FmuRunError(f"{self.path.name}: no variable {err}") from None
+        except Exception as err:
+            self._failed(err)
+            raise FmuRunError(f"{self.path.name}: getting {', '.join(names)} failed ({err}){self._tail()}") from err
+        return dict(zip(names, buf[:], strict=True))
