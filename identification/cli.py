@@ -1,6 +1,7 @@
-"""``uavfmu identify``: ``thrust`` (ANFIS thrust map of paper 000 from a log) and ``aero`` (fixed wing).
+"""Paper 000's single-log thrust workflow (``uavfmu identify thrust --method paper``) and the ``aero`` passthrough.
 
-``uavfmu identify thrust LOG --mass 1.14 --out params.json [--validate LOG2] [--plots DIR]`` cuts the
+The command line lives in ``uavfmu.commands.identify`` / ``identify_thrust``; the default thrust workflow is
+``identification.thrust_workflow``. ``run_thrust(args)`` here is the paper method: it cuts the
 airborne (PWM, F_z) data set from LOG, reports the Pearson correlation of each candidate input with F_z,
 refuses to train below the paper's 0.85 gate unless ``--force``, trains the ANFIS by hybrid learning,
 scores it on validation data (LOG2, or the last part of LOG) against least-squares polynomials, derives
