@@ -223,6 +223,11 @@ def _nuisance_fits(model: FixedWingModel, p: np.ndarray, free: list[str], data: 
     except EstimationError as err:
         notes.append(f"per-segment initial rates and biases not estimable ({err}); fitted without")
         return plain, "none", notes
+    confounded = [f"{a}~{b}" for a, b, _ in (rich.estimate.identifiability.pairs
+                                              if rich.estimate.identifiability else []) if "." in a + b]
+    if confounded:
+        return plain, f"none (per-segment states and biases are confounded with derivatives: " \
+            f"{', '.join(confounded[:4])}{' ...' if len(confounded) > 4 else ''})", notes
     if rich.aic < plain.aic:
         return rich, f"per-segment initial rates and biases of {', '.join(biases)} (AIC {rich.aic:.0f} < " \
             f"{plain.aic:.0f} without)", notes

@@ -157,10 +157,11 @@ def advice(pairs: Sequence[tuple[str, str, float]], cond: float, weakest: Sequen
 
 
 def select_free(M: np.ndarray, names: Sequence[str], candidates: Sequence[str] = AUTO_CANDIDATES,
-                max_relative_std: float = 0.3, theta: np.ndarray | None = None) -> list[str]:
+                max_relative_std: float = 0.1, theta: np.ndarray | None = None, margin: float = 0.85) -> list[str]:
     """Greedy well-conditioned free set: walk ``candidates`` in priority order and keep one if the set stays
-    below :data:`CONDITION_LIMIT`, no pair exceeds :data:`CORRELATION_LIMIT`, and its Cramér-Rao std (white) is
-    under ``max_relative_std`` of ``|theta|`` (``M`` and ``theta`` over ``names``)."""
+    below :data:`CONDITION_LIMIT` / 3, no pair exceeds ``margin`` (below :data:`CORRELATION_LIMIT`: the
+    start is not the estimate, correlations grow as the fit moves), and its Cramér-Rao std (white) is under
+    ``max_relative_std`` of ``|theta|`` (``M`` and ``theta`` over ``names``)."""
     idx = {n: i for i, n in enumerate(names)}
     chosen: list[int] = []
     for name in candidates:
@@ -168,11 +169,11 @@ def select_free(M: np.ndarray, names: Sequence[str], candidates: Sequence[str] =
             continue
         trial = [*chosen, idx[name]]
         sub = M[np.ix_(trial, trial)]
-        if condition_number(sub) > CONDITION_LIMIT:
+        if condition_number(sub) > CONDITION_LIMIT / 3.0:
             continue
         cov = np.linalg.pinv(sub)
         corr = correlation(cov)
-        if np.any(np.abs(corr[-1, :-1]) > CORRELATION_LIMIT):
+        if np.any(np.abs(corr[-1, :-1]) > margin):
             continue
         if theta is not None:
             std = np.sqrt(max(cov[-1, -1], 0.0))
