@@ -181,10 +181,14 @@ class Plant:
 
     def reinstantiate(self) -> None:
         """Free the FMU instance and instantiate it afresh (never ``fmi2Reset`` after a failed call)."""
-        path = self.host.path
-        self.host.close()
         self.reinstantiations += 1
-        self.host = FmuHost(path, instance_name="hil")
+        fresh = getattr(self.host, "reinstantiate", None)  # FmuHost's own: frees and instantiates in place
+        if fresh is not None:
+            fresh()
+        else:
+            path = self.host.path
+            self.host.close()
+            self.host = FmuHost(path, instance_name="hil")
         self.restart()
 
     def close(self) -> None:
