@@ -28,6 +28,8 @@ def unwrapped_angle(sig: Signal, t_s: np.ndarray) -> np.ndarray:
 IDLE_MARGIN_US = 50.0
 #: heights above the ground level [m] below which the vehicle counts as on the ground
 GROUND_HEIGHT_M = {"quadrotor": 0.3, "fixed_wing": 1.0}
+#: a multirotor log that starts at its lowest altitude and later rises more than this [m] starts on the ground
+TAKEOFF_RISE_M = 1.0
 #: a fixed wing below this airspeed [m/s] is taxiing or parked
 WING_GROUND_AIRSPEED_M_S = 8.0
 
@@ -38,7 +40,8 @@ def ground_samples(log: FlightLog, vehicle: str, t_s: np.ndarray, idle_pwm_us: f
     Criteria: the log's ``landed`` flag where logged; quadrotor motors all at idle (at most ``idle_pwm_us`` +
     ``IDLE_MARGIN_US``); fixed wing below ``WING_GROUND_AIRSPEED_M_S``; height above the ground level below
     ``GROUND_HEIGHT_M``, the ground level being the median altitude while on the ground by the other criteria,
-    else the first altitude of a log that starts at its lowest point (else no height criterion).
+    else, for a multirotor, the first altitude of a log that starts at its lowest point and then rises by more
+    than ``TAKEOFF_RISE_M`` (a take-off with no idle phase logged); else no height criterion.
     """
     out: dict[str, np.ndarray] = {}
     if log.has("landed"):
@@ -55,8 +58,10 @@ def ground_samples(log: FlightLog, vehicle: str, t_s: np.ndarray, idle_pwm_us: f
         limit = GROUND_HEIGHT_M.get(vehicle, 0.3)
         if parked.any():
             level: float | None = float(np.median(alt[parked]))
-        else:  # a log that starts at its lowest point starts on the ground (a take-off without idle)
-            level = float(alt[0]) if alt[0] - float(np.min(alt)) < limit else None
+        elif vehicle == "quadrotor" and alt[0] - np.min(alt) < limit and np.max(alt) - alt[0] > TAKEOFF_RISE_M:
+            level = float(alt[0])  # a multirotor log starting at its lowest point, then rising: a take-off
+        else:
+            level = None
         if level is not None:
             out[f"below {limit:g} m above the ground level"] = alt - level < limit
     return out

@@ -114,14 +114,20 @@ def test_options_are_range_checked_before_allocating(quadrotor_fmu: Path, tmp_pa
                       ({"horizons_s": [0.0]}, "--horizons-s"), ({"window_s": 0.01, "rate_hz": 50.0}, "window_s")):
         with pytest.raises(ValidationInputError, match=word):
             check_options(**bad)
-    # a log with a +1e6 s time jump: the grid would need gigabytes; stop with a message instead
+    # a log with a +1e6 s time jump: a grid across it would need gigabytes. The reader splits it off and says
+    # so on the console; the replay runs on the kept part at once
     t = np.concatenate([np.arange(0.0, 5.0, 0.02), 1e6 + np.arange(0.0, 5.0, 0.02)])
     sig = {f"motor_{k}_pwm_us": np.full(t.size, 1500.0) for k in range(1, 5)}
-    sig |= {n: np.zeros(t.size) for n in ("roll_rad", "pitch_rad", "yaw_rad", "altitude_m", "accel_body_z_m_s2",
+    sig |= {n: np.zeros(t.size) for n in ("roll_rad", "pitch_rad", "yaw_rad", "accel_body_z_m_s2",
                                          "gyro_body_x_rad_s", "gyro_body_y_rad_s", "gyro_body_z_rad_s")}
+    sig["altitude_m"] = np.full(t.size, 10.0)
     log = synthetic.write_csv_log(tmp_path / "jump.csv", t, sig)
-    with pytest.raises(ValidationInputError, match=r"MB.*time jump"):
-        validate(ValidationJob(quadrotor_fmu, log, options(rate_hz=50.0)))
+    res = validate(ValidationJob(quadrotor_fmu, log, options(rate_hz=50.0)))
+    assert res.replay.t_s[-1] < 10.0 and res.windows <= 3
+    assert any("time jump" in w for w in res.warnings) and "time jump" in "\n".join(res.lines())
+    # and the memory a replay needs is estimated before the grid is made: above the limit it stops
+    with pytest.raises(ValidationInputError, match=r"MB.*--rate-hz.*--max-memory-mb"):
+        validate(ValidationJob(quadrotor_fmu, log, options(rate_hz=2000.0, max_memory_mb=1.0)))
 
 
 @pytest.mark.parametrize("name", REAL_LOGS)
