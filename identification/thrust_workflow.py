@@ -63,7 +63,8 @@ class ThrustConfig:
     """Options of :func:`identify_thrust` (checked by :func:`check_config`).
 
     ``calibrate``: ``auto`` (per-flight calibration when the flights log no voltage), ``on`` or ``off``.
-    ``use_voltage``: use the logged battery voltage when every flight has it. ``n_folds_single``: time
+    ``use_voltage``: use the logged battery voltage when every flight has it. ``n_mfs``: most MFs tried (the
+count is chosen by an inner CV on the training flights). ``n_folds_single``: time
     blocks when only one flight is given. ``out``/``metrics``: files to write (None: write nothing).
     """
 
@@ -123,6 +124,7 @@ class FoldResult:
     model: Score
     baselines: dict[str, Score]
     calibration_scale: float
+    n_mfs: int = 0
 
     @property
     def best_baseline(self) -> str:
@@ -248,16 +250,18 @@ def _volt(f: Flight, spec: ModelSpec) -> np.ndarray:
     return f.volt_V if (f.volt_V is not None and spec.exponent > 0.0) else np.full(len(f.pwm_us), spec.nominal_V)
 
 
-def fit_model(train: list[Flight], spec: ModelSpec, cfg: ThrustConfig, source: str) -> QuadrotorParams:
-    """Train the per-motor ANFIS on ``train`` (checking blocks for early stopping); monotone or fewer MFs."""
+def fit_model(train: list[Flight], spec: ModelSpec, cfg: ThrustConfig, source: str,
+              n_mfs: int | None = None) -> QuadrotorParams:
+    """Train the per-motor ANFIS on ``train`` (checking blocks for early stopping) with ``n_mfs`` MFs
+    (default ``cfg.n_mfs``); if the map is not monotone on its band, fewer MFs."""
     x = np.concatenate([effective_pwm(f.pwm_us, _volt(f, spec)[:, None], spec.idle_us, spec.nominal_V,
                                       spec.exponent) for f in train])
     y = np.concatenate([f.data.fz_N for f in train])
     period = float(np.median([f.data.sample_period_s for f in train]))
     chk = interleaved_blocks(len(y), max(1, round(cfg.check_block_s / period)), 5)
     amap = None
-    for n_mfs in range(cfg.n_mfs, 0, -1):
-        tc = AnfisTrainConfig(n_mfs=n_mfs, order=1, epochs=cfg.epochs)
+    for n in range(n_mfs or cfg.n_mfs, 0, -1):
+        tc = AnfisTrainConfig(n_mfs=n, order=1, epochs=cfg.epochs)
         res = train_anfis_motors(x[~chk], y[~chk], tc, (x[chk], y[chk]), source=source)
         amap = res.amap
         if is_monotone(amap) and amap.input_range[0][0] > N_MOTORS * spec.idle_us:
@@ -329,8 +333,10 @@ def folds(flights: list[Flight], n_blocks: int) -> list[tuple[str, list[Flight],
 
 def score_fold(name: str, train: list[Flight], test: Flight, spec: ModelSpec, cfg: ThrustConfig,
                calibrate: bool) -> FoldResult:
-    """Train on ``train``, score the FMU's thrust and the baselines on ``test`` (calibrated if asked)."""
-    p = fit_model(train, spec, cfg, source=f"fold without {name}")
+    """Train on ``train`` (MF count chosen by inner CV on ``train`` only), score the FMU's thrust and the
+    baselines on ``test`` (calibrated if asked)."""
+    n_mfs = select_mfs(train, spec, cfg, calibrate)
+    p = fit_model(train, spec, cfg, source=f"fold without {name}", n_mfs=n_mfs)
     pred = fmu_total_thrust(p, test.pwm_us, _volt(test, spec))
     scale = hover_scale(pred, test) if calibrate else 1.0
     y = test.data.fz_N
@@ -341,7 +347,29 @@ def score_fold(name: str, train: list[Flight], test: Flight, spec: ModelSpec, cf
         if calibrate and bname != "constant m g":
             bc = b * hover_scale(b, test)
             scores[bname + " (calibrated)"] = Score(rmse(bc, y), r_squared(bc, y))
-    return FoldResult(name, int(y.size), Score(rmse(pred * scale, y), r_squared(pred * scale, y)), scores, scale)
+    model = Score(rmse(pred * scale, y), r_squared(pred * scale, y))
+    return FoldResult(name, int(y.size), model, scores, scale, p.thrust_map.n_mfs[0])
+
+
+def select_mfs(train: list[Flight], spec: ModelSpec, cfg: ThrustConfig, calibrate: bool) -> int:
+    """MF count in 1..``cfg.n_mfs`` with the lowest pooled RMSE of an inner CV on ``train`` alone
+    (leave-one-flight-out, or time blocks of a single flight); ties go to fewer MFs."""
+    if cfg.n_mfs == 1:
+        return 1
+    inner = folds(train, cfg.n_folds_single)
+    best = (math.inf, 1)
+    for n in range(1, cfg.n_mfs + 1):
+        sse, count = 0.0, 0
+        for _, tr, te in inner:
+            pred = fmu_total_thrust(fit_model(tr, spec, cfg, "inner CV", n_mfs=n), te.pwm_us, _volt(te, spec))
+            if calibrate:
+                pred = pred * hover_scale(pred, te)
+            sse += float(np.sum((pred - te.data.fz_N) ** 2))
+            count += te.data.n_samples
+        score = math.sqrt(sse / count)
+        if score < best[0] * (1.0 - 1e-3):
+            best = (score, n)
+    return best[1]
 
 
 def _pooled(results: list[FoldResult], get: Any) -> float:
@@ -375,7 +403,8 @@ def identify_thrust(cfg: ThrustConfig) -> ThrustResult:
     pooled_b = {b: _pooled(results, lambda r, b=b: r.baselines[b].rmse_N) for b in names}
     pooled_m = _pooled(results, lambda r: r.model.rmse_N)
     wins = pooled_m < min(pooled_b.values())
-    final = fit_model(flights, spec, cfg, source=f"identify thrust ({len(flights)} flights)")
+    final = fit_model(flights, spec, cfg, source=f"identify thrust ({len(flights)} flights)",
+                      n_mfs=select_mfs(flights, spec, cfg, calibrate))
     final = dataclasses.replace(final, mass_kg=flights[0].spec.mass_kg)
     cal = {}
     if calibrate:
@@ -430,6 +459,7 @@ def _metrics(r: ThrustResult, cfg: ThrustConfig, spec: ModelSpec, calibrate: boo
         "calibration_scale": r.calibration,
         "folds": [
             {"held_out": f.held_out, "samples": f.n_samples, "calibration_scale": f.calibration_scale,
+             "n_mfs": f.n_mfs,
              "model": dataclasses.asdict(f.model),
              "baselines": {k: dataclasses.asdict(v) for k, v in f.baselines.items()},
              "best_baseline": f.best_baseline,

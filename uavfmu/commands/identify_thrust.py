@@ -51,7 +51,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--max-lag-s", type=float, default=0.3, help="accelerometer lag search range +- [s] (0.3)")
     g.add_argument("--motor-min-pwm-us", type=float, default=1150.0,
                    help="airborne only with motor PWM above this [us] (voltage: the mean; paper: every motor)")
-    g.add_argument("--mfs", type=int, help="ANFIS membership functions (voltage 2, paper 3)")
+    g.add_argument("--mfs", type=int, help="ANFIS membership functions (voltage: most tried, chosen by inner CV, 2; paper 3)")
     g.add_argument("--epochs", type=int, help="hybrid-learning epochs (voltage 30, paper 100)")
     g.add_argument("--check-block-s", type=float, help="checking data: every 5th block of this length [s] (5)")
     g.add_argument("--pwm-idle-us", type=float, help="per-motor PWM of zero thrust [us] (voltage 1000, paper 1100)")
