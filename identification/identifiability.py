@@ -97,8 +97,15 @@ def condition_number(M: np.ndarray) -> float:
 
 
 def correlation(cov: np.ndarray) -> np.ndarray:
-    d = np.sqrt(np.maximum(np.diag(cov), 1e-300))
-    return cov / np.outer(d, d)
+    """Correlation matrix of a covariance; entries of zero-variance parameters are 0 (never NaN)."""
+    d = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    ok = d > 1e-150
+    dd = np.where(ok, d, 1.0)
+    out = cov / np.outer(dd, dd)
+    out[~ok, :] = 0.0
+    out[:, ~ok] = 0.0
+    out[np.diag_indices_from(out)] = np.where(ok, 1.0, 0.0)
+    return np.clip(out, -1.0, 1.0)
 
 
 def input_excitation(inputs: Sequence[np.ndarray], names: Sequence[str]) -> dict[str, float]:

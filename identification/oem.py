@@ -25,7 +25,7 @@ from tqdm import tqdm
 
 from fmu_models.common.model import VehicleModel, step_function
 from fmu_models.fmi.jit import compiled
-from identification.identifiability import Identifiability, analyse, input_excitation
+from identification.identifiability import Identifiability, analyse, correlation, input_excitation
 
 log = logging.getLogger(__name__)
 
@@ -599,8 +599,7 @@ class OutputErrorEstimator:
             middle[np.ix_(idx, idx)] += coloured_covariance(G, r)
         cov = M_inv @ middle @ M_inv
         std = np.sqrt(np.maximum(np.diag(cov), 0.0))
-        d = np.maximum(std, 1e-300)
-        corr = cov / np.outer(d, d)
+        corr = correlation(cov)  # zero-variance entries give 0 correlation, never NaN
         boot = self.segment_bootstrap_std(res, jacs, W)
         method = BOUND_METHODS[1] if boot is not None else BOUND_METHODS[0]
         exc = input_excitation([m.u for m in data], list(self.model.inputs.index))
