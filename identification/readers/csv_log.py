@@ -44,6 +44,8 @@ def _rows(path: Path, quality: DataQuality) -> tuple[list[str], np.ndarray, list
     if len(rows) < 2:
         raise LogError(f"{path}: a CSV log needs a header row and at least one data row")
     header = [h.strip() for h in rows[0]]
+    if not any(header):
+        raise LogError(f"{path}: the first line of a CSV log must be a header of column names; it is empty")
     good = [[_number(v) for v in row] for row in rows[1:] if len(row) == len(header)]
     bad_lines = [i for i, row in enumerate(rows[1:], start=2) if len(row) != len(header)]
     quality.messages_total = len(rows) - 1

@@ -175,8 +175,12 @@ def _scan_binary(path: Path, quality: DataQuality) -> tuple[Columns, dict[str, f
         idx = np.asarray(offs)[:, None] + np.arange(lengths[mid])
         rows = buf[idx].view(dtype).ravel()
         if name == "PARM":
-            for pname, value in zip(rows["Name"], rows["Value"], strict=True):
-                params[pname.rstrip(b"\0").decode("ascii", "replace")] = float(value)
+            kinds = dict(zip(cols, fmt, strict=True))
+            if kinds.get("Name") in OTHER_SIZES and kinds.get("Value") in NUMERIC_FORMATS:
+                for pname, value in zip(rows["Name"], rows["Value"], strict=True):
+                    params[pname.rstrip(b"\0").decode("ascii", "replace")] = float(value)
+            else:
+                warnings.append(f"{path}: PARM has an unexpected format {fmt!r} ({','.join(cols)}); parameters skipped")
             continue
         if name in SKIPPED:
             continue
@@ -184,7 +188,8 @@ def _scan_binary(path: Path, quality: DataQuality) -> tuple[Columns, dict[str, f
         for col, ch in zip(cols, fmt, strict=True):
             if ch in NUMERIC_FORMATS:
                 mul = NUMERIC_FORMATS[ch][1]
-                v = rows[col].astype(float)
+                with np.errstate(invalid="ignore", over="ignore"):
+                    v = rows[col].astype(float)
                 out[name][col] = v * mul if mul else v
     if quality.bytes_skipped:
         warnings.append(f"{path}: {quality.bytes_skipped} of {len(data)} bytes could not be parsed and were "
