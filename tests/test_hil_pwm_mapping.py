@@ -81,3 +81,15 @@ def test_mapping_schema_names_file_field_value_and_range(tmp_path) -> None:
     assert "deadband_us = -3" in text and ">= 0" in text and "trim_us" in text
     with pytest.raises(MappingError):  # still caught as a MappingError by the adapter
         PwmMapping.from_dict({"channels": {"throttle": {"source": 3, "unknown": 1}}})
+
+
+def test_px4_pitch_up_and_yaw_right_controls_reach_the_fmu_as_nose_up_and_nose_right() -> None:
+    """PX4 control group 0 (FRD torque demands: + pitch = nose up, + yaw = nose right) through the adapter's
+    controls -> PWM assignment and the default mapping: uavbook elevator and rudder come out negative."""
+    from fmu_models.signals.pwm_mapping import default_mapping
+    from hil_adapter.px4 import controls_to_pwm
+
+    pwm = controls_to_pwm([0.5, 0.5, 0.5, 0.7] + [0.0] * 12, "fixed_wing", True)
+    out = default_mapping("fixed_wing").apply(pwm)
+    assert out["aileron_rad"] > 0 and out["elevator_rad"] < 0 and out["rudder_rad"] < 0
+    assert out["throttle"] == pytest.approx(0.7)
