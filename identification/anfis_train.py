@@ -590,24 +590,33 @@ def train_anfis_motors(
         if score < best[0]:
             best = (score, epoch, prem.copy(), cons.copy())
         step.update(sse)
-        g_m = np.zeros(cfg.n_mfs)
-        g_s = np.zeros(cfg.n_mfs)
-        for wbar, f, F, u in fw:
-            g_rule = -2.0 * (err / n)[:, None] * wbar * (f - F[:, None])
-            g_m += 2.0 * np.einsum("nj,nj->j", g_rule, u) / prem.sigma[0]
-            g_s += 2.0 * np.einsum("nj,nj->j", g_rule, u * u) / prem.sigma[0]
-        norm = math.sqrt(float(g_m @ g_m + g_s @ g_s))
-        if norm == 0.0 or not math.isfinite(norm):
-            continue
-        eta = step.kappa / norm
-        prem.mean = prem.mean - eta * g_m[None]
-        prem.sigma = np.maximum(prem.sigma - eta * g_s[None], MIN_SIGMA_SCALED)
+        _motor_premise_step(prem, fw, err / n, step.kappa)
     if best[1] < 0:
         raise AnfisTrainingError(f"no epoch gave a finite error (last training RMSE {hist_t[-1:]})")
     _, ep, bp, bc = best
     amap = _to_map(bp, bc, np.array([centre]), np.array([half]), cfg, ("pwm_sum_us",),
                    (np.array([lo]), np.array([hi])), "thrust_N", source)
     return TrainResult(amap, tuple(hist_t), tuple(hist_c) if zc is not None else None, int(ep))
+
+
+def _motor_premise_step(prem: _Premise, fw: list, err_scaled: np.ndarray, kappa: float) -> None:
+    """One Jang step on the Gaussian centres/widths for ``yhat = mean_i F(z_i)``; ``err_scaled = err / n``.
+
+    dE/dlog w_r summed over the motors (each motor's firing enters its own F), then as in
+    :func:`_premise_gradient` (one input: one rule per MF).
+    """
+    g_m = np.zeros(prem.mean.shape[1])
+    g_s = np.zeros(prem.mean.shape[1])
+    for wbar, f, F, u in fw:
+        g_rule = -2.0 * err_scaled[:, None] * wbar * (f - F[:, None])
+        g_m += 2.0 * np.einsum("nj,nj->j", g_rule, u) / prem.sigma[0]
+        g_s += 2.0 * np.einsum("nj,nj->j", g_rule, u * u) / prem.sigma[0]
+    norm = math.sqrt(float(g_m @ g_m + g_s @ g_s))
+    if norm == 0.0 or not math.isfinite(norm):
+        return
+    eta = kappa / norm
+    prem.mean = prem.mean - eta * g_m[None]
+    prem.sigma = np.maximum(prem.sigma - eta * g_s[None], MIN_SIGMA_SCALED)
 
 
 def is_monotone(amap: AnfisMap, n_points: int = 400) -> bool:

@@ -113,10 +113,10 @@ def test_without_voltage_the_model_loses_honestly_and_force_keeps_the_warning(
     assert not r.model_beats_baselines and r.exit_code == 3
     assert any("LOSES" in w for w in r.warnings) and out.exists()
     assert json.loads(out.with_suffix(".metrics.json").read_text())["model_beats_baselines"] is False
-    forced = identify_thrust(_cfg([("hi", 1.2), ("lo", 1.2)], calibrate="off", force=True))
+    forced = identify_thrust(_cfg([("hi", 1.2), ("lo", 1.2)], calibrate="off", force=True, n_mfs=1))
     assert forced.exit_code == 0 and any("LOSES" in w for w in forced.warnings)
     # per-flight hover calibration recovers the level of each flight
-    cal = identify_thrust(_cfg([("hi", 1.2), ("lo", 1.2)], calibrate="on"))
+    cal = identify_thrust(_cfg([("hi", 1.2), ("lo", 1.2)], calibrate="on", n_mfs=1))
     for f in cal.folds:
         assert f.model.rmse_N < f.baselines["constant m g"].rmse_N
     assert set(cal.calibration) == {"hi", "lo"}
