@@ -96,6 +96,7 @@ class Flight:
     volt_V: np.ndarray | None
     hover: np.ndarray
     yaw_rate: np.ndarray | None = None
+    reader_warnings: tuple[str, ...] = ()
 
     @property
     def weight_N(self) -> float:
@@ -197,7 +198,7 @@ def load_flight(spec: FlightSpec, cfg: ThrustConfig) -> Flight:
     hover = np.abs(climb) < HOVER_CLIMB_M_S if climb is not None else np.ones(data.n_samples, bool)
     if not hover.any():
         hover = np.ones(data.n_samples, bool)
-    return Flight(spec, data, pwm, volt, hover, _yaw_rate(log, data))
+    return Flight(spec, data, pwm, volt, hover, _yaw_rate(log, data), tuple(getattr(log, "warnings", ()) or ()))
 
 
 def _yaw_rate(log: Any, data: ThrustDataset) -> np.ndarray | None:
@@ -232,6 +233,7 @@ def flight_summary(f: Flight) -> dict[str, Any]:
         "lag_s": f.data.lag_s,
         "voltage_range_V": None if f.volt_V is None else [float(f.volt_V.min()), float(f.volt_V.max())],
         "notes": list(f.data.notes),
+        "reader_warnings": list(f.reader_warnings),
     }
     return out
 

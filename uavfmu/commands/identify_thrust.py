@@ -51,7 +51,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--max-lag-s", type=float, default=0.3, help="accelerometer lag search range +- [s] (0.3)")
     g.add_argument("--motor-min-pwm-us", type=float, default=1150.0,
                    help="airborne only with motor PWM above this [us] (voltage: the mean; paper: every motor)")
-    g.add_argument("--mfs", type=int, help="ANFIS membership functions (voltage: most tried, chosen by inner CV, 2; paper 3)")
+    g.add_argument("--mfs", type=int, help="ANFIS MFs (voltage: most tried, picked by inner CV, 2; paper 3)")
     g.add_argument("--epochs", type=int, help="hybrid-learning epochs (voltage 30, paper 100)")
     g.add_argument("--check-block-s", type=float, help="checking data: every 5th block of this length [s] (5)")
     g.add_argument("--pwm-idle-us", type=float, help="per-motor PWM of zero thrust [us] (voltage 1000, paper 1100)")
@@ -151,6 +151,9 @@ def _run_voltage(args: argparse.Namespace, flights: list[tuple[Path, float]]) ->
     except (ThrustDataError, AnfisTrainingError, ParameterError, LogError, FileNotFoundError) as err:
         return _error(str(err))
     print(format_report(result))
+    for f in result.flights:
+        for note in [*f["reader_warnings"], *f["notes"]]:
+            print(f"note: flight {f['flight']}: {note}", file=sys.stderr)
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
     if not result.model_beats_baselines:
