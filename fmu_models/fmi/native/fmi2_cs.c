@@ -66,6 +66,8 @@ typedef struct Instance {
     int init_valid;       /* y holds the outputs of the current x (after exit init or a step) */
     double *x, *x_next, *u, *p, *y;
     unsigned char* warned; /* per output: warning already logged this run */
+    int* kinds;              /* variable indices: inputs, then parameters, then outputs with a warning */
+    int n_in, n_par, n_warn;
     struct FmuState* states; /* every FMU state this instance handed out, freed with it */
     char message[512];
 } Instance;
@@ -174,6 +176,7 @@ static void free_instance(Instance* c) {
     }
     c->magic = 0;
     free(c->x);
+    free(c->kinds);
     free(c->warned);
     free(c->name);
     free(c);
@@ -208,10 +211,11 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     if (c) {
         c->x = (double*)calloc(n, sizeof(double));
         c->warned = (unsigned char*)calloc((size_t)m->ny + 1, 1);
+        c->kinds = (int*)calloc((size_t)m->n_variables + 1, sizeof(int));
         c->name = (char*)malloc(strlen(instanceName) + 1);
     }
-    if (!c || !c->x || !c->warned || !c->name) {
-        if (c) { free(c->x); free(c->warned); free(c->name); free(c); }
+    if (!c || !c->x || !c->warned || !c->kinds || !c->name) {
+        if (c) { free(c->x); free(c->warned); free(c->kinds); free(c->name); free(c); }
         fail(&tmp, fmi2Error, "fmi2Instantiate: out of memory");
         return NULL;
     }
@@ -220,6 +224,18 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     c->u = c->x_next + m->nx + 1;
     c->p = c->u + m->nu + 1;
     c->y = c->p + m->np + 1;
+    for (int i = 0; i < m->n_variables; ++i) {
+        const uavfmu_variable* v = &m->variables[i];
+        c->n_in += v->causality == UAVFMU_INPUT;
+        c->n_par += v->causality == UAVFMU_PARAMETER;
+        c->n_warn += v->causality == UAVFMU_OUTPUT && v->warning != NULL;
+    }
+    for (int i = 0, a = 0, b = c->n_in, w = c->n_in + c->n_par; i < m->n_variables; ++i) {
+        const uavfmu_variable* v = &m->variables[i];
+        if (v->causality == UAVFMU_INPUT) c->kinds[a++] = i;
+        else if (v->causality == UAVFMU_PARAMETER) c->kinds[b++] = i;
+        else if (v->warning) c->kinds[w++] = i;
+    }
     c->magic = INSTANCE_MAGIC;
     c->model = m;
     c->cb = *functions;
@@ -294,9 +310,10 @@ static const char* num(double v, char* buf, size_t n) {
 static int check_values(Instance* c, int causality, const char* when) {
     const uavfmu_model_info* m = c->model;
     const double* arr = causality == UAVFMU_INPUT ? c->u : c->p;
-    for (int i = 0; i < m->n_variables; ++i) {
-        const uavfmu_variable* v = &m->variables[i];
-        if (v->causality != causality) continue;
+    const int* list = causality == UAVFMU_INPUT ? c->kinds : c->kinds + c->n_in;
+    int n = causality == UAVFMU_INPUT ? c->n_in : c->n_par;
+    for (int k = 0; k < n; ++k) {
+        const uavfmu_variable* v = &m->variables[list[k]];
         double val = arr[v->index];
         if (val != val || (v->has_min && val < v->min) || (v->has_max && val > v->max) || isinf(val)) {
             char a[40], b[40], d[40];
@@ -503,9 +520,9 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real currentCommunicationPoint, fm
     }
     memcpy(c->x, c->x_next, sizeof(double) * (size_t)m->nx);
     c->time = t + h;
-    for (int i = 0; i < m->n_variables; ++i) {
-        const uavfmu_variable* v = &m->variables[i];
-        if (v->warning && c->y[v->index] > 0.5 && !c->warned[v->index]) {
+    for (int k = c->n_in + c->n_par; k < c->n_in + c->n_par + c->n_warn; ++k) {
+        const uavfmu_variable* v = &m->variables[c->kinds[k]];
+        if (c->y[v->index] > 0.5 && !c->warned[v->index]) {
             c->warned[v->index] = 1;
             fail(c, fmi2Warning, "t = %g s: %s (logged once per run)", c->time, v->warning);
         }
