@@ -237,30 +237,28 @@ def _nuisance_fits(model: FixedWingModel, p: np.ndarray, free: list[str], data: 
 
 def _delay(model: FixedWingModel, p: np.ndarray, log: FlightLog, mapping: PwmMapping,
            segs: list[aero.Segment], fit: Fit, opt: AeroOptions, weight: np.ndarray | None) -> Fit:
-    """Scan command -> surface delays of whole samples at the estimate; refit with the best if it lowers
-    the Akaike criterion by more than 2 (one more parameter)."""
+    """Scan command -> surface delays of whole samples (a short refit from the estimate at each); keep the
+    best if it lowers the Akaike criterion by more than 2 (one more parameter)."""
     steps = round(opt.max_delay_s * opt.rate_hz)
     if steps < 1:
         return fit
     oe, theta = fit.oe, fit.estimate.values
-    best, best_cost = 0, _plain_cost(oe, theta, fit.data)
+    best = fit
     for d in range(1, steps + 1):
         data = aero.manoeuvres(model, p, log, mapping, segs, opt.outputs, opt.rate_hz, d / opt.rate_hz)
-        cost = _plain_cost(oe, theta, data)
-        if cost < best_cost:
-            best, best_cost = d, cost
-    if best == 0:
+        try:  # a short refit from the estimate: the no-delay estimate has absorbed part of the lag
+            est = oe.estimate(data, theta0=theta, weight=weight, max_iter=6)
+        except EstimationError:
+            continue
+        trial = Fit(oe, data, est, _aic(est, data), d / opt.rate_hz)
+        if trial.aic < best.aic:
+            best = trial
+    if best is fit:
         return fit
-    data = aero.manoeuvres(model, p, log, mapping, segs, opt.outputs, opt.rate_hz, best / opt.rate_hz)
-    new = _fit(oe, data, opt, weight, best / opt.rate_hz)
+    data = best.data
+    new = _fit(oe, data, opt, weight, best.delay_s)
+    new = new if new.aic <= best.aic else best
     return new if new.aic + 2.0 < fit.aic else fit
-
-
-def _plain_cost(oe: OutputErrorEstimator, theta: np.ndarray, data: list[Manoeuvre]) -> float:
-    """``n ln det R`` of the residuals at ``theta`` (no sensitivities)."""
-    res = np.vstack([m.y - oe.simulate(theta, m, j, sensitivities=False)[0] for j, m in enumerate(data)])
-    sign, logdet = np.linalg.slogdet(np.atleast_2d(np.cov(res.T, bias=True)))
-    return float(res.shape[0] * logdet) if sign > 0 else float("inf")
 
 
 def identify_aero(log: FlightLog, mapping: PwmMapping, init: FixedWingParams, opt: AeroOptions) -> AeroResult:

@@ -148,7 +148,7 @@ class Estimate:
 #: how the printed bound is made (``Estimate.bound_method``)
 BOUND_METHODS = ("cramer-rao-coloured", "max(cramer-rao-coloured, segment-bootstrap)")
 #: fewest manoeuvres for which the block bootstrap over manoeuvres is computed
-BOOTSTRAP_MIN_SEGMENTS = 4
+BOOTSTRAP_MIN_SEGMENTS = 6
 
 
 def correlation_lags(r: np.ndarray) -> int:
@@ -547,8 +547,9 @@ class OutputErrorEstimator:
                               seed: int = 0) -> np.ndarray | None:
         """Block bootstrap over manoeuvres (one linearised Gauss-Newton step per resample from the estimate,
         Hu & Kalbfleisch's estimating-function bootstrap): std of the model parameters, or None with fewer than
-        :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres. Whole manoeuvres are resampled, so coloured noise, per-record
-        disturbances and model mismatch that vary from record to record show in the spread."""
+        :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres (too few distinct resamples). Whole manoeuvres are
+        resampled, so coloured noise, per-record disturbances and model mismatch that vary from record to
+        record show in the spread."""
         m = len(res)
         if m < BOOTSTRAP_MIN_SEGMENTS or not self.free:
             return None
@@ -561,7 +562,10 @@ class OutputErrorEstimator:
             w = np.bincount(rng.integers(0, m, m), minlength=m).astype(float)
             Ab = np.einsum("j,jab->ab", w, A)
             reps.append(np.linalg.lstsq(Ab, w @ g, rcond=None)[0])
-        return np.std(np.array(reps), axis=0, ddof=1) * np.sqrt(m / (m - 1.0))
+        # robust spread (IQR / 1.349): a resample that leaves a parameter unexcited gives a wild step, which
+        # would dominate a plain std
+        q75, q25 = np.percentile(np.array(reps), [75, 25], axis=0)
+        return (q75 - q25) / 1.349 * np.sqrt(m / (m - 1.0))
 
     def information(self, data: Sequence[Manoeuvre], theta: np.ndarray | None = None,
                     weight: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
