@@ -175,10 +175,10 @@ def _one_step_section(res: ReplayResult) -> str:
 def _log_notes(res: ReplayResult) -> list[str]:
     notes = [f"{sum(res.included)} of {len(res.windows)} replay windows scored, each re-initialised from the logged "
              "state (the first sample of each window is the initial condition and is not scored)."]
-    if res.excluded:
-        why = ", ".join(f"{k}: {v} windows" for k, v in res.ground.items())
-        notes.append(f"{res.excluded} windows excluded with the vehicle on the ground ({why}); "
-                     "--include-ground scores them.")
+    if res.excluded or res.ground:
+        why = ", ".join(f"{k}: {v}" for k, v in {**res.ground, **res.gaps}.items())
+        notes.append(f"{res.excluded} windows excluded ({why}); the vehicle on the ground is left out by default "
+                     "(--include-ground scores it), windows without data for an input or compared signal always.")
     notes += [f"log warning: {w}" for w in res.log["warnings"]]
     notes += [f"data quality: {w}" for w in res.log.get("quality_lines", [])]
     return [f"<p>{html.escape(n)}</p>" for n in notes]

@@ -127,6 +127,7 @@ class ReplayResult:
     window_scores: list[dict[str, Score]] = field(default_factory=list)
     included: list[bool] = field(default_factory=list)
     ground: dict[str, int] = field(default_factory=dict)
+    gaps: dict[str, int] = field(default_factory=dict)
     persistence: dict[str, np.ndarray] = field(default_factory=dict)
     horizons: dict[str, list[HorizonRow]] = field(default_factory=dict)
     one_step: dict[str, Score] = field(default_factory=dict)
@@ -272,6 +273,36 @@ def _ground_windows(log: FlightLog, vehicle: str, t: np.ndarray, edges: Sequence
     return [not g for g in any_ground], {k: v for k, v in counts.items() if v}
 
 
+#: a logged signal with no sample for longer than this many of its median periods (and at least MIN_GAP_S)
+#: has a gap: windows overlapping it are not scored (interpolation or a held value would invent the data)
+GAP_PERIODS, MIN_GAP_S = 5.0, 0.5
+
+
+def _coverage_windows(log: FlightLog, names: Sequence[str], t: np.ndarray, edges: Sequence[int]
+                      ) -> tuple[list[bool], dict[str, int]]:
+    """Per window: every signal of ``names`` has data throughout; and for each signal the windows it leaves
+    without data (a gap, or the signal ends before the window or starts after it)."""
+    ta, tb = t[np.asarray(edges[:-1])], t[np.asarray(edges[1:])]
+    covered = np.ones(len(ta), dtype=bool)
+    counts: dict[str, int] = {}
+    for name in dict.fromkeys(names):
+        ts = log.signal(name).t_s
+        if len(ts) < 2:
+            continue
+        dt = np.diff(ts)
+        limit = max(MIN_GAP_S, GAP_PERIODS * float(np.median(dt)))
+        big = np.flatnonzero(dt > limit)
+        lo = np.concatenate([[-np.inf], ts[big], [ts[-1] + limit]])
+        hi = np.concatenate([[ts[0] - limit], ts[big + 1], [np.inf]])
+        # a window [ta, tb] misses data when it overlaps any hole (lo, hi)
+        first = np.searchsorted(hi, ta, side="right")  # first hole ending after the window starts
+        miss = (first < len(lo)) & (lo[np.minimum(first, len(lo) - 1)] < tb)
+        if miss.any():
+            counts[f"no data for {name}"] = int(miss.sum())
+            covered &= ~miss
+    return [bool(c) for c in covered], counts
+
+
 def _simulate_windows(host: FmuHost, t: np.ndarray, inputs: Mapping[str, np.ndarray], maps: Sequence[SignalMap],
                       measured: Mapping[str, np.ndarray], starts: list[dict[str, float]], edges: Sequence[int],
                       included: Sequence[bool], extra: Sequence[str],
@@ -291,6 +322,33 @@ def _simulate_windows(host: FmuHost, t: np.ndarray, inputs: Mapping[str, np.ndar
         if progress:
             progress(i + 1, len(edges) - 1)
     return model, first
+
+
+def _windows_to_score(log: FlightLog, log_path: Path, vehicle: str, maps: Sequence[SignalMap],
+                      mapping: PwmMapping | None, t: np.ndarray, edges: Sequence[int], opts: ValidationOptions,
+                      idle_pwm_us: float) -> tuple[list[bool], dict[str, int], dict[str, int], np.ndarray | None]:
+    """Which windows are scored: not on the ground (unless ``include_ground``; a single full-length window
+    instead leaves out its ground samples, returned as a mask) and with data for every input and compared
+    signal. Returns (included, ground reasons, gap reasons, ground-sample mask or None)."""
+    included, ground, on_ground = [True] * (len(edges) - 1), {}, None
+    if not opts.include_ground and len(edges) == 2:
+        masks = ground_samples(log, vehicle, t, idle_pwm_us)
+        on_ground = np.any(list(masks.values()), axis=0) if masks else None
+        ground = {f"{k} (samples)": int(v.sum()) for k, v in masks.items() if v.any()}
+    elif not opts.include_ground:
+        included, ground = _ground_windows(log, vehicle, t, edges, idle_pwm_us)
+    used = [f"motor_{k}_pwm_us" for k in range(1, 5)] if vehicle == "quadrotor" else \
+        [f"servo_{c.source}_pwm_us" for c in (mapping or PwmMapping.from_ardupilot(log.params)).channels
+         if c.target in WING_INPUTS and log.has(f"servo_{c.source}_pwm_us")]
+    covered, gaps = _coverage_windows(log, [*used, *(m.log for m in maps)], t, edges)
+    included = [a and b for a, b in zip(included, covered, strict=True)]
+    if not any(included):
+        hint = "; use --include-ground to score ground windows" if ground else ""
+        raise ValidationInputError(f"{log_path}: no replay window left to score ({'; '.join([*ground, *gaps])})"
+                                   + hint)
+    if on_ground is not None and on_ground[1:].all():
+        raise ValidationInputError(f"{log_path}: the vehicle is on the ground throughout; use --include-ground")
+    return included, ground, gaps, on_ground
 
 
 def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalMap], rate_hz: float = 50.0,
@@ -316,30 +374,19 @@ def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalM
     n = len(t)
     step = n - 1 if not opts.window_s else max(1, round(opts.window_s * opts.rate_hz))
     edges = [*range(0, n - 1, step), n - 1]
-    included, ground, on_ground = [True] * (len(edges) - 1), {}, None
-    idle = params.get("pwm_idle_us", 1100.0)
-    if not opts.include_ground and len(edges) == 2:  # one full-length replay: leave out the ground samples
-        masks = ground_samples(log, vehicle, t, idle)
-        on_ground = np.any(list(masks.values()), axis=0) if masks else None
-        ground = {f"{k} (samples)": int(v.sum()) for k, v in masks.items() if v.any()}
-    elif not opts.include_ground:
-        included, ground = _ground_windows(log, vehicle, t, edges, idle)
-        if not any(included):
-            raise ValidationInputError(f"{log_path}: every replay window has the vehicle on the ground "
-                                       f"({'; '.join(ground)}); use --include-ground to score them anyway")
+    included, ground, gaps, on_ground = _windows_to_score(log, log_path, vehicle, maps, mapping, t, edges, opts,
+                                                          params.get("pwm_idle_us", 1100.0))
     starts = [{**s, **overrides} for s in initial_values_at(log, t[edges[:-1]],
                                                             forward_from_airspeed=vehicle == "fixed_wing")]
     extra = [a for a in ACCEL if a in host.variables and log.has(a)]
     model, first = _simulate_windows(host, t, inputs, maps, measured, starts, edges, included, extra, progress)
     if on_ground is not None:
-        if on_ground[1:].all():
-            raise ValidationInputError(f"{log_path}: the vehicle is on the ground throughout; use --include-ground")
         for v in model.values():
             v[on_ground] = np.nan
     res = ReplayResult(fmu_identity(host, overrides), log_identity(log, log_path), t[1:],
                        {k: v[1:] for k, v in model.items()}, {k: v[1:] for k, v in measured.items()},
                        [(float(t[a]), float(t[b])) for a, b in itertools.pairwise(edges)],
-                       [], {}, tuple(maps), overrides, included=list(included), ground=ground,
+                       [], {}, tuple(maps), overrides, included=list(included), ground=ground, gaps=gaps,
                        options=opts.model_dump())
     res.log["warnings"] += notes
     _score(res, np.asarray(edges), {m.fmu: measured[m.fmu][edges[:-1]] for m in maps})

@@ -92,6 +92,7 @@ class ValidationResult:
     windows: int = 0
     excluded: int = 0
     ground: dict[str, int] = field(default_factory=dict)
+    gaps: dict[str, int] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     one_step: dict[str, dict[str, Any]] = field(default_factory=dict)
     report: str | None = None
@@ -99,8 +100,8 @@ class ValidationResult:
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready summary (no arrays)."""
-        keys = ("fmu", "log", "status", "error", "signals", "failed", "windows", "excluded", "ground", "warnings",
-                "one_step", "report")
+        keys = ("fmu", "log", "status", "error", "signals", "failed", "windows", "excluded", "ground", "gaps",
+                "warnings", "one_step", "report")
         return {k: getattr(self, k) for k in keys}
 
     def lines(self) -> list[str]:
@@ -152,7 +153,7 @@ def result_of(res: ReplayResult, job: ValidationJob) -> ValidationResult:
                           "windows": res.window_counts(m.fmu)}
     warnings = [*res.log["warnings"], *res.log.get("quality_lines", [])]
     return ValidationResult(str(job.fmu), str(job.log), "fail" if res.failed else "pass", "", signals,
-                            res.failed, len(res.windows), res.excluded, dict(res.ground), warnings,
+                            res.failed, len(res.windows), res.excluded, dict(res.ground), dict(res.gaps), warnings,
                             {k: v.as_dict() for k, v in res.one_step.items()}, None, res)
 
 
@@ -162,8 +163,9 @@ def metrics_document(res: ReplayResult, out: ValidationResult) -> dict[str, Any]
     return {
         "fmu": res.fmu, "log": res.log, "options": res.options, "status": out.status, "failed": out.failed,
         "windows": res.windows, "included": res.included,
-        "excluded": {"windows": res.excluded, "by_reason": res.ground,
-                     "note": "a window is excluded when the vehicle is on the ground at any of its samples"},
+        "excluded": {"windows": res.excluded, "by_reason": {**res.ground, **res.gaps},
+                     "note": "a window is excluded when the vehicle is on the ground at any of its samples, or an "
+                             "input or compared signal has no data in it"},
         "signals": out.signals,
         "per_window": [{"t_s": list(w), "included": inc, "signals": {k: v.as_dict() for k, v in ws.items()}}
                        for w, inc, ws in zip(res.windows, res.included, res.window_scores, strict=True)],
@@ -271,13 +273,13 @@ def summary_lines(r: ValidationResult) -> list[str]:
                                                  f"{', '.join(r.failed)})"
     out = [head + verdict]
     scored = r.windows - r.excluded
-    out.append(f"  {scored} of {r.windows} replay windows scored" + (
-        f"; {r.excluded} excluded with the vehicle on the ground ("
-        + ", ".join(f"{why}: {n}" for why, n in r.ground.items()) + "); --include-ground scores them"
-        if r.excluded else ""))
+    why = ", ".join(f"{k}: {n}" for k, n in {**r.ground, **r.gaps}.items())
+    out.append(f"  {scored} of {r.windows} replay windows scored"
+               + (f"; {r.excluded} excluded ({why})" if r.excluded else ""))
     if r.ground and not r.excluded:
-        why = ", ".join(f"{k}: {n}" for k, n in r.ground.items())
-        out.append(f"  left out with the vehicle on the ground: {why}; --include-ground scores them")
+        out.append(f"  left out with the vehicle on the ground: {why}")
+    if r.ground:
+        out.append("  ground windows/samples are left out by default; --include-ground scores them")
     out += [f"  log warning: {w}" for w in r.warnings]
     out.append(f"  {'signal':<18} {'verdict':<7} {'skill/pers':>10} {'skill/mean':>10} {'RMSE':>9} {'Theil U':>7} "
                f"{'R^2':>7} {'windows pass/FAIL/n/a':>21}  reason")

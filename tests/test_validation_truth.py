@@ -75,7 +75,8 @@ def test_ground_windows_are_scored_only_on_request(quadrotor_fmu: Path, flight: 
     forced = validate(ValidationJob(quadrotor_fmu, flight, options(window_s=2.0, include_ground=True)))
     assert forced.excluded == 0 and default.excluded >= 1
     assert sum(forced.replay.included) == sum(default.replay.included) + default.excluded
-    assert "excluded with the vehicle on the ground" in "\n".join(default.lines())
+    text = "\n".join(default.lines())
+    assert "excluded (motors at idle" in text and "--include-ground" in text
 
 
 def test_doubled_mass_loses_to_persistence(quadrotor_fmu: Path, flight: Path, tmp_path: Path) -> None:
@@ -150,3 +151,17 @@ def test_real_logs_never_pass_a_signal_that_loses_to_persistence(quadrotor_fmu: 
             assert sig in doc["failed"] or not s["gated"]
     assert doc["excluded"]["windows"] >= 1  # the log starts and ends on the ground
     assert res.status == ("fail" if res.failed else "pass")
+
+
+def test_windows_without_input_data_are_left_out_and_named(quadrotor_fmu: Path, flight: Path,
+                                                           tmp_path: Path) -> None:
+    """A damaged log keeps its good parts: windows where an input has no data are not scored (a held PWM
+    would invent the input), the rest are, and the console says which and why."""
+    data = np.genfromtxt(flight, delimiter=",", names=True)
+    sig = {c: data[c].copy() for c in data.dtype.names if c != "time_s"}
+    sig["motor_2_pwm_us"][(data["time_s"] > 7.0) & (data["time_s"] < 8.5)] = np.nan
+    log = synthetic.write_csv_log(tmp_path / "gap.csv", data["time_s"], sig)
+    res = validate(ValidationJob(quadrotor_fmu, log, options(window_s=2.0)))
+    assert res.gaps == {"no data for motor_2_pwm_us": 2}  # the windows 6-8 s and 8-10 s
+    assert res.status == "pass" and res.windows - res.excluded >= 4
+    assert "no data for motor_2_pwm_us: 2" in "\n".join(res.lines())

@@ -144,7 +144,8 @@ def initial_body_state(pv: Any) -> Any:
 
     A vehicle started on the ground (``init_pos_down_m >= 0``) starts at its ground-contact equilibrium in
     heave: sunk ``g / ground_wn_rad_s^2`` (1 mm at 100 rad/s), so the gear carries its weight from t = 0
-    and the accelerometer reads -g at once instead of a free-fall transient.
+    and the accelerometer reads -g at once instead of a free-fall transient; a start sunk deeper than that
+    (e.g. a logged ground state) is kept.
     """
     q0 = quat_from_euler(pv.init_roll_rad, pv.init_pitch_rad, pv.init_yaw_rad)
     lat0 = pv.home_lat_deg * math.pi / 180.0
@@ -153,7 +154,8 @@ def initial_body_state(pv: Any) -> Any:
     lat = lat0 + pv.init_pos_north_m / (r_m + h_home)
     lon = pv.home_lon_deg * math.pi / 180.0 + pv.init_pos_east_m / ((r_n + h_home) * ca.cos(lat0))
     settle = wgs84.normal_gravity(lat, h_home) / pv.ground_wn_rad_s**2
-    down = pv.init_pos_down_m + ca.if_else(pv.init_pos_down_m >= 0, settle, 0.0)
+    # a start sunk at least ``settle`` (a logged ground state, replayed) is kept as given
+    down = ca.if_else(pv.init_pos_down_m >= 0, ca.fmax(pv.init_pos_down_m, settle), pv.init_pos_down_m)
     return ca.vertcat(
         pv.init_pos_north_m,
         pv.init_pos_east_m,
