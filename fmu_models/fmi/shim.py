@@ -101,19 +101,31 @@ enum { SER_HEADER = 8 + 8 + 8 + 8 + 8 };  /* magic, model key, payload checksum,
 
 typedef struct State { uint64_t magic; struct Inst* owner; fmi2FMUstate real; double time; int mstate;
                        struct State* next; } State;
-typedef struct Inst { uint64_t magic; struct Inst* next; fmi2Component real; int state; double time;
+/* A pythonfmu instance with the callbacks the shim gave it (its logger forwards to the current owner). */
+typedef struct Slot { fmi2Component real; struct Inst* owner; fmi2CallbackFunctions cb; char key[4096];
+                      struct Slot* next; } Slot;
+typedef struct Inst { uint64_t magic; struct Inst* next; fmi2Component real; Slot* slot; int state; double time;
                       fmi2CallbackFunctions cb; char name[128]; State* states; } Inst;
 
 static Inst* live = NULL;
+static Slot* pool = NULL;  /* freed instances kept for reuse: pythonfmu leaks ~1 KB per fmi2Instantiate */
+static int pooled = 0;
+#define POOL_MAX 4
 static void* real_lib = NULL;
-static int exiting = 0;
 static char load_error[1024] = "";
 
-static void release_python_guard(void) {
-  /* before pythonfmu's own static destructor (see fmu_models/fmi/shim.py): empty its shared_ptr properly */
+static void on_unload(void) {
+  /* Runs when this library is unloaded (dlclose) or at exit, before pythonfmu's static destructors (see
+     fmu_models/fmi/shim.py): free the pooled instances while Python is alive, release pythonfmu's interpreter
+     guard through its own function, and unload pythonfmu when nothing of it is live. */
+  int (*alive)(void) = (int (*)(void))dlsym(RTLD_DEFAULT, "Py_IsInitialized");
+  int py = alive && alive();
+  fmi2FreeInstanceTYPE* f = real_lib ? (fmi2FreeInstanceTYPE*)dlsym(real_lib, "fmi2FreeInstance") : NULL;
+  while (py && f && pool) { Slot* s = pool; pool = s->next; f(s->real); free(s); }
+  pooled = 0;
   void (*fin)(void) = real_lib ? (void (*)(void))dlsym(real_lib, "finalizePythonInterpreter") : NULL;
-  exiting = 1;
   if (fin) fin();
+  if (py && real_lib && !live && !pool) { dlclose(real_lib); real_lib = NULL; }
 }
 
 static void* sym(const char* name) {
@@ -127,7 +139,7 @@ static void* sym(const char* name) {
     strncat(path, "@REAL@", sizeof path - strlen(path) - 1);
     real_lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     if (!real_lib) { snprintf(load_error, sizeof load_error, "%s", dlerror()); return NULL; }
-    atexit(release_python_guard);  /* registered after pythonfmu's static destructors: runs before them */
+    atexit(on_unload);  /* registered after pythonfmu's static destructors: runs before them */
   }
   return dlsym(real_lib, name);
 }
@@ -209,6 +221,43 @@ C_LIFECYCLE = r"""
 const char* fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
 const char* fmi2GetVersion(void) { return fmi2Version; }
 
+static void forward_log(fmi2ComponentEnvironment env, fmi2String name, fmi2Status s, fmi2String cat,
+                        fmi2String msg, ...) {
+  /* pythonfmu passes its message as the format string: forwarded as a plain string, never formatted */
+  const Slot* slot = (const Slot*)env;
+  const Inst* in = slot ? slot->owner : NULL;
+  (void)name;
+  if (in && in->cb.logger) in->cb.logger(in->cb.componentEnvironment, in->name, s, cat ? cat : "logAll", "%s",
+                                         msg ? msg : "");
+}
+
+/* A pooled pythonfmu instance of the same FMU, reset, or a new one; NULL after logging why not. */
+static Slot* take_slot(Inst* in, fmi2InstantiateTYPE* f, fmi2String n, fmi2String g, fmi2String r, fmi2Boolean v) {
+  char key[4096];
+  snprintf(key, sizeof key, "%s|%s", g, r);
+  for (Slot** p = &pool; *p; p = &(*p)->next) {
+    Slot* s = *p;
+    if (strcmp(s->key, key)) continue;
+    *p = s->next; --pooled;
+    s->owner = in;
+    fmi2ResetTYPE* reset = (fmi2ResetTYPE*)sym("fmi2Reset");
+    if (reset && reset(s->real) <= fmi2Warning) return s;
+    fmi2FreeInstanceTYPE* fr = (fmi2FreeInstanceTYPE*)sym("fmi2FreeInstance");
+    if (fr) fr(s->real);
+    free(s);
+    break;
+  }
+  Slot* s = (Slot*)calloc(1, sizeof(Slot));
+  if (!s) return NULL;
+  snprintf(s->key, sizeof s->key, "%s", key);
+  s->owner = in;
+  s->cb.logger = forward_log; s->cb.allocateMemory = calloc; s->cb.freeMemory = free;
+  s->cb.componentEnvironment = s;
+  s->real = f(n, fmi2CoSimulation, g, r, &s->cb, v, fmi2True);
+  if (!s->real) { free(s); return NULL; }
+  return s;
+}
+
 fmi2Component fmi2Instantiate(fmi2String n, fmi2Type t, fmi2String g, fmi2String r,
                               const fmi2CallbackFunctions* cb, fmi2Boolean v, fmi2Boolean l) {
   (void)l;  /* always on: our slave logs only warnings and errors, which an importer must see */
@@ -222,8 +271,9 @@ fmi2Component fmi2Instantiate(fmi2String n, fmi2Type t, fmi2String g, fmi2String
   if (!in) return NULL;
   in->cb = *cb;
   snprintf(in->name, sizeof in->name, "%s", n);
-  in->real = f(n, t, g, r, cb, v, fmi2True);
-  if (!in->real) { free(in); return NULL; }
+  in->slot = take_slot(in, f, n, g, r, v);
+  if (!in->slot) { free(in); return NULL; }
+  in->real = in->slot->real;
   in->magic = INST_MAGIC; in->state = S_INSTANTIATED; in->time = 0.0;
   in->next = live; live = in;
   return in;
@@ -243,8 +293,17 @@ void fmi2FreeInstance(fmi2Component c) {
   if (!in) return;  /* NULL, already freed or foreign: ignoring it is the only safe answer */
   drop_states(in);
   fmi2FreeInstanceTYPE* f = (fmi2FreeInstanceTYPE*)sym("fmi2FreeInstance");
-  /* pythonfmu already released a fatal instance's Python objects: freeing it would release them again */
-  if (f && in->state != S_FATAL) f(in->real);
+  Slot* s = in->slot;
+  s->owner = NULL;
+  if (in->state == S_FATAL) {
+    /* pythonfmu already released a fatal instance's Python objects: freeing it would release them again, so
+       it and its callbacks (which pythonfmu still points at) are left allocated */
+  } else if (pooled < POOL_MAX) {
+    s->next = pool; pool = s; ++pooled;
+  } else {
+    if (f) f(in->real);
+    free(s);
+  }
   for (Inst** p = &live; *p; p = &(*p)->next) if (*p == in) { *p = in->next; break; }
   in->magic = 0;
   free(in);

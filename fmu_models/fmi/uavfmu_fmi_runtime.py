@@ -12,6 +12,7 @@ from __future__ import annotations
 import ctypes
 import json
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -100,6 +101,10 @@ class VehicleSlave(Fmi2Slave):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
+        while self.resources in sys.path[1:]:  # pythonfmu prepends it at every instantiation: keep one
+            sys.path.remove(self.resources)
+            if self.resources not in sys.path:
+                sys.path.insert(0, self.resources)
         self._res = Path(self.resources)
         spec = json.loads((self._res / self.spec_file).read_text())
         self._spec = spec
@@ -247,7 +252,32 @@ class VehicleSlave(Fmi2Slave):
             "time": self._time, "warned": sorted(self._warned), "failed": self._failed,
         }
 
+    def _state_problem(self, state: Any) -> str:
+        """Why ``state`` is not a state of this model ("" when it is one)."""
+        sizes = {"x": self._nx, "u": self._nu, "p": self._np, "y": self._ny}
+        if not isinstance(state, dict) or any(k not in state for k in (*sizes, "time", "warned", "failed")):
+            return "not an FMU state of this model"
+        for key, n in sizes.items():
+            v = state[key]
+            if not isinstance(v, list) or len(v) != n or not all(isinstance(e, int | float) for e in v):
+                return f"its {key} is not {n} numbers (a state of another model?)"
+        if not isinstance(state["time"], int | float) or not isinstance(state["failed"], str):
+            return "its time or error field has the wrong type"
+        return ""
+
+    @staticmethod
+    def _fmu_state_from_bytes(state: bytes) -> Any:
+        """pythonfmu's JSON decoding, never raising into pythonfmu (it turns any exception into heap damage)."""
+        try:
+            return json.loads(state.decode("utf-8"))
+        except (UnicodeDecodeError, ValueError):
+            return None
+
     def _set_fmu_state(self, state: dict[str, Any]) -> None:
+        problem = self._state_problem(state)
+        if problem:  # refused, never raised: the next doStep returns fmi2Error with this message
+            self._fail(f"fmi2SetFMUstate: {problem}; the instance was left unchanged and must be reset")
+            return
         self._x[:] = state["x"]
         self._u[:] = state["u"]
         self._p[:] = state["p"]
@@ -257,4 +287,7 @@ class VehicleSlave(Fmi2Slave):
         self._failed = state["failed"]
         self._params_dirty = True
         if self._engine is None:
-            self._engine, _ = load_engine(self._res, self._spec)
+            try:
+                self._engine, _ = load_engine(self._res, self._spec)
+            except ModelLoadError as err:
+                self._fail(f"fmi2SetFMUstate: {err}")
