@@ -14,6 +14,7 @@ the force model (the FMU's accelerometer output for the logged state and inputs)
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import itertools
 import re
@@ -27,6 +28,7 @@ from pydantic import Field, model_validator
 
 from fmu_models.config import ConfigError, Schema, validate_config
 from fmu_models.fmi.host import FmuHost, FmuRunError
+from fmu_models.quadrotor.params import QuadrotorParams
 from fmu_models.signals.pwm_mapping import PwmMapping
 from identification.flightlog import FlightLog, LogError
 from identification.log_state import (
@@ -52,6 +54,9 @@ from identification.output_map import SignalMap
 WING_INPUTS = ("aileron_rad", "elevator_rad", "rudder_rad", "throttle")
 ACCEL = ("accel_body_x_m_s2", "accel_body_y_m_s2", "accel_body_z_m_s2")
 DEFAULT_HORIZONS_S = (0.1, 0.5, 1.0, 2.0)
+#: motors at or below the FMU's idle PWM, and never below the F450 default idle (an identified model may put its
+#: zero-thrust point lower than the PWM an autopilot spins its motors at when armed on the ground)
+DEFAULT_IDLE_US = next(f.default for f in dataclasses.fields(QuadrotorParams) if f.name == "pwm_idle_us")
 #: bytes a replay holds per grid sample: an upper estimate of 20 float64 arrays per compared signal (measured,
 #: model, baselines, masks, metric temporaries) and 50 for the grid, inputs and initial states
 BYTES_PER_SAMPLE_SIGNAL = 160
@@ -375,7 +380,7 @@ def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalM
     step = n - 1 if not opts.window_s else max(1, round(opts.window_s * opts.rate_hz))
     edges = [*range(0, n - 1, step), n - 1]
     included, ground, gaps, on_ground = _windows_to_score(log, log_path, vehicle, maps, mapping, t, edges, opts,
-                                                          params.get("pwm_idle_us", 1100.0))
+                                                          max(params.get("pwm_idle_us", 0.0), DEFAULT_IDLE_US))
     starts = [{**s, **overrides} for s in initial_values_at(log, t[edges[:-1]],
                                                             forward_from_airspeed=vehicle == "fixed_wing")]
     extra = [a for a in ACCEL if a in host.variables and log.has(a)]
