@@ -315,8 +315,8 @@ def build_thrust_dataset(log: Any, config: ThrustDatasetConfig, source: str = ""
             seg = _segments(mask, gap)
     if mask.sum() < 10:
         raise ThrustDataError(
-            f"{src}: only {int(mask.sum())} airborne samples (armed, all motors > "
-            f"{config.motor_min_pwm_us} us"
+            f"{src}: only {int(mask.sum())} airborne samples (armed, "
+            f"{'mean motor PWM' if config.airborne_on_mean_pwm else 'all motors'} > {config.motor_min_pwm_us} us"
             f"{', altitude > ' + str(config.min_altitude_m) + ' m' if alt is not None else ''}); "
             "nothing to train on"
         )
