@@ -18,7 +18,7 @@ their problems reported the same way: one line per problem with file, field, val
     [px4]        rc_channels = [1500, 1500, 1000, 1500]  # RC_CHANNELS sent with each heartbeat (PWM)
                  wing_controls = {"1" = 0, "2" = 1, "3" = 3, "4" = 2}  # fixed wing: output channel -> control
     [start]      init_pos_down_m = 0.0                    # FMU start values
-    [sensors]    seed = 0  [sensors.gps] pos_tau_s = 60 ...          # hil_adapter.sensors.SensorConfig
+    [sensors]    seed = 0  [sensors.gps] pos_gm_tau_s = 60 ...       # hil_adapter.sensors.SensorConfig
     [mapping.channels.aileron_rad] source = 1 ...                    # fmu_models.signals.pwm_mapping
 """
 
