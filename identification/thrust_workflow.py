@@ -146,6 +146,10 @@ class ThrustResult:
     metrics: dict[str, Any] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
 
+    def params_for(self, flight: str) -> QuadrotorParams:
+        """The parameters to replay ``flight`` with: its calibration scale as ``thrust_scale`` (else 1)."""
+        return dataclasses.replace(self.params, thrust_scale=self.calibration.get(flight, 1.0))
+
     @property
     def exit_code(self) -> int:
         """0 when the model beats every baseline on held-out data (or ``force``), else 3."""

@@ -120,6 +120,13 @@ def test_without_voltage_the_model_loses_honestly_and_force_keeps_the_warning(
     for f in cal.folds:
         assert f.model.rmse_N < f.baselines["constant m g"].rmse_N
     assert set(cal.calibration) == {"hi", "lo"}
+    # replaying a flight with its scale: the FMU's thrust over its hover samples averages m g
+    lo = cal.params_for("lo")
+    assert lo.thrust_scale == cal.calibration["lo"] != 1.0
+    t = np.asarray(fake_logs["lo"].signals["motor_1_pwm_us"][0])
+    pwm = np.stack([fake_logs["lo"].signals[f"motor_{k}_pwm_us"][1] for k in range(1, 5)], axis=1)
+    mean = fmu_total_thrust(lo, pwm, np.full(t.size, lo.battery_nominal_V)).mean()
+    assert mean == pytest.approx(1.2 * G, rel=0.02)
 
 
 @pytest.mark.parametrize("mass", [0.0, -1.0, float("nan"), float("inf")])
