@@ -39,6 +39,13 @@ class CompiledEngine:
     def initialize(self, u: Any, p: Any, x: Any, y: Any) -> int:
         return int(self._init(u, p, x, y))
 
+    def __del__(self) -> None:  # ctypes never unloads a library: each FMU's copy would stay mapped
+        handle = getattr(getattr(self, "_lib", None), "_handle", None)
+        if handle:
+            import _ctypes
+
+            _ctypes.dlclose(handle)
+
     def advance(self, x: Any, u: Any, p: Any, h: Any, x_out: Any, y: Any) -> int:
         return int(self._advance(x, u, p, h, x_out, y))
 
