@@ -30,6 +30,27 @@ def _battery(signals: dict[str, Signal]) -> None:
                                                            filt.values[good], "V", "from battery_status")
 
 
+def _raw_signals(ulog: ULog) -> tuple[dict[str, Signal], list[str]]:
+    """``topic[_instance].field`` signals [s from the ULog start]; topics whose format lost its timestamp
+    (a damaged definition) and non-numeric fields are skipped."""
+    t0 = float(ulog.start_timestamp)
+    signals: dict[str, Signal] = {}
+    skipped: list[str] = []
+    for d in ulog.data_list:
+        prefix = d.name if d.multi_id == 0 else f"{d.name}_{d.multi_id}"
+        stamps = np.asarray(d.data.get("timestamp", []))
+        if stamps.ndim != 1 or stamps.dtype.kind not in "iuf" or not stamps.size:
+            skipped.append(prefix)
+            continue
+        t = (stamps.astype(float) - t0) * 1e-6
+        for fld, vals in d.data.items():
+            arr = np.asarray(vals)
+            if fld != "timestamp" and arr.shape == t.shape and arr.dtype.kind in "iufb":
+                key = f"{prefix}.{fld}"
+                signals[key] = Signal(key, t, arr.astype(float), "", f"raw {key}")
+    return signals, skipped
+
+
 def read_ulog(path: Path) -> FlightLog:
     try:
         ulog = ULog(str(path))
@@ -37,15 +58,7 @@ def read_ulog(path: Path) -> FlightLog:
         raise LogError(f"{path}: not a readable ULog file ({type(err).__name__}: {err})") from err
     if not ulog.data_list:
         raise LogError(f"{path}: the ULog holds no data messages")
-    t0 = ulog.start_timestamp
-    signals: dict[str, Signal] = {}
-    for d in ulog.data_list:
-        t = (np.asarray(d.data["timestamp"], dtype=float) - t0) * 1e-6
-        prefix = d.name if d.multi_id == 0 else f"{d.name}_{d.multi_id}"
-        for fld, vals in d.data.items():
-            if fld != "timestamp":
-                key = f"{prefix}.{fld}"
-                signals[key] = Signal(key, t, np.asarray(vals, dtype=float), "", f"raw {key}")
+    signals, skipped = _raw_signals(ulog)
 
     def alias(name: str, key: str, unit: str, scale: float = 1.0, offset: float = 0.0) -> None:
         if key in signals and name not in signals:
@@ -86,10 +99,10 @@ def read_ulog(path: Path) -> FlightLog:
         s = signals["vehicle_status.arming_state"]
         signals["armed"] = Signal("armed", s.t_s, (s.values == ARMING_STATE_ARMED).astype(float), "1",
                                   "from vehicle_status.arming_state")
-    warnings: list[str] = []
+    warnings = [f"{path}: topic(s) {', '.join(skipped)} without a usable timestamp skipped"] if skipped else []
     quality = DataQuality(str(path))
     quality.bytes_total = path.stat().st_size
-    quality.messages_total = sum(len(d.data["timestamp"]) for d in ulog.data_list)
+    quality.messages_total = sum(len(next(iter(d.data.values()), ())) for d in ulog.data_list)
     if getattr(ulog, "file_corruption", False):
         warnings.append(f"{path}: pyulog reports a corrupt section; the readable messages were kept")
         quality.messages_skipped += 1  # pyulog skips to the next sync marker without saying how much
