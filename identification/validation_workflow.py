@@ -95,13 +95,14 @@ class ValidationResult:
     gaps: dict[str, int] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     one_step: dict[str, dict[str, Any]] = field(default_factory=dict)
+    horizons: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
     report: str | None = None
     replay: ReplayResult | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready summary (no arrays)."""
         keys = ("fmu", "log", "status", "error", "signals", "failed", "windows", "excluded", "ground", "gaps",
-                "warnings", "one_step", "report")
+                "warnings", "one_step", "horizons", "report")
         return {k: getattr(self, k) for k in keys}
 
     def lines(self) -> list[str]:
@@ -154,7 +155,8 @@ def result_of(res: ReplayResult, job: ValidationJob) -> ValidationResult:
     warnings = [*res.log["warnings"], *res.log.get("quality_lines", [])]
     return ValidationResult(str(job.fmu), str(job.log), "fail" if res.failed else "pass", "", signals,
                             res.failed, len(res.windows), res.excluded, dict(res.ground), dict(res.gaps), warnings,
-                            {k: v.as_dict() for k, v in res.one_step.items()}, None, res)
+                            {k: v.as_dict() for k, v in res.one_step.items()},
+                            {k: [r.as_dict() for r in rows] for k, rows in res.horizons.items()}, None, res)
 
 
 def metrics_document(res: ReplayResult, out: ValidationResult) -> dict[str, Any]:
@@ -327,5 +329,17 @@ def failure_lines(results: Sequence[ValidationResult]) -> list[str]:
         if r.status == "error":
             out.append(f"{run} could not be validated: {r.error}")
         for s in r.failed:
-            out.append(f"{run}: {s} fails - {r.signals[s]['reason']}")
+            out.append(f"{run}: {s} fails - {r.signals[s]['reason']}{_horizon_words(r.horizons.get(s, []))}")
     return out
+
+
+def _horizon_words(rows: Sequence[Mapping[str, Any]]) -> str:
+    """How far ahead the model still beats persistence, from the horizon table."""
+    if not rows:
+        return ""
+    k = next((i for i, r in enumerate(rows) if not (r["skill_persistence"] or -1.0) > 0), len(rows))
+    if k == 0:
+        return f"; it loses to persistence already {rows[0]['horizon_s']:g} s ahead"
+    if k == len(rows):
+        return f"; it beats persistence at each horizon up to {rows[-1]['horizon_s']:g} s, not pooled over windows"
+    return f"; it beats persistence up to {rows[k - 1]['horizon_s']:g} s ahead, loses from {rows[k]['horizon_s']:g} s"
