@@ -384,8 +384,8 @@ def _canonical_checks(signals: dict[str, Signal], q: DataQuality) -> None:
         for prefix, limit in CLIP_LIMITS.items():
             if n.startswith(prefix):
                 q.clipped_samples += int(np.count_nonzero(np.abs(signals[n].values) >= limit))
-    for k in range(3):
-        clip = signals.get(f"VIBE.Clip{k}")
+    for key in ("VIBE.Clip0", "VIBE.Clip1", "VIBE.Clip2", "VIBE.Clip"):  # old: one column per IMU; new: one
+        clip = signals.get(key)
         if clip is not None and clip.values.size and np.isfinite(clip.values).all():
             q.clipped_samples += int(max(0.0, float(np.max(clip.values))))  # the IMU's own running count
 

@@ -323,3 +323,14 @@ def test_channel_map_schema_errors_name_file_field_value_and_range(tmp_path: Pat
         read_log(shared_data("quadrotor", "arducopter_x_quad_real_218.BIN"), channel_map=cfg)
     with pytest.raises(ConfigError, match=r"(?s)channel_map argument.*channels\.x = -1"):
         read_log(tmp_path / "nope.csv", channel_map={"x": -1})
+
+
+def test_standard_bat_layout_gives_battery_signals(tmp_path: Path) -> None:
+    from uavfmu.dataflash_writer import write_log
+
+    t = np.arange(10) * 0.1
+    f = write_log(tmp_path / "bat.bin", {"BAT": (t, {"Inst": 0, "Volt": 16.0 - t, "Curr": 20.0 + t, "Temp": 25.0})})
+    log = read_log(f)
+    np.testing.assert_allclose(log.signal("battery_voltage_v").values, 16.0 - t, rtol=1e-6)
+    np.testing.assert_allclose(log.signal("battery_current_a").values, 20.0 + t, rtol=1e-6)
+    np.testing.assert_allclose(log.signals["BAT.Temp"].values, 25.0)

@@ -199,9 +199,16 @@ ARSP = _layout(
 )
 #: events: Id 10 armed, 11 disarmed, ...
 EV = _layout("EV", "QB", "TimeUS,Id", "us,-")
+#: battery monitor (ArduPilot 4.x): Volt/VoltR [V], Curr [A], CurrTot [Ah], EnrgTot [Wh], Temp [degC], Res [Ohm]
+BAT = _layout(
+    "BAT", "QBfffffcfBBB", "TimeUS,Inst,Volt,VoltR,Curr,CurrTot,EnrgTot,Temp,Res,RemPct,H,SH",
+    "us,-,V,V,A,Ah,Wh,degC,Ohm,%,-,-",
+)
 
 #: Layouts ``write``/``write_log`` define on first use, by name.
-STANDARD_LAYOUTS: dict[str, MessageLayout] = {m.name: m for m in (PARM, IMU, ATT, RCOU, GPS, BARO, CTUN, ARSP, EV)}
+STANDARD_LAYOUTS: dict[str, MessageLayout] = {
+    m.name: m for m in (PARM, IMU, ATT, RCOU, GPS, BARO, CTUN, ARSP, EV, BAT)
+}
 
 
 @dataclass(frozen=True)
