@@ -165,3 +165,18 @@ def test_windows_without_input_data_are_left_out_and_named(quadrotor_fmu: Path, 
     assert res.gaps == {"no data for motor_2_pwm_us": 2}  # the windows 6-8 s and 8-10 s
     assert res.status == "pass" and res.windows - res.excluded >= 4
     assert "no data for motor_2_pwm_us: 2" in "\n".join(res.lines())
+
+
+def test_ungated_signal_is_reported_not_counted(quadrotor_fmu: Path, flight: Path, tmp_path: Path) -> None:
+    """``gate = false`` in the output map: the signal's FAIL is shown with its reason but does not set the
+    run's status (for signals an open-loop replay cannot be expected to predict, reported honestly)."""
+    cfg = tmp_path / "map.toml"
+    cfg.write_text('[signals.altitude_m]\nlog = "altitude_m"\ngate = false\n'
+                   '[signals.yaw_rad]\nlog = "yaw_rad"\nwrap = true\nmax_rmse = 0.02\n')
+    res = validate(ValidationJob(quadrotor_fmu, flight, options(window_s=2.0), output_map=cfg,
+                                 start_values={"mass_kg": 2.28}))
+    alt = res.signals["altitude_m"]
+    assert alt["verdict"] == "FAIL" and not alt["gated"] and "loses to persistence" in alt["reason"]
+    assert res.failed == [] and res.status == "pass"
+    text = "\n".join(res.lines())
+    assert "FAIL*" in text and "not gated" in text
