@@ -152,7 +152,7 @@ def result_of(res: ReplayResult, job: ValidationJob) -> ValidationResult:
         signals[m.fmu] = {**s.as_dict(), "log_signal": m.log, "max_theil": m.max_theil, "max_rmse": m.max_rmse,
                           "min_skill_persistence": m.min_skill_persistence, "min_skill_mean": m.min_skill_mean,
                           "windows": res.window_counts(m.fmu)}
-    warnings = [*res.log["warnings"], *res.log.get("quality_lines", [])]
+    warnings = list(dict.fromkeys([*res.log["warnings"], *res.log.get("quality_lines", [])]))  # once each
     return ValidationResult(str(job.fmu), str(job.log), "fail" if res.failed else "pass", "", signals,
                             res.failed, len(res.windows), res.excluded, dict(res.ground), dict(res.gaps), warnings,
                             {k: v.as_dict() for k, v in res.one_step.items()},
