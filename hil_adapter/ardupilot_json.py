@@ -3,7 +3,8 @@
 SITL drives the clock (lockstep by construction): every servo frame advances the FMU by ``1/frame_rate``.
 A repeated ``frame_count`` is a resend (answered with the last state, no step); one slightly below the last
 (within ``REORDER_WINDOW``) is a late datagram and is dropped; a count back at 0 or 1, or far below the last,
-means SITL restarted (the FMU restarts; the clock it is sent goes on, never backwards). Malformed datagrams
+means SITL restarted (the FMU restarts; the new SITL process is sent time since its own start, as SIM_JSON
+adds each timestamp step to its clock, while the plant's clock and the record go on). Malformed datagrams
 (layout, frame rate, a mapped PWM out of range such as 0, a frame_count leap) are counted and dropped before
 they change anything.
 """
@@ -90,6 +91,10 @@ class ArduPilotJsonServer:
         #: the sensor frame of the last reply (when ``sensors`` is set), for the log
         self.last_frame: Any = None
         self._stepped_pwm: dict[int, float] | None = None
+        #: where the current SITL process's clock began on the plant's clock [s]: a restarted SITL starts its
+        #: own clock again and adds every timestamp step to it, so it is sent time since its start; the
+        #: plant's clock (and the record) goes on
+        self.sitl_epoch_s = plant.t_s
 
     def reply(self) -> bytes:
         s = self.plant.state
@@ -98,7 +103,8 @@ class ArduPilotJsonServer:
         if self.sensors is not None:  # noisy IMU (SITL adds its own noise model on top if configured)
             self.last_frame = self.sensors.sample(self.plant.t_s, s)
             gyro, accel = self.last_frame.gyro_body_rad_s, self.last_frame.accel_body_m_s2
-        return json_state(self.plant.t_s, gyro, accel, [s["pos_north_m"], s["pos_east_m"], s["pos_down_m"]],
+        return json_state(self.plant.t_s - self.sitl_epoch_s, gyro, accel,
+                          [s["pos_north_m"], s["pos_east_m"], s["pos_down_m"]],
                           [s["vel_north_m_s"], s["vel_east_m_s"], s["vel_down_m_s"]],
                           [s["quat_w"], s["quat_x"], s["quat_y"], s["quat_z"]],
                           s.get("airspeed_m_s") if self.plant.has_airspeed else None)
@@ -133,6 +139,7 @@ class ArduPilotJsonServer:
                      last, pkt.frame_count)
             self.stats.restarts += 1
             self.plant.restart()
+            self.sitl_epoch_s = self.plant.t_s
         elif last is not None:
             self.stats.dropped += pkt.frame_count - last - 1
         self.plant.inputs = inputs
