@@ -236,29 +236,47 @@ def _nuisance_fits(model: FixedWingModel, p: np.ndarray, free: list[str], data: 
 
 
 def _delay(model: FixedWingModel, p: np.ndarray, log: FlightLog, mapping: PwmMapping,
-           segs: list[aero.Segment], fit: Fit, opt: AeroOptions, weight: np.ndarray | None) -> Fit:
-    """Scan command -> surface delays of whole samples (a short refit from the estimate at each); keep the
-    best if it lowers the Akaike criterion by more than 2 (one more parameter)."""
+           segs: list[aero.Segment], fit: Fit, opt: AeroOptions, weight: np.ndarray | None,
+           notes: list[str]) -> Fit:
+    """Scan command -> surface delays of whole samples (a short refit from the estimate at each). The data
+    support a delay when the Akaike criterion has an interior minimum below the no-delay fit by more than 2
+    (one more parameter) and the refit makes no derivatives inseparable; a criterion still falling at
+    ``max_delay_s`` means the lag trades against the dynamics (closed-loop data): no delay is kept."""
     steps = round(opt.max_delay_s * opt.rate_hz)
     if steps < 1:
         return fit
     oe, theta = fit.oe, fit.estimate.values
-    best = fit
+    trials: list[Fit | None] = [fit]
     for d in range(1, steps + 1):
         data = aero.manoeuvres(model, p, log, mapping, segs, opt.outputs, opt.rate_hz, d / opt.rate_hz)
         try:  # a short refit from the estimate: the no-delay estimate has absorbed part of the lag
             est = oe.estimate(data, theta0=theta, weight=weight, max_iter=6)
+            trials.append(Fit(oe, data, est, _aic(est, data), d / opt.rate_hz))
         except EstimationError:
-            continue
-        trial = Fit(oe, data, est, _aic(est, data), d / opt.rate_hz)
-        if trial.aic < best.aic:
-            best = trial
-    if best is fit:
+            trials.append(None)
+    aic = [t.aic if t is not None else np.inf for t in trials]
+    k = int(np.argmin(aic))
+    if k == 0:
         return fit
-    data = best.data
-    new = _fit(oe, data, opt, weight, best.delay_s)
+    if k == steps and steps > 1:
+        notes.append(f"delay not identifiable: the criterion still falls at the longest scanned delay "
+                     f"({opt.max_delay_s * 1e3:.0f} ms), the lag trades against the dynamics; none kept")
+        return fit
+    best = trials[k]
+    assert best is not None
+    new = _fit(oe, best.data, opt, weight, best.delay_s)
     new = new if new.aic <= best.aic else best
-    return new if new.aic + 2.0 < fit.aic else fit
+    if _new_pairs(fit.estimate, new.estimate) or not new.aic + 2.0 < fit.aic:
+        return fit
+    return new
+
+
+def _new_pairs(before: Estimate, after: Estimate) -> list[tuple[str, str]]:
+    """Correlated pairs (|r| > 0.9) of ``after`` that ``before`` did not have: a delay that trades off against
+    the derivatives (closed-loop data) is not supported by the data."""
+    def pairs(e: Estimate) -> set[tuple[str, str]]:
+        return {(a, b) for a, b, _ in (e.identifiability.pairs if e.identifiability else [])}
+    return sorted(pairs(after) - pairs(before))
 
 
 def identify_aero(log: FlightLog, mapping: PwmMapping, init: FixedWingParams, opt: AeroOptions) -> AeroResult:
@@ -281,7 +299,7 @@ def identify_aero(log: FlightLog, mapping: PwmMapping, init: FixedWingParams, op
     if opt.free == "auto":
         notes.append(f"free=auto chose {', '.join(free)}")
     try:
-        result.fit = fit = _delay(model, p, log, mapping, fit_segs, fit, opt, weight)
+        result.fit = fit = _delay(model, p, log, mapping, fit_segs, fit, opt, weight, notes)
         result.identified = {**init.to_dict(), **fit.estimate.derivatives()}
     except (ValueError, EstimationError) as err:
         result.failures.append(f"delay scan: {err}")
