@@ -25,8 +25,6 @@ import numpy as np
 
 REAL_QUAD_LOG = ("quadrotor", "arducopter_x_quad_real_218.BIN")
 ROLL_FREE = "C_ell_p,C_ell_delta_a"
-#: output maps the demo validates with (None: the vehicle's default map)
-DEMO_MAPS: dict[str, Path | None] = {}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -194,7 +192,7 @@ def validate_rebuilt(rebuilt: dict[str, Path], logs: dict[str, Path], report_dir
     from identification.validation_workflow import ValidationJob, validate_batch, write_batch_report
 
     opts = options(window_s=2.0, rate_hz=50.0)
-    jobs = [ValidationJob(rebuilt[v].resolve(), Path(logs[v]).resolve(), opts, output_map=DEMO_MAPS.get(v),
+    jobs = [ValidationJob(rebuilt[v].resolve(), Path(logs[v]).resolve(), opts,
                           report_dir=report_dir / f"{k:03d}_{rebuilt[v].stem}__{Path(logs[v]).stem}")
             for k, v in enumerate(rebuilt)]
     results = validate_batch(jobs, workers=2)
