@@ -102,7 +102,6 @@ def record_flights(fmus: dict[str, Path], logs_dir: Path, seed: int) -> dict[str
 def identify(logs: dict[str, Path], work: Path, force_gate: bool = False) -> tuple[Path, dict[str, Any]]:
     """Thrust map and roll derivatives from the logs, merged into one parameter file for ``build_fmus``."""
     from identification.jsonio import write_json
-    from uavfmu.cli import main
 
     merged: dict[str, Any] = {}
     found: dict[str, Any] = {}
@@ -116,11 +115,18 @@ def identify(logs: dict[str, Path], work: Path, force_gate: bool = False) -> tup
         found["thrust"] = thrust.metrics
     if "fixed_wing" in logs:
         out = work / "fixed_wing_identified.json"
-        rc = main(["identify", "aero", str(logs["fixed_wing"]), "--free", ROLL_FREE, "--outputs",
-                   "roll_rad,rate_body_x_rad_s", "--out", str(out), "--plots", str(work / "plots" / "aero"),
-                   "--quiet"])
-        if rc != 0:
-            raise SystemExit(f"demo: roll-derivative identification failed (exit {rc})")
+        from fmu_models.fixed_wing.params import FixedWingParams
+        from fmu_models.signals.pwm_mapping import PwmMapping
+        from identification.aero_identify import AeroOptions, identify_aero, write_results
+        from identification.readers import read_log
+
+        flog = read_log(logs["fixed_wing"])
+        res = identify_aero(flog, PwmMapping.from_ardupilot(flog.params), FixedWingParams(), AeroOptions(
+            free=ROLL_FREE.split(","), outputs=("roll_rad", "rate_body_x_rad_s")))
+        write_results(res, out, out.with_suffix(".metrics.json"), str(logs["fixed_wing"]), 50.0,
+                      work / "plots" / "aero")
+        if res.failures or res.losing_outputs:
+            raise SystemExit(f"demo: roll-derivative identification failed ({res.failures or res.losing_outputs})")
         merged["fixed_wing"] = json.loads(out.read_text())["fixed_wing"]
         found["aero"] = json.loads(out.with_suffix(".metrics.json").read_text())
     params = work / "identified.json"
@@ -178,7 +184,8 @@ def run(args: argparse.Namespace) -> int:
         print("roll derivatives identified from the fixed-wing log (output error, paper 001)")
         for name in ROLL_FREE.split(","):
             e = est[name]
-            print(f"  {name:<16} {e['value']:10.4f} +- {e['crb_std']:.4f} (CR)   truth {getattr(truth, name):8.4f}")
+            print(f"  {name:<16} {e['value']:10.4f} +- {e['std']:.4f} ({e['bound_method']})   "
+                  f"truth {getattr(truth, name):8.4f}")
         theil = found["aero"]["metrics"]["validation"]["roll_rad"]["theil_u"]
         print(f"  {'held-out roll angle Theil U':<36} {theil:10.4f}")
     failures = print_validation(results, report_dir)
