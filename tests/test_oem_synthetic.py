@@ -124,7 +124,8 @@ def test_compiled_and_virtual_machine_agree(truth, oe) -> None:
 def test_several_manoeuvres_with_initial_states_and_biases(truth) -> None:
     """Two manoeuvres from different trims; each starts with an unknown roll rate and has a roll-angle bias."""
     sim, p, _ = truth
-    oe = OutputErrorEstimator(sim.model, p, FREE, OUTPUTS, estimate_states=["rate_body_x_rad_s"], estimate_biases=["roll_rad"])
+    oe = OutputErrorEstimator(sim.model, p, FREE, OUTPUTS, estimate_states=["rate_body_x_rad_s"],
+                              estimate_biases=["roll_rad"])
     i_p = sim.model.states.index["rate_body_x_rad_s"]
     true_local = [(0.05, 0.02), (-0.08, -0.03)]  # (initial roll rate rad/s, roll bias rad)
     data = []

@@ -159,12 +159,16 @@ class PwmMapping:
     def from_dict(cls, data: Mapping[str, Any], source: str = "mapping") -> PwmMapping:
         """Validate a decoded mapping (``{"channels": {target: {...}}}`` or the bare channel tables);
         :class:`MappingConfigError` lists every problem with file, field, value and allowed range."""
-        tables = data.get("channels", data) if isinstance(data, Mapping) else data
+        if not isinstance(data, Mapping):
+            raise MappingConfigError(source, [f"(top level) = {data!r}: must be a table"])
+        # a file with a [channels] table is validated whole (so unknown top-level keys are named)
+        doc = dict(data) if "channels" in data else {"channels": dict(data)}
+        tables = doc["channels"]
         if not isinstance(tables, Mapping):
             raise MappingConfigError(source, [f"field channels = {tables!r}: must be a table"])
         problems: list[str] = []
         try:
-            cfg = validate_config({"channels": dict(tables)}, MappingConfig, source)
+            cfg = validate_config(doc, MappingConfig, source)
         except ConfigError as err:
             problems += err.problems
             cfg = None
