@@ -18,15 +18,17 @@ Use::
 
 from __future__ import annotations
 
+import difflib
 import json
 import math
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated, Any, TypeVar
+from typing import Annotated, Any, TypeVar, get_args, get_origin
 
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic import ValidationError as PydanticValidationError
+from pydantic.fields import FieldInfo
 
 __all__ = [
     "ConfigError",
@@ -34,6 +36,8 @@ __all__ = [
     "NonNegativeFiniteFloat",
     "PositiveFiniteFloat",
     "Schema",
+    "allowed_keys",
+    "field_bounds",
     "format_problems",
     "load_config",
     "read_config_file",
@@ -73,11 +77,71 @@ class Schema(BaseModel):
 _BOUND_WORDS = {"ge": ">=", "gt": ">", "le": "<=", "lt": "<"}
 
 
-def _allowed(err: Mapping[str, Any]) -> str:
+def _unwrap(tp: Any, meta: list[Any]) -> Any:
+    """``Annotated[T, ...]`` -> ``T``, its constraint objects appended to ``meta``."""
+    while get_origin(tp) is Annotated:
+        base, *extra = get_args(tp)
+        for e in extra:
+            meta.extend(e.metadata if isinstance(e, FieldInfo) else [e])
+        tp = base
+    return tp
+
+
+def _resolve(schema: type[BaseModel] | None, loc: tuple[Any, ...]) -> tuple[Any, list[Any]] | None:
+    """The type declared at ``loc`` of ``schema`` (through nested schemas, dicts, lists and tuples) and its
+    constraint objects; ``None`` where the location cannot be resolved."""
+    tp: Any = schema
+    meta: list[Any] = []
+    for part in loc:
+        if isinstance(tp, type) and issubclass(tp, BaseModel):
+            info = tp.model_fields.get(str(part))
+            if info is None:
+                return None
+            meta = list(info.metadata)
+            tp = _unwrap(info.annotation, meta)
+            continue
+        origin, args = get_origin(tp), get_args(tp)
+        meta = []
+        if origin is dict and len(args) == 2:
+            tp = args[1]
+        elif origin in (list, tuple) and args:
+            idx = int(part) if isinstance(part, int) or str(part).isdigit() else 0
+            tp = args[0] if args[-1] is Ellipsis else args[min(idx, len(args) - 1)]
+        else:
+            return None
+        tp = _unwrap(tp, meta)
+    return tp, meta
+
+
+def field_bounds(schema: type[BaseModel] | None, loc: tuple[Any, ...]) -> dict[str, Any]:
+    """The numeric bounds (``ge``/``gt``/``le``/``lt``) declared for the field at ``loc`` of ``schema``, so a
+    message gives the whole allowed range and not only the violated side; ``{}`` where unknown."""
+    found = _resolve(schema, loc)
+    if found is None:
+        return {}
+    return {k: getattr(m, k) for m in found[1] for k in ("gt", "ge", "lt", "le") if getattr(m, k, None) is not None}
+
+
+def allowed_keys(schema: type[BaseModel] | None, loc: tuple[Any, ...]) -> list[str]:
+    """The keys the table at ``loc`` of ``schema`` accepts (``[]`` where it is not a schema)."""
+    found = _resolve(schema, loc)
+    tp = found[0] if found else None
+    return list(tp.model_fields) if isinstance(tp, type) and issubclass(tp, BaseModel) else []
+
+
+def _num(v: Any) -> str:
+    return f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def _allowed(err: Mapping[str, Any], bounds: Mapping[str, Any]) -> str:
     ctx = err.get("ctx") or {}
-    bounds = [f"{_BOUND_WORDS[k]} {ctx[k]}" for k in ("gt", "ge", "lt", "le") if k in ctx]
-    if bounds:
-        return "allowed: " + " and ".join(bounds)
+    both = {**{k: ctx[k] for k in ("gt", "ge", "lt", "le") if k in ctx}, **bounds}
+    words = " and ".join(f"{_BOUND_WORDS[k]} {_num(both[k])}" for k in ("gt", "ge", "lt", "le") if k in both)
+    value = err.get("input")
+    if isinstance(value, float) and not math.isfinite(value):
+        return "allowed: a finite number" + (f" {words}" if words else "")
+    if words:
+        return "allowed: " + words
     if "expected" in ctx:
         return f"allowed: {ctx['expected']}"
     kind = str(err.get("type", ""))
@@ -92,8 +156,9 @@ def _allowed(err: Mapping[str, Any]) -> str:
     return ""
 
 
-def format_problems(err: PydanticValidationError) -> list[str]:
-    """One line per problem: ``field a.b.0 = <value>: <message> (<allowed>)``."""
+def format_problems(err: PydanticValidationError, schema: type[BaseModel] | None = None) -> list[str]:
+    """One line per problem: ``field a.b.0 = <value>: <message> (<allowed>)``; with ``schema``, the allowed
+    range names both bounds of a bounded number."""
     lines = []
     for e in err.errors(include_url=False):
         loc = ".".join(str(p) for p in e.get("loc", ())) or "(top level)"
@@ -101,15 +166,19 @@ def format_problems(err: PydanticValidationError) -> list[str]:
         shown = repr(value)
         if len(shown) > 60:
             shown = shown[:57] + "..."
-        allowed = _allowed(e)
+        allowed = _allowed(e, field_bounds(schema, tuple(e.get("loc", ()))))
         msg = e.get("msg", "invalid")
         if isinstance(value, float) and not math.isfinite(value):
-            msg, allowed = "not finite", "allowed: a finite number"
+            msg = "not finite"
         tail = f" ({allowed})" if allowed and allowed != "unknown key" else ""
         if e.get("type") == "missing":
             lines.append(f"field {loc}: missing (required)")
         elif e.get("type") == "extra_forbidden":
-            lines.append(f"field {loc} = {shown}: unknown key")
+            keys = allowed_keys(schema, tuple(e.get("loc", ()))[:-1])
+            close = difflib.get_close_matches(str(e["loc"][-1]), keys, n=1) if keys else []
+            hint = (f"; did you mean '{close[0]}'?" if close else "") + (
+                f" (allowed keys: {', '.join(keys)})" if keys else "")
+            lines.append(f"field {loc} = {shown}: unknown key{hint}")
         else:
             lines.append(f"field {loc} = {shown}: {msg}{tail}")
     return lines
@@ -122,7 +191,7 @@ def validate_config(data: Any, schema: type[S], source: str) -> S:
     try:
         return schema.model_validate(dict(data))
     except PydanticValidationError as err:
-        raise ConfigError(source, format_problems(err)) from None
+        raise ConfigError(source, format_problems(err, schema)) from None
 
 
 def read_config_file(path: str | Path) -> dict[str, Any]:

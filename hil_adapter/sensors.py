@@ -10,8 +10,9 @@ increment over ``dt`` seconds has the std ``drift_std * sqrt(dt)`` (so it grows 
 change with the sample rate). A configuration with every std and bias 0 reproduces the FMU outputs exactly.
 
 Frames and conventions follow the FMUs: body FRD, NED world, ``quat_w/x/y/z`` rotates body vectors into NED,
-the accelerometer reads specific force (``-9.80665`` on z at rest, level). Configurations come from a dict
-(a TOML table) via ``SensorConfig.from_dict(data, source)``, which checks every field and lists every problem.
+the accelerometer reads specific force (``-9.80665`` on z at rest, level). Configurations are pydantic schemas
+(``fmu_models.config``); ``SensorConfig.from_dict(data, source)`` checks a dict (a TOML table) and lists every
+problem with field, value and allowed range.
 """
 
 from __future__ import annotations
@@ -19,15 +20,17 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
-from typing import Any, ClassVar, NamedTuple
+from dataclasses import dataclass
+from typing import Annotated, Any, NamedTuple
 
 import numpy as np
+from pydantic import BeforeValidator, Field
 
 # Both helpers are written once for CasADi but take and return plain floats for float arguments, which is
 # all we use here (checked: ``isa(1000.0)`` and ``radii_of_curvature(0.8)`` return Python floats).
 from fmu_models.common.atmosphere import EXPONENT, LAPSE_K_M, P0_PA, T0_K, isa
 from fmu_models.common.wgs84 import radii_of_curvature
+from fmu_models.config import ConfigError, Schema, validate_config
 
 KELVIN_OFFSET = 273.15  #: 0 degC in K
 #: FMU outputs every sample needs; ``airspeed_m_s`` (fixed wing only) is optional
@@ -42,9 +45,9 @@ AIRSPEED_OUTPUT = "airspeed_m_s"
 _TIME_EPS_S = 1e-9  #: float slack when comparing sample times with the GPS schedule
 
 
-class SensorConfigError(ValueError):
-    """An invalid sensor configuration; the message names the source, and per problem the field, the value
-    and the allowed range."""
+class SensorConfigError(ConfigError):
+    """An invalid sensor configuration: one line per problem naming the field, the value and the allowed range
+    (``fmu_models.config.ConfigError``, prefixed by the source)."""
 
 
 class MissingOutputError(KeyError):
@@ -55,142 +58,69 @@ class MissingOutputError(KeyError):
 
 
 # ------------------------------------------------------------------------------------------ configuration
-class _Spec(NamedTuple):
-    """Allowed values of one config field: ``kind`` is "float", "int" or "vec3" (a number for all three
-    axes, or a list of three numbers); ``lo..hi`` is the closed range (per axis for "vec3")."""
-
-    kind: str
-    lo: float
-    hi: float
-    unit: str
-
-
-def _fmt(x: float) -> str:
-    return f"{x:g}"
+def _three(value: Any) -> Any:
+    """A bias given as one number for all axes, or a list (TOML) of three, as a 3-tuple; anything else is left
+    for the schema to reject."""
+    if isinstance(value, list):
+        return tuple(value)
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        return (value, value, value)
+    return value
 
 
-def _convert(spec: _Spec, value: Any) -> tuple[Any, str | None]:
-    """``(converted value, None)`` or ``(None, what is wrong)``."""
-    allowed = f"allowed {_fmt(spec.lo)}..{_fmt(spec.hi)}" + (f" {spec.unit}" if spec.unit else "")
-
-    def number(v: Any, integer: bool) -> float | int | None:
-        if isinstance(v, bool):  # bool is an int subclass, and never what a sensor setting means
-            return None
-        if integer:
-            return v if isinstance(v, int | np.integer) else None
-        return float(v) if isinstance(v, int | float | np.integer | np.floating) else None
-
-    if spec.kind == "vec3":
-        items = list(value) if isinstance(value, list | tuple) else [value] * 3
-        if len(items) != 3:
-            return None, f"needs a number or 3 numbers, got {len(items)} values; {allowed} per axis"
-        nums = [number(v, False) for v in items]
-        if any(n is None for n in nums):
-            return None, f"needs a number or 3 numbers; {allowed} per axis"
-        if not all(math.isfinite(n) and spec.lo <= n <= spec.hi for n in nums):
-            return None, f"outside the range, {allowed} per axis"
-        return tuple(nums), None
-    n = number(value, spec.kind == "int")
-    if n is None:
-        return None, f"needs {'an integer' if spec.kind == 'int' else 'a number'}; {allowed}"
-    if not (math.isfinite(n) and spec.lo <= n <= spec.hi):  # also catches NaN
-        return None, f"outside the range, {allowed}"
-    return (int(n) if spec.kind == "int" else float(n)), None
+def _num(lo: float, hi: float, default: float) -> Any:
+    return Field(default, ge=lo, le=hi, allow_inf_nan=False)
 
 
-def _problem(prefix: str, name: str, value: Any, why: str) -> str:
-    return f"{prefix}{name} = {value!r}: {why}"
+def _vec3(lo: float, hi: float) -> Any:
+    """A per-axis bound vector [lo, hi] (a number means the same on all three axes)."""
+    axis = Annotated[float, Field(ge=lo, le=hi, allow_inf_nan=False)]
+    return Annotated[tuple[axis, axis, axis], BeforeValidator(_three)]
 
 
-class _Checked:
-    """Frozen config dataclasses with a ``SPEC`` per field: checked on construction and in ``from_dict``."""
-
-    SPEC: ClassVar[Mapping[str, _Spec]] = {}
-    SECTION: ClassVar[str] = ""
-
-    def __post_init__(self) -> None:
-        problems = []
-        for name, spec in self.SPEC.items():
-            raw = getattr(self, name)
-            value, why = _convert(spec, raw)
-            if why is not None:
-                problems.append(_problem(f"{self.SECTION}.", name, raw, why))
-            else:
-                object.__setattr__(self, name, value)  # normalise (scalar bias -> 3 axes, int -> float)
-        if problems:
-            raise SensorConfigError(f"{type(self).__name__}: " + "; ".join(problems))
-
-    @classmethod
-    def _parse(cls, data: Any, prefix: str) -> tuple[dict[str, Any], list[str]]:
-        """Checked keyword arguments from a table, and the problems found (unknown keys included)."""
-        if not isinstance(data, Mapping):
-            return {}, [f"{prefix.rstrip('.') or 'config'} = {data!r}: must be a table"]
-        kwargs, problems = {}, []
-        for key, raw in data.items():
-            spec = cls.SPEC.get(key)
-            if spec is None:
-                problems.append(f"{prefix}{key} = {raw!r}: unknown key; allowed keys: {', '.join(cls.SPEC)}")
-                continue
-            value, why = _convert(spec, raw)
-            if why is not None:
-                problems.append(_problem(prefix, key, raw, why))
-            else:
-                kwargs[key] = value
-        return kwargs, problems
+class _Section(Schema):
+    """One sensor's settings (a pydantic schema of the project's one config mechanism)."""
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "sensor config") -> Any:
         """This section from its table (``[accel]`` ...); missing keys keep their defaults."""
-        kwargs, problems = cls._parse(data, f"{cls.SECTION}.")
-        if problems:
-            raise SensorConfigError(f"{source}: " + "; ".join(problems))
-        return cls(**kwargs)
+        try:
+            return validate_config(data, cls, source)
+        except ConfigError as err:
+            raise SensorConfigError(err.source, err.problems) from None
+
+    def replace(self, **changes: Any) -> Any:
+        """A validated copy with ``changes``."""
+        return type(self).model_validate({**self.model_dump(), **changes})
 
 
-@dataclass(frozen=True)
-class AccelConfig(_Checked):
+class AccelConfig(_Section):
     """Accelerometer [m/s^2]; drift_std in m/s^2 per sqrt(s)."""
 
-    noise_std: float = 0.02
-    bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    drift_std: float = 0.0006
-    SECTION: ClassVar[str] = "accel"
-    SPEC: ClassVar[Mapping[str, _Spec]] = {
-        "noise_std": _Spec("float", 0.0, 10.0, "m/s^2"), "bias": _Spec("vec3", -10.0, 10.0, "m/s^2"),
-        "drift_std": _Spec("float", 0.0, 1.0, "m/s^2/sqrt(s)")}
+    noise_std: float = _num(0.0, 10.0, 0.02)
+    bias: _vec3(-10.0, 10.0) = (0.0, 0.0, 0.0)  # type: ignore[valid-type]
+    drift_std: float = _num(0.0, 1.0, 0.0006)
 
 
-@dataclass(frozen=True)
-class GyroConfig(_Checked):
+class GyroConfig(_Section):
     """Gyroscope [rad/s]; drift_std in rad/s per sqrt(s)."""
 
-    noise_std: float = 0.003
-    bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    drift_std: float = 4e-5
-    SECTION: ClassVar[str] = "gyro"
-    SPEC: ClassVar[Mapping[str, _Spec]] = {
-        "noise_std": _Spec("float", 0.0, 1.0, "rad/s"), "bias": _Spec("vec3", -1.0, 1.0, "rad/s"),
-        "drift_std": _Spec("float", 0.0, 0.1, "rad/s/sqrt(s)")}
+    noise_std: float = _num(0.0, 1.0, 0.003)
+    bias: _vec3(-1.0, 1.0) = (0.0, 0.0, 0.0)  # type: ignore[valid-type]
+    drift_std: float = _num(0.0, 0.1, 4e-5)
 
 
-@dataclass(frozen=True)
-class MagConfig(_Checked):
-    """Magnetometer [gauss] and the Earth field it measures: total intensity [gauss], declination (east of
-    true north, positive) and inclination (below the horizon, positive) [deg]; constant over the flight."""
+class MagConfig(_Section):
+    """Magnetometer [gauss] and the Earth field it measures: total intensity [gauss] (the Earth's is 0.22..0.67),
+    declination (east of true north, positive) and inclination (below the horizon, positive) [deg]; constant
+    over the flight."""
 
-    noise_std: float = 0.005
-    bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    drift_std: float = 0.0
-    intensity_gauss: float = 0.5
-    declination_deg: float = 0.0
-    inclination_deg: float = 60.0
-    SECTION: ClassVar[str] = "mag"
-    SPEC: ClassVar[Mapping[str, _Spec]] = {
-        "noise_std": _Spec("float", 0.0, 1.0, "gauss"), "bias": _Spec("vec3", -2.0, 2.0, "gauss"),
-        "drift_std": _Spec("float", 0.0, 0.1, "gauss/sqrt(s)"),
-        "intensity_gauss": _Spec("float", 0.1, 1.0, "gauss"),  # the Earth's field is 0.22..0.67 gauss
-        "declination_deg": _Spec("float", -180.0, 180.0, "deg"),
-        "inclination_deg": _Spec("float", -90.0, 90.0, "deg")}
+    noise_std: float = _num(0.0, 1.0, 0.005)
+    bias: _vec3(-2.0, 2.0) = (0.0, 0.0, 0.0)  # type: ignore[valid-type]
+    drift_std: float = _num(0.0, 0.1, 0.0)
+    intensity_gauss: float = _num(0.1, 1.0, 0.5)
+    declination_deg: float = _num(-180.0, 180.0, 0.0)
+    inclination_deg: float = _num(-90.0, 90.0, 60.0)
 
     def field_ned_gauss(self) -> np.ndarray:
         """The Earth field in NED [gauss]."""
@@ -200,34 +130,23 @@ class MagConfig(_Checked):
                          self.intensity_gauss * math.sin(inc)])
 
 
-@dataclass(frozen=True)
-class BaroConfig(_Checked):
+class BaroConfig(_Section):
     """Barometer static pressure [Pa]; drift_std in Pa per sqrt(s). The temperature is the noise-free ISA one."""
 
-    noise_std: float = 2.0
-    bias: float = 0.0
-    drift_std: float = 0.1
-    SECTION: ClassVar[str] = "baro"
-    SPEC: ClassVar[Mapping[str, _Spec]] = {
-        "noise_std": _Spec("float", 0.0, 1000.0, "Pa"), "bias": _Spec("float", -5000.0, 5000.0, "Pa"),
-        "drift_std": _Spec("float", 0.0, 100.0, "Pa/sqrt(s)")}
+    noise_std: float = _num(0.0, 1000.0, 2.0)
+    bias: float = _num(-5000.0, 5000.0, 0.0)
+    drift_std: float = _num(0.0, 100.0, 0.1)
 
 
-@dataclass(frozen=True)
-class DiffPressureConfig(_Checked):
+class DiffPressureConfig(_Section):
     """Pitot differential pressure [Pa]; drift_std in Pa per sqrt(s). Used only when the FMU has airspeed."""
 
-    noise_std: float = 0.5
-    bias: float = 0.0
-    drift_std: float = 0.0
-    SECTION: ClassVar[str] = "diff_pressure"
-    SPEC: ClassVar[Mapping[str, _Spec]] = {
-        "noise_std": _Spec("float", 0.0, 100.0, "Pa"), "bias": _Spec("float", -100.0, 100.0, "Pa"),
-        "drift_std": _Spec("float", 0.0, 10.0, "Pa/sqrt(s)")}
+    noise_std: float = _num(0.0, 100.0, 0.5)
+    bias: float = _num(-100.0, 100.0, 0.0)
+    drift_std: float = _num(0.0, 10.0, 0.0)
 
 
-@dataclass(frozen=True)
-class GpsConfig(_Checked):
+class GpsConfig(_Section):
     """GPS receiver: fix rate [Hz], latency [s] (a fix delivered at t describes the state at t - latency),
     the reported accuracies eph/epv [m], fix type (MAVLink GPS_FIX_TYPE: 3 = 3D), satellites.
 
@@ -240,74 +159,52 @@ class GpsConfig(_Checked):
     negligible. White position noise (``pos_noise_std_*``) trips PX4's preflight drift check, so it is 0 by
     default. NED velocity: white noise std [m/s]."""
 
-    rate_hz: float = 5.0
-    latency_s: float = 0.1
-    eph_m: float = 1.0
-    epv_m: float = 2.0
-    fix_type: int = 3
-    satellites: int = 10
-    pos_gm_std_h_m: float = 1.0
-    pos_gm_std_v_m: float = 2.0
-    pos_gm_tau_s: float = 60.0
-    pos_noise_std_h_m: float = 0.0
-    pos_noise_std_v_m: float = 0.0
-    vel_noise_std_m_s: float = 0.05
-    SECTION: ClassVar[str] = "gps"
-    SPEC: ClassVar[Mapping[str, _Spec]] = {
-        "rate_hz": _Spec("float", 0.1, 100.0, "Hz"), "latency_s": _Spec("float", 0.0, 1.0, "s"),
-        "eph_m": _Spec("float", 0.0, 600.0, "m"), "epv_m": _Spec("float", 0.0, 600.0, "m"),
-        "fix_type": _Spec("int", 0, 8, ""), "satellites": _Spec("int", 0, 255, ""),
-        "pos_gm_std_h_m": _Spec("float", 0.0, 100.0, "m"), "pos_gm_std_v_m": _Spec("float", 0.0, 100.0, "m"),
-        "pos_gm_tau_s": _Spec("float", 0.1, 3600.0, "s"),
-        "pos_noise_std_h_m": _Spec("float", 0.0, 100.0, "m"), "pos_noise_std_v_m": _Spec("float", 0.0, 100.0, "m"),
-        "vel_noise_std_m_s": _Spec("float", 0.0, 10.0, "m/s")}
+    rate_hz: float = _num(0.1, 100.0, 5.0)
+    latency_s: float = _num(0.0, 1.0, 0.1)
+    eph_m: float = _num(0.0, 600.0, 1.0)
+    epv_m: float = _num(0.0, 600.0, 2.0)
+    fix_type: int = Field(3, ge=0, le=8)
+    satellites: int = Field(10, ge=0, le=255)
+    pos_gm_std_h_m: float = _num(0.0, 100.0, 1.0)
+    pos_gm_std_v_m: float = _num(0.0, 100.0, 2.0)
+    pos_gm_tau_s: float = _num(0.1, 3600.0, 60.0)
+    pos_noise_std_h_m: float = _num(0.0, 100.0, 0.0)
+    pos_noise_std_v_m: float = _num(0.0, 100.0, 0.0)
+    vel_noise_std_m_s: float = _num(0.0, 10.0, 0.05)
 
 
-_SECTIONS: dict[str, type[_Checked]] = {
-    "accel": AccelConfig, "gyro": GyroConfig, "mag": MagConfig, "baro": BaroConfig,
-    "diff_pressure": DiffPressureConfig, "gps": GpsConfig}
-
-
-@dataclass(frozen=True)
-class SensorConfig:
+class SensorConfig(Schema):
     """All sensors; the defaults are plausible small-MEMS/u-blox values. TOML layout: one table per sensor,
     ``[accel] [gyro] [mag] [baro] [diff_pressure] [gps]``, each optional, missing keys keep their defaults."""
 
-    accel: AccelConfig = field(default_factory=AccelConfig)
-    gyro: GyroConfig = field(default_factory=GyroConfig)
-    mag: MagConfig = field(default_factory=MagConfig)
-    baro: BaroConfig = field(default_factory=BaroConfig)
-    diff_pressure: DiffPressureConfig = field(default_factory=DiffPressureConfig)
-    gps: GpsConfig = field(default_factory=GpsConfig)
+    accel: AccelConfig = AccelConfig()
+    gyro: GyroConfig = GyroConfig()
+    mag: MagConfig = MagConfig()
+    baro: BaroConfig = BaroConfig()
+    diff_pressure: DiffPressureConfig = DiffPressureConfig()
+    gps: GpsConfig = GpsConfig()
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "sensor config") -> SensorConfig:
         """Check every field of every table; ``SensorConfigError`` lists all problems, prefixed by ``source``."""
-        if not isinstance(data, Mapping):
-            raise SensorConfigError(f"{source}: sensor config must be a table, got {data!r}")
-        sections, problems = {}, []
-        for key, raw in data.items():
-            section = _SECTIONS.get(key)
-            if section is None:
-                problems.append(f"{key} = {raw!r}: unknown sensor; allowed: {', '.join(_SECTIONS)}")
-                continue
-            kwargs, found = section._parse(raw, f"{key}.")
-            problems += found
-            if not found:
-                sections[key] = section(**kwargs)
-        if problems:
-            raise SensorConfigError(f"{source}: " + "; ".join(problems))
-        return cls(**sections)
+        try:
+            return validate_config(data, cls, source)
+        except ConfigError as err:
+            raise SensorConfigError(err.source, err.problems) from None
+
+    def replace(self, **sections: Any) -> SensorConfig:
+        """A copy with whole sections replaced."""
+        return type(self).model_validate({**{k: getattr(self, k) for k in type(self).model_fields}, **sections})
 
     @classmethod
     def noise_free(cls) -> SensorConfig:
         """Every noise, bias and drift 0 (GPS rate, latency and the Earth field keep their defaults)."""
         zero = {"noise_std": 0.0, "bias": 0.0, "drift_std": 0.0}
         d = cls()
-        return cls(accel=replace(d.accel, **zero), gyro=replace(d.gyro, **zero), mag=replace(d.mag, **zero),
-                   baro=replace(d.baro, **zero), diff_pressure=replace(d.diff_pressure, **zero),
-                   gps=replace(d.gps, pos_noise_std_h_m=0.0, pos_noise_std_v_m=0.0, vel_noise_std_m_s=0.0,
-                               pos_gm_std_h_m=0.0, pos_gm_std_v_m=0.0))
+        return cls(accel=d.accel.replace(**zero), gyro=d.gyro.replace(**zero), mag=d.mag.replace(**zero),
+                   baro=d.baro.replace(**zero), diff_pressure=d.diff_pressure.replace(**zero),
+                   gps=d.gps.replace(pos_noise_std_h_m=0.0, pos_noise_std_v_m=0.0, vel_noise_std_m_s=0.0,
+                                     pos_gm_std_h_m=0.0, pos_gm_std_v_m=0.0))
 
 
 # ------------------------------------------------------------------------------------------ frames

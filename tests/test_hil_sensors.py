@@ -4,7 +4,6 @@ noise statistics, bias drift, config checking, missing outputs."""
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -43,7 +42,7 @@ def yawed(yaw_deg: float) -> dict[str, float]:
 
 
 def noise_free(**sections) -> SensorConfig:
-    return replace(SensorConfig.noise_free(), **sections)
+    return SensorConfig.noise_free().replace(**sections)
 
 
 def quiet_gps(**settings) -> GpsConfig:
@@ -108,7 +107,7 @@ def test_mag_rotates_with_heading() -> None:
 
 
 def test_mag_declination_is_east_positive() -> None:
-    mag = replace(MAG, declination_deg=10.0)
+    mag = MAG.replace(declination_deg=10.0)
     # nose on magnetic north (10 deg east of true north): the horizontal field is along the nose again
     m = SensorSuite(noise_free(mag=mag)).sample(0.0, outputs(**yawed(10.0))).mag_body_gauss
     assert m == pytest.approx((0.25, 0.0, 0.4330127), abs=1e-7)
@@ -234,12 +233,11 @@ def test_noise_is_noise() -> None:
 # ------------------------------------------------------------------------------------------ statistics
 def test_white_noise_has_the_configured_std() -> None:
     n = 20000
-    cfg = replace(
-        SensorConfig.noise_free(),
+    cfg = SensorConfig.noise_free().replace(
         accel=AccelConfig(noise_std=0.08, bias=0.0, drift_std=0.0),
-        gyro=replace(SensorConfig.noise_free().gyro, noise_std=0.004),
-        baro=replace(SensorConfig.noise_free().baro, noise_std=3.0),
-        diff_pressure=replace(SensorConfig.noise_free().diff_pressure, noise_std=0.7),
+        gyro=SensorConfig.noise_free().gyro.replace(noise_std=0.004),
+        baro=SensorConfig.noise_free().baro.replace(noise_std=3.0),
+        diff_pressure=SensorConfig.noise_free().diff_pressure.replace(noise_std=0.7),
         gps=GpsConfig(rate_hz=100.0, latency_s=0.0, pos_noise_std_h_m=1.5, pos_noise_std_v_m=2.5,
                       vel_noise_std_m_s=0.2, pos_gm_std_h_m=0.0, pos_gm_std_v_m=0.0),
     )
@@ -271,7 +269,7 @@ def test_white_noise_has_the_configured_std() -> None:
 
 def test_bias_drift_grows_like_sqrt_t() -> None:
     sigma = 0.01  # rad/s per sqrt(s)
-    cfg = noise_free(gyro=replace(SensorConfig.noise_free().gyro, drift_std=sigma))
+    cfg = noise_free(gyro=SensorConfig.noise_free().gyro.replace(drift_std=sigma))
     times = (0.0, 1.0, 4.0, 16.0)
     runs = []
     for s in range(1000):
@@ -288,7 +286,7 @@ def test_bias_drift_grows_like_sqrt_t() -> None:
 
 def test_drift_does_not_depend_on_the_step() -> None:
     sigma = 0.02
-    cfg = noise_free(baro=replace(SensorConfig.noise_free().baro, drift_std=sigma))
+    cfg = noise_free(baro=SensorConfig.noise_free().baro.replace(drift_std=sigma))
     ends = []
     for s in range(1000):
         suite = SensorSuite(cfg, seed=s)
@@ -306,25 +304,25 @@ def test_config_from_dict_defaults_and_normalisation() -> None:
     assert cfg.gyro.bias == (0.01, 0.0, -0.01) and cfg.gyro.noise_std == SensorConfig().gyro.noise_std
     assert cfg.gps.rate_hz == 10.0 and isinstance(cfg.gps.rate_hz, float) and cfg.mag == MagConfig()
     assert SensorConfig.from_dict({}) == SensorConfig()
-    with pytest.raises(AttributeError):
-        cfg.accel.noise_std = 1.0  # frozen
+    with pytest.raises(ValueError, match="frozen"):
+        cfg.accel.noise_std = 1.0
 
 
 @pytest.mark.parametrize(("data", "expected"), [
-    ({"accel": {"noise_std": -0.1}}, ["accel.noise_std", "-0.1", "0..10 m/s^2"]),
-    ({"gyro": {"drift_std": math.nan}}, ["gyro.drift_std", "nan", "0..0.1"]),
-    ({"gyro": {"bias": [0.0, 2.0, 0.0]}}, ["gyro.bias", "[0.0, 2.0, 0.0]", "-1..1 rad/s per axis"]),
-    ({"gyro": {"bias": [0.0, 0.0]}}, ["gyro.bias", "3 numbers"]),
-    ({"mag": {"inclination_deg": 95}}, ["mag.inclination_deg", "95", "-90..90 deg"]),
-    ({"mag": {"intensity_gauss": "0.5"}}, ["mag.intensity_gauss", "'0.5'", "a number", "0.1..1 gauss"]),
-    ({"baro": {"noise_std": math.inf}}, ["baro.noise_std", "inf", "0..1000 Pa"]),
-    ({"gps": {"rate_hz": 0}}, ["gps.rate_hz", "= 0", "0.1..100 Hz"]),
-    ({"gps": {"fix_type": 3.0}}, ["gps.fix_type", "3.0", "an integer", "0..8"]),
-    ({"gps": {"satellites": True}}, ["gps.satellites", "True", "0..255"]),
-    ({"gps": {"latency_s": 2.0}}, ["gps.latency_s", "2.0", "0..1 s"]),
-    ({"accel": {"noise": 0.1}}, ["accel.noise", "unknown key", "noise_std"]),
-    ({"lidar": {}}, ["lidar", "unknown sensor", "accel"]),
-    ({"gps": 5}, ["gps", "5", "table"]),
+    ({"accel": {"noise_std": -0.1}}, ["accel.noise_std = -0.1", ">= 0 and <= 10"]),
+    ({"gyro": {"drift_std": math.nan}}, ["gyro.drift_std = nan", "finite", ">= 0 and <= 0.1"]),
+    ({"gyro": {"bias": [0.0, 2.0, 0.0]}}, ["gyro.bias.1 = 2.0", ">= -1 and <= 1"]),
+    ({"gyro": {"bias": [0.0, 0.0]}}, ["gyro.bias.2", "missing"]),
+    ({"mag": {"inclination_deg": 95}}, ["mag.inclination_deg = 95", ">= -90 and <= 90"]),
+    ({"mag": {"intensity_gauss": "0.5"}}, ["mag.intensity_gauss = '0.5'", "valid number", ">= 0.1 and <= 1"]),
+    ({"baro": {"noise_std": math.inf}}, ["baro.noise_std = inf", "finite", ">= 0 and <= 1000"]),
+    ({"gps": {"rate_hz": 0}}, ["gps.rate_hz = 0", ">= 0.1 and <= 100"]),
+    ({"gps": {"fix_type": 3.0}}, ["gps.fix_type = 3.0", "valid integer", ">= 0 and <= 8"]),
+    ({"gps": {"satellites": True}}, ["gps.satellites = True", "valid integer", ">= 0 and <= 255"]),
+    ({"gps": {"latency_s": 2.0}}, ["gps.latency_s = 2.0", ">= 0 and <= 1"]),
+    ({"accel": {"noise": 0.1}}, ["accel.noise = 0.1", "unknown key", "noise_std"]),
+    ({"lidar": {}}, ["lidar", "unknown key", "accel"]),
+    ({"gps": 5}, ["gps = 5", "dictionary"]),
 ])
 def test_config_errors_name_source_field_value_and_range(data: dict, expected: list[str]) -> None:
     with pytest.raises(SensorConfigError) as err:
@@ -345,9 +343,9 @@ def test_config_errors_are_all_listed() -> None:
 
 def test_section_from_dict_and_direct_construction_are_checked() -> None:
     assert GpsConfig.from_dict({"rate_hz": 2.0}).rate_hz == 2.0
-    with pytest.raises(SensorConfigError, match=r"gps\.toml: gps\.epv_m = -3"):
+    with pytest.raises(SensorConfigError, match=r"(?s)gps\.toml: .*field epv_m = -3"):
         GpsConfig.from_dict({"epv_m": -3}, source="gps.toml")
-    with pytest.raises(SensorConfigError, match=r"accel\.noise_std = -1\.0.*0\.\.10"):
+    with pytest.raises(ValueError, match=r"(?s)noise_std.*greater than or equal to 0"):
         AccelConfig(noise_std=-1.0)
 
 

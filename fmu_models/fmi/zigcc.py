@@ -8,10 +8,10 @@ hash of their sources, flags and target, so a rebuild of unchanged code costs a 
 from __future__ import annotations
 
 import hashlib
-import os
 import shutil
 import subprocess
 import sys
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -63,17 +63,17 @@ def compile_shared(sources: list[Path], include_dirs: list[Path], platform: Plat
     cached = cache_dir() / "native" / f"{platform.fmi_name}_{digest.hexdigest()[:20]}{platform.suffix}"
     if not cached.exists():
         cached.parent.mkdir(parents=True, exist_ok=True)
-        partial = cached.with_name(f"{cached.name}.{os.getpid()}.tmp{platform.suffix}")
-        incs = [f"-I{d}" for d in include_dirs]
-        cmd = [*zig_cc(), *flags, *incs, "-o", str(partial), *(str(s) for s in sources)]
-        if platform.fmi_name == "linux64":
-            cmd.append("-lm")
-        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
-        if proc.returncode != 0:
-            raise CompileError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-4000:]}")
-        for extra in (partial.parent / f"{sources[0].stem}.lib", partial.parent / f"{sources[0].stem}.pdb"):
-            extra.unlink(missing_ok=True)  # the win64 import library and debug file zig writes beside the DLL
-        partial.replace(cached)  # atomic: concurrent builds never see a half-written library
+        # in a private folder: zig writes an import library and a .pdb beside a DLL; only the library is kept
+        with tempfile.TemporaryDirectory(dir=cached.parent, prefix=".build_") as tmp:
+            partial = Path(tmp) / f"{platform.fmi_name}{platform.suffix}"
+            incs = [f"-I{d}" for d in include_dirs]
+            cmd = [*zig_cc(), *flags, *incs, "-o", str(partial), *(str(s) for s in sources)]
+            if platform.fmi_name == "linux64":
+                cmd.append("-lm")
+            proc = subprocess.run(cmd, capture_output=True, text=True, check=False, cwd=tmp)
+            if proc.returncode != 0:
+                raise CompileError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-4000:]}")
+            partial.replace(cached)  # atomic: concurrent builds never see a half-written library
     out.parent.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(cached, out)
     return out

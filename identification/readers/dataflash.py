@@ -80,27 +80,34 @@ def _walk(data: bytes, quality: DataQuality) -> tuple[dict[int, tuple[str, str, 
     after it); otherwise the bytes up to the next plausible message are skipped and counted
     (resynchronisation), so one damaged byte costs about one message, not the rest of the log."""
     n = len(data)
+    buf = np.frombuffer(data, dtype=np.uint8)
+    # sync-byte pairs marked once with numpy (1 at each 0xA3 0x95; 1 at n: the end also closes a message)
+    mark = np.zeros(n + 256, dtype=np.uint8)
+    mark[:n - 1] = (buf[:-1] == HEAD1) & (buf[1:] == HEAD2)
+    mark[n] = 1
+    is_sync = mark.tobytes()
     lengths: dict[int, int] = {FMT_ID: FMT_LEN}
+    table = [0] * 256  # the same lengths as a list (0: unknown type), for the hot loop
+    table[FMT_ID] = FMT_LEN
     formats: dict[int, tuple[str, str, list[str]]] = {}
     offsets: dict[int, list[int]] = defaultdict(list)
     pos, count = 0, 0
     while pos + 3 <= n:
-        length = lengths.get(data[pos + 2]) if data[pos] == HEAD1 and data[pos + 1] == HEAD2 else None
-        end = pos + (length or n)
-        if length is not None and (end == n or (end + 2 <= n and data[end] == HEAD1 and data[end + 1] == HEAD2)):
-            mid = data[pos + 2]
+        length = table[data[pos + 2]] if is_sync[pos] else 0
+        end = pos + length
+        if length and end <= n and is_sync[end]:
             count += 1
-            if mid == FMT_ID:
-                _define(data, pos, lengths, formats)
+            if length == FMT_LEN and data[pos + 2] == FMT_ID:
+                _define(data, pos, lengths, formats, table)
             else:
-                offsets[mid].append(pos)
+                offsets[data[pos + 2]].append(pos)
             pos = end
             continue
         nxt = _resync(data, pos + 1, lengths)
-        if length is not None and end <= nxt:  # intact message followed by damage: keep it (no overlap)
+        if length and end <= nxt:  # intact message followed by damage: keep it (no overlap)
             count += 1
             if data[pos + 2] == FMT_ID:
-                _define(data, pos, lengths, formats)
+                _define(data, pos, lengths, formats, table)
             else:
                 offsets[data[pos + 2]].append(pos)
             pos = end
@@ -114,7 +121,8 @@ def _walk(data: bytes, quality: DataQuality) -> tuple[dict[int, tuple[str, str, 
     return formats, lengths, offsets, count
 
 
-def _define(data: bytes, pos: int, lengths: dict[int, int], formats: dict[int, tuple[str, str, list[str]]]) -> None:
+def _define(data: bytes, pos: int, lengths: dict[int, int], formats: dict[int, tuple[str, str, list[str]]],
+            table: list[int]) -> None:
     """Record one FMT message; a type already defined keeps its first definition (a damaged FMT cannot
     redefine it), a length too short for the header is ignored."""
     t_id, t_len = data[pos + 3], data[pos + 4]
@@ -123,7 +131,7 @@ def _define(data: bytes, pos: int, lengths: dict[int, int], formats: dict[int, t
     name = data[pos + 5:pos + 9].rstrip(b"\0").decode("ascii", "replace")
     fmt = data[pos + 9:pos + 25].rstrip(b"\0").decode("ascii", "replace")
     cols = data[pos + 25:pos + 89].rstrip(b"\0").decode("ascii", "replace").split(",")
-    lengths[t_id] = t_len
+    lengths[t_id] = table[t_id] = t_len
     formats[t_id] = (name, fmt, cols)
 
 
