@@ -14,6 +14,7 @@ import shutil
 import sys
 import tempfile
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -143,21 +144,27 @@ def build_fmu(
             sys.modules.pop(model.name, None)
     fmu = Path(fmu)
     variables = {v["name"]: v for v in spec["inputs"] + spec["params"] + spec["outputs"]}
-    rewrite_fmu(fmu, variables, _shim_files(fmu, model.name, compiler if compile_c else None),
-                fmuzip.build_epoch(params_file))
+    files, guid_files = _shim_files(fmu, model.name, compiler if compile_c else None)
+    rewrite_fmu(fmu, variables, files, fmuzip.build_epoch(params_file), guid_files)
     return fmu
 
 
-def _shim_files(fmu: Path, model_identifier: str, compiler: str | None) -> dict[str, bytes]:
-    """linux64 binaries: our status-mapping shim as ``<id>.so``, pythonfmu's library beside it."""
+def _shim_files(
+    fmu: Path, model_identifier: str, compiler: str | None
+) -> tuple[dict[str, bytes], Callable[[str], dict[str, bytes]] | None]:
+    """linux64 binaries: pythonfmu's library as ``<id>_pythonfmu.so``, and a maker of our guarding shim as
+    ``<id>.so`` for the FMU's final GUID (the shim refuses instantiation with any other)."""
     arc = f"binaries/linux64/{model_identifier}.so"
     if compiler is None or sys.platform != "linux":
-        return {}
+        return {}, None
     with zipfile.ZipFile(fmu) as z:
         if arc not in z.namelist():
-            return {}
+            return {}, None
         original = z.read(arc)
         rows = shim.variable_table(z.read("modelDescription.xml"))
-    with tempfile.TemporaryDirectory() as tmp:
-        lib = shim.build_shim(model_identifier, Path(tmp), compiler, rows)
-        return {arc: lib.read_bytes(), f"binaries/linux64/{model_identifier}_pythonfmu.so": original}
+
+    def shim_for(guid: str) -> dict[str, bytes]:
+        with tempfile.TemporaryDirectory() as tmp:
+            return {arc: shim.build_shim(model_identifier, Path(tmp), compiler, rows, guid).read_bytes()}
+
+    return {f"binaries/linux64/{model_identifier}_pythonfmu.so": original}, shim_for

@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 import uuid
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree as ET
@@ -75,9 +76,12 @@ def complete_model_description(xml_text: bytes, variables: dict[str, dict[str, A
 
 
 def rewrite_fmu(
-    fmu: Path, variables: dict[str, dict[str, Any]], files: dict[str, bytes] | None = None, epoch: int | None = None
+    fmu: Path, variables: dict[str, dict[str, Any]], files: dict[str, bytes] | None = None, epoch: int | None = None,
+    guid_files: Callable[[str], dict[str, bytes]] | None = None,
 ) -> None:
-    """Complete modelDescription.xml in the ``fmu`` zip; add or replace ``files`` (archive name -> bytes).
+    """Complete modelDescription.xml in the ``fmu`` zip; add or replace ``files`` (archive name -> bytes), then
+    the files ``guid_files(guid)`` makes for the final GUID (a binary that checks it: derived from the rest,
+    so left out of the hash).
 
     The archive is rewritten reproducibly (``fmuzip.write_fmu``): ``generationDateAndTime`` from ``epoch``
     (default ``fmuzip.build_epoch()``) and a GUID hashed from the FMU's contents replace pythonfmu's clock
@@ -96,6 +100,7 @@ def rewrite_fmu(
         if name != "modelDescription.xml":
             digest.update(name.encode() + b"\0" + members[name])
     root.set("guid", "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, f"uavfmu:{digest.hexdigest()}")) + "}")
+    members.update(guid_files(root.get("guid", "")) if guid_files else {})
     members["modelDescription.xml"] = (
         '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n").encode()
     fmuzip.write_fmu(fmu, members, epoch)

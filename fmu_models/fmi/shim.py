@@ -68,6 +68,11 @@ def variable_table(model_description: bytes) -> list[VarRow]:
     return sorted(rows)
 
 
+def model_guid(model_description: bytes) -> str:
+    """The ``guid`` of a modelDescription.xml (the shim refuses instantiation with another one)."""
+    return ET.fromstring(model_description).get("guid", "")
+
+
 def fmu_variable_table(fmu: Path) -> list[VarRow]:
     with zipfile.ZipFile(fmu) as z:
         return variable_table(z.read("modelDescription.xml"))
@@ -261,7 +266,16 @@ static Slot* take_slot(Inst* in, fmi2InstantiateTYPE* f, fmi2String n, fmi2Strin
 fmi2Component fmi2Instantiate(fmi2String n, fmi2Type t, fmi2String g, fmi2String r,
                               const fmi2CallbackFunctions* cb, fmi2Boolean v, fmi2Boolean l) {
   (void)l;  /* always on: our slave logs only warnings and errors, which an importer must see */
-  if (!cb || !cb->logger || !n || !r || !g) return NULL;
+  if (!cb || !cb->logger) return NULL;
+  fmi2String who = (n && n[0]) ? n : "?";
+  if (!n || !n[0]) { cb->logger(cb->componentEnvironment, who, fmi2Error, "logStatusError",
+                                "fmi2Instantiate: instanceName must be a non-empty string"); return NULL; }
+  if (MODEL_GUID[0] && (!g || strcmp(g, MODEL_GUID) != 0)) {
+    cb->logger(cb->componentEnvironment, who, fmi2Error, "logStatusError",
+               "fmi2Instantiate: GUID %s does not match this FMU's %s", g ? g : "(null)", MODEL_GUID);
+    return NULL; }
+  if (!g || !r) { cb->logger(cb->componentEnvironment, who, fmi2Error, "logStatusError",
+                             "fmi2Instantiate: fmuGUID and fmuResourceLocation must not be NULL"); return NULL; }
   fmi2InstantiateTYPE* f = (fmi2InstantiateTYPE*)sym("fmi2Instantiate");
   if (!f) { cb->logger(cb->componentEnvironment, n, fmi2Error, "logStatusError", "cannot load @REAL@: %s",
                        load_error); return NULL; }
@@ -555,26 +569,29 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n
 """
 
 
-def _table_c(rows: list[VarRow], model_identifier: str) -> str:
+def _table_c(rows: list[VarRow], model_identifier: str, guid: str) -> str:
     body = ",\n".join(f"  {{{vr}u, '{kind}', {settable}}}" for vr, kind, settable in rows) or "  {0u, 0, 0}"
     key = 1469598103934665603
     for ch in f"{model_identifier}:{rows}".encode():
         key = ((key ^ ch) * 1099511628211) % (1 << 64)
     return (f"static const VarInfo VARS[] = {{\n{body}\n}};\n"
             f"static const size_t NVARS = {len(rows)};\n"
-            f"#define MODEL_KEY 0x{key:016x}ULL\n")
+            f"#define MODEL_KEY 0x{key:016x}ULL\n"
+            f"static const char MODEL_GUID[] = \"{guid.replace(chr(92), '').replace(chr(34), '')}\";\n")
 
 
-def shim_source(real_library_name: str, rows: list[VarRow] | None = None, model_identifier: str = "") -> str:
-    """C source of the guarding library for the variables ``rows`` (``variable_table``)."""
-    core = C_CORE.replace("@TABLE@", _table_c(rows or [], model_identifier or real_library_name))
+def shim_source(real_library_name: str, rows: list[VarRow] | None = None, model_identifier: str = "",
+                guid: str = "") -> str:
+    """C source of the guarding library for the variables ``rows`` (``variable_table``) of the FMU ``guid``."""
+    core = C_CORE.replace("@TABLE@", _table_c(rows or [], model_identifier or real_library_name, guid))
     return (core + C_LIFECYCLE + C_VALUES + C_STATES).replace("@REAL@", real_library_name)
 
 
-def build_shim(model_identifier: str, out_dir: Path, compiler: str, rows: list[VarRow] | None = None) -> Path:
+def build_shim(model_identifier: str, out_dir: Path, compiler: str, rows: list[VarRow] | None = None,
+               guid: str = "") -> Path:
     """Compile ``<id>.so`` guarding and forwarding to ``<id>_pythonfmu.so``; return its path."""
     src = out_dir / f"{model_identifier}_shim.c"
-    src.write_text(shim_source(f"{model_identifier}_pythonfmu.so", rows, model_identifier))
+    src.write_text(shim_source(f"{model_identifier}_pythonfmu.so", rows, model_identifier, guid))
     lib = out_dir / f"{model_identifier}.so"
     compile_library(src, lib, compiler, extra=["-I", str(HEADERS), "-ldl"])
     return lib
