@@ -27,7 +27,7 @@ from fmu_models.fixed_wing.model import FixedWingModel
 from fmu_models.fixed_wing.params import FixedWingParams
 from fmu_models.signals.pwm_mapping import PwmMapping
 from identification import aero
-from identification.flightlog import FlightLog
+from identification.flightlog import DEFAULT_MAX_DAMAGE, FlightLog, check_quality
 from identification.identifiability import Identifiability, select_free
 from identification.metrics import FitMetrics
 from identification.oem import Estimate, EstimationError, Manoeuvre, OutputErrorEstimator
@@ -61,6 +61,8 @@ class AeroOptions:
     horizon_s: float = 1.0
     max_delay_s: float = 0.1
     progress: bool = False
+    force: bool = False  #: use a log whose damage exceeds ``max_damage`` (its damage is still reported)
+    max_damage: float = DEFAULT_MAX_DAMAGE  #: largest damaged or lost share of the log accepted (0..1)
 
 
 @dataclass
@@ -92,6 +94,7 @@ class AeroResult:
     failures: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     baselines: dict[str, dict[str, Any]] = field(default_factory=dict)
+    quality: dict[str, Any] | None = None  #: the log's data-quality summary (``DataQuality.to_dict``)
 
     @property
     def losing_outputs(self) -> list[str]:
@@ -113,11 +116,13 @@ class AeroResult:
             "metrics": {k: {n: m.as_dict() for n, m in v.items()} for k, v in self.scores.items()},
             "failures": self.failures, "notes": self.notes,
             "baselines_validation": self.baselines, "losing_outputs": self.losing_outputs,
+            "quality": self.quality,
         }
 
     def summary(self) -> str:
         est = self.estimate
-        lines = ["identifiability before the solve:", *("  " + x for x in self.before.lines()), "", est.table()]
+        lines = [f"log: {line}" for line in (self.quality or {}).get("lines", [])]
+        lines += ["identifiability before the solve:", *("  " + x for x in self.before.lines()), "", est.table()]
         if not est.converged:
             lines.append("NOT CONVERGED within max_iter; the estimates are the last accepted iterate")
         lines.append(f"nuisance: {self.nuisance_choice}; command -> surface delay {self.fit.delay_s * 1e3:.0f} ms")
@@ -282,6 +287,7 @@ def _new_pairs(before: Estimate, after: Estimate) -> list[tuple[str, str]]:
 def identify_aero(log: FlightLog, mapping: PwmMapping, init: FixedWingParams, opt: AeroOptions) -> AeroResult:
     """Estimate the derivatives; raises ``ValueError`` subclasses (bad segments, names, ...) and
     ``EstimationError`` before a solve exists; failures after it are kept in ``AeroResult.failures``."""
+    check_quality(log, opt.force, opt.max_damage)  # a badly damaged log is refused unless forced
     model = FixedWingModel(init)
     _check_names(model, opt)
     p = np.array(model.params.starts(), dtype=float)
@@ -294,7 +300,9 @@ def identify_aero(log: FlightLog, mapping: PwmMapping, init: FixedWingParams, op
     before = probe.identifiability(data, weight=weight)
     start = {n: float(p[i]) for n, i in zip(free, probe.i_free, strict=True)}
     fit, choice, notes = _nuisance_fits(model, p, free, data, opt, weight)
-    result = AeroResult(free, outputs, fit_segs, val_segs, start, before, fit, {}, choice, notes=notes)
+    quality = log.quality.to_dict() if getattr(log, "quality", None) is not None else None
+    result = AeroResult(free, outputs, fit_segs, val_segs, start, before, fit, {}, choice, notes=notes,
+                        quality=quality)
     result.identified = {**init.to_dict(), **fit.estimate.derivatives()}
     if opt.free == "auto":
         notes.append(f"free=auto chose {', '.join(free)}")

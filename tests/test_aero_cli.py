@@ -117,3 +117,25 @@ def test_arduplane_sitl_roll_axis_held_out_fit(tmp_path, capsys) -> None:
     assert params["C_ell_p"]["value"] < 0  # roll damping, kept by the stability constraint
     assert params["C_ell_delta_a"]["value"] > 0  # positive aileron rolls right (ArduPilot SERVO1 convention)
     assert (tmp_path / "plots" / "validation.png").exists()
+
+
+def test_damaged_log_is_refused_unless_forced_and_its_damage_is_reported(synthetic_log, capsys) -> None:
+    """Issue 16: a log that lost more than --max-damage is refused (exit 2, file and damage named); with
+    --force it is used and its damage is printed and written to the metrics."""
+    d = synthetic_log["dir"]
+    lines = synthetic_log["log"].read_text().splitlines()
+    cut = 1 + 3 * (len(lines) - 1) // 4  # the last quarter of the samples jump 1e6 s ahead: dropped
+    jumped = [f"{float(r.split(',', 1)[0]) + 1e6!r},{r.split(',', 1)[1]}" for r in lines[cut:]]
+    damaged = d / "damaged.csv"
+    damaged.write_text("\n".join([*lines[:cut], *jumped]) + "\n")
+    args = (damaged, "--mapping", synthetic_log["mapping"], "--free", "C_ell_p,C_ell_delta_a", "--outputs",
+            "roll_rad,rate_body_x_rad_s", "--segments", "0:9", "--nuisance", "none", "--max-delay", "0")
+    out = d / "damaged.json"
+    assert run_cli(*args, "--out", out) == EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert "damaged.csv" in err and "damaged or lost" in err and "--force" in err and not out.exists()
+    assert run_cli(*args, "--out", out, "--force") == EXIT_OK
+    printed = capsys.readouterr().out
+    assert "time jump" in printed and "damaged.csv" in printed
+    quality = json.loads(out.with_suffix(".metrics.json").read_text())["quality"]
+    assert quality["damage_fraction"] == pytest.approx(0.25, abs=0.02) and quality["samples_beyond_jumps"] > 0

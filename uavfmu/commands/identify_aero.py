@@ -13,7 +13,8 @@ the Akaike criterion (``--nuisance auto``; ``--estimate-initial``/``--biases`` g
 command -> surface delay is scanned up to ``--max-delay``. The work is ``identification.aero_identify``;
 this module parses and prints.
 
-Exit status: 0 done, 2 bad input (unreadable log, unknown parameter or output, bad segment or mapping),
+Exit status: 0 done, 2 bad input (unreadable log, a log damaged beyond ``--max-damage`` without ``--force``,
+unknown parameter or output, bad segment or mapping),
 3 the estimation failed (diverging start, no descent), 4 done but a rival (persistence, segment mean) beats
 the model on a held-out output, 5 estimates written but a late step (scoring, plots) failed.
 """
@@ -25,6 +26,8 @@ import logging
 import math
 import sys
 from pathlib import Path
+
+from identification.flightlog import DEFAULT_MAX_DAMAGE
 
 EXIT_OK, EXIT_BAD_INPUT, EXIT_FAILED, EXIT_BASELINE_WINS, EXIT_LATE_FAILURE = 0, 2, 3, 4, 5
 
@@ -77,6 +80,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "correlation)")
     p.add_argument("--metrics", type=Path, help="metrics JSON (default: OUT with suffix .metrics.json)")
     p.add_argument("--quiet", action="store_true", help="no progress display")
+    p.add_argument("--force", action="store_true",
+                   help="use a log whose damaged or lost share exceeds --max-damage (the damage is still reported)")
+    p.add_argument("--max-damage", type=_bounded(0.0, 1.0), default=DEFAULT_MAX_DAMAGE,
+                   help="largest damaged or lost share of the log accepted, 0..1 (0.05)")
 
 
 def _error(message: str) -> int:
@@ -126,7 +133,7 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         window_s=args.window, rate_hz=args.rate, nuisance="given" if given else args.nuisance,
         estimate_initial=_names(args.estimate_initial), biases=_names(args.biases), bounds=bounds, sigma=sigma,
         stability_constraints=not args.no_stability_constraints, max_iter=args.max_iter, horizon_s=args.horizon,
-        max_delay_s=args.max_delay, progress=not args.quiet)
+        max_delay_s=args.max_delay, progress=not args.quiet, force=args.force, max_damage=args.max_damage)
 
 
 def run(args: argparse.Namespace) -> int:
