@@ -183,7 +183,12 @@ def _forward(z: np.ndarray, prem: _Premise, cons: np.ndarray, rules: np.ndarray,
 
 
 def _least_squares(wbar: np.ndarray, z: np.ndarray, y: np.ndarray, order: int, n_rules: int) -> np.ndarray:
-    """Consequents minimising the squared error for fixed premises.
+    """Consequents minimising the squared error for fixed premises (:func:`_lstsq` of the design)."""
+    return _lstsq(_design(wbar, z, order), y, n_rules)
+
+
+def _lstsq(a: np.ndarray, y: np.ndarray, n_rules: int) -> np.ndarray:
+    """Least squares ``a theta ~ y``, one row of ``theta`` per rule.
 
     Truncated-SVD least squares computed from the small Gram matrix of the column-equilibrated design
     (eigenvectors of (AD)^T(AD) are the right singular vectors of AD). Hand-written instead of
@@ -192,7 +197,6 @@ def _least_squares(wbar: np.ndarray, z: np.ndarray, y: np.ndarray, order: int, n
     ``LSQ_RCOND`` times the largest are dropped: a rule that no sample fires gets a minimum-norm
     consequent instead of a huge one.
     """
-    a = _design(wbar, z, order)
     gram = a.T @ a
     col = np.sqrt(np.diag(gram)).copy()
     col[col == 0.0] = 1.0
@@ -319,6 +323,32 @@ def train_anfis(
     """
     cfg = config or AnfisTrainConfig()
     x, y = _check_xy(x, y, "training data")
+    lo, hi = _training_band(x, cfg, input_names)
+    centre, half_span = (hi + lo) / 2.0, (hi - lo) / 2.0
+    check = None
+    if x_check is not None and y_check is not None and len(x_check) > 0:
+        xc, yc = _check_xy(x_check, y_check, "checking data")
+        if xc.shape[1] != x.shape[1]:
+            raise AnfisTrainingError(f"checking data has {xc.shape[1]} inputs, training data {x.shape[1]}")
+        check = ((xc - centre) / half_span, yc)
+    hist = _hybrid_epochs((x - centre) / half_span, y, check, cfg)
+    if hist.best_epoch < 0:
+        last = hist.train_rmse[-1] if hist.train_rmse else "n/a"
+        raise AnfisTrainingError(f"no epoch gave a finite error (last training RMSE {last})")
+    amap = _to_map(hist.best_prem, hist.best_cons, centre, half_span, cfg, input_names, (lo, hi), output, source)
+    return TrainResult(
+        amap=amap,
+        train_rmse=tuple(hist.train_rmse),
+        check_rmse=tuple(hist.check_rmse) if check is not None else None,
+        best_epoch=int(hist.best_epoch),
+        step_sizes=tuple(hist.step_sizes),
+    )
+
+
+def _training_band(
+    x: np.ndarray, cfg: AnfisTrainConfig, input_names: tuple[str, ...]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per-input (min, max) of the training data; AnfisTrainingError for a constant input or too few samples."""
     n_samples, n_inputs = x.shape
     if len(input_names) != n_inputs:
         raise AnfisTrainingError(f"input_names has {len(input_names)} names for {n_inputs} input columns")
@@ -335,69 +365,75 @@ def train_anfis(
             f"training data has {n_samples} samples, fewer than the {n_params} consequent parameters of "
             f"{n_rules} rules (order {cfg.order}); use fewer MFs or more data"
         )
-    centre, half_span = (hi + lo) / 2.0, (hi - lo) / 2.0
-    z = (x - centre) / half_span
-    has_check = x_check is not None and y_check is not None and len(x_check) > 0
-    if has_check:
-        xc, yc = _check_xy(x_check, y_check, "checking data")  # type: ignore[arg-type]
-        if xc.shape[1] != n_inputs:
-            raise AnfisTrainingError(f"checking data has {xc.shape[1]} inputs, training data {n_inputs}")
-        zc = (xc - centre) / half_span
+    return lo, hi
 
+
+@dataclass
+class _History:
+    """Learning history of :func:`_hybrid_epochs` and the kept (best-scoring) parameters, scaled units."""
+
+    best_prem: _Premise
+    best_cons: np.ndarray
+    best_score: float = math.inf
+    best_epoch: int = -1
+    train_rmse: list[float] = field(default_factory=list)
+    check_rmse: list[float] = field(default_factory=list)
+    step_sizes: list[float] = field(default_factory=list)
+
+    def keep_if_best(self, score: float, epoch: int, prem: _Premise, cons: np.ndarray) -> bool:
+        """Keep these parameters when ``score`` beats the best so far; True when kept."""
+        if not score < self.best_score:
+            return False
+        self.best_score, self.best_epoch, self.best_prem, self.best_cons = score, epoch, prem.copy(), cons.copy()
+        return True
+
+
+def _hybrid_epochs(
+    z: np.ndarray, y: np.ndarray, check: tuple[np.ndarray, np.ndarray] | None, cfg: AnfisTrainConfig
+) -> _History:
+    """Jang's hybrid learning on scaled inputs ``z``: least squares, score, then one gradient step per epoch."""
+    n_inputs = z.shape[1]
     rules = _rule_index(n_inputs, cfg.n_mfs)
     onehots = _onehots(rules, cfg.n_mfs)
     prem = _grid_init(n_inputs, cfg)
     step = _StepSize(cfg)
-    train_hist: list[float] = []
-    check_hist: list[float] = []
-    kappas: list[float] = []
-    best = (math.inf, -1, prem.copy(), np.zeros((n_rules, 1)))
+    hist = _History(prem.copy(), np.zeros((rules.shape[0], 1)))
     since_best = 0
     bar = tqdm(range(cfg.epochs), desc="ANFIS hybrid training", unit="epoch", disable=not cfg.progress)
     for epoch in bar:
         logmu, u = _log_memberships(z, prem)
         wbar = _normalised_firing(logmu, rules)
-        cons = _least_squares(wbar, z, y, cfg.order, n_rules)
+        cons = _least_squares(wbar, z, y, cfg.order, rules.shape[0])
         grads, sse = _premise_gradient(z, y, prem, cons, cfg.order, onehots, u, wbar)
-        train_rmse = math.sqrt(sse / n_samples)
-        train_hist.append(train_rmse)
-        kappas.append(step.kappa)
+        train_rmse = math.sqrt(sse / y.size)
+        hist.train_rmse.append(train_rmse)
+        hist.step_sizes.append(step.kappa)
         score = train_rmse
-        if has_check:
-            score = _rmse(_forward(zc, prem, cons, rules, cfg.order), yc)
-            check_hist.append(score)
-        if score < best[0]:
-            best = (score, epoch, prem.copy(), cons.copy())
-            since_best = 0
-        else:
-            since_best += 1
+        if check is not None:
+            score = _rmse(_forward(check[0], prem, cons, rules, cfg.order), check[1])
+            hist.check_rmse.append(score)
+        since_best = 0 if hist.keep_if_best(score, epoch, prem, cons) else since_best + 1
         bar.set_postfix(
-            train_rmse=f"{train_rmse:.4g}", check_rmse=f"{score:.4g}" if has_check else "-", refresh=False
+            train_rmse=f"{train_rmse:.4g}", check_rmse=f"{score:.4g}" if check is not None else "-", refresh=False
         )
         if cfg.patience is not None and since_best >= cfg.patience:
             break
         step.update(sse)
-        norm = math.sqrt(sum(float(np.sum(g * g)) for g in grads))
-        if norm == 0.0 or not math.isfinite(norm):
-            continue  # exact fit or degenerate data: nothing to descend
-        eta = step.kappa / norm
-        prem.mean = prem.mean - eta * grads[0]
-        prem.sigma = np.maximum(prem.sigma - eta * grads[1], MIN_SIGMA_SCALED)
-        if prem.slope is not None:
-            prem.slope = np.maximum(prem.slope - eta * grads[2], MIN_BELL_SLOPE)
+        _premise_step(prem, grads, step.kappa)
     bar.close()
-    if best[1] < 0:
-        last = train_hist[-1] if train_hist else "n/a"
-        raise AnfisTrainingError(f"no epoch gave a finite error (last training RMSE {last})")
-    _, best_epoch, best_prem, best_cons = best
-    amap = _to_map(best_prem, best_cons, centre, half_span, cfg, input_names, (lo, hi), output, source)
-    return TrainResult(
-        amap=amap,
-        train_rmse=tuple(train_hist),
-        check_rmse=tuple(check_hist) if has_check else None,
-        best_epoch=int(best_epoch),
-        step_sizes=tuple(kappas),
-    )
+    return hist
+
+
+def _premise_step(prem: _Premise, grads: list[np.ndarray], kappa: float) -> None:
+    """One normalised gradient step ``eta = kappa / |grad|`` on the MF parameters (floors on width, slope)."""
+    norm = math.sqrt(sum(float(np.sum(g * g)) for g in grads))
+    if norm == 0.0 or not math.isfinite(norm):
+        return  # exact fit or degenerate data: nothing to descend
+    eta = kappa / norm
+    prem.mean = prem.mean - eta * grads[0]
+    prem.sigma = np.maximum(prem.sigma - eta * grads[1], MIN_SIGMA_SCALED)
+    if prem.slope is not None:
+        prem.slope = np.maximum(prem.slope - eta * grads[2], MIN_BELL_SLOPE)
 
 
 def _to_map(
@@ -527,17 +563,6 @@ def _motor_forward(z: list[np.ndarray], prem: _Premise, cons: np.ndarray, rules:
         f = _rule_outputs(cons, zi[:, None], order)
         out.append((wbar, f, np.einsum("nr,nr->n", wbar, f), u[:, 0, :]))
     return out
-
-
-def _lstsq(a: np.ndarray, y: np.ndarray, n_rules: int) -> np.ndarray:
-    """Truncated-SVD least squares as :func:`_least_squares`, from a ready design matrix."""
-    gram = a.T @ a
-    col = np.sqrt(np.diag(gram)).copy()
-    col[col == 0.0] = 1.0
-    lam, vec = np.linalg.eigh(gram / np.outer(col, col))
-    keep = lam > (LSQ_RCOND**2) * lam[-1]
-    theta = (vec[:, keep] @ (vec[:, keep].T @ ((a.T @ y) / col) / lam[keep])) / col
-    return theta.reshape(-1, n_rules).T.copy()
 
 
 def train_anfis_motors(

@@ -427,52 +427,24 @@ class OutputErrorEstimator:
         sims = [self.simulate(theta, m, j) for j, m in enumerate(data)]
         if any(s[2] for s in sims):
             raise EstimationError("the model diverges at the start values: start closer or fix more parameters")
-
-        def weight_of(res: list[np.ndarray]) -> np.ndarray:
-            if weight is not None:
-                return np.asarray(weight, dtype=float)
-            var = np.mean(np.vstack(res) ** 2, axis=0)
-            return np.diag(1.0 / np.maximum(var, 1e-300))
-
-        def cost_of(res: list[np.ndarray], W: np.ndarray) -> float:
-            return 0.5 * sum(float(np.sum((r @ W) * r)) for r in res)
-
-        res = [m.y - s[0] for m, s in zip(data, sims, strict=True)]
-        jacs = [s[1] for s in sims]
-        W = weight_of(res)
-        cost = cost_of(res, W)
+        res, jacs, W, cost = _linearised(data, sims, weight)
         lam = 1e-3
         converged = False
-        lower = np.concatenate([self.lower, np.full(len(theta) - len(self.free), -np.inf)])
-        upper = np.concatenate([self.upper, np.full(len(theta) - len(self.free), np.inf)])
+        n_extra = len(theta) - len(self.free)
+        bounds = (np.concatenate([self.lower, np.full(n_extra, -np.inf)]),
+                  np.concatenate([self.upper, np.full(n_extra, np.inf)]))
         for _ in range(max_iter):
             M, g = self._normal_equations(res, jacs, W, len(theta))
-            scale = np.maximum(np.diag(M), 1e-12 * max(np.max(np.diag(M)), 1e-300))
-            accepted = False
-            while lam < 1e12:
-                step = np.linalg.solve(M + lam * np.diag(scale), g)
-                trial = np.clip(theta + step, lower, upper)
-                named = dict(zip(self.free, trial[:len(self.free)], strict=True))
-                if all(c(named) for c in self.constraints):
-                    plain = [self.simulate(trial, m, j, sensitivities=False) for j, m in enumerate(data)]
-                    if not any(s[2] for s in plain):
-                        res_t = [m.y - s[0] for m, s in zip(data, plain, strict=True)]
-                        cost_t = cost_of(res_t, W)
-                        if cost_t <= cost:
-                            accepted = True
-                            break
-                lam *= 10.0
-            if not accepted:
+            trial, cost_t, lam = self._damped_step(data, theta, M, g, W, cost, lam, bounds)
+            if trial is None:
                 converged = True  # no descent direction left at machine precision: a minimum
                 break
             rel = (cost - cost_t) / max(cost, 1e-300)
             step_norm = float(np.linalg.norm(trial - theta) / max(np.linalg.norm(theta), 1e-12))
             theta = trial
             sims = [self.simulate(theta, m, j) for j, m in enumerate(data)]
-            res = [m.y - s[0] for m, s in zip(data, sims, strict=True)]
-            jacs = [s[1] for s in sims]
-            W = weight_of(res)
-            cost = cost_of(res, W)  # with ML weighting this is N*ny/2 by construction: report the fitted cost
+            # with ML weighting the new cost is N*ny/2 by construction: report the fitted cost
+            res, jacs, W, cost = _linearised(data, sims, weight)
             history.append(Iteration(cost_t, step_norm, lam))
             log.info("iteration %d: cost %.6g, relative step %.3g, damping %.1e", len(history), cost_t, step_norm, lam)
             bar.update(1)
@@ -483,6 +455,25 @@ class OutputErrorEstimator:
                 converged = True
                 break
         return theta, res, jacs, W, converged
+
+    def _damped_step(self, data: list[Manoeuvre], theta: np.ndarray, M: np.ndarray, g: np.ndarray, W: np.ndarray,
+                     cost: float, lam: float, bounds: tuple[np.ndarray, np.ndarray],
+                     ) -> tuple[np.ndarray | None, float, float]:
+        """Raise the damping ``lam`` tenfold until a bounded, constraint-keeping, non-diverging step lowers the
+        cost; returns (trial parameters, their cost, lam), or (None, nan, lam) when none does below 1e12."""
+        scale = np.maximum(np.diag(M), 1e-12 * max(np.max(np.diag(M)), 1e-300))
+        while lam < 1e12:
+            step = np.linalg.solve(M + lam * np.diag(scale), g)
+            trial = np.clip(theta + step, *bounds)
+            named = dict(zip(self.free, trial[:len(self.free)], strict=True))
+            if all(c(named) for c in self.constraints):
+                plain = [self.simulate(trial, m, j, sensitivities=False) for j, m in enumerate(data)]
+                if not any(s[2] for s in plain):
+                    cost_t = _cost([m.y - s[0] for m, s in zip(data, plain, strict=True)], W)
+                    if cost_t <= cost:
+                        return trial, cost_t, lam
+            lam *= 10.0
+        return None, float("nan"), lam
 
     def _check(self, data: list[Manoeuvre], weight: np.ndarray | None) -> None:
         if not data:
@@ -626,3 +617,19 @@ class OutputErrorEstimator:
         resid_cov = np.cov(np.vstack(res).T, bias=True).reshape(len(self.outputs), len(self.outputs))
         return Estimate(names, theta, std, std_white, corr, resid_cov, history, warnings, converged,
                         n_global=len(self.free), bootstrap_std=boot, bound_method=method, identifiability=ident)
+
+
+def _cost(res: list[np.ndarray], W: np.ndarray) -> float:
+    """Output-error cost ``1/2 sum_k r_k^T W r_k`` over every record's residuals."""
+    return 0.5 * sum(float(np.sum((r @ W) * r)) for r in res)
+
+
+def _linearised(data: list[Manoeuvre], sims: list[Any], weight: np.ndarray | None,
+                ) -> tuple[list[np.ndarray], list[Any], np.ndarray, float]:
+    """Residuals, output sensitivities, weighting (``weight``, else maximum likelihood 1/variance) and cost."""
+    res = [m.y - s[0] for m, s in zip(data, sims, strict=True)]
+    if weight is not None:
+        W = np.asarray(weight, dtype=float)
+    else:
+        W = np.diag(1.0 / np.maximum(np.mean(np.vstack(res) ** 2, axis=0), 1e-300))
+    return res, [s[1] for s in sims], W, _cost(res, W)

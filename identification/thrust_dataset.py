@@ -19,7 +19,7 @@ import math
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from scipy import signal
@@ -235,22 +235,85 @@ def _lowpass(x: np.ndarray, seg: np.ndarray, fs_hz: float, cutoff_hz: float) -> 
     return out
 
 
+@dataclass(frozen=True)
+class _PwmGrid:
+    """Motor PWM on the first motor's sample times: one interval ``[lo_s, hi_s)`` per sample.
+
+    ``pwm_us`` (N, n_motors), zero-order held; ``gap``: the interval after a sample is a log gap (its
+    ``hi_s`` is then one median period after ``lo_s``).
+    """
+
+    t_s: np.ndarray
+    pwm_us: np.ndarray
+    period_s: float
+    gap: np.ndarray
+    hi_s: np.ndarray
+
+
+class _LagFit(NamedTuple):
+    """Accelerometer lag behind the PWM [s], whether it was estimated, and the search's (lags, r) curve."""
+
+    lag_s: float
+    lag_estimated: bool
+    lag_curve: tuple[tuple[float, ...], tuple[float, ...]]
+
+
 def build_thrust_dataset(log: Any, config: ThrustDatasetConfig, source: str = "") -> ThrustDataset:
     """Airborne, aligned (PWM, F_z) samples of ``log`` (a ``FlightLog``); see the module docstring."""
     src = source or str(getattr(log, "path", "") or "flight log")
     notes: list[str] = []
+    motors = _motor_series(log, config.n_motors, src)
+    acc = _series(log, "accel_body_z_m_s2")
+    if acc is None or acc[0].size < 2:
+        raise ThrustDataError(f"{src}: signal 'accel_body_z_m_s2' (IMU specific force) is not in the log")
+    grid = _pwm_grid(motors, src)
+    mask, alt_logged = _airborne(log, config, grid, notes)
+    fz_of_lag = _fz_aligner(acc, grid.t_s, grid.hi_s, config.mass_kg)
+    pwm_sum = grid.pwm_us.sum(axis=1)
+    lag = _fit_lag(config, float(np.median(np.diff(acc[0]))), fz_of_lag, pwm_sum, mask)
+    fz = fz_of_lag(lag.lag_s)
+    mask, seg = _drop_short_segments(mask & np.isfinite(fz), grid, config.min_segment_s, notes)
+    if mask.sum() < 10:
+        raise ThrustDataError(
+            f"{src}: only {int(mask.sum())} airborne samples (armed, "
+            f"{'mean motor PWM' if config.airborne_on_mean_pwm else 'all motors'} > {config.motor_min_pwm_us} us"
+            f"{', altitude > ' + str(config.min_altitude_m) + ' m' if alt_logged else ''}); "
+            "nothing to train on"
+        )
+    inputs = _candidate_inputs(log, config, grid, mask, src, notes)
+    out_fz, out_seg = fz[mask], seg[mask]
+    if config.lowpass_hz is not None:
+        fs = 1.0 / grid.period_s
+        inputs = {k: _lowpass(v, out_seg, fs, config.lowpass_hz) for k, v in inputs.items()}
+        out_fz = _lowpass(out_fz, out_seg, fs, config.lowpass_hz)
+    return ThrustDataset(
+        time_s=grid.t_s[mask],
+        inputs=inputs,
+        fz_N=out_fz,
+        segment=out_seg,
+        sample_period_s=grid.period_s,
+        notes=tuple(notes),
+        source=src,
+        **lag._asdict(),
+    )
+
+
+def _motor_series(log: Any, n_motors: int, src: str) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``(t_s, pwm_us)`` of motors 1..``n_motors``; ThrustDataError naming the first one not logged."""
     motors = []
-    for k in range(1, config.n_motors + 1):
+    for k in range(1, n_motors + 1):
         s = _series(log, MOTOR_SIGNAL.format(k=k))
         if s is None:
             raise ThrustDataError(
                 f"{src}: signal {MOTOR_SIGNAL.format(k=k)!r} is not in the log; a thrust data set needs the "
-                f"PWM of all {config.n_motors} motors"
+                f"PWM of all {n_motors} motors"
             )
         motors.append(s)
-    acc = _series(log, "accel_body_z_m_s2")
-    if acc is None or acc[0].size < 2:
-        raise ThrustDataError(f"{src}: signal 'accel_body_z_m_s2' (IMU specific force) is not in the log")
+    return motors
+
+
+def _pwm_grid(motors: list[tuple[np.ndarray, np.ndarray]], src: str) -> _PwmGrid:
+    """Every motor's PWM held on the first motor's sample times, with the sample intervals and log gaps."""
     t_pwm = motors[0][0]
     if t_pwm.size < 3:
         raise ThrustDataError(f"{src}: only {t_pwm.size} motor PWM samples")
@@ -261,20 +324,22 @@ def build_thrust_dataset(log: Any, config: ThrustDatasetConfig, source: str = ""
         raise ThrustDataError(f"{src}: motor PWM timestamps do not increase (median step {period} s)")
     dt_next = np.concatenate([dt, [period]])
     gap = dt_next > GAP_FACTOR * period
-    dt_next = np.where(gap, period, dt_next)
-    edges_lo = t_pwm
-    edges_hi = t_pwm + dt_next
+    return _PwmGrid(t_pwm, pwm, period, gap, t_pwm + np.where(gap, period, dt_next))
 
-    # airborne mask
+
+def _airborne(
+    log: Any, config: ThrustDatasetConfig, grid: _PwmGrid, notes: list[str]
+) -> tuple[np.ndarray, bool]:
+    """Airborne mask (armed, motors above the threshold, above ``min_altitude_m``) and whether altitude is logged."""
     if config.airborne_on_mean_pwm:  # aggressive flight drives single motors to their minimum in the air
-        mask = pwm.mean(axis=1) > config.motor_min_pwm_us
+        mask = grid.pwm_us.mean(axis=1) > config.motor_min_pwm_us
     else:
-        mask = np.all(pwm > config.motor_min_pwm_us, axis=1)
+        mask = np.all(grid.pwm_us > config.motor_min_pwm_us, axis=1)
     armed = _series(log, "armed")
     if armed is None:
         notes.append("no 'armed' signal: airborne samples found from motor PWM (and altitude) only")
     else:
-        mask &= _hold(*armed, t_pwm) > 0.5
+        mask &= _hold(*armed, grid.t_s) > 0.5
     alt = _series(log, "altitude_m")
     if alt is None:
         notes.append(
@@ -282,73 +347,62 @@ def build_thrust_dataset(log: Any, config: ThrustDatasetConfig, source: str = ""
             "the weight, not the thrust"
         )
     else:
-        mask &= np.interp(t_pwm, *alt) > config.min_altitude_m
+        mask &= np.interp(grid.t_s, *alt) > config.min_altitude_m
+    return mask, alt is not None
 
-    fz_of_lag = _fz_aligner(acc, edges_lo, edges_hi, config.mass_kg)
-    pwm_sum = pwm.sum(axis=1)
-    if config.lag_s is None:
-        step = float(np.median(np.diff(acc[0])))
-        n_steps = round(config.max_lag_s / step) if step > 0 else 0
-        lags = np.arange(-n_steps, n_steps + 1) * step
-        rs = []
-        for lag in lags:  # a few dozen candidate lags, each one vectorised over all samples
-            fz = fz_of_lag(lag)
-            ok = mask & np.isfinite(fz)
-            rs.append(pearson(pwm_sum[ok], fz[ok]))
-        r_arr = np.nan_to_num(np.array(rs), nan=-np.inf)
-        lag_s = float(lags[int(np.argmax(r_arr))])
-        lag_curve = (tuple(float(v) for v in lags), tuple(float(v) for v in rs))
-        estimated = True
-    else:
-        lag_s, lag_curve, estimated = float(config.lag_s), ((), ()), False
-    fz = fz_of_lag(lag_s)
-    mask &= np.isfinite(fz)
 
-    seg = _segments(mask, gap)
-    # drop segments shorter than min_segment_s
+def _fit_lag(
+    config: ThrustDatasetConfig,
+    acc_step_s: float,
+    fz_of_lag: Callable[[float], np.ndarray],
+    pwm_sum: np.ndarray,
+    mask: np.ndarray,
+) -> _LagFit:
+    """The given lag, or the one in ``+-max_lag_s`` (accelerometer steps) maximising r(summed PWM, F_z)."""
+    if config.lag_s is not None:
+        return _LagFit(float(config.lag_s), False, ((), ()))
+    n_steps = round(config.max_lag_s / acc_step_s) if acc_step_s > 0 else 0
+    lags = np.arange(-n_steps, n_steps + 1) * acc_step_s
+    rs = []
+    for lag in lags:  # a few dozen candidate lags, each one vectorised over all samples
+        fz = fz_of_lag(lag)
+        ok = mask & np.isfinite(fz)
+        rs.append(pearson(pwm_sum[ok], fz[ok]))
+    r_arr = np.nan_to_num(np.array(rs), nan=-np.inf)
+    lag_s = float(lags[int(np.argmax(r_arr))])
+    return _LagFit(lag_s, True, (tuple(float(v) for v in lags), tuple(float(v) for v in rs)))
+
+
+def _drop_short_segments(
+    mask: np.ndarray, grid: _PwmGrid, min_segment_s: float, notes: list[str]
+) -> tuple[np.ndarray, np.ndarray]:
+    """``mask`` without airborne segments shorter than ``min_segment_s`` (and 4 samples), and segment ids."""
+    seg = _segments(mask, grid.gap)
     if mask.any():
         ids, counts = np.unique(seg[mask], return_counts=True)
-        short = ids[counts * period < max(config.min_segment_s, 4 * period)]
+        short = ids[counts * grid.period_s < max(min_segment_s, 4 * grid.period_s)]
         if short.size:
-            notes.append(f"dropped {short.size} airborne segment(s) shorter than {config.min_segment_s} s")
-            mask &= ~np.isin(seg, short)
-            seg = _segments(mask, gap)
-    if mask.sum() < 10:
-        raise ThrustDataError(
-            f"{src}: only {int(mask.sum())} airborne samples (armed, "
-            f"{'mean motor PWM' if config.airborne_on_mean_pwm else 'all motors'} > {config.motor_min_pwm_us} us"
-            f"{', altitude > ' + str(config.min_altitude_m) + ' m' if alt is not None else ''}); "
-            "nothing to train on"
-        )
+            notes.append(f"dropped {short.size} airborne segment(s) shorter than {min_segment_s} s")
+            mask = mask & ~np.isin(seg, short)
+            seg = _segments(mask, grid.gap)
+    return mask, seg
 
-    inputs: dict[str, np.ndarray] = {"pwm_sum_us": pwm_sum[mask]}
+
+def _candidate_inputs(
+    log: Any, config: ThrustDatasetConfig, grid: _PwmGrid, mask: np.ndarray, src: str, notes: list[str]
+) -> dict[str, np.ndarray]:
+    """Summed PWM, each motor's PWM and the logged extra inputs (at interval mid-points) where ``mask``."""
+    inputs: dict[str, np.ndarray] = {"pwm_sum_us": grid.pwm_us.sum(axis=1)[mask]}
     for k in range(config.n_motors):
-        inputs[MOTOR_SIGNAL.format(k=k + 1)] = pwm[mask, k]
-    mid = (edges_lo + edges_hi)[mask] / 2.0
+        inputs[MOTOR_SIGNAL.format(k=k + 1)] = grid.pwm_us[mask, k]
+    mid = (grid.t_s + grid.hi_s)[mask] / 2.0
     for name in config.extra_inputs:
         s = _extra_series(log, name, src)
         if s is None or s[0].size < 2:
             notes.append(f"candidate input {name!r} is not logged; left out")
             continue
         inputs[name] = np.interp(mid, *s)
-    out_fz = fz[mask]
-    out_seg = seg[mask]
-    if config.lowpass_hz is not None:
-        fs = 1.0 / period
-        inputs = {k: _lowpass(v, out_seg, fs, config.lowpass_hz) for k, v in inputs.items()}
-        out_fz = _lowpass(out_fz, out_seg, fs, config.lowpass_hz)
-    return ThrustDataset(
-        time_s=t_pwm[mask],
-        inputs=inputs,
-        fz_N=out_fz,
-        segment=out_seg,
-        lag_s=lag_s,
-        lag_estimated=estimated,
-        lag_curve=lag_curve,
-        sample_period_s=period,
-        notes=tuple(notes),
-        source=src,
-    )
+    return inputs
 
 
 def _extra_series(log: Any, name: str, src: str) -> tuple[np.ndarray, np.ndarray] | None:

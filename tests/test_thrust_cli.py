@@ -1,20 +1,37 @@
-"""``uavfmu identify thrust`` end to end on synthetic logs, and the parameter file it writes."""
+"""``uavfmu identify thrust --method paper`` end to end on synthetic logs, and the parameter file it writes.
+
+The workflow is :func:`identification.thrust_paper.identify_thrust_paper`; exit statuses and printing are
+tested through the command module (:func:`run_paper`).
+"""
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-import identification.cli as icli
+import identification.thrust_paper as paper
 from fmu_models.quadrotor.params import QuadrotorParams
-from identification.anfis_train import predict
+from identification.anfis_train import AnfisTrainConfig, predict
+from identification.thrust_dataset import ThrustDatasetConfig
 from tests.test_thrust_dataset import K_TRUE_N_S2, MASS_KG, SyntheticLog, true_thrust_N
-from uavfmu.cli import main
+from uavfmu.commands import identify_thrust
 
-PAPER = ["identify", "thrust", "--method", "paper"]  #: paper 000 single-log workflow
+
+def run_paper(argv: list[str]) -> int:
+    """Exit status of ``uavfmu identify thrust --method paper ARGV`` (the command module's ``run``)."""
+    parser = argparse.ArgumentParser(prog="uavfmu identify thrust")
+    identify_thrust.add_arguments(parser)
+    return identify_thrust.run(parser.parse_args(["--method", "paper", *argv]))
+
+
+def paper_config(log: Path, out: Path, mass_kg: float = 1.14, epochs: int = 100, **kw) -> paper.PaperThrustConfig:
+    """The library config of ``--method paper LOG --mass MASS --out OUT --epochs EPOCHS`` (defaults alike)."""
+    anfis = AnfisTrainConfig(n_mfs=3, order=1, epochs=epochs)
+    return paper.PaperThrustConfig(log=log, out=out, dataset=ThrustDatasetConfig(mass_kg=mass_kg), anfis=anfis, **kw)
 
 
 @pytest.fixture
@@ -29,29 +46,15 @@ def logs(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> dict[str, Path]:
     for name in made:
         paths[name] = tmp_path / name
         paths[name].write_bytes(b"synthetic")
-    monkeypatch.setattr(icli, "_read", lambda p, channel_map=None: made[Path(p).name])
+    monkeypatch.setattr(paper, "_read", lambda p, channel_map=None: made[Path(p).name])
     return paths
 
 
 def test_gate_refuses_and_explains(logs: dict[str, Path], tmp_path: Path, capsys) -> None:
     out = tmp_path / "params.json"
-    rc = main(
-        [
-            "identify",
-            "thrust",
-            "--method",
-            "paper",
-            str(logs["noisy.bin"]),
-            "--mass",
-            "1.14",
-            "--out",
-            str(out),
-            "--plots",
-            str(tmp_path / "plots"),
-        ]
-    )
+    rc = run_paper([str(logs["noisy.bin"]), "--mass", "1.14", "--out", str(out), "--plots", str(tmp_path / "plots")])
     err = capsys.readouterr().err
-    assert rc == icli.EXIT_GATE_REFUSED
+    assert rc == identify_thrust.EXIT_GATE_REFUSED
     assert "refused" in err and "below the gate of 0.85" in err and "--force" in err
     assert not out.exists()
     metrics = json.loads(out.with_suffix(".metrics.json").read_text())
@@ -61,22 +64,7 @@ def test_gate_refuses_and_explains(logs: dict[str, Path], tmp_path: Path, capsys
 
 def test_force_trains_anyway_and_records_it(logs: dict[str, Path], tmp_path: Path, capsys) -> None:
     out = tmp_path / "params.json"
-    rc = main(
-        [
-            "identify",
-            "thrust",
-            "--method",
-            "paper",
-            str(logs["noisy.bin"]),
-            "--mass",
-            "1.14",
-            "--out",
-            str(out),
-            "--force",
-            "--epochs",
-            "5",
-        ]
-    )
+    rc = run_paper([str(logs["noisy.bin"]), "--mass", "1.14", "--out", str(out), "--force", "--epochs", "5"])
     assert rc == 0 and "--force given" in capsys.readouterr().err
     assert json.loads(out.with_suffix(".metrics.json").read_text())["gate_forced"] is True
 
@@ -84,24 +72,9 @@ def test_force_trains_anyway_and_records_it(logs: dict[str, Path], tmp_path: Pat
 def test_identify_writes_params_metrics_and_plots(logs: dict[str, Path], tmp_path: Path, capsys) -> None:
     out = tmp_path / "id" / "params.json"
     plots = tmp_path / "plots"
-    rc = main(
-        [
-            "identify",
-            "thrust",
-            "--method",
-            "paper",
-            str(logs["good.bin"]),
-            "--mass",
-            str(MASS_KG),
-            "--out",
-            str(out),
-            "--validate",
-            str(logs["good2.bin"]),
-            "--plots",
-            str(plots),
-            "--epochs",
-            "40",
-        ]
+    rc = run_paper(
+        [str(logs["good.bin"]), "--mass", str(MASS_KG), "--out", str(out), "--validate", str(logs["good2.bin"]),
+         "--plots", str(plots), "--epochs", "40"]
     )
     printed = capsys.readouterr().out
     assert rc == 0
@@ -133,24 +106,7 @@ def test_params_build_a_quadrotor_fmu_with_that_map(logs: dict[str, Path], tmp_p
     from build_fmus import build
 
     out = tmp_path / "params.json"
-    assert (
-        main(
-            [
-                "identify",
-                "thrust",
-                "--method",
-                "paper",
-                str(logs["good.bin"]),
-                "--mass",
-                "1.14",
-                "--out",
-                str(out),
-                "--epochs",
-                "10",
-            ]
-        )
-        == 0
-    )
+    assert paper.identify_thrust_paper(paper_config(logs["good.bin"], out, epochs=10)).params_path == out
     amap = QuadrotorParams.load(out).thrust_map
     (fmu,) = build(out, tmp_path / "dist", ["quadrotor"])
     starts = {v.name: v.start for v in read_model_description(str(fmu)).modelVariables}
@@ -162,38 +118,21 @@ def test_params_build_a_quadrotor_fmu_with_that_map(logs: dict[str, Path], tmp_p
 
 def test_bad_input_is_named(logs: dict[str, Path], tmp_path: Path, capsys) -> None:
     out = str(tmp_path / "p.json")
-    assert main([*PAPER, str(tmp_path / "missing.bin"), "--mass", "1", "--out", out]) == 2
+    assert run_paper([str(tmp_path / "missing.bin"), "--mass", "1", "--out", out]) == 2
     assert "missing.bin: log file not found" in capsys.readouterr().err
-    assert main([*PAPER, str(logs["good.bin"]), "--mass", "-3", "--out", out]) == 2
+    assert run_paper([str(logs["good.bin"]), "--mass", "-3", "--out", out]) == 2
     assert "mass_kg = -3.0" in capsys.readouterr().err
-    assert main([*PAPER, str(logs["good.bin"]), "--mass", "1", "--out", out, "--mfs", "0"]) == 2
+    assert run_paper([str(logs["good.bin"]), "--mass", "1", "--out", out, "--mfs", "0"]) == 2
     assert "n_mfs = 0" in capsys.readouterr().err
-    assert (
-        main(
-            [
-                "identify",
-                "thrust",
-                "--method",
-                "paper",
-                str(logs["good.bin"]),
-                "--mass",
-                "1",
-                "--out",
-                out,
-                "--train-fraction",
-                "1.5",
-            ]
-        )
-        == 2
-    )
+    assert run_paper([str(logs["good.bin"]), "--mass", "1", "--out", out, "--train-fraction", "1.5"]) == 2
     assert "--train-fraction = 1.5" in capsys.readouterr().err
 
 
 def test_given_k_overrides_the_derivation(logs: dict[str, Path], tmp_path: Path) -> None:
     out = tmp_path / "params.json"
-    argv = [*PAPER, str(logs["good.bin"]), "--mass", "1.14", "--out", str(out), "--epochs", "5"]
-    assert main([*argv, "--k-thrust-N-s2", "3e-6"]) == 0
+    given = paper.identify_thrust_paper(paper_config(logs["good.bin"], out, epochs=5, k_thrust_N_s2=3e-6))
+    assert given.params_path == out and given.k_thrust_N_s2 == 3e-6
     section = json.loads(out.read_text())["quadrotor"]
     assert section["k_thrust_N_s2"] == 3e-6 and "--k-thrust-N-s2" in section["k_thrust_source"]
-    assert main(argv) == 0
+    assert paper.identify_thrust_paper(paper_config(logs["good.bin"], out, epochs=5)).params_path == out
     assert json.loads(out.read_text())["quadrotor"]["k_thrust_N_s2"] != 3e-6

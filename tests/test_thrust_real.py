@@ -8,8 +8,9 @@ from pathlib import Path
 
 import pytest
 
+from identification.thrust_paper import identify_thrust_paper
 from tests.conftest import shared_data
-from uavfmu.cli import main
+from tests.test_thrust_cli import paper_config, run_paper
 
 LOG = ("quadrotor", "arducopter_x_quad_real_218.BIN")
 
@@ -23,7 +24,7 @@ def real_log() -> Path:
 
 def test_real_log_is_refused_by_the_paper_gate(real_log: Path, tmp_path: Path, capsys) -> None:
     out = tmp_path / "params.json"
-    rc = main(["identify", "thrust", "--method", "paper", str(real_log), "--mass", "1.14", "--out", str(out)])
+    rc = run_paper([str(real_log), "--mass", "1.14", "--out", str(out)])
     err = capsys.readouterr().err
     assert rc == 3 and not out.exists()
     assert "below the gate of 0.85" in err and "--force" in err
@@ -37,23 +38,8 @@ def test_anfis_beats_least_squares_polynomials_on_the_later_30_percent(
 ) -> None:
     """Issue 3 quality bar: first 70 % of the airborne data to train, the rest to test."""
     out = tmp_path / "params.json"
-    rc = main(
-        [
-            "identify",
-            "thrust",
-            "--method",
-            "paper",
-            str(real_log),
-            "--mass",
-            "1.14",
-            "--out",
-            str(out),
-            "--force",
-            "--train-fraction",
-            "0.7",
-        ]
-    )
-    assert rc == 0
+    result = identify_thrust_paper(paper_config(real_log, out, mass_kg=1.14, force=True, train_fraction=0.7))
+    assert result.gate_forced and result.metrics_path == out.with_suffix(".metrics.json")
     m = json.loads(out.with_suffix(".metrics.json").read_text())
     best_poly = min(m["polynomial_validation_rmse_N"].values())
     with capsys.disabled():

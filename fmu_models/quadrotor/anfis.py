@@ -173,47 +173,11 @@ class AnfisMap:
         order = d.get("order", 0)
         if order not in (0, 1):
             probs.add(f"order = {order!r}; allowed: 0 (zero-order) or 1 (first-order Takagi-Sugeno)")
-
-        def table(key: str) -> tuple[tuple[float, ...], ...]:
-            raw = d.get(key)
-            if raw is None:
-                probs.add(f"{key} is missing")
-                return ()
-            try:
-                return tuple(tuple(float(v) for v in row) for row in raw)
-            except (TypeError, ValueError):
-                probs.add(f"{key} must be a list of lists of numbers, got {raw!r}")
-                return ()
-
-        mean, sigma = table("mf_mean"), table("mf_sigma")
-        slope = table("mf_slope") if mf_type == "gbell" else None
-        cons = table("consequents")
-        rng_raw = table("input_range")
-        rng = tuple((r[0], r[1]) for r in rng_raw if len(r) == 2)
-        n = len(inputs)
-        for key, tab in (("mf_mean", mean), ("mf_sigma", sigma), ("input_range", rng_raw)):
-            if tab and len(tab) != n:
-                probs.add(f"{key} has {len(tab)} rows, expected one per input ({n})")
-        if mean and sigma and [len(r) for r in mean] != [len(r) for r in sigma]:
-            probs.add("mf_mean and mf_sigma must have the same number of MFs per input")
-        if slope is not None and [len(r) for r in slope] != [len(r) for r in mean]:
-            probs.add("mf_slope must have the same shape as mf_mean")
-        for i, row in enumerate(sigma):
-            for j, s in enumerate(row):
-                if not (s > 0.0 and math.isfinite(s)):
-                    probs.add(f"mf_sigma[{i}][{j}] = {s}; must be > 0")
-        for i, r in enumerate(rng_raw):
-            if len(r) != 2 or not (math.isfinite(r[0]) and math.isfinite(r[1]) and r[0] < r[1]):
-                probs.add(f"input_range[{i}] = {list(r)}; must be [lo, hi] with lo < hi")
-        n_rules = math.prod(len(r) for r in mean) if mean else 0
-        width = 1 + (n if order == 1 else 0)
-        if cons and len(cons) != n_rules:
-            probs.add(f"consequents has {len(cons)} rows, expected one per rule ({n_rules})")
-        for r, row in enumerate(cons):
-            if len(row) != width:
-                probs.add(f"consequents[{r}] has {len(row)} values, expected {width} for order {order}")
-            if not all(math.isfinite(v) for v in row):
-                probs.add(f"consequents[{r}] = {list(row)} has a non-finite value")
+        mean, sigma = _table(d, "mf_mean", probs), _table(d, "mf_sigma", probs)
+        slope = _table(d, "mf_slope", probs) if mf_type == "gbell" else None
+        cons = _table(d, "consequents", probs)
+        rng_raw = _table(d, "input_range", probs)
+        _check_tables(probs, len(inputs), order, mean, sigma, slope, cons, rng_raw)
         probs.raise_if_any()
         return cls(
             inputs=inputs,
@@ -223,7 +187,7 @@ class AnfisMap:
             mf_slope=slope,
             order=int(order),
             consequents=cons,
-            input_range=rng,
+            input_range=tuple((r[0], r[1]) for r in rng_raw if len(r) == 2),
             output=str(d.get("output", "thrust_N")),
             source=str(d.get("source", "")),
         )
@@ -235,6 +199,51 @@ class AnfisMap:
 
     def save(self, path: str | Path) -> None:
         Path(path).write_text(json.dumps(self.to_dict(), indent=2) + "\n")
+
+
+_Table = tuple[tuple[float, ...], ...]
+
+
+def _table(d: dict[str, Any], key: str, probs: ProblemList) -> _Table:
+    """``d[key]`` as a tuple of float rows; a problem (and ``()``) when it is missing or not numbers."""
+    raw = d.get(key)
+    if raw is None:
+        probs.add(f"{key} is missing")
+        return ()
+    try:
+        return tuple(tuple(float(v) for v in row) for row in raw)
+    except (TypeError, ValueError):
+        probs.add(f"{key} must be a list of lists of numbers, got {raw!r}")
+        return ()
+
+
+def _check_tables(
+    probs: ProblemList, n: int, order: int, mean: _Table, sigma: _Table, slope: _Table | None, cons: _Table, rng: _Table
+) -> None:
+    """Add a problem for every table whose shape or values do not fit ``n`` inputs and ``order``."""
+    for key, tab in (("mf_mean", mean), ("mf_sigma", sigma), ("input_range", rng)):
+        if tab and len(tab) != n:
+            probs.add(f"{key} has {len(tab)} rows, expected one per input ({n})")
+    if mean and sigma and [len(r) for r in mean] != [len(r) for r in sigma]:
+        probs.add("mf_mean and mf_sigma must have the same number of MFs per input")
+    if slope is not None and [len(r) for r in slope] != [len(r) for r in mean]:
+        probs.add("mf_slope must have the same shape as mf_mean")
+    for i, row in enumerate(sigma):
+        for j, s in enumerate(row):
+            if not (s > 0.0 and math.isfinite(s)):
+                probs.add(f"mf_sigma[{i}][{j}] = {s}; must be > 0")
+    for i, r in enumerate(rng):
+        if len(r) != 2 or not (math.isfinite(r[0]) and math.isfinite(r[1]) and r[0] < r[1]):
+            probs.add(f"input_range[{i}] = {list(r)}; must be [lo, hi] with lo < hi")
+    n_rules = math.prod(len(r) for r in mean) if mean else 0
+    width = 1 + (n if order == 1 else 0)
+    if cons and len(cons) != n_rules:
+        probs.add(f"consequents has {len(cons)} rows, expected one per rule ({n_rules})")
+    for r, row in enumerate(cons):
+        if len(row) != width:
+            probs.add(f"consequents[{r}] has {len(row)} values, expected {width} for order {order}")
+        if not all(math.isfinite(v) for v in row):
+            probs.add(f"consequents[{r}] = {list(row)} has a non-finite value")
 
 
 #: Paper 000 Tables 2 and 3: six Gaussian MFs on the summed PWM of four motors, zero-order consequents.

@@ -298,6 +298,15 @@ def read_dataflash(path: Path, channel_map: dict[str, int] | None = None) -> Fli
     with path.open("rb") as fh:
         binary = path.suffix.lower() == ".bin" or fh.read(2) == HEADER
     columns, params, warnings = (_scan_binary if binary else _scan_text)(path, quality)
+    signals = _raw_signals(_first_instance_timed(columns, path))
+    _derived_signals(signals)
+    vehicle = _mapped_outputs(signals, params, channel_map)
+    _armed(signals)
+    return sanitize_log(FlightLog(str(path), "dataflash", signals, params, vehicle, warnings), quality)
+
+
+def _first_instance_timed(columns: Columns, path: Path) -> dict[str, tuple[np.ndarray, dict[str, np.ndarray]]]:
+    """Per message type its times [s] and columns, first instance only; LogError when nothing is timed."""
     timed: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]] = {}
     for mtype, cols in columns.items():
         t = _times(mtype, cols)
@@ -310,6 +319,11 @@ def read_dataflash(path: Path, channel_map: dict[str, int] | None = None) -> Fli
         timed[mtype] = (t, cols)
     if not timed:
         raise LogError(f"{path}: no timestamped messages found (empty or not a DataFlash log)")
+    return timed
+
+
+def _raw_signals(timed: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]]) -> dict[str, Signal]:
+    """``MTYPE.Field`` signals, times from the log's first sample, in file order."""
     starts = [float(np.min(t[np.isfinite(t)])) for t, _ in timed.values() if np.isfinite(t).any()]
     t0 = min(starts) if starts else 0.0
     signals: dict[str, Signal] = {}
@@ -317,6 +331,11 @@ def read_dataflash(path: Path, channel_map: dict[str, int] | None = None) -> Fli
         ts = t - t0  # file order: sanitize_log sorts and cleans the time axis
         for fld, vals in cols.items():
             signals[f"{mtype}.{fld}"] = Signal(f"{mtype}.{fld}", ts, vals, "", f"raw {mtype}.{fld}")
+    return signals
+
+
+def _derived_signals(signals: dict[str, Signal]) -> None:
+    """Add the canonical signals (SI units), NED velocity, battery, altitude, climb rate and servo outputs."""
     for name, mtype, fld, scale, unit in CANONICAL:
         key = f"{mtype}.{fld}"
         if key in signals and name not in signals:
@@ -343,7 +362,12 @@ def read_dataflash(path: Path, channel_map: dict[str, int] | None = None) -> Fli
                 s = signals[key]
                 signals[f"servo_{n}_pwm_us"] = Signal(f"servo_{n}_pwm_us", s.t_s, s.values, "us", f"from {key}")
                 break
-    vehicle = None
+
+
+def _mapped_outputs(
+    signals: dict[str, Signal], params: dict[str, float], channel_map: dict[str, int] | None
+) -> str | None:
+    """Add motor/surface PWM signals from ``SERVOn_FUNCTION`` (and ``channel_map``); return the vehicle kind."""
     functions = {n: int(params[f"SERVO{n}_FUNCTION"]) for n in range(1, 33) if f"SERVO{n}_FUNCTION" in params}
     mapping: dict[str, int] = {}
     if functions:
@@ -360,17 +384,22 @@ def read_dataflash(path: Path, channel_map: dict[str, int] | None = None) -> Fli
         if src is not None:
             signals[name] = Signal(name, src.t_s, src.values, "us", f"output {n}")
     if any(k.startswith("motor_") for k in mapping):
-        vehicle = "quadrotor" if sum(k.startswith("motor_") for k in mapping) == 4 else "multirotor"
-    elif "aileron_pwm_us" in mapping:
-        vehicle = "fixed_wing"
-    if "EV.Id" in signals:
-        ev = signals["EV.Id"]
-        state, ts, vs = 0.0, [0.0], [0.0]
-        for t, i in zip(ev.t_s, ev.values, strict=True):
-            if i in (EV_ARMED, EV_DISARMED):
-                state = 1.0 if i == EV_ARMED else 0.0
-                ts.append(t)
-                vs.append(state)
-        if len(ts) > 1:
-            signals["armed"] = Signal("armed", np.array(ts), np.array(vs), "1", "from EV armed/disarmed events")
-    return sanitize_log(FlightLog(str(path), "dataflash", signals, params, vehicle, warnings), quality)
+        return "quadrotor" if sum(k.startswith("motor_") for k in mapping) == 4 else "multirotor"
+    if "aileron_pwm_us" in mapping:
+        return "fixed_wing"
+    return None
+
+
+def _armed(signals: dict[str, Signal]) -> None:
+    """Add ``armed`` (0/1, from 0 at the start) from the EV armed/disarmed events, when there are any."""
+    if "EV.Id" not in signals:
+        return
+    ev = signals["EV.Id"]
+    state, ts, vs = 0.0, [0.0], [0.0]
+    for t, i in zip(ev.t_s, ev.values, strict=True):
+        if i in (EV_ARMED, EV_DISARMED):
+            state = 1.0 if i == EV_ARMED else 0.0
+            ts.append(t)
+            vs.append(state)
+    if len(ts) > 1:
+        signals["armed"] = Signal("armed", np.array(ts), np.array(vs), "1", "from EV armed/disarmed events")

@@ -3,7 +3,8 @@ print the per-flight summaries and the held-out table.
 
 Exit status: 0 the model beats every baseline on held-out data (or ``--force``), 2 bad input, 3 the model
 loses to a baseline (the parameter file is still written). ``--method paper`` runs paper 000's single-log
-workflow instead (Pearson gate, ANFIS of summed PWM; ``identification.cli``), exit 3 there = gate refused.
+workflow instead (Pearson gate, ANFIS of summed PWM; :func:`identification.thrust_paper.identify_thrust_paper`),
+exit 3 there = gate refused.
 """
 
 from __future__ import annotations
@@ -12,11 +13,16 @@ import argparse
 import math
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from identification.thrust_dataset import ThrustDataset
+    from identification.thrust_paper import PaperThrustConfig, PaperThrustResult
 
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2
 EXIT_LOSES = 3
+EXIT_GATE_REFUSED = 3  #: --method paper: the Pearson gate refused the data
 #: options whose default differs between the two methods: (voltage workflow, paper workflow)
 METHOD_DEFAULTS = {
     "mfs": (2, 3),
@@ -122,14 +128,86 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run_paper(args: argparse.Namespace, flights: list[tuple[Path, float]]) -> int:
-    from identification import cli as paper
+    from fmu_models.common.errors import ParameterError
+    from identification.anfis_train import AnfisTrainingError
+    from identification.flightlog import LogError
+    from identification.thrust_dataset import CorrelationGateError, ThrustDataError
+    from identification.thrust_paper import identify_thrust_paper, load_paper_data
 
     if len(flights) != 1:
         return _error(f"--method paper takes one log, got {len(flights)}; use --validate for a second one")
-    args.log, args.mass_kg = flights[0]
-    if not (math.isfinite(args.mass_kg)):
-        return _error(f"flight {args.log}: mass = {args.mass_kg}; allowed a finite number in [0.05, 50] kg")
-    return paper.run_thrust(args)
+    log, mass_kg = flights[0]
+    if not (math.isfinite(mass_kg)):
+        return _error(f"flight {log}: mass = {mass_kg}; allowed a finite number in [0.05, 50] kg")
+    try:
+        cfg = paper_config(args, log, mass_kg)
+        data = load_paper_data(cfg)
+        for note in data.full.notes:
+            print(f"note: {note}", file=sys.stderr)
+        print(correlation_table(data.correlations, cfg.min_pearson, data.full))
+        result = identify_thrust_paper(cfg, data, on_warning=lambda w: print(f"warning: {w}", file=sys.stderr))
+    except CorrelationGateError as err:
+        print(f"uavfmu identify thrust: refused: {err}", file=sys.stderr)
+        return EXIT_GATE_REFUSED
+    except (ThrustDataError, AnfisTrainingError, ParameterError, FileNotFoundError, LogError) as err:
+        return _error(str(err))
+    print(paper_summary(result))
+    return EXIT_OK
+
+
+def paper_config(args: argparse.Namespace, log: Path, mass_kg: float) -> PaperThrustConfig:
+    """The :class:`identification.thrust_paper.PaperThrustConfig` of the parsed options (errors as raised)."""
+    from identification.anfis_train import AnfisTrainConfig
+    from identification.thrust_dataset import ThrustDatasetConfig
+    from identification.thrust_paper import PaperThrustConfig
+
+    dataset = ThrustDatasetConfig(
+        mass_kg=mass_kg, motor_min_pwm_us=args.motor_min_pwm_us, min_altitude_m=args.min_altitude_m,
+        lag_s=args.lag_s, max_lag_s=args.max_lag_s, lowpass_hz=args.lowpass_hz,
+        extra_inputs=tuple(s.strip() for s in args.extra_inputs.split(",") if s.strip()),
+        pwm_idle_us=args.pwm_idle_us,
+    )
+    anfis = AnfisTrainConfig(n_mfs=args.mfs, mf_type=args.mf_type, order=args.order, epochs=args.epochs,
+                             step_size=args.step_size, progress=True)
+    return PaperThrustConfig(
+        log=log, out=args.out, dataset=dataset, anfis=anfis, validate=args.validate, plots=args.plots,
+        channel_map=args.channel_map, metrics=args.metrics, train_fraction=args.train_fraction,
+        min_pearson=args.min_pearson, force=args.force, check_block_s=args.check_block_s,
+        kv_rpm_per_V=args.kv_rpm_per_V, battery_V=args.battery_V, pwm_max_us=args.pwm_max_us,
+        k_thrust_N_s2=args.k_thrust_N_s2,
+    )
+
+
+def correlation_table(corr: dict[str, float], gate: float, ds: ThrustDataset) -> str:
+    """Pearson r of each candidate input with F_z, the gate's verdict on summed PWM, the lag used."""
+    lag = f"{ds.lag_s * 1000:.0f} ms ({'estimated' if ds.lag_estimated else 'given'})"
+    lines = [
+        f"{ds.source}: {ds.n_samples} airborne samples, accelerometer lag {lag}",
+        f"  {'candidate input':<22} {'Pearson r with F_z':>18}",
+    ]
+    for name, r in corr.items():
+        mark = "" if name != "pwm_sum_us" else ("  (gate passed)" if r >= gate else f"  (below gate {gate:.2f})")
+        lines.append(f"  {name:<22} {r:>18.3f}{mark}")
+    return "\n".join(lines)
+
+
+def paper_summary(result: PaperThrustResult) -> str:
+    """Two-column summary of a :class:`identification.thrust_paper.PaperThrustResult`."""
+    m = result.metrics
+    polys = ", ".join(f"deg {d}: {v:.3f}" for d, v in m["polynomial_validation_rmse_N"].items())
+    rows = [
+        ("samples train / validation", f"{m['n_train']} / {m['n_validation']}"),
+        ("epochs (kept)", f"{m['epochs']} ({m['best_epoch']})"),
+        ("train RMSE [N], R^2", f"{m['train_rmse_N']:.3f}, {m['train_r2']:.3f}"),
+        ("validation RMSE [N], R^2", f"{m['validation_rmse_N']:.3f}, {m['validation_r2']:.3f}"),
+        ("polynomial val. RMSE [N]", polys),
+        ("trained band [us]", f"{m['band_us'][0]:.0f} .. {m['band_us'][1]:.0f}"),
+        ("k_thrust [N s^2]", f"{result.k_thrust_N_s2:.4g}"),
+        ("parameters", str(result.params_path)),
+        ("metrics", str(result.metrics_path)),
+    ]
+    width = max(len(r[0]) for r in rows)
+    return "\n".join(f"  {a:<{width}}  {b}" for a, b in rows)
 
 
 def _run_voltage(args: argparse.Namespace, flights: list[tuple[Path, float]]) -> int:
