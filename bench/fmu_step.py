@@ -24,6 +24,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -65,8 +66,8 @@ def build_null_fmu(n_in: int, n_out: int, out_dir: Path) -> Path:
     (src / "null_model.c").write_text(NULL_MODEL_C)
     (src / "null_description.c").write_text(native_build.description_c(model, guid, {}))
     for h in (*native_build.FMI_HEADERS, "uavfmu_model.h", "fmi2_cs.c"):
-        base = native_build.NATIVE / ("include" if h in native_build.FMI_HEADERS else "") / h
-        (src / h).write_bytes(base.read_bytes())
+        base = native_build.FMI_INCLUDE if h in native_build.FMI_HEADERS else native_build.NATIVE
+        (src / h).write_bytes((base / h).read_bytes())
     lib = zigcc.compile_shared([src / "fmi2_cs.c", src / "null_model.c", src / "null_description.c"], [src],
                                zigcc.PLATFORMS[0], out_dir / "null.so")
     files = {"modelDescription.xml": native_build.model_description(model, guid, fmuzip.iso_date(0)),
@@ -90,52 +91,70 @@ def real_outputs(fmu: Path) -> list[str]:
     return [v.name for v in md.modelVariables if v.causality == "output" and v.type == "Real"]
 
 
-def time_convenience(fmu: Path, inputs: dict[str, float], outputs: list[str], steps: int, repeats: int) -> float:
-    """Median s per step through FMPy's ``setReal``/``doStep``/``getReal`` with Python lists."""
+def _median_per_step(fmu: Path, steps: int, repeats: int,
+                     prepare: Callable[[FMU2Slave, dict[str, int]], Callable[[float], float]]) -> float:
+    """Median s per step of ``repeats`` timed calls ``run(t) -> t`` (``steps`` steps from ``t``) where
+    ``run = prepare(slave, value_refs)`` is made once, untimed."""
     s, vr = open_slave(fmu)
-    in_vr, in_val, out_vr = [vr[n] for n in inputs], list(inputs.values()), [vr[n] for n in outputs]
+    run = prepare(s, vr)
     t, runs = 0.0, []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        for _ in range(steps):
-            s.setReal(in_vr, in_val)
-            s.doStep(t, 0.001)
-            s.getReal(out_vr)
-            t += 0.001
+        t = run(t)
         runs.append((time.perf_counter() - t0) / steps)
     s.terminate()
     s.freeInstance()
     return statistics.median(runs)
+
+
+def time_convenience(fmu: Path, inputs: dict[str, float], outputs: list[str], steps: int, repeats: int) -> float:
+    """Median s per step through FMPy's ``setReal``/``doStep``/``getReal`` with Python lists."""
+
+    def prepare(s: FMU2Slave, vr: dict[str, int]) -> Callable[[float], float]:
+        refs = [vr[n] for n in inputs], list(inputs.values()), [vr[n] for n in outputs]
+
+        def run(t: float) -> float:
+            in_vr, in_val, out_vr = refs
+            for _ in range(steps):
+                s.setReal(in_vr, in_val)
+                s.doStep(t, 0.001)
+                s.getReal(out_vr)
+                t += 0.001
+            return t
+
+        return run
+
+    return _median_per_step(fmu, steps, repeats, prepare)
 
 
 def time_fast(fmu: Path, inputs: dict[str, float], outputs: list[str], steps: int, repeats: int) -> float:
     """Median s per step through FMPy's ``fmi2SetReal``/``fmi2DoStep``/``fmi2GetReal``, arrays made once."""
-    s, vr = open_slave(fmu)
     n_in, n_out = len(inputs), len(outputs)
-    in_vr = (ctypes.c_uint * n_in)(*[vr[n] for n in inputs])
-    in_val = (ctypes.c_double * n_in)(*inputs.values())
-    out_vr = (ctypes.c_uint * n_out)(*[vr[n] for n in outputs])
-    out_val = (ctypes.c_double * n_out)()
-    c, set_real, do_step, get_real = s.component, s.fmi2SetReal, s.fmi2DoStep, s.fmi2GetReal
-    t, runs = 0.0, []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        for _ in range(steps):
-            set_real(c, in_vr, n_in, in_val)
-            do_step(c, t, 0.001, 1)
-            get_real(c, out_vr, n_out, out_val)
-            t += 0.001
-        runs.append((time.perf_counter() - t0) / steps)
-    s.terminate()
-    s.freeInstance()
-    return statistics.median(runs)
+
+    def prepare(s: FMU2Slave, vr: dict[str, int]) -> Callable[[float], float]:
+        arrays = ((ctypes.c_uint * n_in)(*[vr[n] for n in inputs]), (ctypes.c_double * n_in)(*inputs.values()),
+                  (ctypes.c_uint * n_out)(*[vr[n] for n in outputs]), (ctypes.c_double * n_out)())
+
+        def run(t: float) -> float:
+            in_vr, in_val, out_vr, out_val = arrays
+            c, set_real, do_step, get_real = s.component, s.fmi2SetReal, s.fmi2DoStep, s.fmi2GetReal
+            for _ in range(steps):
+                set_real(c, in_vr, n_in, in_val)
+                do_step(c, t, 0.001, 1)
+                get_real(c, out_vr, n_out, out_val)
+                t += 0.001
+            return t
+
+        return run
+
+    return _median_per_step(fmu, steps, repeats, prepare)
 
 
 def time_c_host(fmu: Path, inputs: dict[str, float], outputs: list[str], steps: int, work: Path) -> float:
     """Median s per step of the C host (tests/native_host.c) over 7 runs after one untimed run."""
     exe = work / "native_host"
     if not exe.exists():
-        cmd = [*zigcc.zig_cc(), "-target", "x86_64-linux-gnu", "-O2", f"-I{native_build.NATIVE / 'include'}",
+        cmd = [*zigcc.zig_cc(), "-target", "x86_64-linux-gnu", "-O2", f"-I{native_build.FMI_INCLUDE}",
                "-o", str(exe), str(REPO / "tests" / "native_host.c"), "-ldl"]
         subprocess.run(cmd, check=True, capture_output=True)
     md = read_model_description(str(fmu))

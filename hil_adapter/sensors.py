@@ -78,16 +78,21 @@ def _vec3(lo: float, hi: float) -> Any:
     return Annotated[tuple[axis, axis, axis], BeforeValidator(_three)]
 
 
+def _validated(cls: type[Schema], data: Mapping[str, Any], source: str) -> Any:
+    """``cls`` checked from ``data``; ``SensorConfigError`` lists every problem, prefixed by ``source``."""
+    try:
+        return validate_config(data, cls, source)
+    except ConfigError as err:
+        raise SensorConfigError(err.source, err.problems) from None
+
+
 class _Section(Schema):
     """One sensor's settings (a pydantic schema of the project's one config mechanism)."""
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "sensor config") -> Any:
         """This section from its table (``[accel]`` ...); missing keys keep their defaults."""
-        try:
-            return validate_config(data, cls, source)
-        except ConfigError as err:
-            raise SensorConfigError(err.source, err.problems) from None
+        return _validated(cls, data, source)
 
     def replace(self, **changes: Any) -> Any:
         """A validated copy with ``changes``."""
@@ -187,10 +192,7 @@ class SensorConfig(Schema):
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "sensor config") -> SensorConfig:
         """Check every field of every table; ``SensorConfigError`` lists all problems, prefixed by ``source``."""
-        try:
-            return validate_config(data, cls, source)
-        except ConfigError as err:
-            raise SensorConfigError(err.source, err.problems) from None
+        return _validated(cls, data, source)
 
     def replace(self, **sections: Any) -> SensorConfig:
         """A copy with whole sections replaced."""

@@ -38,6 +38,9 @@ def test_bad_params_file_gives_a_clear_error(tmp_path: Path, capsys: pytest.Capt
     assert main(["--params", str(f), "--out", str(tmp_path), "--only", "fixed_wing"]) == 2
     err = capsys.readouterr().err
     assert str(f) in err and "C_ell_p = 'abc' is not a number" in err and "mass_kgg is not a parameter" in err
+    f.write_text('{"fixed_wing": {"C_D_0": 0.05}}')
+    assert main(["--params", str(f), "--out", str(tmp_path), "--only", "fixed_wing"]) == 2
+    assert "C_D_0 is no longer a parameter: the drag polar uses C_D_p" in capsys.readouterr().err
     f.write_text("{not json")
     assert main(["--params", str(f), "--out", str(tmp_path)]) == 2
     assert "not valid JSON" in capsys.readouterr().err

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from fmu_models.fixed_wing.model import FixedWingModel
-from fmu_models.fixed_wing.params import DEFAULTS_FILE
+from fmu_models.fixed_wing.params import DEFAULTS_FILE, REFERENCE_ONLY
 from fmu_models.quadrotor.anfis import published_map
 from fmu_models.quadrotor.model import QuadrotorModel
 from fmu_models.quadrotor.params import QuadrotorParams
@@ -22,7 +22,7 @@ from fmu_models.quadrotor.params import QuadrotorParams
 DOC = Path(__file__).resolve().parents[1] / "docs" / "interfaces.md"
 CAUSALITY = {"input": "inputs", "parameter": "params", "output": "outputs"}
 #: names the fixed-wing section gives that are deliberately NOT FMU variables
-NOT_VARIABLES = {"propulsion", "KV_rpm_per_V", "ncells"}
+NOT_VARIABLES = {"propulsion", "KV_rpm_per_V", "ncells", *REFERENCE_ONLY}
 
 
 def _section(text: str, start: str, stop: str) -> str:

@@ -99,8 +99,9 @@ def test_aileron_rolls_right_and_wind_changes_airspeed(sim: Simulator) -> None:
 
 def test_params_load_reports_all_problems(tmp_path) -> None:
     f = tmp_path / "fw.json"
-    f.write_text('{"fixed_wing": {"mass_kg": 0, "C_ell_pp": 1, "propulsion": {"D_prop_m": -1}}}')
+    f.write_text('{"fixed_wing": {"mass_kg": 0, "C_ell_pp": 1, "epsilon": 0.1, "propulsion": {"D_prop_m": -1}}}')
     with pytest.raises(ParameterError) as err:
         FixedWingParams.load(f)
     text = str(err.value)
     assert "mass_kg = 0.0" in text and "C_ell_pp is not a parameter" in text and "D_prop_m = -1.0" in text
+    assert "epsilon is no longer a parameter" in text

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from fmu_models.common.errors import ParameterError
 from fmu_models.common.params import numeric_fields, read_json, validate_params
 from fmu_models.config import ConfigError
-from fmu_models.fixed_wing.params import FixedWingParams
+from fmu_models.fixed_wing.params import DEFAULTS_FILE, REFERENCE_ONLY, RETIRED, FixedWingParams
 from fmu_models.quadrotor.params import QuadrotorParams
 
 
@@ -63,6 +63,30 @@ def test_a_retired_key_says_what_to_do() -> None:
     with pytest.raises(ParameterError) as info:
         validate_params(P, {"old_a": 1.0}, "x.json", retired={"old_a": "renamed a"})
     assert info.value.problems == ["old_a is no longer a parameter: renamed a"]
+
+
+def test_a_user_file_setting_a_reference_only_fixed_wing_key_is_told_what_to_do(tmp_path) -> None:
+    f = tmp_path / "fw.json"
+    f.write_text('{"fixed_wing": {"C_D_0": 0.043, "C_ell_p": -0.5, "epsilon": 0.16}}')
+    with pytest.raises(ParameterError) as info:
+        FixedWingParams.load(f)
+    assert info.value.problems == [
+        "C_D_0 is no longer a parameter: the drag polar uses C_D_p (parasitic drag) and e_oswald; set C_D_p instead "
+        "and delete C_D_0",
+        "epsilon is no longer a parameter: the model never used it; delete epsilon",
+    ]
+    assert set(RETIRED) == set(REFERENCE_ONLY)
+    assert not {f.name for f in numeric_fields(FixedWingParams)} & set(REFERENCE_ONLY)
+
+
+def test_the_published_aerosonde_file_still_loads_as_the_default_set(caplog: pytest.LogCaptureFixture) -> None:
+    """The uavbook copy keeps its reference-only keys; the reference reader leaves them out with a note."""
+    raw = read_json(DEFAULTS_FILE)
+    assert set(REFERENCE_ONLY) <= set(raw)
+    with caplog.at_level("INFO", logger="fmu_models.fixed_wing.params"):
+        assert FixedWingParams.load_reference(DEFAULTS_FILE) == FixedWingParams() == FixedWingParams.load_reference()
+    assert all(k in caplog.text for k in REFERENCE_ONLY) and "left out" in caplog.text
+    assert FixedWingParams().C_L_alpha == raw["C_L_alpha"] and FixedWingParams().C_D_p == raw["C_D_p"]
 
 
 def test_unreadable_files_name_the_file(tmp_path) -> None:

@@ -133,7 +133,6 @@ class QuadrotorAutopilot:
     thrust_inverse: ThrustInverse
     mass_kg: float = 1.14
     gravity_m_s2: float = 9.80665
-    yaw_rad: Callable[[float], float] = lambda t: 0.0
     kp_alt: float = 1.2
     kd_alt: float = 1.8
     ki_alt: float = 0.15
@@ -142,8 +141,9 @@ class QuadrotorAutopilot:
     kp_yaw: float = 2.0
     kp_yaw_rate: float = 40.0
     kp_vel: float = 0.08
-    integral: float = 0.0
-    last_t: float = 0.0
+    yaw_rad: Callable[[float], float] = lambda t: 0.0
+    integral: float = 0.0  #: altitude error integral [m s] (controller state)
+    last_t: float = 0.0  #: time of the previous call [s]
 
     def __call__(self, t: float, y: dict[str, float]) -> dict[str, float]:
         dt = max(t - self.last_t, 0.0)

@@ -14,7 +14,8 @@ from typing import Any
 import casadi as ca
 
 from fmu_models.common import wgs84
-from fmu_models.common.model import Variable
+from fmu_models.common.model import Layout, Variable
+from fmu_models.common.params import to_variables
 from fmu_models.common.rigid_body import (
     euler_from_quat,
     quat_from_euler,
@@ -23,21 +24,24 @@ from fmu_models.common.rigid_body import (
 )
 
 N_BODY_STATES = 16
+_XYZ = {"x": "x", "y": "y", "z": "z"}
+
+
+def _vector(name: str, unit: str, text: str, parts: dict[str, str], lo: float | None = None,
+            hi: float | None = None) -> tuple[Variable, ...]:
+    """The variables of one vector quantity (start 0, range ``[lo, hi]`` in ``unit``): ``name`` and ``text``
+    formatted with each key and value of ``parts``."""
+    return tuple(Variable(name.format(k), unit, text.format(v), 0.0, lo, hi) for k, v in parts.items())
+
 
 BODY_STATES: tuple[Variable, ...] = (
-    Variable("pos_north_m", "m", "NED position north of home"),
-    Variable("pos_east_m", "m", "NED position east of home"),
-    Variable("pos_down_m", "m", "NED position below home"),
-    Variable("vel_body_x_m_s", "m/s", "ground velocity along body x (forward)"),
-    Variable("vel_body_y_m_s", "m/s", "ground velocity along body y (right)"),
-    Variable("vel_body_z_m_s", "m/s", "ground velocity along body z (down)"),
+    *_vector("pos_{}_m", "m", "NED position {}", {"north": "north of home", "east": "east of home",
+                                                   "down": "below home"}),
+    *_vector("vel_body_{}_m_s", "m/s", "ground velocity along body {}",
+             {"x": "x (forward)", "y": "y (right)", "z": "z (down)"}),
     Variable("quat_w", "1", "attitude quaternion body->NED, scalar part", 1.0),
-    Variable("quat_x", "1", "attitude quaternion body->NED, x part"),
-    Variable("quat_y", "1", "attitude quaternion body->NED, y part"),
-    Variable("quat_z", "1", "attitude quaternion body->NED, z part"),
-    Variable("rate_body_x_rad_s", "rad/s", "body roll rate P"),
-    Variable("rate_body_y_rad_s", "rad/s", "body pitch rate Q"),
-    Variable("rate_body_z_rad_s", "rad/s", "body yaw rate R"),
+    *_vector("quat_{}", "1", "attitude quaternion body->NED, {} part", _XYZ),
+    *_vector("rate_body_{}_rad_s", "rad/s", "body {}", {"x": "roll rate P", "y": "pitch rate Q", "z": "yaw rate R"}),
     Variable("lat_rad", "rad", "WGS-84 geodetic latitude"),
     Variable("lon_rad", "rad", "WGS-84 geodetic longitude"),
     Variable("height_m", "m", "WGS-84 ellipsoidal height"),
@@ -47,18 +51,15 @@ BODY_STATES: tuple[Variable, ...] = (
 BODY_STATE_LIMITS: tuple[float, ...] = (1e6,) * 3 + (1e3,) * 3 + (2.0,) * 4 + (1e3,) * 3 + (4.0, 7.0, 1e6)
 
 INIT_PARAMS: tuple[Variable, ...] = (
-    Variable("init_pos_north_m", "m", "initial NED position north of home", 0.0, -1e6, 1e6),
-    Variable("init_pos_east_m", "m", "initial NED position east of home", 0.0, -1e6, 1e6),
+    *_vector("init_pos_{}_m", "m", "initial NED position {}", {"north": "north of home", "east": "east of home"},
+             -1e6, 1e6),
     Variable("init_pos_down_m", "m", "initial NED position below home (negative is up)", 0.0, -1e5, 1e3),
-    Variable("init_vel_body_x_m_s", "m/s", "initial ground velocity along body x", 0.0, -500, 500),
-    Variable("init_vel_body_y_m_s", "m/s", "initial ground velocity along body y", 0.0, -500, 500),
-    Variable("init_vel_body_z_m_s", "m/s", "initial ground velocity along body z", 0.0, -500, 500),
+    *_vector("init_vel_body_{}_m_s", "m/s", "initial ground velocity along body {}", _XYZ, -500, 500),
     Variable("init_roll_rad", "rad", "initial roll angle", 0.0, -math.pi, math.pi),
     Variable("init_pitch_rad", "rad", "initial pitch angle", 0.0, -math.pi / 2, math.pi / 2),
     Variable("init_yaw_rad", "rad", "initial yaw angle (heading)", 0.0, -2 * math.pi, 2 * math.pi),
-    Variable("init_rate_body_x_rad_s", "rad/s", "initial body roll rate", 0.0, -50, 50),
-    Variable("init_rate_body_y_rad_s", "rad/s", "initial body pitch rate", 0.0, -50, 50),
-    Variable("init_rate_body_z_rad_s", "rad/s", "initial body yaw rate", 0.0, -50, 50),
+    *_vector("init_rate_body_{}_rad_s", "rad/s", "initial body {} rate", {"x": "roll", "y": "pitch", "z": "yaw"},
+             -50, 50),
     Variable("home_lat_deg", "deg", "home WGS-84 latitude (NED origin)", 47.397742, -90, 90),
     Variable("home_lon_deg", "deg", "home WGS-84 longitude (NED origin)", 8.545594, -180, 180),
     Variable("home_height_m", "m", "home WGS-84 ellipsoidal height (ground level)", 488.0, -500, 9000),
@@ -76,15 +77,12 @@ NAV_OUTPUTS: tuple[Variable, ...] = (
     Variable("lon_deg", "deg", "WGS-84 geodetic longitude"),
     Variable("height_m", "m", "WGS-84 ellipsoidal height"),
     Variable("altitude_m", "m", "height above home (= -pos_down_m)"),
-    Variable("vel_north_m_s", "m/s", "ground velocity north"),
-    Variable("vel_east_m_s", "m/s", "ground velocity east"),
-    Variable("vel_down_m_s", "m/s", "ground velocity down"),
-    Variable("roll_rad", "rad", "roll angle (3-2-1 Euler, paper 001 eq. 5)"),
-    Variable("pitch_rad", "rad", "pitch angle (3-2-1 Euler)"),
-    Variable("yaw_rad", "rad", "yaw angle / heading (3-2-1 Euler)"),
-    Variable("accel_body_x_m_s2", "m/s2", "specific force along body x (accelerometer)"),
-    Variable("accel_body_y_m_s2", "m/s2", "specific force along body y (accelerometer)"),
-    Variable("accel_body_z_m_s2", "m/s2", "specific force along body z (accelerometer; -g at rest)"),
+    *_vector("vel_{}_m_s", "m/s", "ground velocity {}", {"north": "north", "east": "east", "down": "down"}),
+    *_vector("{}_rad", "rad", "{}", {"roll": "roll angle (3-2-1 Euler, paper 001 eq. 5)",
+                                      "pitch": "pitch angle (3-2-1 Euler)",
+                                      "yaw": "yaw angle / heading (3-2-1 Euler)"}),
+    *_vector("accel_body_{}_m_s2", "m/s2", "specific force along body {}",
+             {"x": "x (accelerometer)", "y": "y (accelerometer)", "z": "z (accelerometer; -g at rest)"}),
     Variable("gravity_m_s2", "m/s2", "WGS-84 normal gravity at the vehicle"),
     Variable("on_ground", "", "ground contact", boolean=True),
 )
@@ -178,3 +176,53 @@ def normalize_quaternion(x: Any) -> Any:
     q = x[6:10]
     qn = q / ca.sqrt(ca.sumsqr(q))
     return ca.vertcat(x[0:6], qn, x[10:])
+
+
+class BodyVehicleModel:
+    """The part of a ``VehicleModel`` every vehicle shares (see ``fmu_models.common.model``).
+
+    Layouts: the 16 body states, ``INIT_PARAMS`` + ``GROUND_PARAMS`` + the vehicle's scalar parameters
+    (``defaults``, a parameter dataclass), ``NAV_OUTPUTS``, each followed by the vehicle's own variables.
+    A subclass supplies ``forces_moments(x, u, p)`` (non-gravitational force [N] and moment [N m] in body axes,
+    and a dict of intermediate values holding ``on_ground``) and ``inertia(p)`` [kg m2].
+    """
+
+    name: str
+    description: str
+
+    def __init__(
+        self,
+        defaults: Any,
+        inputs: tuple[Variable, ...],
+        *,
+        states: tuple[Variable, ...] = (),
+        state_limits: tuple[float, ...] = (),
+        params: tuple[Variable, ...] = (),
+        outputs: tuple[Variable, ...] = (),
+    ) -> None:
+        self.defaults = defaults
+        self.states = Layout(BODY_STATES + states)
+        self.state_limits = BODY_STATE_LIMITS + state_limits
+        self.inputs = Layout(inputs)
+        self.params = Layout(INIT_PARAMS + GROUND_PARAMS + to_variables(defaults) + params)
+        self.outputs = Layout(NAV_OUTPUTS + outputs)
+
+    def forces_moments(self, x: Any, u: Any, p: Any) -> tuple[Any, Any, dict[str, Any]]:
+        raise NotImplementedError
+
+    def inertia(self, p: Any) -> Any:
+        raise NotImplementedError
+
+    def body_derivatives(self, x: Any, u: Any, p: Any) -> Any:
+        """Time derivative of the 16 body states under the vehicle's forces and moments."""
+        force, moment, _ = self.forces_moments(x, u, p)
+        return body_derivatives(x, force, moment, self.params.view(p).mass_kg, self.inertia(p))
+
+    def nav_outputs(self, x: Any, u: Any, p: Any) -> tuple[list[Any], dict[str, Any]]:
+        """Values of ``NAV_OUTPUTS`` at ``(x, u, p)``, and the intermediate values of ``forces_moments``."""
+        force, _, extras = self.forces_moments(x, u, p)
+        return nav_outputs(x, force, self.params.view(p).mass_kg, extras["on_ground"]), extras
+
+    def parameter_values(self) -> list[float]:
+        """Default parameter vector (start values of ``params``)."""
+        return self.params.starts()

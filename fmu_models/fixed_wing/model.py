@@ -22,8 +22,7 @@ import casadi as ca
 from fmu_models.common import vehicle
 from fmu_models.common.atmosphere import isa
 from fmu_models.common.ground import contact_forces
-from fmu_models.common.model import Layout, Variable
-from fmu_models.common.params import to_variables
+from fmu_models.common.model import Variable
 from fmu_models.common.rigid_body import inertia_matrix, quat_to_dcm
 from fmu_models.fixed_wing.params import FixedWingParams
 
@@ -34,39 +33,32 @@ VA_EPS_M_S = 1e-3  #: keeps Va, beta and their derivatives finite at rest; chang
 GEAR_POINTS = [(0.6, 0.0, 0.0), (-0.15, -0.5, 0.0), (-0.15, 0.5, 0.0)]
 
 
-class FixedWingModel:
+class FixedWingModel(vehicle.BodyVehicleModel):
     """Aerosonde-type fixed wing as a ``VehicleModel`` (see ``fmu_models.common.model``)."""
 
     name = "fixed_wing"
-    description = (
-        "Fixed-wing 6-DOF (Manai et al.; Beard & McLain Aerosonde): stability and control derivatives, "
-        "propeller and DC motor, constant wind, WGS-84 gravity and geodetic position, ground contact."
-    )
+    description = ("Fixed-wing 6-DOF (Manai et al.; Beard & McLain Aerosonde): stability and control derivatives, "
+                   "propeller and DC motor, constant wind, WGS-84 gravity and geodetic position, ground contact.")
 
     def __init__(self, params: FixedWingParams | None = None) -> None:
-        self.defaults = params or FixedWingParams()
-        self.states = Layout(vehicle.BODY_STATES)
-        self.state_limits = vehicle.BODY_STATE_LIMITS
-        self.inputs = Layout((
+        surface = (0.0, -SURFACE_LIMIT_RAD, SURFACE_LIMIT_RAD)
+        inputs = (
             Variable("aileron_rad", "rad", "aileron deflection, uavbook sign: positive rolls right "
-                     "(C_ell_delta_a > 0; autopilot PWM above trim)", 0.0, -SURFACE_LIMIT_RAD, SURFACE_LIMIT_RAD),
+                     "(C_ell_delta_a > 0; autopilot PWM above trim)", *surface),
             Variable("elevator_rad", "rad", "elevator deflection, uavbook sign: positive is trailing edge down, "
-                     "nose down (C_m_delta_e < 0; autopilot pull = PWM above trim = negative)", 0.0,
-                     -SURFACE_LIMIT_RAD, SURFACE_LIMIT_RAD),
+                     "nose down (C_m_delta_e < 0; autopilot pull = PWM above trim = negative)", *surface),
             Variable("rudder_rad", "rad", "rudder deflection, uavbook sign: positive is trailing edge left, "
-                     "nose left (C_n_delta_r < 0; autopilot right rudder = PWM above trim = negative)", 0.0,
-                     -SURFACE_LIMIT_RAD, SURFACE_LIMIT_RAD),
+                     "nose left (C_n_delta_r < 0; autopilot right rudder = PWM above trim = negative)", *surface),
             Variable("throttle", "1", "throttle fraction, 0 = motor off, 1 = full (PWM min..max)", 0.0, 0.0, 1.0),
-        ))
-        self.params = Layout(vehicle.INIT_PARAMS + vehicle.GROUND_PARAMS + to_variables(self.defaults))
-        self.outputs = Layout((
-            *vehicle.NAV_OUTPUTS,
+        )
+        outputs = (
             Variable("airspeed_m_s", "m/s", "true airspeed Va"),
             Variable("airspeed_body_x_m_s", "m/s", "airspeed along body x (paper 001 Table 1, v_ax)"),
             Variable("alpha_rad", "rad", "angle of attack"),
             Variable("beta_rad", "rad", "sideslip angle"),
             Variable("thrust_N", "N", "propeller thrust"),
-        ))
+        )
+        super().__init__(params or FixedWingParams(), inputs, outputs=outputs)
 
     # ------------------------------------------------------------------ pieces
     def air_data(self, x: Any, p: Any) -> tuple[Any, Any, Any, Any, Any]:
@@ -146,13 +138,10 @@ class FixedWingModel:
         return inertia_matrix(pv.Jx_kg_m2, pv.Jy_kg_m2, pv.Jz_kg_m2, pv.Jxz_kg_m2)
 
     def derivatives(self, t: Any, x: Any, u: Any, p: Any) -> Any:
-        force, moment, _ = self.forces_moments(x, u, p)
-        return vehicle.body_derivatives(x, force, moment, self.params.view(p).mass_kg, self.inertia(p))
+        return self.body_derivatives(x, u, p)
 
     def outputs_fn(self, x: Any, u: Any, p: Any) -> Any:
-        pv = self.params.view(p)
-        force, _, ex = self.forces_moments(x, u, p)
-        nav = vehicle.nav_outputs(x, force, pv.mass_kg, ex["on_ground"])
+        nav, ex = self.nav_outputs(x, u, p)
         return ca.vertcat(*nav, ex["va"], ex["u_r"], ex["alpha"], ex["beta"], ex["thrust"])
 
     def initial_state(self, p: Any, u: Any) -> Any:
@@ -160,6 +149,3 @@ class FixedWingModel:
 
     def post_step(self, x: Any, u: Any, p: Any) -> Any:
         return vehicle.normalize_quaternion(x)
-
-    def parameter_values(self) -> list[float]:
-        return self.params.starts()

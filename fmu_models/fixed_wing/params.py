@@ -2,12 +2,16 @@
 
 Defaults are read from ``aerosonde.json`` beside this file (a copy of the uavbook's
 ``parameters/aerosonde_parameters.py``, source cited in the file). Coefficient names follow the book.
+The book's set also holds values this model does not use (``REFERENCE_ONLY``): the reference-file reader
+:meth:`FixedWingParams.load_reference` drops them with a note, a user parameter file that sets them is refused
+with what to do instead.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any
@@ -21,6 +25,21 @@ DEFAULTS_FILE = Path(__file__).with_name("aerosonde.json")
 _D = json.loads(DEFAULTS_FILE.read_text())
 _P = _D["propulsion"]
 C = 100.0  #: generous bound on any aerodynamic coefficient (only catches typos and unit mistakes)
+log = logging.getLogger(__name__)
+
+#: keys of the published Aerosonde set that are not parameters of this model: key -> why
+REFERENCE_ONLY: dict[str, str] = {
+    "C_D_0": "the book's parasitic drag of its linear drag model; this model's drag polar uses C_D_p and e_oswald",
+    "C_D_alpha": "the book's drag slope of its linear drag model; this model's drag polar uses C_L_alpha and "
+                 "e_oswald",
+    "epsilon": "a constant of the book's parameter file that its equations (and this model) do not use",
+}
+#: what a user parameter file that sets a ``REFERENCE_ONLY`` key is told to do
+RETIRED: dict[str, str] = {
+    "C_D_0": "the drag polar uses C_D_p (parasitic drag) and e_oswald; set C_D_p instead and delete C_D_0",
+    "C_D_alpha": "the drag polar's slope comes from C_L_alpha and e_oswald; delete C_D_alpha",
+    "epsilon": "the model never used it; delete epsilon",
+}
 
 
 def _c(key: str, unit: str, text: str) -> Any:
@@ -43,11 +62,11 @@ class FixedWingParams:
     density_altitude_scaling: float = param(1.0, "1", 0.0, 1.0,
                                             "1: density follows ISA with height above home; 0: constant")
     e_oswald: float = param(_D["e_oswald"], "1", 0.1, 1.5, "Oswald efficiency")
+    M_blend: float = param(_D["M_blend"], "1", 1.0, 1000.0, "stall blending sharpness M")
+    alpha0_rad: float = param(_D["alpha0_rad"], "rad", 0.05, 1.5, "stall angle of the blending")
     C_L_0: float = _c("C_L_0", "1", "lift coefficient at zero alpha")
-    C_D_0: float = _c("C_D_0", "1", "parasitic drag (kept for reference; the drag polar uses C_D_p)")
     C_m_0: float = _c("C_m_0", "1", "pitch moment coefficient at zero alpha")
     C_L_alpha: float = _c("C_L_alpha", "1/rad", "lift slope")
-    C_D_alpha: float = _c("C_D_alpha", "1/rad", "drag slope (reference; the polar is used)")
     C_m_alpha: float = _c("C_m_alpha", "1/rad", "pitch stiffness")
     C_L_q: float = _c("C_L_q", "1/rad", "lift due to pitch rate")
     C_D_q: float = _c("C_D_q", "1/rad", "drag due to pitch rate")
@@ -55,9 +74,6 @@ class FixedWingParams:
     C_L_delta_e: float = _c("C_L_delta_e", "1/rad", "lift due to elevator")
     C_D_delta_e: float = _c("C_D_delta_e", "1/rad", "drag due to elevator")
     C_m_delta_e: float = _c("C_m_delta_e", "1/rad", "pitch moment due to elevator")
-    M_blend: float = param(_D["M_blend"], "1", 1.0, 1000.0, "stall blending sharpness M")
-    alpha0_rad: float = param(_D["alpha0_rad"], "rad", 0.05, 1.5, "stall angle of the blending")
-    epsilon: float = param(_D["epsilon"], "1", 0.0, 10.0, "(reference, unused by the model)")
     C_D_p: float = _c("C_D_p", "1", "parasitic drag of the polar")
     C_Y_0: float = _c("C_Y_0", "1", "side force at zero")
     C_ell_0: float = _c("C_ell_0", "1", "roll moment at zero")
@@ -97,17 +113,35 @@ class FixedWingParams:
     step_internal_s: float = param(0.001, "s", 1e-5, 0.05, "largest internal RK4 step")
 
     @classmethod
-    def from_dict(cls, values: dict[str, Any], source: str = "fixed-wing parameters") -> FixedWingParams:
-        """Defaults overridden by ``values`` (a ``propulsion`` sub-object is flattened); all problems at once."""
+    def from_dict(cls, values: dict[str, Any], source: str = "fixed-wing parameters",
+                  reference: bool = False) -> FixedWingParams:
+        """Defaults overridden by ``values`` (a ``propulsion`` sub-object is flattened); all problems at once.
+
+        ``reference``: ``values`` is a published reference set (``aerosonde.json``), whose ``REFERENCE_ONLY`` keys
+        are dropped with a note in the log; elsewhere they are refused with what to do (``RETIRED``).
+        """
+        if reference:
+            dropped = [k for k in REFERENCE_ONLY if k in values]
+            if dropped:
+                log.info("%s: %s left out (reference values of the published set, not parameters of this model)",
+                         source, ", ".join(dropped))
+            values = {k: v for k, v in values.items() if k not in REFERENCE_ONLY}
         # informative keys of aerosonde.json (the model uses KQ_N_m_per_A), checked but not stored
         extra = {"KV_rpm_per_V": (PositiveFiniteFloat, 1.0), "ncells": (Annotated[int, Field(ge=1, le=100)], 1)}
-        scalars = validate_params(cls, values, source, extra=extra, sections=("propulsion",))
+        scalars = validate_params(cls, values, source, extra=extra, sections=("propulsion",), retired=RETIRED)
         return dataclasses.replace(cls(), **{k: v for k, v in scalars.items() if k not in extra})
 
     @classmethod
     def load(cls, path: str | Path) -> FixedWingParams:
+        """A user parameter file (a ``fixed_wing`` section or a flat set); ``REFERENCE_ONLY`` keys are refused."""
         data = read_json(path)
         return cls.from_dict(data.get("fixed_wing", data), source=str(path))
+
+    @classmethod
+    def load_reference(cls, path: str | Path = DEFAULTS_FILE) -> FixedWingParams:
+        """A published reference set such as ``aerosonde.json`` (the defaults): ``REFERENCE_ONLY`` keys dropped."""
+        data = read_json(path)
+        return cls.from_dict(data.get("fixed_wing", data), source=str(path), reference=True)
 
     def to_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}

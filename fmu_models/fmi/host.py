@@ -16,7 +16,7 @@ and pythonfmu's library crashes on anything else (fmu_models/fmi/shim.py).
 from __future__ import annotations
 
 import shutil
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from ctypes import Array, c_char_p, c_double, c_int, c_uint, c_void_p
 from pathlib import Path
 from typing import Any
@@ -248,17 +248,27 @@ class FmuHost:
         raise FmuRunError(f"{self.path}: neither motor PWM inputs pwm_1_us..pwm_4_us nor surface inputs "
                           "aileron_rad, elevator_rad, rudder_rad, throttle")
 
-    def set(self, values: Mapping[str, float]) -> None:
-        slave = self._live("set")
+    def _real_io(self, slave: FMU2Slave, names: Sequence[str] | Mapping[str, float],
+                 values: Iterable[float] | None = None) -> Array:
+        """``fmi2SetReal`` of ``values`` to ``names``, or (``values`` None) ``fmi2GetReal`` of ``names`` into the
+        preallocated buffer, which is returned; ``FmuRunError`` for an unknown name or a failed call."""
         try:
-            vr, buf = self._io(values)
-            buf[:] = [float(v) for v in values.values()]
-            slave.fmi2SetReal(slave.component, vr, len(vr), buf)
+            vr, buf = self._io(names)
+            if values is None:
+                slave.fmi2GetReal(slave.component, vr, len(vr), buf)
+            else:
+                buf[:] = [float(v) for v in values]
+                slave.fmi2SetReal(slave.component, vr, len(vr), buf)
         except KeyError as err:
             raise FmuRunError(f"{self.path.name}: no variable {err}") from None
         except Exception as err:
             self._failed(err)
-            raise FmuRunError(f"{self.path.name}: setting {', '.join(values)} failed ({err}){self._tail()}") from err
+            verb = "getting" if values is None else "setting"
+            raise FmuRunError(f"{self.path.name}: {verb} {', '.join(names)} failed ({err}){self._tail()}") from err
+        return buf
+
+    def set(self, values: Mapping[str, float]) -> None:
+        self._real_io(self._live("set"), values, values.values())
 
     def step(self, t_s: float, dt_s: float, inputs: Mapping[str, float] | None = None) -> None:
         """Set ``inputs`` and advance one communication step; ``FmuRunError`` with the FMU's messages."""
@@ -282,12 +292,5 @@ class FmuHost:
         slave = self._live("get")
         if self.phase == "instantiated":
             raise FmuRunError(f"{self.path.name}: get refused before start() (FMI 2.0: no outputs yet)")
-        try:
-            vr, buf = self._io(names)
-            slave.fmi2GetReal(slave.component, vr, len(vr), buf)
-        except KeyError as err:
-            raise FmuRunError(f"{self.path.name}: no variable {err}") from None
-        except Exception as err:
-            self._failed(err)
-            raise FmuRunError(f"{self.path.name}: getting {', '.join(names)} failed ({err}){self._tail()}") from err
+        buf = self._real_io(slave, names)
         return dict(zip(names, buf[:], strict=True))

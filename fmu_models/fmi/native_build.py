@@ -23,6 +23,7 @@ from fmu_models.fmi import codegen, fmuzip, zigcc
 from fmu_models.fmi.postprocess import complete_model_description
 
 NATIVE = Path(__file__).parent / "native"
+FMI_INCLUDE = NATIVE / "third_party" / "fmi2"  #: the official FMI 2.0 headers, vendored unchanged
 FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
 LOG_CATEGORIES = (
     ("logStatusWarning", "Log messages with fmi2Warning status."),
@@ -154,7 +155,7 @@ def native_sources(model: VehicleModel, work: Path, warnings: dict[str, str]) ->
         "buildDescription.xml": build_description(model),
     }
     for h in FMI_HEADERS:
-        sources[h] = (NATIVE / "include" / h).read_bytes()
+        sources[h] = (FMI_INCLUDE / h).read_bytes()
     return sources, guid
 
 

@@ -22,8 +22,7 @@ import casadi as ca
 from fmu_models.common import vehicle
 from fmu_models.common.ground import contact_forces
 from fmu_models.common.mathns import CA as _CA
-from fmu_models.common.model import Layout, Variable
-from fmu_models.common.params import to_variables
+from fmu_models.common.model import Variable
 from fmu_models.common.rigid_body import inertia_matrix
 from fmu_models.quadrotor.anfis import AnfisMap
 from fmu_models.quadrotor.params import QuadrotorParams, motor_layout
@@ -59,63 +58,38 @@ def _n_inputs(u: Any) -> int:
     return int(u.numel()) if hasattr(u, "numel") else len(u)
 
 
-class QuadrotorModel:
+class QuadrotorModel(vehicle.BodyVehicleModel):
     """Quadrotor of paper 000 as a ``VehicleModel`` (see ``fmu_models.common.model``)."""
 
     name = "quadrotor"
-    description = (
-        "Quadrotor 6-DOF (Sant'Ana et al. COBEM 2019): ANFIS thrust map of summed motor PWM, linear drag, "
-        "arm, gyroscopic and fan moments; WGS-84 gravity and geodetic position; ground contact."
-    )
+    description = ("Quadrotor 6-DOF (Sant'Ana et al. COBEM 2019): ANFIS thrust map of summed motor PWM, linear drag, "
+                   "arm, gyroscopic and fan moments; WGS-84 gravity and geodetic position; ground contact.")
 
     def __init__(self, params: QuadrotorParams | None = None) -> None:
-        self.defaults = params or QuadrotorParams()
-        self.gamma_deg, self.spin = motor_layout(self.defaults.frame)
+        defaults = params or QuadrotorParams()
+        self.gamma_deg, self.spin = motor_layout(defaults.frame)
+        inputs = (
+            *(Variable(f"pwm_{i}_us", "us", f"motor {i} PWM command", 1000.0, PWM_INPUT_MIN_US, PWM_INPUT_MAX_US)
+              for i in range(1, 5)),
+            Variable("battery_voltage_V", "V",
+                     "battery voltage (thrust per PWM grows with it; start: battery_nominal_V of the build)",
+                     defaults.battery_nominal_V, 0.0, 100.0),
+        )
+        outputs = (
+            *(Variable(f"thrust_{i}_N", "N", f"motor {i} thrust") for i in range(1, 5)),
+            Variable("thrust_total_N", "N", "total thrust along -z body"),
+            *(Variable(f"omega_{i}_rad_s", "rad/s", f"motor {i} speed") for i in range(1, 5)),
+            Variable("thrust_map_out_of_range", "", "a motor's PWM x 4 lies outside the thrust map's trained band",
+                     boolean=True),
+        )
+        super().__init__(
+            defaults, inputs,
+            states=tuple(Variable(f"thrust_state_{i}_N", "N", f"motor {i} thrust (lag state)") for i in range(1, 5)),
+            state_limits=(1e4,) * N_MOTORS,
+            params=anfis_param_variables(defaults.thrust_map),
+            outputs=outputs,
+        )
         self.gear_points = self._gear_points()
-        self.states = Layout(
-            vehicle.BODY_STATES
-            + tuple(
-                Variable(f"thrust_state_{i}_N", "N", f"motor {i} thrust (lag state)") for i in range(1, 5)
-            )
-        )
-        self.state_limits = vehicle.BODY_STATE_LIMITS + (1e4,) * N_MOTORS
-        pwm_inputs = tuple(
-            Variable(f"pwm_{i}_us", "us", f"motor {i} PWM command", 1000.0, PWM_INPUT_MIN_US, PWM_INPUT_MAX_US)
-            for i in range(1, 5)
-        )
-        self.inputs = Layout(
-            (
-                *pwm_inputs,
-                Variable(
-                    "battery_voltage_V",
-                    "V",
-                    "battery voltage (thrust per PWM grows with it; start: battery_nominal_V of the build)",
-                    self.defaults.battery_nominal_V,
-                    0.0,
-                    100.0,
-                ),
-            )
-        )
-        self.params = Layout(
-            vehicle.INIT_PARAMS
-            + vehicle.GROUND_PARAMS
-            + to_variables(self.defaults)
-            + anfis_param_variables(self.defaults.thrust_map)
-        )
-        self.outputs = Layout(
-            vehicle.NAV_OUTPUTS
-            + tuple(Variable(f"thrust_{i}_N", "N", f"motor {i} thrust") for i in range(1, 5))
-            + (Variable("thrust_total_N", "N", "total thrust along -z body"),)
-            + tuple(Variable(f"omega_{i}_rad_s", "rad/s", f"motor {i} speed") for i in range(1, 5))
-            + (
-                Variable(
-                    "thrust_map_out_of_range",
-                    "",
-                    "a motor's PWM x 4 lies outside the thrust map's trained band",
-                    boolean=True,
-                ),
-            )
-        )
 
     def _gear_points(self) -> list[tuple[float, float, float]]:
         """Four landing-gear points under the arms, at CG height (the NED origin is the landed CG)."""
@@ -212,8 +186,7 @@ class QuadrotorModel:
     def derivatives(self, t: Any, x: Any, u: Any, p: Any) -> Any:
         """State derivative: 16 body states (shared 6-DOF) and 4 motor-lag states."""
         pv = self.params.view(p)
-        force, moment, _ = self.forces_moments(x, u, p)
-        body = vehicle.body_derivatives(x, force, moment, pv.mass_kg, self.inertia(p))
+        body = self.body_derivatives(x, u, p)
         cmd = self.commanded_thrust(u, p)
         lag = [
             ca.if_else(pv.tau_motor_s > 0, (cmd[i] - x[16 + i]) / ca.fmax(pv.tau_motor_s, 1e-9), 0.0)
@@ -222,9 +195,7 @@ class QuadrotorModel:
         return ca.vertcat(body, *lag)
 
     def outputs_fn(self, x: Any, u: Any, p: Any) -> Any:
-        pv = self.params.view(p)
-        force, _, ex = self.forces_moments(x, u, p)
-        nav = vehicle.nav_outputs(x, force, pv.mass_kg, ex["on_ground"])
+        nav, ex = self.nav_outputs(x, u, p)
         return ca.vertcat(*nav, *ex["thrust"], ex["total"], *ex["omega"], self.out_of_range(u, p))
 
     def initial_state(self, p: Any, u: Any) -> Any:
@@ -238,8 +209,3 @@ class QuadrotorModel:
         cmd = self.commanded_thrust(u, p)
         lag = [ca.if_else(pv.tau_motor_s > 0, xn[16 + i], cmd[i]) for i in range(N_MOTORS)]
         return ca.vertcat(xn[0:16], *lag)
-
-    def parameter_values(self) -> list[float]:
-        """Default parameter vector (start values of ``params``)."""
-        return self.params.starts()
-

@@ -44,19 +44,8 @@ def effective_pwm(pwm_us: Any, voltage_V: Any, idle_us: Any, nominal_V: Any, exp
     return idle_us + xp.fmax(pwm_us - idle_us, 0.0) * ratio**exponent
 
 
-def motor_thrust(
-    amap: AnfisMap,
-    pwm_us: Any,
-    voltage_V: Any,
-    idle_us: Any,
-    lo_us: Any,
-    hi_us: Any,
-    nominal_V: Any,
-    exponent: Any,
-    scale: Any = 1.0,
-    n_motors: int = 4,
-    xp: Any = NP,
-) -> Any:
+def motor_thrust(amap: AnfisMap, pwm_us: Any, voltage_V: Any, idle_us: Any, lo_us: Any, hi_us: Any, nominal_V: Any,
+                 exponent: Any, scale: Any = 1.0, n_motors: int = 4, xp: Any = NP) -> Any:
     """Thrust [N] of one motor at ``pwm_us`` and battery ``voltage_V``: what the quadrotor FMU evaluates.
 
     ``scale * thrust_sum(n * pwm_eff) / n`` with the voltage-compensated command :func:`effective_pwm`

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from identification.flightlog import FlightLog, LogError, Signal
+from identification.readers.px4_signals import add_imu_and_attitude, add_local_position, add_outputs, alias
 
 DISARMED_PWM_US = 950.0  #: PX4 PWM_DISARMED is 900 us; anything at or below this is "motors off"
 N_MOTORS = 4  #: PX4 quadrotor: motors on actuator outputs 0..3
@@ -100,34 +101,12 @@ def read_px4_csv(folder: Path) -> FlightLog:
     return FlightLog(str(folder), "px4_csv", signals, {}, vehicle, warnings)
 
 
-def _alias(signals: dict[str, Signal], name: str, key: str, unit: str, scale: float = 1.0) -> None:
-    if key in signals and name not in signals:
-        s = signals[key]
-        signals[name] = Signal(name, s.t_s, s.values * scale, unit, f"from {key}")
-
-
 def _aliases(signals: dict[str, Signal], folder: Path, warnings: list[str]) -> None:
     """Canonical names (as the ULog reader gives them) from the raw topic fields."""
-    for i, a in enumerate("xyz"):
-        _alias(signals, f"accel_body_{a}_m_s2", f"sensor_combined.accelerometer_m_s2[{i}]", "m/s2")
-        _alias(signals, f"gyro_body_{a}_rad_s", f"sensor_combined.gyro_rad[{i}]", "rad/s")
-    if "vehicle_attitude.q[0]" in signals:
-        w, x, y, z = (signals[f"vehicle_attitude.q[{i}]"].values for i in range(4))
-        t = signals["vehicle_attitude.q[0]"].t_s
-        euler = {
-            "roll_rad": np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
-            "pitch_rad": np.arcsin(np.clip(2 * (w * y - x * z), -1, 1)),
-            "yaw_rad": np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)),
-        }
-        for n, v in euler.items():
-            signals[n] = Signal(n, t, v, "rad", "from vehicle_attitude.q")
-    _alias(signals, "altitude_m", "vehicle_local_position.z", "m", -1.0)
-    _alias(signals, "climb_rate_m_s", "vehicle_local_position.vz", "m/s", -1.0)
+    add_imu_and_attitude(signals)
+    add_local_position(signals)
     _battery(signals, folder, warnings)
-    for n in range(16):
-        _alias(signals, f"servo_{n + 1}_pwm_us", f"actuator_outputs.output[{n}]", "us")
-    for k in range(1, N_MOTORS + 1):
-        _alias(signals, f"motor_{k}_pwm_us", f"servo_{k}_pwm_us", "us")
+    add_outputs(signals, N_MOTORS)
     if "motor_1_pwm_us" in signals and "armed" not in signals:
         s = signals["motor_1_pwm_us"]
         pwm = np.stack([signals[f"motor_{k}_pwm_us"].resample(s.t_s) for k in range(1, N_MOTORS + 1)])
@@ -145,5 +124,5 @@ def _battery(signals: dict[str, Signal], folder: Path, warnings: list[str]) -> N
     if keys and not valid:
         warnings.append(f"{folder}: {', '.join(keys)} are zero or NaN in every row")
     if keys:
-        _alias(signals, "battery_voltage_v", (valid or keys)[0], "V")
-    _alias(signals, "battery_current_a", "battery_status.current_a", "A")
+        alias(signals, "battery_voltage_v", (valid or keys)[0], "V")
+    alias(signals, "battery_current_a", "battery_status.current_a", "A")

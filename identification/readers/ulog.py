@@ -9,6 +9,7 @@ import numpy as np
 from pyulog import ULog
 
 from identification.flightlog import DataQuality, FlightLog, LogError, Signal, add_battery, sanitize_log
+from identification.readers.px4_signals import add_imu_and_attitude, add_local_position, add_outputs, alias
 
 ARMING_STATE_ARMED = 2  #: vehicle_status.arming_state value for armed
 
@@ -60,41 +61,18 @@ def read_ulog(path: Path) -> FlightLog:
         raise LogError(f"{path}: the ULog holds no data messages")
     signals, skipped = _raw_signals(ulog)
 
-    def alias(name: str, key: str, unit: str, scale: float = 1.0, offset: float = 0.0) -> None:
-        if key in signals and name not in signals:
-            s = signals[key]
-            signals[name] = Signal(name, s.t_s, s.values * scale + offset, unit, f"from {key}")
-
-    for i, a in enumerate("xyz"):
-        alias(f"accel_body_{a}_m_s2", f"sensor_combined.accelerometer_m_s2[{i}]", "m/s2")
-        alias(f"gyro_body_{a}_rad_s", f"sensor_combined.gyro_rad[{i}]", "rad/s")
-    if "vehicle_attitude.q[0]" in signals:
-        qs = [signals[f"vehicle_attitude.q[{i}]"].values for i in range(4)]
-        t = signals["vehicle_attitude.q[0]"].t_s
-        w, x, y, z = qs
-        euler = {
-            "roll_rad": np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
-            "pitch_rad": np.arcsin(np.clip(2 * (w * y - x * z), -1, 1)),
-            "yaw_rad": np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)),
-        }
-        for n, v in euler.items():
-            signals[n] = Signal(n, t, v, "rad", "from vehicle_attitude.q")
-    alias("lat_deg", "vehicle_gps_position.latitude_deg", "deg")
-    alias("lon_deg", "vehicle_gps_position.longitude_deg", "deg")
-    alias("height_m", "vehicle_gps_position.altitude_msl_m", "m")
-    alias("lat_deg", "vehicle_gps_position.lat", "deg", 1e-7)
-    alias("lon_deg", "vehicle_gps_position.lon", "deg", 1e-7)
-    alias("height_m", "vehicle_gps_position.alt", "m", 1e-3)
-    for a in ("n", "e", "d"):
-        full = {"n": "north", "e": "east", "d": "down"}[a]
-        alias(f"vel_{full}_m_s", f"vehicle_gps_position.vel_{a}_m_s", "m/s")
-    alias("altitude_m", "vehicle_local_position.z", "m", -1.0)
-    alias("climb_rate_m_s", "vehicle_local_position.vz", "m/s", -1.0)
+    add_imu_and_attitude(signals)
+    alias(signals, "lat_deg", "vehicle_gps_position.latitude_deg", "deg")
+    alias(signals, "lon_deg", "vehicle_gps_position.longitude_deg", "deg")
+    alias(signals, "height_m", "vehicle_gps_position.altitude_msl_m", "m")
+    alias(signals, "lat_deg", "vehicle_gps_position.lat", "deg", 1e-7)
+    alias(signals, "lon_deg", "vehicle_gps_position.lon", "deg", 1e-7)
+    alias(signals, "height_m", "vehicle_gps_position.alt", "m", 1e-3)
+    for a, full in (("n", "north"), ("e", "east"), ("d", "down")):
+        alias(signals, f"vel_{full}_m_s", f"vehicle_gps_position.vel_{a}_m_s", "m/s")
+    add_local_position(signals)
     _battery(signals)
-    for n in range(16):
-        alias(f"servo_{n + 1}_pwm_us", f"actuator_outputs.output[{n}]", "us")
-    for k in range(1, 5):  # PX4 quadrotor: motors on the first four actuator outputs
-        alias(f"motor_{k}_pwm_us", f"servo_{k}_pwm_us", "us")
+    add_outputs(signals, 4)  # PX4 quadrotor: motors on the first four actuator outputs
     if "vehicle_status.arming_state" in signals:
         s = signals["vehicle_status.arming_state"]
         signals["armed"] = Signal("armed", s.t_s, (s.values == ARMING_STATE_ARMED).astype(float), "1",

@@ -128,10 +128,11 @@ def _quadrotor() -> Family:
 
 def _fixed_wing() -> Family:
     from fmu_models.common.params import numeric_fields
-    from fmu_models.fixed_wing.params import DEFAULTS_FILE, FixedWingParams
+    from fmu_models.fixed_wing.params import DEFAULTS_FILE, REFERENCE_ONLY, FixedWingParams
 
-    def base() -> dict[str, Any]:
-        return {"fixed_wing": json.loads(DEFAULTS_FILE.read_text())}
+    def base() -> dict[str, Any]:  # a user file: the published set without its reference-only keys
+        raw = json.loads(DEFAULTS_FILE.read_text())
+        return {"fixed_wing": {k: v for k, v in raw.items() if k not in REFERENCE_ONLY}}
 
     def fields() -> list[tuple[Path_, str]]:
         prop = set(base()["fixed_wing"]["propulsion"])

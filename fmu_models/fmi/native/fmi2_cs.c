@@ -281,10 +281,15 @@ fmi2Status fmi2SetupExperiment(fmi2Component comp, fmi2Boolean toleranceDefined,
     return fmi2OK;
 }
 
-fmi2Status fmi2EnterInitializationMode(fmi2Component comp) {
-    BEGIN("fmi2EnterInitializationMode", MASK_EnterInitializationMode)
-    c->state = InitializationMode;
+/* A call that only moves the instance (allowed in the states of `mask`) to state `to`. */
+static fmi2Status move_to(fmi2Component comp, const char* fn, int mask, ModelState to) {
+    BEGIN(fn, mask)
+    c->state = to;
     return fmi2OK;
+}
+
+fmi2Status fmi2EnterInitializationMode(fmi2Component comp) {
+    return move_to(comp, "fmi2EnterInitializationMode", MASK_EnterInitializationMode, InitializationMode);
 }
 
 /* Python's repr of a float (shortest round-trip, "3100.0", "nan"), so messages read as the pythonfmu backend's */
@@ -366,9 +371,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component comp) {
 }
 
 fmi2Status fmi2Terminate(fmi2Component comp) {
-    BEGIN("fmi2Terminate", MASK_Terminate)
-    c->state = Terminated;
-    return fmi2OK;
+    return move_to(comp, "fmi2Terminate", MASK_Terminate, Terminated);
 }
 
 fmi2Status fmi2Reset(fmi2Component comp) {
@@ -535,51 +538,31 @@ fmi2Status fmi2CancelStep(fmi2Component comp) {
     return fail(c, fmi2Error, "fmi2CancelStep: fmi2DoStep is synchronous here; there is no step to cancel");
 }
 
-fmi2Status fmi2GetStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Status* value) {
-    BEGIN("fmi2GetStatus", MASK_GetStatus)
-    if (!value) return fail(c, fmi2Error, "fmi2GetStatus: value is NULL");
-    if (s == fmi2DoStepStatus) {
-        *value = fmi2OK;
-        return fmi2OK;
+/* The fmi2Get<Type>Status functions: each answers one status kind (fmi2GetIntegerStatus none, kind -1);
+   any other kind is fmi2Discard. */
+static fmi2Status get_status(fmi2Component comp, const char* fn, fmi2StatusKind s, int kind, void* value) {
+    BEGIN(fn, MASK_GetStatus)
+    if (!value) return fail(c, fmi2Error, "%s: value is NULL", fn);
+    if ((int)s != kind) return fail(c, fmi2Discard, "%s: status kind %d is not available", fn, (int)s);
+    switch (s) {
+    case fmi2DoStepStatus: *(fmi2Status*)value = fmi2OK; break; /* fmi2DoStep is synchronous */
+    case fmi2PendingStatus: *(fmi2String*)value = ""; break;
+    case fmi2LastSuccessfulTime: *(fmi2Real*)value = c->time; break;
+    case fmi2Terminated: *(fmi2Boolean*)value = fmi2False; break; /* the FMU never asks to end the simulation */
     }
-    return fail(c, fmi2Discard, "fmi2GetStatus: status kind %d is not available", (int)s);
+    return fmi2OK;
 }
 
-fmi2Status fmi2GetRealStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Real* value) {
-    BEGIN("fmi2GetRealStatus", MASK_GetStatus)
-    if (!value) return fail(c, fmi2Error, "fmi2GetRealStatus: value is NULL");
-    if (s == fmi2LastSuccessfulTime) {
-        *value = c->time;
-        return fmi2OK;
+#define GET_STATUS(Type, TypeName, kind)                                                                       \
+    fmi2Status fmi2Get##Type##Status(fmi2Component comp, const fmi2StatusKind s, TypeName* value) {           \
+        return get_status(comp, "fmi2Get" #Type "Status", s, kind, value);                                    \
     }
-    return fail(c, fmi2Discard, "fmi2GetRealStatus: status kind %d is not available", (int)s);
-}
-
-fmi2Status fmi2GetIntegerStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Integer* value) {
-    BEGIN("fmi2GetIntegerStatus", MASK_GetStatus)
-    if (!value) return fail(c, fmi2Error, "fmi2GetIntegerStatus: value is NULL");
-    return fail(c, fmi2Discard, "fmi2GetIntegerStatus: status kind %d is not available", (int)s);
-}
-
-fmi2Status fmi2GetBooleanStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Boolean* value) {
-    BEGIN("fmi2GetBooleanStatus", MASK_GetStatus)
-    if (!value) return fail(c, fmi2Error, "fmi2GetBooleanStatus: value is NULL");
-    if (s == fmi2Terminated) {
-        *value = fmi2False; /* the FMU never asks to end the simulation */
-        return fmi2OK;
-    }
-    return fail(c, fmi2Discard, "fmi2GetBooleanStatus: status kind %d is not available", (int)s);
-}
-
-fmi2Status fmi2GetStringStatus(fmi2Component comp, const fmi2StatusKind s, fmi2String* value) {
-    BEGIN("fmi2GetStringStatus", MASK_GetStatus)
-    if (!value) return fail(c, fmi2Error, "fmi2GetStringStatus: value is NULL");
-    if (s == fmi2PendingStatus) {
-        *value = "";
-        return fmi2OK;
-    }
-    return fail(c, fmi2Discard, "fmi2GetStringStatus: status kind %d is not available", (int)s);
-}
+GET_STATUS(, fmi2Status, fmi2DoStepStatus)
+GET_STATUS(Real, fmi2Real, fmi2LastSuccessfulTime)
+GET_STATUS(Integer, fmi2Integer, -1)
+GET_STATUS(Boolean, fmi2Boolean, fmi2Terminated)
+GET_STATUS(String, fmi2String, fmi2PendingStatus)
+#undef GET_STATUS
 
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
                                        const fmi2Integer order[], const fmi2Real value[]) {
@@ -646,17 +629,20 @@ static void copy_to_state(Instance* c, FmuState* s) {
     s->init_valid = c->init_valid;
 }
 
+/* The FMU state a call fills: `*FMUstate` when this instance handed it out, else (NULL) a new one; NULL after
+   logging the error. */
+static FmuState* state_to_fill(Instance* c, fmi2FMUstate* FMUstate, const char* fn) {
+    if (*FMUstate) return owned(c, *FMUstate, fn);
+    FmuState* s = new_state(c);
+    if (!s) fail(c, fmi2Error, "%s: out of memory", fn);
+    return s;
+}
+
 fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate* FMUstate) {
     BEGIN("fmi2GetFMUstate", MASK_FMUstate)
     if (!FMUstate) return fail(c, fmi2Error, "fmi2GetFMUstate: FMUstate is NULL");
-    FmuState* s = NULL;
-    if (*FMUstate) {
-        s = owned(c, *FMUstate, "fmi2GetFMUstate");
-        if (!s) return fmi2Error;
-    } else {
-        s = new_state(c);
-        if (!s) return fail(c, fmi2Error, "fmi2GetFMUstate: out of memory");
-    }
+    FmuState* s = state_to_fill(c, FMUstate, "fmi2GetFMUstate");
+    if (!s) return fmi2Error;
     copy_to_state(c, s);
     *FMUstate = s;
     return fmi2OK;
@@ -749,14 +735,8 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component comp, const fmi2Byte serialized
                 ints[4] == StepFailed || ints[4] == StepCanceled || ints[4] == Terminated || ints[4] == Error;
     if (ints[0] != m->nx || ints[1] != m->nu || ints[2] != m->np || ints[3] != m->ny || !known)
         return fail(c, fmi2Error, "fmi2DeSerializeFMUstate: the serialised sizes or state do not match this FMU");
-    FmuState* s = NULL;
-    if (*FMUstate) {
-        s = owned(c, *FMUstate, "fmi2DeSerializeFMUstate");
-        if (!s) return fmi2Error;
-    } else {
-        s = new_state(c);
-        if (!s) return fail(c, fmi2Error, "fmi2DeSerializeFMUstate: out of memory");
-    }
+    FmuState* s = state_to_fill(c, FMUstate, "fmi2DeSerializeFMUstate");
+    if (!s) return fmi2Error;
     s->state = (ModelState)ints[4];
     s->params_dirty = ints[5] != 0;
     s->init_valid = ints[6] != 0;
