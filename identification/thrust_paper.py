@@ -32,6 +32,7 @@ from identification.anfis_train import (
     rmse,
     train_anfis,
 )
+from identification.flightlog import check_quality
 from identification.jsonio import write_json
 from identification.thrust_dataset import (
     PAPER_MIN_PEARSON,
@@ -151,11 +152,15 @@ def load_paper_data(cfg: PaperThrustConfig) -> PaperData:
     for path in (cfg.log, cfg.validate):
         if path is not None and not path.is_file():
             raise FileNotFoundError(f"{path}: log file not found")
-    full = build_thrust_dataset(_read(cfg.log, cfg.channel_map), cfg.dataset, source=str(cfg.log))
+    log = _read(cfg.log, cfg.channel_map)
+    check_quality(log, cfg.force)  # a log damaged beyond DEFAULT_MAX_DAMAGE is refused unless forced
+    full = build_thrust_dataset(log, cfg.dataset, source=str(cfg.log))
     if cfg.validate is not None:
         train = full
         vcfg = dataclasses.replace(cfg.dataset, lag_s=full.lag_s)
-        val = build_thrust_dataset(_read(cfg.validate, cfg.channel_map), vcfg, source=str(cfg.validate))
+        vlog = _read(cfg.validate, cfg.channel_map)
+        check_quality(vlog, cfg.force)
+        val = build_thrust_dataset(vlog, vcfg, source=str(cfg.validate))
         val_name = str(cfg.validate)
     else:
         train, val = full.split(cfg.train_fraction)

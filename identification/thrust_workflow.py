@@ -30,6 +30,7 @@ from fmu_models.common.atmosphere import G0_M_S2 as G0
 from fmu_models.quadrotor.params import QuadrotorParams
 from fmu_models.quadrotor.thrust import effective_pwm, motor_thrust
 from identification.anfis_train import AnfisTrainConfig, is_monotone, r_squared, rmse, train_anfis_motors
+from identification.flightlog import check_quality
 from identification.jsonio import write_json
 from identification.thrust_dataset import (
     MOTOR_SIGNAL,
@@ -97,6 +98,7 @@ class Flight:
     hover: np.ndarray
     yaw_rate: np.ndarray | None = None
     reader_warnings: tuple[str, ...] = ()
+    quality: dict[str, Any] | None = None  #: the log's data-quality summary (``DataQuality.to_dict``)
 
     @property
     def weight_N(self) -> float:
@@ -187,6 +189,7 @@ def load_flight(spec: FlightSpec, cfg: ThrustConfig) -> Flight:
     from identification.readers import read_log
 
     log = read_log(spec.path, channel_map=cfg.channel_map)
+    check_quality(log, cfg.force)  # a log damaged beyond DEFAULT_MAX_DAMAGE is refused unless forced
     ds_cfg = ThrustDatasetConfig(
         mass_kg=spec.mass_kg,
         motor_min_pwm_us=cfg.motor_min_pwm_us,
@@ -202,7 +205,9 @@ def load_flight(spec: FlightSpec, cfg: ThrustConfig) -> Flight:
     hover = np.abs(climb) < HOVER_CLIMB_M_S if climb is not None else np.ones(data.n_samples, bool)
     if not hover.any():
         hover = np.ones(data.n_samples, bool)
-    return Flight(spec, data, pwm, volt, hover, _yaw_rate(log, data), tuple(getattr(log, "warnings", ()) or ()))
+    quality = log.quality.to_dict() if getattr(log, "quality", None) is not None else None
+    return Flight(spec, data, pwm, volt, hover, _yaw_rate(log, data), tuple(getattr(log, "warnings", ()) or ()),
+                  quality)
 
 
 def _yaw_rate(log: Any, data: ThrustDataset) -> np.ndarray | None:
@@ -238,6 +243,7 @@ def flight_summary(f: Flight) -> dict[str, Any]:
         "voltage_range_V": None if f.volt_V is None else [float(f.volt_V.min()), float(f.volt_V.max())],
         "notes": list(f.data.notes),
         "reader_warnings": list(f.reader_warnings),
+        "quality": f.quality,
     }
     return out
 

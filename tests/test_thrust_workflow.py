@@ -250,3 +250,32 @@ def test_erle_yaw_torque_replay_no_worse_than_holding_yaw_rate() -> None:
     held = wins(flights[2])
     jzz = r.params.Jzz_kg_m2
     assert replay_rmse(held, max(fit.torque_per_thrust_m, 0.0), jzz) <= replay_rmse(held, 0.0, jzz)
+
+
+class _Damaged:
+    """A reader's data-quality summary of a log that lost 30 % of its flight time."""
+
+    damage_fraction = 0.3
+
+    def lines(self) -> list[str]:
+        return ["damaged.bin: time jump(s) +1e+06 s at t=56.0 s: the log was split there and 24.0 s dropped"]
+
+    def to_dict(self) -> dict[str, object]:
+        return {"damage_fraction": self.damage_fraction, "lines": self.lines()}
+
+
+def test_a_badly_damaged_flight_is_refused_unless_forced(fake_logs: dict[str, VoltLog], tmp_path: Path) -> None:
+    """Issue 16: identification refuses a log whose damage exceeds the limit (file, damage and --force named);
+    forced, it trains and the damage is in the metrics."""
+    from identification.flightlog import LogError
+
+    log = VoltLog(1.2, 12.0, 11.0, seed=11)
+    log.quality = _Damaged()  # type: ignore[attr-defined]
+    log.source = "damaged.bin"  # type: ignore[attr-defined]
+    fake_logs["damaged.bin"] = log
+    with pytest.raises(LogError, match=r"damaged\.bin: 30\.0 % of the log is damaged or lost.*--force"):
+        identify_thrust(_cfg([("damaged.bin", 1.2)]))
+    out = tmp_path / "p.json"
+    r = identify_thrust(_cfg([("damaged.bin", 1.2)], out=out, force=True, n_mfs=1))
+    assert r.flights[0]["quality"]["damage_fraction"] == 0.3
+    assert json.loads(out.with_suffix(".metrics.json").read_text())["flights"][0]["quality"]["lines"]

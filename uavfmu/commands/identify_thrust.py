@@ -45,7 +45,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="voltage: per-motor voltage-aware model with cross-validation (default); paper: paper "
                    "000's single-log ANFIS of summed PWM with the Pearson gate")
     p.add_argument("--force", action="store_true",
-                   help="exit 0 even when a baseline beats the model (the warning stays); paper: skip the gate")
+                   help="exit 0 even when a baseline beats the model (the warning stays); paper: skip the gate; "
+                   "both: use a log whose damaged or lost share exceeds 5 %% (the damage is still reported)")
     p.add_argument("--channel-map", type=Path, help="TOML/JSON [channels] overriding the log's motor mapping")
     v = p.add_argument_group("voltage method")
     v.add_argument("--calibrate", choices=("auto", "on", "off"), default="auto",
