@@ -18,9 +18,11 @@ Use::
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import json
 import math
+import numbers
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
@@ -37,9 +39,11 @@ __all__ = [
     "PositiveFiniteFloat",
     "Schema",
     "allowed_keys",
+    "bounded",
     "field_bounds",
     "format_problems",
     "load_config",
+    "range_problems",
     "read_config_file",
     "validate_config",
 ]
@@ -217,3 +221,34 @@ def read_config_file(path: str | Path) -> dict[str, Any]:
 def load_config(path: str | Path, schema: type[S]) -> S:
     """Read and validate a config file; :class:`ConfigError` lists every problem with file and field."""
     return validate_config(read_config_file(path), schema, str(path))
+
+
+# ------------------------------------------------------------------ options of library functions
+def bounded(default: Any, lo: float, hi: float, unit: str = "", optional: bool = False) -> Any:
+    """A field of a frozen options dataclass (what a library workflow takes) whose value must be a finite number
+    (an integer where the field is annotated ``int``; never a boolean) in ``[lo, hi]``, or None when
+    ``optional``. ``default`` may be ``dataclasses.MISSING`` (a required field). :func:`range_problems` checks
+    every such field: the range is declared once, beside the field."""
+    meta = {"bounds": (lo, hi), "unit": unit, "optional": optional}
+    return dataclasses.field(metadata=meta) if default is dataclasses.MISSING else dataclasses.field(
+        default=default, metadata=meta)
+
+
+def range_problems(options: Any) -> list[str]:
+    """One line per :func:`bounded` field of the dataclass ``options`` whose value is out of its declared kind
+    or range: ``name = value; allowed range [lo, hi] unit``."""
+    out = []
+    for f in dataclasses.fields(options):
+        spec = f.metadata.get("bounds")
+        value = getattr(options, f.name)
+        if spec is None or (value is None and f.metadata["optional"]):
+            continue
+        integer = str(f.type).split("|")[0].strip() == "int"
+        kind = numbers.Integral if integer else numbers.Real
+        if isinstance(value, bool) or not isinstance(value, kind) or not (spec[0] <= value <= spec[1]):
+            lo, hi = (int(b) for b in spec) if integer else (float(b) for b in spec)
+            unit = f" {f.metadata['unit']}" if f.metadata["unit"] else ""
+            what = " (an integer)" if integer else ""
+            also = " or None" if f.metadata["optional"] else ""
+            out.append(f"{f.name} = {value!r}; allowed range [{lo!r}, {hi!r}]{unit}{what}{also}")
+    return out

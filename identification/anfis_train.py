@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from tqdm import tqdm
 
+from fmu_models.config import bounded, range_problems
 from fmu_models.quadrotor.anfis import MF_TYPES, AnfisMap
 
 MIN_SIGMA_SCALED = 1e-3  #: floor of an MF width in scaled input units (width 2 = whole training range)
@@ -49,34 +50,20 @@ class AnfisTrainConfig:
     error (``None``: run all epochs). ``progress``: show a tqdm bar.
     """
 
-    n_mfs: int = 6
+    n_mfs: int = bounded(6, 1, 50)
     mf_type: str = "gaussian"
-    order: int = 0
-    epochs: int = 100
-    step_size: float = 0.01
-    step_increase: float = 1.1
-    step_decrease: float = 0.9
-    patience: int | None = None
+    order: int = bounded(0, 0, 1)
+    epochs: int = bounded(100, 1, 100_000)
+    step_size: float = bounded(0.01, 1e-12, 1e3)
+    step_increase: float = bounded(1.1, 1.0, 10.0)
+    step_decrease: float = bounded(0.9, 1e-6, 1.0)
+    patience: int | None = bounded(None, 1, 100_000, optional=True)
     progress: bool = False
 
     def __post_init__(self) -> None:
-        problems = []
-        if not (isinstance(self.n_mfs, int) and 1 <= self.n_mfs <= 50):
-            problems.append(f"n_mfs = {self.n_mfs!r}; allowed: integer 1..50")
+        problems = range_problems(self)
         if self.mf_type not in MF_TYPES:
             problems.append(f"mf_type = {self.mf_type!r}; allowed: {', '.join(MF_TYPES)}")
-        if self.order not in (0, 1):
-            problems.append(f"order = {self.order!r}; allowed: 0 or 1")
-        if not (isinstance(self.epochs, int) and 1 <= self.epochs <= 100_000):
-            problems.append(f"epochs = {self.epochs!r}; allowed: integer 1..100000")
-        if not (math.isfinite(self.step_size) and self.step_size > 0.0):
-            problems.append(f"step_size = {self.step_size!r}; must be > 0")
-        if not (self.step_increase >= 1.0):
-            problems.append(f"step_increase = {self.step_increase!r}; must be >= 1")
-        if not (0.0 < self.step_decrease <= 1.0):
-            problems.append(f"step_decrease = {self.step_decrease!r}; allowed: (0, 1]")
-        if self.patience is not None and not (isinstance(self.patience, int) and self.patience >= 1):
-            problems.append(f"patience = {self.patience!r}; allowed: None or integer >= 1")
         if problems:
             raise AnfisTrainingError("AnfisTrainConfig: " + "; ".join(problems))
 

@@ -18,12 +18,13 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import MISSING, dataclass, field
 from typing import Any, NamedTuple
 
 import numpy as np
 from scipy import signal
 
+from fmu_models.config import bounded, range_problems
 from fmu_models.quadrotor.anfis import AnfisMap
 
 PAPER_MIN_PEARSON = 0.85  #: paper 000 section 4: correlation needed "to proceed a good training"
@@ -57,37 +58,20 @@ class ThrustDatasetConfig:
     series per segment (``None``: no filter). ``extra_inputs``: more candidate inputs, used when logged.
     """
 
-    mass_kg: float
-    n_motors: int = 4
-    motor_min_pwm_us: float = 1150.0
-    min_altitude_m: float = 0.5
-    min_segment_s: float = 2.0
-    lag_s: float | None = None
-    max_lag_s: float = 0.3
-    lowpass_hz: float | None = None
+    mass_kg: float = bounded(MISSING, 0.05, 50.0, "kg")
+    n_motors: int = bounded(4, 1, 12)
+    motor_min_pwm_us: float = bounded(1150.0, 800.0, 2200.0, "us")
+    min_altitude_m: float = bounded(0.5, -100.0, 1000.0, "m")
+    min_segment_s: float = bounded(2.0, 0.0, 3600.0, "s")
+    lag_s: float | None = bounded(None, -5.0, 5.0, "s (None: estimate)", optional=True)
+    max_lag_s: float = bounded(0.3, 0.0, 5.0, "s")
+    lowpass_hz: float | None = bounded(None, 1e-3, 1000.0, "Hz (None: no filter)", optional=True)
     extra_inputs: tuple[str, ...] = EXTRA_INPUTS
-    pwm_idle_us: float = 1100.0
+    pwm_idle_us: float = bounded(1100.0, 800.0, 1500.0, "us")
     airborne_on_mean_pwm: bool = False  #: airborne test on the mean motor PWM instead of every motor
 
     def __post_init__(self) -> None:
-        problems = []
-        checks = (
-            ("mass_kg", self.mass_kg, 0.05, 50.0),
-            ("motor_min_pwm_us", self.motor_min_pwm_us, 800.0, 2200.0),
-            ("min_altitude_m", self.min_altitude_m, -100.0, 1000.0),
-            ("min_segment_s", self.min_segment_s, 0.0, 3600.0),
-            ("max_lag_s", self.max_lag_s, 0.0, 5.0),
-            ("pwm_idle_us", self.pwm_idle_us, 800.0, 1500.0),
-        )
-        for name, value, lo, hi in checks:
-            if not (isinstance(value, int | float) and math.isfinite(value) and lo <= value <= hi):
-                problems.append(f"{name} = {value!r}; allowed range [{lo}, {hi}]")
-        if not (isinstance(self.n_motors, int) and 1 <= self.n_motors <= 12):
-            problems.append(f"n_motors = {self.n_motors!r}; allowed 1..12")
-        if self.lag_s is not None and not (math.isfinite(self.lag_s) and abs(self.lag_s) <= 5.0):
-            problems.append(f"lag_s = {self.lag_s!r}; allowed None (estimate) or [-5, 5] s")
-        if self.lowpass_hz is not None and not (math.isfinite(self.lowpass_hz) and self.lowpass_hz > 0.0):
-            problems.append(f"lowpass_hz = {self.lowpass_hz!r}; must be > 0 (or None for no filter)")
+        problems = range_problems(self)
         for name in self.extra_inputs:
             if name not in EXTRA_INPUTS:
                 problems.append(f"extra input {name!r} is not supported; allowed: {', '.join(EXTRA_INPUTS)}")
@@ -488,21 +472,17 @@ class MotorSpeedModel:
     ~ Kv times the applied voltage (no-load; under propeller load it is lower, so k comes out low).
     """
 
-    kv_rpm_per_V: float = 920.0  #: DJI E310/2212-class motors of an F450
-    battery_V: float = 11.1  #: 3S LiPo, nominal
-    pwm_idle_us: float = 1100.0
-    pwm_max_us: float = 1900.0
+    kv_rpm_per_V: float = bounded(920.0, 10.0, 50_000.0, "rpm/V")  #: DJI E310/2212-class motors of an F450
+    battery_V: float = bounded(11.1, 1.0, 100.0, "V")  #: 3S LiPo, nominal
+    pwm_idle_us: float = bounded(1100.0, 800.0, 2500.0, "us")
+    pwm_max_us: float = bounded(1900.0, 800.0, 2500.0, "us")
 
     def __post_init__(self) -> None:
-        problems = []
-        if not (math.isfinite(self.kv_rpm_per_V) and 10.0 <= self.kv_rpm_per_V <= 50_000.0):
-            problems.append(f"kv_rpm_per_V = {self.kv_rpm_per_V}; allowed [10, 50000] rpm/V")
-        if not (math.isfinite(self.battery_V) and 1.0 <= self.battery_V <= 100.0):
-            problems.append(f"battery_V = {self.battery_V}; allowed [1, 100] V")
-        if not (800.0 <= self.pwm_idle_us < self.pwm_max_us <= 2500.0):
+        problems = range_problems(self)
+        if not problems and not self.pwm_idle_us < self.pwm_max_us:
             problems.append(
                 f"pwm_idle_us = {self.pwm_idle_us}, pwm_max_us = {self.pwm_max_us}; "
-                "need 800 <= idle < max <= 2500"
+                "need idle < max"
             )
         if problems:
             raise ThrustDataError("motor speed model: " + "; ".join(problems))

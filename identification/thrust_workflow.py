@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from fmu_models.common.atmosphere import G0_M_S2 as G0
+from fmu_models.config import bounded, range_problems
 from fmu_models.quadrotor.params import QuadrotorParams
 from fmu_models.quadrotor.thrust import effective_pwm, motor_thrust
 from identification.anfis_train import AnfisTrainConfig, is_monotone, r_squared, rmse, train_anfis_motors
@@ -72,17 +73,17 @@ count is chosen by an inner CV on the training flights). ``n_folds_single``: tim
     flights: tuple[FlightSpec, ...]
     out: Path | None = None
     metrics: Path | None = None
-    pwm_idle_us: float = 1000.0
-    pwm_max_us: float = 2000.0
+    pwm_idle_us: float = bounded(1000.0, 800.0, 1500.0, "us")
+    pwm_max_us: float = bounded(2000.0, 1000.0, 2500.0, "us")
     use_voltage: bool = True
     calibrate: str = "auto"
-    n_mfs: int = 2
-    epochs: int = 30
-    n_folds_single: int = 3
-    motor_min_pwm_us: float = 1150.0
-    max_lag_s: float = 0.3
-    lowpass_hz: float | None = None
-    check_block_s: float = 5.0
+    n_mfs: int = bounded(2, 1, 8)
+    epochs: int = bounded(30, 1, 2000)
+    n_folds_single: int = bounded(3, 2, 20)
+    motor_min_pwm_us: float = bounded(1150.0, 800.0, 2200.0, "us")
+    max_lag_s: float = bounded(0.3, 0.0, 5.0, "s")
+    lowpass_hz: float | None = bounded(None, 1e-3, 1000.0, "Hz (None: no filter)", optional=True)
+    check_block_s: float = bounded(5.0, 0.1, 600.0, "s")
     channel_map: Path | None = None
     force: bool = False
 
@@ -168,18 +169,11 @@ def check_config(cfg: ThrustConfig) -> None:
         m = f.mass_kg
         if not (isinstance(m, int | float) and math.isfinite(m) and 0.05 <= m <= 50.0):
             probs.append(f"flight {f.name}: field mass_kg = {m!r}; allowed a finite number in [0.05, 50] kg")
-    if not 800.0 <= cfg.pwm_idle_us < cfg.pwm_max_us <= 2500.0:
-        probs.append(f"pwm_idle_us = {cfg.pwm_idle_us}, pwm_max_us = {cfg.pwm_max_us}; need 800 <= idle < max <= 2500")
+    probs += range_problems(cfg)
+    if not probs and not cfg.pwm_idle_us < cfg.pwm_max_us:
+        probs.append(f"pwm_idle_us = {cfg.pwm_idle_us}, pwm_max_us = {cfg.pwm_max_us}; need idle < max")
     if cfg.calibrate not in CALIBRATIONS:
         probs.append(f"calibrate = {cfg.calibrate!r}; allowed: {', '.join(CALIBRATIONS)}")
-    if not (isinstance(cfg.n_mfs, int) and 1 <= cfg.n_mfs <= 8):
-        probs.append(f"n_mfs = {cfg.n_mfs!r}; allowed 1..8")
-    if not (isinstance(cfg.epochs, int) and 1 <= cfg.epochs <= 2000):
-        probs.append(f"epochs = {cfg.epochs!r}; allowed 1..2000")
-    if not (isinstance(cfg.n_folds_single, int) and 2 <= cfg.n_folds_single <= 20):
-        probs.append(f"n_folds_single = {cfg.n_folds_single!r}; allowed 2..20")
-    if not (math.isfinite(cfg.check_block_s) and 0.1 <= cfg.check_block_s <= 600.0):
-        probs.append(f"check_block_s = {cfg.check_block_s}; allowed [0.1, 600] s")
     if probs:
         raise ThrustDataError("identify thrust: " + "; ".join(probs))
 

@@ -220,3 +220,20 @@ def test_missing_signal_and_bad_options_are_named() -> None:
         build_thrust_dataset(SyntheticLog(), ThrustDatasetConfig(mass_kg=MASS_KG, lowpass_hz=8.0))
     with pytest.raises(ThrustDataError, match=r"kv_rpm_per_V = 0\.0"):
         MotorSpeedModel(kv_rpm_per_V=0.0)
+
+
+@pytest.mark.parametrize(("kwargs", "expected"), [
+    ({"mass_kg": True}, r"mass_kg = True; allowed range \[0\.05, 50\.0\] kg"),  # never taken as 1 kg
+    ({"mass_kg": "1.2"}, r"mass_kg = '1\.2'; allowed range"),
+    ({"mass_kg": math.nan}, r"mass_kg = nan; allowed range"),
+    ({"mass_kg": 1.0, "n_motors": 4.0}, r"n_motors = 4\.0; allowed range \[1, 12\] \(an integer\)"),
+    ({"mass_kg": 1.0, "lag_s": math.inf}, r"lag_s = inf; allowed range \[-5\.0, 5\.0\] s .* or None"),
+])
+def test_options_refuse_booleans_strings_and_non_finite_values(kwargs: dict, expected: str) -> None:
+    with pytest.raises(ThrustDataError, match=expected):
+        ThrustDatasetConfig(**kwargs)
+
+
+def test_options_take_numpy_numbers_and_none_where_optional() -> None:
+    cfg = ThrustDatasetConfig(mass_kg=np.float64(1.2), n_motors=np.int64(4), lag_s=None, lowpass_hz=None)
+    assert cfg.mass_kg == 1.2 and cfg.n_motors == 4
