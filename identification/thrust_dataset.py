@@ -26,6 +26,7 @@ from scipy import signal
 
 from fmu_models.config import bounded, range_problems
 from fmu_models.quadrotor.anfis import AnfisMap
+from fmu_models.quadrotor.constants import N_MOTORS, PWM_IDLE_US
 
 PAPER_MIN_PEARSON = 0.85  #: paper 000 section 4: correlation needed "to proceed a good training"
 GAP_FACTOR = 3.0  #: a PWM sample interval longer than this many median intervals starts a new segment
@@ -67,7 +68,7 @@ class ThrustDatasetConfig:
     max_lag_s: float = bounded(0.3, 0.0, 5.0, "s")
     lowpass_hz: float | None = bounded(None, 1e-3, 1000.0, "Hz (None: no filter)", optional=True)
     extra_inputs: tuple[str, ...] = EXTRA_INPUTS
-    pwm_idle_us: float = bounded(1100.0, 800.0, 1500.0, "us")
+    pwm_idle_us: float = bounded(PWM_IDLE_US, 800.0, 1500.0, "us")
     airborne_on_mean_pwm: bool = False  #: airborne test on the mean motor PWM instead of every motor
 
     def __post_init__(self) -> None:
@@ -474,7 +475,7 @@ class MotorSpeedModel:
 
     kv_rpm_per_V: float = bounded(920.0, 10.0, 50_000.0, "rpm/V")  #: DJI E310/2212-class motors of an F450
     battery_V: float = bounded(11.1, 1.0, 100.0, "V")  #: 3S LiPo, nominal
-    pwm_idle_us: float = bounded(1100.0, 800.0, 2500.0, "us")
+    pwm_idle_us: float = bounded(PWM_IDLE_US, 800.0, 2500.0, "us")
     pwm_max_us: float = bounded(1900.0, 800.0, 2500.0, "us")
 
     def __post_init__(self) -> None:
@@ -516,7 +517,7 @@ def k_thrust_from_curve(amap: AnfisMap, pwm_sum_us: np.ndarray, motor: MotorSpee
     slope = (np.asarray(amap.evaluate([s + step_us])) - np.asarray(amap.evaluate([s - step_us]))) / (
         2 * step_us
     )
-    excess = s / 4.0 - motor.pwm_idle_us
+    excess = s / N_MOTORS - motor.pwm_idle_us
     if np.any(excess <= 0.0):
         raise ThrustDataError(
             f"pwm_idle_us = {motor.pwm_idle_us} is not below every per-motor PWM of the data "

@@ -28,6 +28,7 @@ import numpy as np
 
 from fmu_models.common.atmosphere import G0_M_S2 as G0
 from fmu_models.config import bounded, range_problems
+from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.params import QuadrotorParams
 from fmu_models.quadrotor.thrust import effective_pwm, motor_thrust
 from identification.anfis_train import AnfisTrainConfig, is_monotone, r_squared, rmse, train_anfis_motors
@@ -43,7 +44,6 @@ from identification.thrust_dataset import (
     interval_means,
 )
 
-N_MOTORS = 4
 HOVER_CLIMB_M_S = 0.3  #: |climb rate| below this is hover (calibration, summaries)
 CALIBRATIONS = ("auto", "on", "off")
 

@@ -25,8 +25,10 @@ from typing import Any
 
 import numpy as np
 
+from fmu_models.quadrotor.constants import MASS_KG, MOTOR_PWM_INPUTS, N_MOTORS
+
 REAL_QUAD_LOGS = tuple(("quadrotor", f"arducopter_x_quad_real_{n}.BIN") for n in (218, 104, 105))
-ERLE_MASS_KG = 1.14  #: the Erle quadrotor's mass is not logged; the F450 class default (paper 000 Table 1)
+ERLE_MASS_KG = MASS_KG  #: the Erle quadrotor's mass is not logged; the F450 class default (paper 000 Table 1)
 ROLL_FREE = "C_ell_p,C_ell_delta_a"
 
 
@@ -47,12 +49,12 @@ def hover_check(fmu: Path) -> dict[str, float]:
     from fmu_models.quadrotor.anfis import published_map
 
     amap = published_map()
-    in_band = {f"pwm_{i}_us": 1520.0 for i in range(1, 5)}
+    in_band = dict.fromkeys(MOTOR_PWM_INPUTS, 1520.0)
     g = simulate_fmu(str(fmu), stop_time=0.01, start_values={"init_pos_down_m": -10.0, **in_band},
                      output=["gravity_m_s2"])["gravity_m_s2"][0]
-    pwm = brentq(lambda x: amap.evaluate([np.array([x])])[0] - 1.14 * g, 6000.0, 6217.3) / 4
+    pwm = brentq(lambda x: amap.evaluate([np.array([x])])[0] - MASS_KG * g, 6000.0, 6217.3) / N_MOTORS
     res = simulate_fmu(str(fmu), stop_time=10.0, output_interval=0.01,
-                       start_values={"init_pos_down_m": -10.0, **{f"pwm_{i}_us": pwm for i in range(1, 5)}},
+                       start_values={"init_pos_down_m": -10.0, **dict.fromkeys(MOTOR_PWM_INPUTS, pwm)},
                        output=["altitude_m"])
     return {"hover PWM [us]": pwm, "max |altitude - 10 m| [mm]": 1e3 * float(np.max(np.abs(res["altitude_m"] - 10)))}
 

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from fmu_models.fmi.host import FmuHost, FmuRunError
+from fmu_models.quadrotor.constants import MASS_KG
 
 
 @dataclass
@@ -131,7 +132,7 @@ class QuadrotorAutopilot:
 
     altitude_m: Callable[[float], float]
     thrust_inverse: ThrustInverse
-    mass_kg: float = 1.14
+    mass_kg: float = MASS_KG
     gravity_m_s2: float = 9.80665
     kp_alt: float = 1.2
     kd_alt: float = 1.8

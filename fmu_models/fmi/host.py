@@ -33,6 +33,8 @@ from fmpy.fmi2 import (
     free,
 )
 
+from fmu_models.quadrotor.constants import MOTOR_PWM_INPUTS
+
 STATUS_NAMES = ("ok", "warning", "discard", "error", "fatal", "pending")
 
 
@@ -241,7 +243,7 @@ class FmuHost:
     @property
     def vehicle(self) -> str:
         """``quadrotor`` (motor PWM inputs) or ``fixed_wing`` (surface and throttle inputs) of our FMUs."""
-        if all(f"pwm_{k}_us" in self.variables for k in range(1, 5)):
+        if all(name in self.variables for name in MOTOR_PWM_INPUTS):
             return "quadrotor"
         if all(n in self.variables for n in ("aileron_rad", "elevator_rad", "rudder_rad", "throttle")):
             return "fixed_wing"

@@ -25,10 +25,10 @@ from fmu_models.common.mathns import CA as _CA
 from fmu_models.common.model import Variable
 from fmu_models.common.rigid_body import inertia_matrix
 from fmu_models.quadrotor.anfis import AnfisMap
+from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.params import QuadrotorParams, motor_layout
 from fmu_models.quadrotor.thrust import effective_pwm, motor_thrust, out_of_band
 
-N_MOTORS = 4
 PWM_INPUT_MIN_US = 0.0  #: 0 us = no pulse (motor off); below idle thrust is zero anyway
 PWM_INPUT_MAX_US = 2500.0
 
@@ -70,21 +70,22 @@ class QuadrotorModel(vehicle.BodyVehicleModel):
         self.gamma_deg, self.spin = motor_layout(defaults.frame)
         inputs = (
             *(Variable(f"pwm_{i}_us", "us", f"motor {i} PWM command", 1000.0, PWM_INPUT_MIN_US, PWM_INPUT_MAX_US)
-              for i in range(1, 5)),
+              for i in range(1, N_MOTORS + 1)),
             Variable("battery_voltage_V", "V",
                      "battery voltage (thrust per PWM grows with it; start: battery_nominal_V of the build)",
                      defaults.battery_nominal_V, 0.0, 100.0),
         )
         outputs = (
-            *(Variable(f"thrust_{i}_N", "N", f"motor {i} thrust") for i in range(1, 5)),
+            *(Variable(f"thrust_{i}_N", "N", f"motor {i} thrust") for i in range(1, N_MOTORS + 1)),
             Variable("thrust_total_N", "N", "total thrust along -z body"),
-            *(Variable(f"omega_{i}_rad_s", "rad/s", f"motor {i} speed") for i in range(1, 5)),
+            *(Variable(f"omega_{i}_rad_s", "rad/s", f"motor {i} speed") for i in range(1, N_MOTORS + 1)),
             Variable("thrust_map_out_of_range", "", "a motor's PWM x 4 lies outside the thrust map's trained band",
                      boolean=True),
         )
         super().__init__(
             defaults, inputs,
-            states=tuple(Variable(f"thrust_state_{i}_N", "N", f"motor {i} thrust (lag state)") for i in range(1, 5)),
+            states=tuple(Variable(f"thrust_state_{i}_N", "N", f"motor {i} thrust (lag state)")
+                         for i in range(1, N_MOTORS + 1)),
             state_limits=(1e4,) * N_MOTORS,
             params=anfis_param_variables(defaults.thrust_map),
             outputs=outputs,

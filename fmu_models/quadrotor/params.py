@@ -10,6 +10,7 @@ from typing import Any, Literal
 from fmu_models.common.errors import ParameterError, ProblemList
 from fmu_models.common.params import param, read_json, validate_params
 from fmu_models.quadrotor.anfis import AnfisMap, published_map
+from fmu_models.quadrotor.constants import MASS_KG, N_MOTORS, PWM_IDLE_US
 
 FRAMES = ("x", "+")
 #: keys of a parameter file beside the scalar parameters: (type, default) checked by the schema
@@ -27,7 +28,7 @@ class QuadrotorParams:
     I_M = 3.357e-5 kg m^2, A_x = A_y = A_z = 0.25 kg/s).
     """
 
-    mass_kg: float = param(1.14, "kg", 0.05, 50.0, "vehicle mass (paper 000 Table 1)")
+    mass_kg: float = param(MASS_KG, "kg", 0.05, 50.0, "vehicle mass (paper 000 Table 1)")
     Jxx_kg_m2: float = param(0.007, "kg.m2", 1e-5, 10.0, "inertia about body x (paper 000 Table 1)")
     Jyy_kg_m2: float = param(0.007, "kg.m2", 1e-5, 10.0, "inertia about body y (paper 000 Table 1)")
     Jzz_kg_m2: float = param(0.013, "kg.m2", 1e-5, 10.0, "inertia about body z (paper 000 Table 1)")
@@ -39,7 +40,7 @@ class QuadrotorParams:
     kd_y_N_s_m: float = param(0.25, "N.s/m", 0.0, 100.0, "linear drag along body y (eq. 7)")
     kd_z_N_s_m: float = param(0.25, "N.s/m", 0.0, 100.0, "linear drag along body z (eq. 7)")
     tau_motor_s: float = param(0.0, "s", 0.0, 2.0, "first-order motor thrust time constant (0: none)")
-    pwm_idle_us: float = param(1100.0, "us", 800.0, 1500.0, "per-motor PWM at and below which thrust is 0")
+    pwm_idle_us: float = param(PWM_IDLE_US, "us", 800.0, 1500.0, "per-motor PWM at and below which thrust is 0")
     battery_nominal_V: float = param(
         11.1, "V", 1.0, 100.0, "battery voltage the thrust map refers to (start of the voltage input)"
     )
@@ -74,9 +75,9 @@ class QuadrotorParams:
                 f"thrust_map has inputs {list(thrust_map.inputs)}; the quadrotor model needs exactly one "
                 "input, the summed motor PWM [us]"
             )
-        if scalars.get("pwm_idle_us", 1100.0) * 4 >= thrust_map.input_range[0][0]:
+        if scalars.get("pwm_idle_us", PWM_IDLE_US) * N_MOTORS >= thrust_map.input_range[0][0]:
             probs.add(
-                f"pwm_idle_us = {scalars.get('pwm_idle_us', 1100.0)} x 4 motors must be below the thrust "
+                f"pwm_idle_us = {scalars.get('pwm_idle_us', PWM_IDLE_US)} x {N_MOTORS} motors must be below the thrust "
                 f"map's band, which starts at {thrust_map.input_range[0][0]} us summed"
             )
         probs.raise_if_any()

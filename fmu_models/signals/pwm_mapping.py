@@ -29,6 +29,7 @@ from typing import Any
 from pydantic import Field
 
 from fmu_models.config import ConfigError, FiniteFloat, Schema, validate_config
+from fmu_models.quadrotor.constants import MOTOR_PWM_INPUTS
 
 PWM_LIMITS_US = (500.0, 2500.0)  #: plausible servo pulse widths
 
@@ -219,8 +220,8 @@ def default_mapping(vehicle: str) -> PwmMapping:
     (aileron, elevator, throttle, rudder; surfaces +/-0.35 rad over 1100..1900 us, above trim = roll right,
     nose up, nose right as ArduPlane and PX4 command them; elevator and rudder reversed into uavbook signs)."""
     if vehicle == "quadrotor":
-        return PwmMapping(tuple(Channel(f"pwm_{k}_us", k, 1000.0, 1000.0, 2000.0, 1000.0, 2000.0, failsafe=1000.0)
-                                for k in range(1, 5)))
+        return PwmMapping(tuple(Channel(name, k, 1000.0, 1000.0, 2000.0, 1000.0, 2000.0, failsafe=1000.0)
+                                for k, name in enumerate(MOTOR_PWM_INPUTS, start=1)))
     surf = {"min_us": 1100.0, "trim_us": 1500.0, "max_us": 1900.0, "out_min": -0.35, "out_max": 0.35}
     return PwmMapping.from_dict({"channels": {
         "aileron_rad": {"source": 1, **surf}, "elevator_rad": {"source": 2, **surf, "reversed": True},

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fmu_models.quadrotor.constants import N_MOTORS
 from identification.flightlog import DataQuality, FlightLog, LogError, Signal, add_battery, sanitize_log
 
 DEG = math.pi / 180.0
@@ -377,7 +378,7 @@ def _mapped_outputs(
             elif fn in SURFACE_FUNCTIONS:
                 mapping[f"{SURFACE_FUNCTIONS[fn]}_pwm_us"] = n
     elif "FRAME" in params or any(k.startswith("MOT_") for k in params):
-        mapping = {f"motor_{k}_pwm_us": k for k in range(1, 5)}  # old ArduCopter: motors on outputs 1-4
+        mapping = {f"motor_{k}_pwm_us": k for k in range(1, N_MOTORS + 1)}  # old ArduCopter: motors on outputs 1-4
     mapping.update(channel_map or {})
     for name, n in mapping.items():
         src = signals.get(f"servo_{n}_pwm_us")

@@ -16,11 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
+from fmu_models.quadrotor.constants import N_MOTORS  # PX4 quadrotor: motors on actuator outputs 0..3
 from identification.flightlog import FlightLog, LogError, Signal
 from identification.readers.px4_signals import add_imu_and_attitude, add_local_position, add_outputs, alias
 
 DISARMED_PWM_US = 950.0  #: PX4 PWM_DISARMED is 900 us; anything at or below this is "motors off"
-N_MOTORS = 4  #: PX4 quadrotor: motors on actuator outputs 0..3
 _NAME = re.compile(r"^(?P<flight>.+?)_(?P<topic>[a-z][a-z0-9_]*?)_(?P<inst>\d+)$")
 _TOPICS = (
     "actuator_outputs",

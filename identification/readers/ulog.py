@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 from pyulog import ULog
 
+from fmu_models.quadrotor.constants import N_MOTORS
 from identification.flightlog import DataQuality, FlightLog, LogError, Signal, add_battery, sanitize_log
 from identification.readers.px4_signals import add_imu_and_attitude, add_local_position, add_outputs, alias
 
@@ -72,7 +73,7 @@ def read_ulog(path: Path) -> FlightLog:
         alias(signals, f"vel_{full}_m_s", f"vehicle_gps_position.vel_{a}_m_s", "m/s")
     add_local_position(signals)
     _battery(signals)
-    add_outputs(signals, 4)  # PX4 quadrotor: motors on the first four actuator outputs
+    add_outputs(signals, N_MOTORS)  # PX4 quadrotor: motors on the first four actuator outputs
     if "vehicle_status.arming_state" in signals:
         s = signals["vehicle_status.arming_state"]
         signals["armed"] = Signal("armed", s.t_s, (s.values == ARMING_STATE_ARMED).astype(float), "1",

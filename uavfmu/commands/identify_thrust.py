@@ -15,6 +15,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from fmu_models.quadrotor.constants import PWM_IDLE_US
+
 if TYPE_CHECKING:
     from identification.thrust_dataset import ThrustDataset
     from identification.thrust_paper import PaperThrustConfig, PaperThrustResult
@@ -28,7 +30,7 @@ METHOD_DEFAULTS = {
     "mfs": (2, 3),
     "order": (1, 1),
     "epochs": (30, 100),
-    "pwm_idle_us": (1000.0, 1100.0),
+    "pwm_idle_us": (1000.0, PWM_IDLE_US),
     "pwm_max_us": (2000.0, 1900.0),
     "check_block_s": (5.0, 5.0),
 }
