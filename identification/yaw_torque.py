@@ -1,7 +1,7 @@
 """Yaw torque per thrust of a quadrotor from the logged yaw response, by output error (issue 13 item 6).
 
-The quadrotor FMU's yaw axis (paper 000 eq. 10, FRD, Jxx = Jyy so the gyroscopic and Euler terms vanish
-about z) is ``Jzz dr/dt = -sum_i s_i b Omega_i^2 = -(b/k) sum_i s_i T_i``: only the ratio ``c = b/k`` [m]
+The quadrotor FMU's yaw axis (paper 000 eq. 10, FRD, Jx = Jy so the gyroscopic and Euler terms vanish
+about z) is ``Jz dr/dt = -sum_i s_i b Omega_i^2 = -(b/k) sum_i s_i T_i``: only the ratio ``c = b/k`` [m]
 (fan torque per newton of thrust) matters, with ``T_i`` from the identified thrust model. ``c`` is
 estimated by :class:`identification.oem.OutputErrorEstimator` on that one-state model, replaying the
 logged PWM over short windows that each start at the logged yaw rate; the Cramer-Rao bound comes with it.
@@ -29,15 +29,15 @@ class YawAxisModel:
     """One-state yaw model in the ``VehicleModel`` form: input ``sum_i s_i T_i`` [N], output yaw rate."""
 
     name = "quadrotor_yaw_axis"
-    description = "yaw axis of the quadrotor model: Jzz dr/dt = -(b/k) sum s_i T_i"
+    description = "yaw axis of the quadrotor model: Jz dr/dt = -(b/k) sum s_i T_i"
 
-    def __init__(self, jzz_kg_m2: float, c0_m: float) -> None:
+    def __init__(self, jz_kg_m2: float, c0_m: float) -> None:
         self.states = Layout((Variable("rate_z_rad_s", "rad/s", "yaw rate, body z"),))
         self.state_limits = (1e3,)
         self.inputs = Layout((Variable("spin_thrust_N", "N", "sum_i s_i T_i (s_i = +1 clockwise)"),))
         self.params = Layout((
             Variable("torque_per_thrust_m", "m", "yaw torque per thrust b/k", c0_m),
-            Variable("Jzz_kg_m2", "kg.m2", "inertia about body z", jzz_kg_m2, 1e-6, None),
+            Variable("Jz_kg_m2", "kg.m2", "inertia about body z", jz_kg_m2, 1e-6, None),
         ))
         self.outputs = Layout((Variable("rate_z_rad_s", "rad/s", "yaw rate, body z"),))
 
@@ -98,7 +98,7 @@ def replay_rmse(ms: list[Any], c_m: float, jzz: float) -> float:
 
 
 def identify_yaw_torque(ms: list[Any], params: QuadrotorParams) -> YawResult:
-    """Output-error estimate of ``c = b/k`` on the windows ``ms``; ``params`` give Jzz, k and the default b."""
+    """Output-error estimate of ``c = b/k`` on the windows ``ms``; ``params`` give Jz, k and the default b."""
     try:
         from identification.oem import OutputErrorEstimator as Estimator
     except ImportError:  # older name of the same class
@@ -107,13 +107,13 @@ def identify_yaw_torque(ms: list[Any], params: QuadrotorParams) -> YawResult:
     if not ms:
         raise ValueError("no continuous airborne window of yaw data to identify the yaw torque from")
     c_default = params.b_drag_N_m_s2 / params.k_thrust_N_s2
-    model = YawAxisModel(params.Jzz_kg_m2, c_default)
+    model = YawAxisModel(params.Jz_kg_m2, c_default)
     est = Estimator(model, model.params.starts(), ["torque_per_thrust_m"], ["rate_z_rad_s"],
                     bounds={"torque_per_thrust_m": C_BOUNDS_M}, compile=False)
     e = est.estimate(ms, weight=np.eye(1))
     c = float(e.values[0])
     c_fmu = max(c, 0.0)  # b >= 0 in the FMU: a negative c (wrong-way response) degrades to holding
-    jzz = params.Jzz_kg_m2
+    jzz = params.Jz_kg_m2
     return YawResult(c, float(e.std[0]), c_fmu * params.k_thrust_N_s2, replay_rmse(ms, c_fmu, jzz),
                      replay_rmse(ms, 0.0, jzz), replay_rmse(ms, c_default, jzz), len(ms))
 

@@ -105,7 +105,7 @@ def test_every_variable_has_unit_and_description(quadrotor_fmu: Path) -> None:
 def test_every_physical_parameter_is_tunable(quadrotor_fmu: Path) -> None:
     md = read_model_description(str(quadrotor_fmu))
     params = {v.name: v for v in md.modelVariables if v.causality == "parameter"}
-    for name in ("mass_kg", "Jxx_kg_m2", "arm_length_m", "k_thrust_N_s2", "anfis_mean_1_us", "anfis_cons_6_N",
+    for name in ("mass_kg", "Jx_kg_m2", "arm_length_m", "k_thrust_N_s2", "anfis_mean_1_us", "anfis_cons_6_N",
                  "init_pos_down_m", "home_lat_deg", "step_internal_s"):
         assert params[name].variability == "tunable"
 

@@ -38,10 +38,18 @@ def test_mass_out_of_range_is_refused(bad: float) -> None:
 
 
 def test_every_problem_is_listed_at_once_with_a_did_you_mean() -> None:
-    lines = _problems({"mass_kg": True, "Jxx_kg_m2": "0.007", "arm_lenght_m": 0.2, "frame": "hexa"})
+    lines = _problems({"mass_kg": True, "Jx_kg_m2": "0.007", "arm_lenght_m": 0.2, "frame": "hexa"})
     assert len(lines) == 4
     assert "arm_lenght_m is not a parameter (did you mean arm_length_m?)" in lines
     assert any(line.startswith("frame = 'hexa'") for line in lines)
+
+
+def test_quadrotor_inertia_keys_of_0_1_are_named_with_their_new_name() -> None:
+    """Jxx/Jyy/Jzz became Jx/Jy/Jz (as the fixed wing and the Aerosonde set name them)."""
+    lines = _problems({"Jxx_kg_m2": 0.007, "Jzz_kg_m2": 0.013})
+    assert lines == ["Jxx_kg_m2 is no longer a parameter: renamed Jx_kg_m2 (the same value); rename the key",
+                     "Jzz_kg_m2 is no longer a parameter: renamed Jz_kg_m2 (the same value); rename the key"]
+    assert QuadrotorParams.from_dict({"Jz_kg_m2": 0.02}).Jz_kg_m2 == 0.02
 
 
 def test_integers_are_numbers_and_stored_as_floats() -> None:

@@ -248,7 +248,7 @@ def test_erle_yaw_torque_replay_no_worse_than_holding_yaw_rate() -> None:
 
     fit = identify_yaw_torque(wins(flights[0]) + wins(flights[1]), r.params)
     held = wins(flights[2])
-    jzz = r.params.Jzz_kg_m2
+    jzz = r.params.Jz_kg_m2
     assert replay_rmse(held, max(fit.torque_per_thrust_m, 0.0), jzz) <= replay_rmse(held, 0.0, jzz)
 
 

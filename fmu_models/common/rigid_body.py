@@ -41,12 +41,12 @@ def quat_from_euler(roll_rad: Any, pitch_rad: Any, yaw_rad: Any) -> Any:
     return ca.vertcat(*euler_to_quat(roll_rad, pitch_rad, yaw_rad, CA))
 
 
-def inertia_matrix(Jxx: Any, Jyy: Any, Jzz: Any, Jxz: Any = 0.0) -> Any:
+def inertia_matrix(Jx: Any, Jy: Any, Jz: Any, Jxz: Any = 0.0) -> Any:
     """Body inertia matrix [kg m^2] of a vehicle symmetric about its x-z plane (only Jxz off-diagonal)."""
     return ca.vertcat(
-        ca.horzcat(Jxx, 0, -Jxz),
-        ca.horzcat(0, Jyy, 0),
-        ca.horzcat(-Jxz, 0, Jzz),
+        ca.horzcat(Jx, 0, -Jxz),
+        ca.horzcat(0, Jy, 0),
+        ca.horzcat(-Jxz, 0, Jz),
     )
 
 

@@ -182,7 +182,7 @@ class QuadrotorModel(vehicle.BodyVehicleModel):
     # ------------------------------------------------------------------ VehicleModel
     def inertia(self, p: Any) -> Any:
         pv = self.params.view(p)
-        return inertia_matrix(pv.Jxx_kg_m2, pv.Jyy_kg_m2, pv.Jzz_kg_m2, 0.0)
+        return inertia_matrix(pv.Jx_kg_m2, pv.Jy_kg_m2, pv.Jz_kg_m2, 0.0)
 
     def derivatives(self, t: Any, x: Any, u: Any, p: Any) -> Any:
         """State derivative: 16 body states (shared 6-DOF) and 4 motor-lag states."""

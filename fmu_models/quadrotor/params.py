@@ -18,6 +18,10 @@ FILE_EXTRAS = {"frame": (Literal["x", "+"], "x"), "thrust_map": (dict[str, Any] 
                "k_thrust_source": (str, "")}
 
 
+#: parameters renamed since 0.1.0 (inertia named as the fixed wing's and the Aerosonde set's: Jx, Jy, Jz)
+RENAMED = {f"J{a}{a}_kg_m2": f"renamed J{a}_kg_m2 (the same value); rename the key" for a in "xyz"}
+
+
 @dataclass(frozen=True)
 class QuadrotorParams:
     """Physical parameters of a quadrotor (SI units).
@@ -29,9 +33,9 @@ class QuadrotorParams:
     """
 
     mass_kg: float = param(MASS_KG, "kg", 0.05, 50.0, "vehicle mass (paper 000 Table 1)")
-    Jxx_kg_m2: float = param(0.007, "kg.m2", 1e-5, 10.0, "inertia about body x (paper 000 Table 1)")
-    Jyy_kg_m2: float = param(0.007, "kg.m2", 1e-5, 10.0, "inertia about body y (paper 000 Table 1)")
-    Jzz_kg_m2: float = param(0.013, "kg.m2", 1e-5, 10.0, "inertia about body z (paper 000 Table 1)")
+    Jx_kg_m2: float = param(0.007, "kg.m2", 1e-5, 10.0, "inertia about body x (paper 000 Table 1)")
+    Jy_kg_m2: float = param(0.007, "kg.m2", 1e-5, 10.0, "inertia about body y (paper 000 Table 1)")
+    Jz_kg_m2: float = param(0.013, "kg.m2", 1e-5, 10.0, "inertia about body z (paper 000 Table 1)")
     arm_length_m: float = param(0.220, "m", 0.02, 5.0, "arm length l, CG to motor (paper 000 Table 1)")
     k_thrust_N_s2: float = param(2.980e-6, "N.s2", 1e-9, 1e-2, "thrust constant k, T_i = k Omega_i^2 (eq. 6)")
     b_drag_N_m_s2: float = param(1.140e-7, "N.m.s2", 0.0, 1e-3, "fan torque constant b (eq. 10)")
@@ -60,7 +64,7 @@ class QuadrotorParams:
     @classmethod
     def from_dict(cls, values: dict[str, Any], source: str = "quadrotor parameters") -> QuadrotorParams:
         """Defaults overridden by ``values``; every problem in ``values`` is reported at once."""
-        scalars = validate_params(cls, values, source, extra=FILE_EXTRAS)
+        scalars = validate_params(cls, values, source, extra=FILE_EXTRAS, retired=RENAMED)
         scalars.pop("k_thrust_source", None)
         frame = scalars.pop("frame", "x")
         probs = ProblemList(source)
