@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -42,6 +43,15 @@ def controller_inputs(q: tuple[float, float, float, float], rates: tuple[float, 
 
 def hold_10m_autopilot() -> QuadrotorAutopilot:
     return QuadrotorAutopilot(lambda t: 10.0, published_thrust_inverse())
+
+
+def recorded(server: Any, timeout_s: float = 5.0) -> Any:
+    """The server's recorder once it has written a row for every step (the row of the frame just answered is
+    written after the reply, off the autopilot's critical path); bounded wait."""
+    deadline = time.monotonic() + timeout_s
+    while server.recorder.rows < server.stats.steps and time.monotonic() < deadline:
+        time.sleep(0.001)
+    return server.recorder
 
 
 @contextmanager

@@ -15,7 +15,7 @@ from hil_adapter.ardupilot_json import ArduPilotJsonServer, UdpTransport
 from hil_adapter.core import Plant, Recorder
 from hil_adapter.packets import SERVO16_MAGIC, SERVO32_MAGIC, PacketError, ServoPacket, parse_json_state
 from identification.readers import read_log
-from tests.hil_fakes import controller_inputs, hold_10m_autopilot, serving
+from tests.hil_fakes import controller_inputs, hold_10m_autopilot, recorded, serving
 
 RATE_HZ = 250
 
@@ -84,7 +84,7 @@ def test_at_rest_imu_reads_gravity_and_resends_and_restarts(server) -> None:
     assert server.stats.restarts == 1 and back["timestamp"] == pytest.approx(1 / RATE_HZ)
     assert back["position"] == pytest.approx([0, 0, 0], abs=0.02)
     assert server.plant.t_s == pytest.approx(st_now["timestamp"] + 1 / RATE_HZ)
-    rec_t = read_log(server.recorder.path).signal("altitude_m").t_s
+    rec_t = read_log(recorded(server).path).signal("altitude_m").t_s
     assert len(rec_t) == server.stats.steps and np.all(np.diff(rec_t) > 0)  # one continuous record
     sitl.sock.sendto(b"\x00\x01garbage", server.transport.address)
     sitl.exchange(2, [1000] * 4)  # still answering
@@ -109,7 +109,7 @@ def test_closed_loop_hover_at_10_m_through_json(server) -> None:
     assert np.all(np.abs(hold - 10.0) < 0.5), (hold.min(), hold.max())
     assert server.stats.steps == len(alts) and server.stats.malformed == 0
     # everything in and out was recorded, readable by the project's log readers
-    log = read_log(server.recorder.path)
+    log = read_log(recorded(server).path)
     assert len(log.signal("altitude_m").t_s) == len(alts)
     assert abs(log.signal("altitude_m").values[-1] - 10.0) < 0.5
 
