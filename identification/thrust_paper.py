@@ -21,13 +21,15 @@ from typing import Any
 
 import numpy as np
 
+from fmu_models.common.units import G0_M_S2
 from fmu_models.quadrotor.anfis import AnfisMap
+from fmu_models.quadrotor.constants import N_MOTORS
+from fmu_models.quadrotor.thrust import thrust_sum
 from identification.anfis_train import (
     AnfisTrainConfig,
     PolynomialFit,
     TrainResult,
     polynomial_baselines,
-    predict,
     r_squared,
     rmse,
     train_anfis,
@@ -35,6 +37,7 @@ from identification.anfis_train import (
 from identification.flightlog import check_quality
 from identification.jsonio import write_json
 from identification.thrust_dataset import (
+    MOTOR_SIGNAL,
     PAPER_MIN_PEARSON,
     CorrelationGateError,
     MotorSpeedModel,
@@ -136,6 +139,7 @@ class PaperThrustResult:
     correlations: dict[str, float]
     k_thrust_N_s2: float
     gate_forced: bool
+    model_beats_baselines: bool = True
     warnings: tuple[str, ...] = ()
     notes: tuple[str, ...] = ()
 
@@ -197,12 +201,13 @@ def identify_thrust_paper(
     for w in k_warnings:
         warn(w)
     section = _params_section(cfg, amap, k_value, k_source)
-    metrics.update(_fit_metrics(train_result, data, polys))
+    metrics.update(_fit_metrics(train_result, data, polys, fmu_thrust(section), cfg.dataset.mass_kg))
     metrics.update(_k_metrics(k_value, kc))
     write_json(cfg.out, {"quadrotor": section, "_identification": {"metrics": str(cfg.metrics_path)}})
     write_json(cfg.metrics_path, metrics)
     if cfg.plots:
-        _fit_plots(cfg.plots, data, train_result, min(polys, key=lambda p: p.test_rmse))
+        _fit_plots(cfg.plots, data, train_result, min(polys, key=lambda p: p.test_rmse), fmu_thrust(section),
+                   cfg.dataset.pwm_idle_us)
     return PaperThrustResult(
         metrics=metrics,
         params_path=cfg.out,
@@ -210,6 +215,7 @@ def identify_thrust_paper(
         correlations=data.correlations,
         k_thrust_N_s2=k_value,
         gate_forced=bool(gate_warnings),
+        model_beats_baselines=bool(metrics["model_beats_baselines"]),
         warnings=tuple(gate_warnings + k_warnings),
         notes=tuple(data.full.notes),
     )
@@ -311,12 +317,36 @@ def _params_section(cfg: PaperThrustConfig, amap: AnfisMap, k_value: float, k_so
     return section
 
 
-def _fit_metrics(res: TrainResult, data: PaperData, polys: list[PolynomialFit]) -> dict[str, Any]:
-    """Training history and the scores on training and validation data (RMSE [N], R^2, Pearson r)."""
+def fmu_thrust(section: dict[str, Any]) -> Callable[[ThrustDataset], np.ndarray]:
+    """Total thrust [N] of a data set's per-motor PWM as the FMU built from ``section`` evaluates it (band
+    extension, idle, nominal voltage): every figure is scored with it, never with the raw map."""
+    from fmu_models.quadrotor.params import QuadrotorParams
+    from identification.thrust_workflow import fmu_total_thrust
+
+    params = QuadrotorParams.from_dict(section)
+
+    def total(ds: ThrustDataset) -> np.ndarray:
+        pwm = np.stack([ds.inputs[MOTOR_SIGNAL.format(k=k)] for k in range(1, N_MOTORS + 1)], axis=1)
+        return fmu_total_thrust(params, pwm, np.full(len(pwm), params.battery_nominal_V))
+
+    return total
+
+
+def _fit_metrics(res: TrainResult, data: PaperData, polys: list[PolynomialFit],
+                 thrust: Callable[[ThrustDataset], np.ndarray], mass_kg: float) -> dict[str, Any]:
+    """Training history and the scores on training and validation data (RMSE [N], R^2, Pearson r) of the
+    thrust the FMU evaluates, beside the constant (m g) and the least-squares polynomials of summed PWM."""
     train, val = data.train, data.val
-    y_val = predict(res.amap, val.pwm_sum_us)
-    y_train = predict(res.amap, train.pwm_sum_us)
+    y_val, y_train = thrust(val), thrust(train)
+    constant = rmse(np.full(val.n_samples, mass_kg * G0_M_S2), val.fz_N)
+    best = min([constant, *(p.test_rmse for p in polys)])
+    beats = rmse(y_val, val.fz_N) < best
     return {
+        "scored_with": "fmu_models.quadrotor.thrust.motor_thrust per motor (the FMU's function)",
+        "constant_validation_rmse_N": constant,
+        "model_beats_baselines": beats,
+        "verdict": "model beats every baseline on validation data" if beats
+        else "MODEL LOSES to a baseline on validation data",
         "epochs": res.epochs_run,
         "best_epoch": res.best_epoch + 1,
         "train_rmse_N": rmse(y_train, train.fz_N),
@@ -342,7 +372,8 @@ def _k_metrics(k_value: float, kc: ThrustConstant | None) -> dict[str, Any]:
     }
 
 
-def _fit_plots(folder: Path, data: PaperData, res: TrainResult, best_poly: PolynomialFit) -> None:
+def _fit_plots(folder: Path, data: PaperData, res: TrainResult, best_poly: PolynomialFit,
+               thrust: Callable[[ThrustDataset], np.ndarray], idle_us: float) -> None:
     """Paper 000 Figs. 4-6: learning curves, validation overlay, thrust curve against the best polynomial."""
     from identification import plots
 
@@ -352,19 +383,20 @@ def _fit_plots(folder: Path, data: PaperData, res: TrainResult, best_poly: Polyn
         folder / "fig5_validation.png",
         val.time_s,
         val.fz_N,
-        predict(amap, val.pwm_sum_us),
+        thrust(val),
         val.sample_period_s,
         title=f"validation on {data.val_name}",
     )
     lo = min(train.pwm_sum_us.min(), val.pwm_sum_us.min())
     hi = max(train.pwm_sum_us.max(), val.pwm_sum_us.max())
     grid = np.linspace(lo, hi, 300)
+    band = amap.input_range[0]
     plots.thrust_curve(
         folder / "fig6_thrust_curve.png",
         np.concatenate([train.pwm_sum_us, val.pwm_sum_us]),
         np.concatenate([train.fz_N, val.fz_N]),
         [
-            ("ANFIS", grid, predict(amap, grid)),
+            ("ANFIS (as the FMU evaluates it)", grid, thrust_sum(amap, grid, N_MOTORS * idle_us, *band)),
             (f"polynomial degree {best_poly.degree}", grid, best_poly(grid)),
         ],
         amap.input_range[0],

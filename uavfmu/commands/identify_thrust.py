@@ -4,7 +4,8 @@ print the per-flight summaries and the held-out table.
 Exit status: 0 the model beats every baseline on held-out data (or ``--force``), 2 bad input, 3 the model
 loses to a baseline (the parameter file is still written). ``--method paper`` runs paper 000's single-log
 workflow instead (Pearson gate, ANFIS of summed PWM; :func:`identification.thrust_paper.identify_thrust_paper`),
-exit 3 there = gate refused.
+exit 3 there = gate refused, or the model (scored as the FMU evaluates it) loses to the constant or a polynomial
+on the validation data (``--force``: exit 0, the warning stays).
 """
 
 from __future__ import annotations
@@ -155,6 +156,10 @@ def _run_paper(args: argparse.Namespace, flights: list[tuple[Path, float]]) -> i
     except (ThrustDataError, AnfisTrainingError, ParameterError, FileNotFoundError, LogError) as err:
         return _error(str(err))
     print(paper_summary(result))
+    if not result.model_beats_baselines:
+        tail = " (--force: exit 0)" if args.force else " (exit 3; --force to exit 0)"
+        print(f"uavfmu identify thrust: MODEL LOSES to a baseline on validation data{tail}", file=sys.stderr)
+        return EXIT_OK if args.force else EXIT_LOSES
     return EXIT_OK
 
 
@@ -202,8 +207,10 @@ def paper_summary(result: PaperThrustResult) -> str:
         ("samples train / validation", f"{m['n_train']} / {m['n_validation']}"),
         ("epochs (kept)", f"{m['epochs']} ({m['best_epoch']})"),
         ("train RMSE [N], R^2", f"{m['train_rmse_N']:.3f}, {m['train_r2']:.3f}"),
-        ("validation RMSE [N], R^2", f"{m['validation_rmse_N']:.3f}, {m['validation_r2']:.3f}"),
+        ("validation RMSE [N], R^2", f"{m['validation_rmse_N']:.3f}, {m['validation_r2']:.3f} (as the FMU evaluates)"),
         ("polynomial val. RMSE [N]", polys),
+        ("constant m g val. RMSE [N]", f"{m['constant_validation_rmse_N']:.3f}"),
+        ("verdict", m["verdict"]),
         ("trained band [us]", f"{m['band_us'][0]:.0f} .. {m['band_us'][1]:.0f}"),
         ("k_thrust [N s^2]", f"{result.k_thrust_N_s2:.4g}"),
         ("parameters", str(result.params_path)),
