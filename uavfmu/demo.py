@@ -197,7 +197,10 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {name:<16} {e['value']:10.4f} +- {e['std']:.4f} ({e['bound_method']})   "
                   f"truth {getattr(truth, name):8.4f}")
         theil = found["aero"]["metrics"]["validation"]["roll_rad"]["theil_u"]
+        rm = found["aero"]["baselines_validation"]["roll_rad"]["rmse"]
         print(f"  {'held-out roll angle Theil U':<36} {theil:10.4f}")
+        print(f"  {'held-out roll RMSE [rad] model':<36} {rm['model']:10.4f}  (persistence {rm['persistence']:.4f}, "
+              f"segment mean {rm['segment_mean']:.4f})")
     failures = print_validation(results, report_dir)
     print(f"total time {time.perf_counter() - t_start:.1f} s")
     return 1 if failures else 0
