@@ -243,7 +243,7 @@ def range_problems(options: Any) -> list[str]:
         value = getattr(options, f.name)
         if spec is None or (value is None and f.metadata["optional"]):
             continue
-        integer = str(f.type).split("|")[0].strip() == "int"
+        integer = f.type is int or str(f.type).split("|")[0].strip() == "int"  # annotation, or its text
         kind = numbers.Integral if integer else numbers.Real
         if isinstance(value, bool) or not isinstance(value, kind) or not (spec[0] <= value <= spec[1]):
             lo, hi = (int(b) for b in spec) if integer else (float(b) for b in spec)
