@@ -74,6 +74,8 @@ SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
     "fmi2GetStatus": (B, [V, B, C.c_void_p]),
     "fmi2GetRealStatus": (B, [V, B, C.c_void_p]),
     "fmi2GetBooleanStatus": (B, [V, B, C.c_void_p]),
+    "fmi2GetIntegerStatus": (B, [V, B, C.c_void_p]),
+    "fmi2GetStringStatus": (B, [V, B, C.c_void_p]),
     "fmi2GetFMUstate": (B, [V, C.POINTER(C.c_void_p)]),
     "fmi2SetFMUstate": (B, [V, V]),
     "fmi2FreeFMUstate": (B, [V, C.POINTER(C.c_void_p)]),
@@ -235,7 +237,8 @@ def run_op(models: dict[str, Model], op: list[Any]) -> int | None:
         return _array_call(m, comp, name.capitalize(), args[0], args[1], args[2], args[3])
     if name == "status":
         out = (C.c_double * 2)()
-        fn = ("fmi2GetStatus", "fmi2GetRealStatus", "fmi2GetBooleanStatus")[args[0]]
+        fn = ("fmi2GetStatus", "fmi2GetRealStatus", "fmi2GetBooleanStatus", "fmi2GetIntegerStatus",
+              "fmi2GetStringStatus")[args[0]]
         return m.call(fn, comp, args[1], None if args[2] else C.cast(out, C.c_void_p))
     if name == "debug":
         cats = (C.c_char_p * 2)(b"logAll", b"nonsense")

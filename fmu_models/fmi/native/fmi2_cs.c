@@ -543,14 +543,15 @@ fmi2Status fmi2CancelStep(fmi2Component comp) {
 static fmi2Status get_status(fmi2Component comp, const char* fn, fmi2StatusKind s, int kind, void* value) {
     BEGIN(fn, MASK_GetStatus)
     if (!value) return fail(c, fmi2Error, "%s: value is NULL", fn);
-    if ((int)s != kind) return fail(c, fmi2Discard, "%s: status kind %d is not available", fn, (int)s);
+    /* kind -1 (no status of that type) never matches: a caller's (fmi2StatusKind)-1 is not answered either */
+    if (kind < 0 || (int)s != kind) return fail(c, fmi2Discard, "%s: status kind %d is not available", fn, (int)s);
     switch (s) {
-    case fmi2DoStepStatus: *(fmi2Status*)value = fmi2OK; break; /* fmi2DoStep is synchronous */
-    case fmi2PendingStatus: *(fmi2String*)value = ""; break;
-    case fmi2LastSuccessfulTime: *(fmi2Real*)value = c->time; break;
-    case fmi2Terminated: *(fmi2Boolean*)value = fmi2False; break; /* the FMU never asks to end the simulation */
+    case fmi2DoStepStatus: *(fmi2Status*)value = fmi2OK; return fmi2OK; /* fmi2DoStep is synchronous */
+    case fmi2PendingStatus: *(fmi2String*)value = ""; return fmi2OK;
+    case fmi2LastSuccessfulTime: *(fmi2Real*)value = c->time; return fmi2OK;
+    case fmi2Terminated: *(fmi2Boolean*)value = fmi2False; return fmi2OK; /* the FMU never ends the simulation */
+    default: return fail(c, fmi2Discard, "%s: status kind %d is not available", fn, (int)s);
     }
-    return fmi2OK;
 }
 
 #define GET_STATUS(Type, TypeName, kind)                                                                       \
