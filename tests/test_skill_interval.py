@@ -1,0 +1,62 @@
+"""Skill with a margin: block-bootstrap intervals decide win, tie or lose."""
+
+import numpy as np
+import pytest
+
+from identification.metrics import MetricsError, block_starts, skill_interval
+
+
+def _series(rng: np.random.Generator, n: int, model_sd: float, base_sd: float):
+    y = rng.standard_normal(n)
+    return y, y + model_sd * rng.standard_normal(n), y + base_sd * rng.standard_normal(n)
+
+
+def test_clear_win_is_a_win_and_clear_loss_a_loss():
+    rng = np.random.default_rng(1)
+    y, m, b = _series(rng, 4000, 0.5, 1.0)
+    starts = block_starts(y.size, 100)
+    win = skill_interval(y, m, b, starts)
+    assert win.outcome == "win" and win.lo > 0.3 and win.lo <= win.skill <= win.hi
+    lose = skill_interval(y, b, m, starts)
+    assert lose.outcome == "lose" and lose.hi < 0
+
+
+def test_small_skill_with_noise_is_a_tie():
+    """A model whose skill is +0.02 with a standard error of about 0.05 is a tie, not a win; the same skill
+    with little spread across blocks is a win."""
+    rng = np.random.default_rng(2)
+    n_blocks, per = 20, 50
+    y = np.zeros(n_blocks * per)
+    e = rng.standard_normal((n_blocks, per))
+    e = (e / np.sqrt(np.mean(e * e, axis=1, keepdims=True))).ravel()  # baseline MSE exactly 1 in every block
+    starts = block_starts(y.size, per)
+
+    def with_ratio_spread(sd: float):
+        g = rng.gamma(1.0 / sd**2, sd**2, n_blocks)  # block MSE ratios, mean 1 after scaling
+        ratio = 0.98**2 * g / g.mean()  # pooled skill exactly 1 - 0.98 = 0.02
+        return skill_interval(y, y + np.repeat(np.sqrt(ratio), per) * e, y + e, starts)
+
+    noisy = with_ratio_spread(0.45)  # standard error of the skill about 0.45 / sqrt(20) / 2 = 0.05
+    assert abs(noisy.skill - 0.02) < 1e-9
+    assert noisy.outcome == "tie" and noisy.lo < 0 < noisy.hi and noisy.hi - noisy.lo > 0.08
+    steady = with_ratio_spread(0.005)
+    assert abs(steady.skill - 0.02) < 1e-9 and steady.outcome == "win"
+
+
+def test_deterministic_for_a_seed_and_checks_inputs():
+    rng = np.random.default_rng(3)
+    y, m, b = _series(rng, 600, 0.9, 1.0)
+    s = block_starts(y.size, 60)
+    assert skill_interval(y, m, b, s, seed=7) == skill_interval(y, m, b, s, seed=7)
+    with pytest.raises(MetricsError):
+        skill_interval(y, m, b[:-1], s)
+    with pytest.raises(MetricsError):
+        skill_interval(y, m, b, s, n_boot=10**7)
+    with pytest.raises(MetricsError):
+        skill_interval(y, m, b, np.array([5, 10]))
+
+
+def test_nothing_to_score_is_not_a_win():
+    y = np.ones(100)
+    res = skill_interval(y, y + 0.1, y, block_starts(100, 10))  # baseline exact
+    assert res.outcome == "tie" and np.isnan(res.skill)
