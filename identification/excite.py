@@ -250,7 +250,7 @@ def multisine(harmonics: list[int], period_s: float, duration_s: float) -> Signa
     u = np.cos(np.outer(t, w) + ph).sum(axis=1)
     i = int(np.argmax((u[:-1] <= 0) & (u[1:] > 0)))  # first upward zero crossing: start there
     t0 = t[i] - u[i] * (t[i + 1] - t[i]) / (u[i + 1] - u[i])
-    ph = ph + w * t0
+    ph = np.angle(np.exp(1j * (ph + w * t0)))  # wrapped to (-pi, pi]
     peak = float(np.max(np.abs(np.cos(np.outer(t, w) + ph).sum(axis=1))))
     return Signal(sines=tuple((float(a), float(b), 1.0 / peak) for a, b in zip(w, ph, strict=True)),
                   duration_s=duration_s)
@@ -298,8 +298,10 @@ def amplitudes(plan_lin: LinearModel, tr: Trim, signals: dict[str, Signal], leng
     """Common scale [rad] per surface within surface and attitude limits; and the predicted peaks [rad]."""
     trim_rad = {"aileron": tr.aileron_rad, "elevator": tr.elevator_rad, "rudder": tr.rudder_rad}
     cap = {s: opt.surface_margin * (math.radians(opt.surface_limit_deg) - abs(trim_rad[s])) for s in signals}
-    if min(cap.values()) <= 0:
-        raise ExciteError(f"trim deflection exceeds the surface limit {opt.surface_limit_deg} deg: {trim_rad}")
+    bad = [f"{s} {math.degrees(trim_rad[s]):.1f} deg" for s in signals if cap[s] <= 0]
+    if bad:
+        raise ExciteError(f"at {opt.airspeed_m_s:g} m/s the trim deflection ({', '.join(bad)}) leaves no room within "
+                          f"surface_limit_deg = {opt.surface_limit_deg:g}; fly faster or raise the surface limit")
     unit = {s: cap[s] / max(cap.values()) for s in signals}  # keep each surface's share of its own range
     peak = linear_peaks(plan_lin, scale_signals(signals, unit), length_s, opt.rate_hz)
     lim = np.radians([opt.roll_limit_deg, opt.pitch_limit_deg]) * opt.attitude_fraction
