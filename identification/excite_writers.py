@@ -123,7 +123,7 @@ def timeline_dict(plan: ExcitationPlan, out: OutputOptions = OutputOptions()) ->
 def rc_override(plan: ExcitationPlan, out: OutputOptions = OutputOptions()) -> dict[str, Any]:
     """Timed RC-override stick offsets about the sticks at the start, with the phase and modes (JSON-able)."""
     mapping = out.servo_mapping()
-    t = np.arange(0.0, plan.duration_s, 1.0 / out.rc_rate_hz)
+    t = np.round(np.arange(0.0, plan.duration_s, 1.0 / out.rc_rate_hz), 4)  # the times written
     du = plan.deflection(t)
     rows = []
     for k, tk in enumerate(t):
@@ -133,7 +133,7 @@ def rc_override(plan: ExcitationPlan, out: OutputOptions = OutputOptions()) -> d
             servo = servo_offset_us(mapping, s, du[k, SURFACES.index(s)])
             offs[str(out.rc_channels[s])] = round(servo * out.rc_half_range_us / servo_half_range_us(mapping, s), 1)
         offs[str(out.rc_channels["throttle"])] = 0.0
-        rows.append({"t_s": round(float(tk), 4), "phase": "excite" if blk else "recover",
+        rows.append({"t_s": float(tk), "phase": "excite" if blk else "recover",
                      "block": blk.index if blk else 0, "offset_us": offs})
     lim = limits(plan, out)
     return {"format": "uavfmu RC override steps", "time_base": "seconds from the first row sent",
