@@ -14,8 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from fmu_models.fixed_wing.params import FixedWingParams
-from identification.excite import ExcitationPlan, ExciteOptions, as_dict, plan_excitation
-from identification.excite_check import Gains, SetCheck, check_plan
+from identification.excite import ExcitationPlan, ExciteError, ExciteOptions, as_dict, plan_excitation
+from identification.excite_check import Flight, Gains, SetCheck, check_plan
 from identification.excite_writers import OutputOptions, lua_script, rc_override, rc_override_csv, timeline_dict
 
 
@@ -27,6 +27,8 @@ class ExciteResult:
     checks: dict[str, SetCheck] = field(default_factory=dict)
     flight_peaks_deg: dict[str, float] = field(default_factory=dict)
     files: dict[str, str] = field(default_factory=dict)
+    flight: Flight | None = None
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def well_conditioned(self) -> bool | None:
@@ -39,6 +41,7 @@ class ExciteResult:
             lines.append(f"closed-loop check (PD attitude hold + plan): peak roll {self.flight_peaks_deg['roll']:.1f}"
                          f" deg, peak pitch change {self.flight_peaks_deg['pitch']:.1f} deg")
             lines += [f"  {k}: {c.line()}" for k, c in self.checks.items()]
+        lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
     def plan_dict(self) -> dict[str, Any]:
@@ -55,12 +58,17 @@ def excite(params: FixedWingParams | None = None, opt: ExciteOptions | None = No
            command: str = "uavfmu excite") -> ExciteResult:
     """Plan the manoeuvres for ``params`` (default Aerosonde), check them if asked, render the files."""
     out = out or OutputOptions()
+    bad = out.problems()
+    if bad:
+        raise ExciteError("; ".join(bad))
     plan = plan_excitation(params, opt)
     result = ExciteResult(plan)
     if check:
         flight, result.checks = check_plan(plan, gains or Gains())
+        result.flight = flight
         result.flight_peaks_deg = {"roll": flight.max_roll_deg, "pitch": flight.max_pitch_dev_deg}
     rc = rc_override(plan, out)
+    result.warnings = list(rc["warnings"])
     result.files = {
         ".lua": lua_script(plan, out, command),
         ".timeline.json": json.dumps(timeline_dict(plan, out), indent=1),
@@ -80,3 +88,15 @@ def write_files(result: ExciteResult, prefix: Path) -> list[Path]:
         path.write_text(text, encoding="utf-8")
         paths.append(path)
     return paths
+
+
+def write_plots(result: ExciteResult, folder: Path, command: str = "uavfmu excite") -> list[Path]:
+    """PNG figures of the plan (inputs, spectra) and, after a check, of the closed-loop flight."""
+    from identification.excite_plots import plot_flight, plot_inputs, plot_spectra
+
+    title = f"{command}"
+    out = [plot_inputs(result.plan, folder / "excite_inputs.png", title),
+           plot_spectra(result.plan, folder / "excite_spectra.png", title)]
+    if result.flight is not None:
+        out.append(plot_flight(result.plan, result.flight, folder / "excite_check_flight.png", title))
+    return out

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from fmu_models.config import bounded, range_problems
 from fmu_models.signals.pwm_mapping import PwmMapping, default_mapping
 from identification.excite import SURFACES, Block, ExcitationPlan
 from identification.timeline import Timeline
@@ -58,14 +59,24 @@ class OutputOptions:
 
     excite_mode: str = "MANUAL"
     recovery_mode: str = "FBWA"
-    trigger_channel: int = 8
-    trigger_pwm_us: int = 1700
+    trigger_channel: int = bounded(8, 1, 18)
+    trigger_pwm_us: int = bounded(1700, 1000, 2200, "us")
     rc_channels: Mapping[str, int] = field(default_factory=lambda: dict(DEFAULT_RC_CHANNELS))
-    rc_half_range_us: float = 500.0
-    rc_rate_hz: float = 20.0
-    min_airspeed_m_s: float = 0.0  #: 0: 0.7 x the plan's airspeed
-    min_height_m: float = 40.0
+    rc_half_range_us: float = bounded(500.0, 50.0, 1000.0, "us")
+    rc_rate_hz: float = bounded(20.0, 1.0, 100.0, "Hz")
+    min_airspeed_m_s: float = bounded(0.0, 0.0, 100.0, "m/s")  #: 0: 0.7 x the plan's airspeed
+    min_height_m: float = bounded(40.0, 0.0, 10000.0, "m")
     mapping: PwmMapping | None = None
+
+    def problems(self) -> list[str]:
+        out = range_problems(self)
+        out += [f"{m} = {v!r}: not one of {', '.join(ARDUPLANE_MODES)}" for m, v in
+                (("excite_mode", self.excite_mode), ("recovery_mode", self.recovery_mode)) if v not in ARDUPLANE_MODES]
+        missing = [s for s in (*SURFACES, "throttle") if s not in self.rc_channels]
+        out += [f"rc_channels: no channel for {', '.join(missing)}"] if missing else []
+        out += [f"rc_channels.{k} = {v!r}; allowed range [1, 8]" for k, v in self.rc_channels.items()
+                if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= 8]
+        return out
 
     def servo_mapping(self) -> PwmMapping:
         return self.mapping or default_mapping("fixed_wing")
@@ -136,7 +147,16 @@ def rc_override(plan: ExcitationPlan, out: OutputOptions = OutputOptions()) -> d
         rows.append({"t_s": float(tk), "phase": "excite" if blk else "recover",
                      "block": blk.index if blk else 0, "offset_us": offs})
     lim = limits(plan, out)
-    return {"format": "uavfmu RC override steps", "time_base": "seconds from the first row sent",
+    warnings = []
+    shortest = min((b.pulse_unit_s for b in plan.blocks if b.pulse_unit_s), default=None)
+    if shortest is not None and shortest * out.rc_rate_hz < 2:
+        warnings.append(f"the shortest pulse ({shortest:g} s) spans fewer than 2 rows at {out.rc_rate_hz:g} Hz: "
+                        "raise --rc-rate or use the Lua script")
+    top = max((w for b in plan.blocks for sig in b.signals.values() for w, _, _ in sig.sines), default=0.0)
+    if top and out.rc_rate_hz < 5 * top / (2 * math.pi):
+        warnings.append(f"the multisine reaches {top / (2 * math.pi):.2g} Hz: fewer than 5 rows per period at "
+                        f"{out.rc_rate_hz:g} Hz; raise --rc-rate or use the Lua script")
+    return {"format": "uavfmu RC override steps", "warnings": warnings, "time_base": "seconds from the first row sent",
             "rate_hz": out.rc_rate_hz, "channels": dict(out.rc_channels),
             "offset_about": "each channel's RC input (RC_CHANNELS) when the sequence starts",
             "modes": {k: dict(v) for k, v in AUTOPILOT_MODES.items()},
@@ -171,9 +191,9 @@ def _lua_block(b: Block, mapping: PwmMapping) -> str:
 
 def lua_script(plan: ExcitationPlan, out: OutputOptions = OutputOptions(), command: str = "uavfmu excite") -> str:
     """The ArduPilot Lua script of ``plan`` (see the module docstring and docs/excitation.md)."""
-    for m in (out.excite_mode, out.recovery_mode):
-        if m not in ARDUPLANE_MODES:
-            raise ValueError(f"mode {m!r} not one of {', '.join(ARDUPLANE_MODES)}")
+    bad = out.problems()
+    if bad:
+        raise ValueError("; ".join(bad))
     lim = limits(plan, out)
     blocks = "\n".join(_lua_block(b, out.servo_mapping()) for b in plan.blocks)
     return LUA_TEMPLATE.format(

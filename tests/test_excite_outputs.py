@@ -210,3 +210,78 @@ def test_lua_aborts_when_the_switch_goes_low_and_on_low_airspeed(result) -> None
     mock.airspeed = 10.0
     _step(mock, update, 100000 + 1000 * (plan.blocks[0].excitation_start_s + 0.05))
     assert mock.mode == 5 and any("airspeed" in str(t) for t in mock.texts.values())
+
+
+# ------------------------------------------------------------------ ground-station example (docs/examples)
+def _example():  # type: ignore[no-untyped-def]
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "docs" / "examples" / "excite_rc_override.py"
+    spec = importlib.util.spec_from_file_location("excite_rc_override", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+class _Msg:
+    def __init__(self, kind: str, **fields: float) -> None:
+        self.kind = kind
+        self.__dict__.update(fields)
+
+    def get_type(self) -> str:
+        return self.kind
+
+
+class _FakeMaster:
+    """Records what the example sends; answers RC_CHANNELS once, then ATTITUDE from ``roll_of(t)``."""
+
+    def __init__(self, clock, roll_of) -> None:  # type: ignore[no-untyped-def]
+        self.target_system, self.target_component = 1, 1
+        self.clock, self.roll_of = clock, roll_of
+        self.sent: list[tuple[float, tuple[int, ...]]] = []
+        self.modes: list[tuple[float, str]] = []
+        self.mav = self
+        self.last_att = -1.0
+
+    def rc_channels_override_send(self, sysid, compid, *ch) -> None:  # type: ignore[no-untyped-def]
+        self.sent.append((self.clock(), ch))
+
+    def set_mode(self, mode: str) -> None:
+        self.modes.append((self.clock(), mode))
+
+    def recv_match(self, type, blocking=False, timeout=None):  # type: ignore[no-untyped-def]
+        if type == "RC_CHANNELS":
+            return _Msg("RC_CHANNELS", chan1_raw=1500, chan2_raw=1600, chan3_raw=1650, chan4_raw=1480,
+                        chan5_raw=1000, chan6_raw=1000, chan7_raw=1000, chan8_raw=1000)
+        t = self.clock()
+        if t - self.last_att >= 0.1:
+            self.last_att = t
+            return _Msg("ATTITUDE", roll=self.roll_of(t), pitch=0.05)
+        return None
+
+
+def _fake_time():  # type: ignore[no-untyped-def]
+    now = [0.0]
+    return (lambda: now[0]), (lambda dt: now.__setitem__(0, now[0] + dt))
+
+
+def test_ground_station_example_sends_the_rows_and_aborts_on_roll(result) -> None:  # type: ignore[no-untyped-def]
+    ex = _example()
+    plan = json.loads(result.files[".rc_override.json"])
+    short = dict(plan, rows=plan["rows"][:200])
+    clock, sleep = _fake_time()
+    master = _FakeMaster(clock, lambda t: 0.0)
+    assert ex.run(master, short, "ardupilot", clock, sleep) == "done"
+    assert len(master.sent) == 200 + 1 and master.sent[-1][1] == (0,) * 8  # released at the end
+    assert master.modes[0][1] == "MANUAL" and master.modes[-1][1] == "FBWA"
+    for (t, ch), row in zip(master.sent, short["rows"], strict=False):
+        assert t == pytest.approx(row["t_s"], abs=0.01)
+        assert ch[0] == 1500 + round(row["offset_us"]["1"]) and ch[1] == 1600 + round(row["offset_us"]["2"])
+        assert ch[2] == 1650 and ch[3] == 1480 + round(row["offset_us"]["4"]) and ch[4:] == (0, 0, 0, 0)
+    # roll beyond the limit during an excite phase: recovery mode and release
+    clock, sleep = _fake_time()
+    master = _FakeMaster(clock, lambda t: math.radians(60.0) if t > 2.5 else 0.0)
+    out = ex.run(master, plan, "px4", clock, sleep)
+    assert out.startswith("abort: roll 60")
+    assert master.modes[-1][1] == "STABILIZED" and master.sent[-1][1] == (0,) * 8
+    assert master.sent[-1][0] < 3.0

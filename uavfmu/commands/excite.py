@@ -47,6 +47,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rc-rate", type=float, default=20.0, help="RC-override row rate [Hz] (20)")
     p.add_argument("--mapping", type=Path, help="PWM mapping TOML (default: ArduPlane SERVO1-4, +/-0.35 rad)")
     p.add_argument("--check", action="store_true", help="fly the plan in closed loop and check identifiability")
+    p.add_argument("--plots", type=Path, help="folder for PNG figures (inputs, spectra, check flight)")
 
 
 def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
@@ -70,18 +71,21 @@ def run(args: argparse.Namespace) -> int:
     from fmu_models.common.errors import ParameterError
     from fmu_models.fixed_wing.params import FixedWingParams
     from fmu_models.signals.pwm_mapping import PwmMapping
-    from identification.excite_workflow import excite, write_files
+    from identification.excite_workflow import excite, write_files, write_plots
 
     try:
         opt, out = _options(args)
         if args.mapping:
             out = dataclasses.replace(out, mapping=PwmMapping.load(args.mapping))
         params = FixedWingParams.load(args.params) if args.params else None
-        result = excite(params, opt, out, check=args.check, command="uavfmu excite " + " ".join(sys.argv[2:]))
+        command = "uavfmu excite " + " ".join(sys.argv[2:])
+        result = excite(params, opt, out, check=args.check, command=command)
     except (OSError, ValueError, ParameterError) as err:  # ExciteError, ConfigError, MappingError, ...
         print(f"uavfmu excite: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
     paths = write_files(result, args.out)
+    if args.plots:
+        paths += write_plots(result, args.plots, command)
     print(result.summary())
     print("wrote " + ", ".join(str(p) for p in paths))
     return EXIT_ILL_CONDITIONED if result.well_conditioned is False else EXIT_OK
