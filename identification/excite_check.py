@@ -34,7 +34,7 @@ from identification.identifiability import CONDITION_LIMIT, CORRELATION_LIMIT, a
 from identification.oem import Manoeuvre, OutputErrorEstimator
 
 LATERAL_SET = ("C_ell_p", "C_ell_beta", "C_ell_r", "C_ell_delta_a", "C_n_beta", "C_n_r", "C_n_delta_r", "C_Y_beta")
-LONGITUDINAL_SET = ("C_m_alpha", "C_m_q", "C_m_delta_e", "C_m_0", "C_L_alpha")
+LONGITUDINAL_SET = ("C_m_alpha", "C_m_q", "C_m_delta_e", "C_L_alpha")
 #: measurement standard deviations (small-UAV autopilot: EKF attitude, gyros, accelerometers, airspeed)
 NOISE_SIGMA = {"roll_rad": 0.01, "pitch_rad": 0.01, "rate_body_x_rad_s": 0.01, "rate_body_y_rad_s": 0.01,
                "rate_body_z_rad_s": 0.01, "accel_body_x_m_s2": 0.2, "accel_body_y_m_s2": 0.2,

@@ -55,6 +55,19 @@ def test_planned_excitation_is_well_conditioned_in_closed_loop(checked) -> None:
     assert flight.max_pitch_dev_deg < plan.options.pitch_limit_deg
 
 
+def test_a_user_parameter_file_gets_a_well_conditioned_plan_too() -> None:
+    """The ArduPilot SITL plane's geometry and mass (fmu_models/fixed_wing/arduplane_sitl_plane.json, as a user
+    would pass it with --params): other modes, other pulse widths, still well conditioned."""
+    from fmu_models.fixed_wing.params import DEFAULTS_FILE, FixedWingParams
+
+    params = FixedWingParams.load(DEFAULTS_FILE.with_name("arduplane_sitl_plane.json"))
+    plan = plan_excitation(params, ExciteOptions(airspeed_m_s=22.0, settle_s=1.0, tail_s=2.0, recovery_s=3.0,
+                                                 inputs=("3211", "multisine")))
+    _, checks = check_plan(plan)
+    print("\n" + "\n".join(f"SITL plane {k}: {c.line()}" for k, c in checks.items()))
+    assert all(c.condition_number < 100.0 and c.max_abs_r <= 0.9 for c in checks.values())
+
+
 def test_flight_is_closed_loop_and_carries_the_plan(checked) -> None:  # type: ignore[no-untyped-def]
     """The recorded aileron is the planned deflection plus a feedback term that follows roll and roll rate."""
     plan, flight, _ = checked
