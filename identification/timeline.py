@@ -87,6 +87,13 @@ class Timeline(_Open):
             raise ValueError("blocks must be in time order (start_s increasing)")
         return self
 
+    def shifted(self, offset_s: float, time_base: str) -> Timeline:
+        """The same timeline with every block time plus ``offset_s`` (e.g. a planned timeline moved onto a log's
+        clock: the log time of the trigger), described by ``time_base``."""
+        keys = ("start_s", "excitation_start_s", "end_s")
+        blocks = [b.model_copy(update={k: getattr(b, k) + offset_s for k in keys}) for b in self.blocks]
+        return self.model_copy(update={"blocks": blocks, "time_base": time_base})
+
     def blocks_for(self, axis: str) -> list[TimelineBlock]:
         """Blocks that move ``axis`` (including ``multi`` blocks that list it)."""
         return [b for b in self.blocks if axis in b.excited_axes or b.axis == axis]

@@ -53,3 +53,12 @@ def test_bad_timeline_names_file_and_field(tmp_path: Path, block: dict, field: s
 def test_missing_file_is_a_config_error(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="file not found"):
         load_timeline(tmp_path / "none.json")
+
+
+def test_shifted_moves_every_block(tmp_path: Path) -> None:
+    path = tmp_path / "t.json"
+    path.write_text(json.dumps(_minimal()))
+    tl = load_timeline(path).shifted(100.0, "seconds since boot")
+    b = tl.blocks[0]
+    assert (b.start_s, b.excitation_start_s, b.end_s) == (100.0, 101.0, 105.0)
+    assert tl.time_base == "seconds since boot"
