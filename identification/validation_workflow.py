@@ -16,10 +16,9 @@ Batch manifest (TOML; paths relative to it; ``fmu`` and ``log`` may be lists: ev
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pydantic import Field
 
@@ -33,6 +32,9 @@ from fmu_models.config import (
 )
 from fmu_models.fmi.host import FmuRunError
 from identification.validation import Horizon, ReplayResult, ValidationOptions, options
+
+if TYPE_CHECKING:
+    from fmu_models.parallel import Executor
 
 MAX_JOBS = 10_000
 
@@ -98,11 +100,12 @@ class ValidationResult:
     horizons: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
     report: str | None = None
     replay: ReplayResult | None = None
+    retried: str = ""
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready summary (no arrays)."""
         keys = ("fmu", "log", "status", "error", "signals", "failed", "windows", "excluded", "ground", "gaps",
-                "warnings", "one_step", "horizons", "report")
+                "warnings", "one_step", "horizons", "report", "retried")
         return {k: getattr(self, k) for k in keys}
 
     def lines(self) -> list[str]:
@@ -179,41 +182,80 @@ def metrics_document(res: ReplayResult, out: ValidationResult) -> dict[str, Any]
 
 def write_report(res: ReplayResult, out: ValidationResult, rdir: Path) -> None:
     from identification import report
-    from identification.jsonio import write_json
 
-    rdir.mkdir(parents=True, exist_ok=True)
-    (rdir / "report.html").write_text(report.validation_page(res))
-    write_json(rdir / "metrics.json", metrics_document(res, out))
+    _write_files(rdir, metrics_document(res, out), report.validation_page(res))
     out.report = str(rdir / "report.html")
+
+
+def _attempt(job: ValidationJob) -> ValidationResult:
+    """:func:`validate`, with bad input or a failing FMU as an ``error`` result instead of an exception."""
+    try:
+        return validate(job)
+    except (FmuRunError, OSError, ValueError, KeyError) as err:  # LogError, ConfigError, ... are ValueErrors
+        return ValidationResult(str(job.fmu), str(job.log), "error", error=str(err).strip("'\""))
 
 
 def validate_job(job: ValidationJob) -> ValidationResult:
     """:func:`validate` that never raises for bad input or a failing FMU (a batch must go on); the arrays
     are dropped (results cross process boundaries)."""
-    try:
-        out = validate(job)
-    except (FmuRunError, OSError, ValueError, KeyError) as err:  # LogError, ConfigError, ... are ValueErrors
-        return ValidationResult(str(job.fmu), str(job.log), "error", error=str(err).strip("'\""))
+    out = _attempt(job)
     out.replay = None
     return out
 
 
-def validate_batch(jobs: Sequence[ValidationJob], workers: int = 2,
-                   progress: Callable[[int, int], None] | None = None) -> list[ValidationResult]:
-    """Every job in its own worker process (an FMU is native code: one that crashes must not take the batch
-    down); results in the order of ``jobs``."""
-    results: list[ValidationResult] = [ValidationResult(str(j.fmu), str(j.log)) for j in jobs]
-    with ProcessPoolExecutor(max_workers=max(1, min(workers, 64))) as pool:
-        futures = {pool.submit(validate_job, job): k for k, job in enumerate(jobs)}
-        for done, fut in enumerate(as_completed(futures), 1):
-            k = futures[fut]
-            try:
-                results[k] = fut.result()
-            except Exception as err:  # a worker that died (segfault in an FMU) raises BrokenProcessPool here
-                results[k].error = f"worker process failed: {type(err).__name__}: {err}"
-            if progress:
-                progress(done, len(jobs))
+def job_files(job: ValidationJob) -> list[Path]:
+    """The files a job reads (shipped to the worker that runs it)."""
+    return [p for p in (job.fmu, job.log, job.output_map, job.mapping, job.channel_map) if p is not None]
+
+
+def batch_task(job: ValidationJob) -> dict[str, Any]:
+    """One batch run on a worker: the job on the worker's copies of its files; the summary, and with a report
+    folder ``metrics.json`` and ``report.html`` as data (the client writes them: a worker may be another
+    machine). Paths come back as the client's (``fmu_models.parallel``)."""
+    from fmu_models.parallel import local_path
+    from identification import report
+
+    files = {k: local_path(getattr(job, k)) for k in ("fmu", "log", "output_map", "mapping", "channel_map")
+             if getattr(job, k) is not None}
+    out = _attempt(replace(job, report_dir=None, **files))
+    doc: dict[str, Any] = {"result": out.as_dict()}
+    if job.report_dir is not None and out.replay is not None:
+        doc |= {"metrics": metrics_document(out.replay, out), "html": report.validation_page(out.replay)}
+    return doc
+
+
+def validate_batch(jobs: Sequence[ValidationJob], workers: int | None = 2,
+                   progress: Callable[[int, int], None] | bool = False, *, scheduler: str | None = None,
+                   executor: Executor | None = None) -> list[ValidationResult]:
+    """Every job as a task of ``fmu_models.parallel`` (worker processes: an FMU is native code, and one that
+    crashes costs its task one retry, not the batch); results in the order of ``jobs``, reports written
+    here as each run's result is read back. A run that failed twice is an ``error`` result naming why; a
+    retried run says so in ``retried``."""
+    from fmu_models.parallel import Executor
+
+    with executor if executor is not None else Executor(scheduler, workers) as ex:
+        run = ex.map_tasks(batch_task, list(jobs), files=job_files, progress=progress, desc="validate")
+        results = []
+        for (i, got), job in zip(run.results(), jobs, strict=True):
+            if got is None:
+                results.append(ValidationResult(str(job.fmu), str(job.log), "error",
+                                                error=f"worker failed twice: {run.failures.get(i, '?')}"))
+                continue
+            out = ValidationResult(**got["result"])
+            if "metrics" in got and job.report_dir is not None:
+                _write_files(Path(job.report_dir), got["metrics"], got["html"])
+                out.report = str(Path(job.report_dir) / "report.html")
+            out.retried = run.retried.get(i, "")
+            results.append(out)
     return results
+
+
+def _write_files(rdir: Path, metrics: dict[str, Any], page: str) -> None:
+    from identification.jsonio import write_json
+
+    rdir.mkdir(parents=True, exist_ok=True)
+    (rdir / "report.html").write_text(page)
+    write_json(rdir / "metrics.json", metrics)
 
 
 def load_manifest(path: Path, base_options: Mapping[str, Any] | None = None,

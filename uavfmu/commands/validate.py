@@ -41,7 +41,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-theil", type=float, help="pass threshold on Theil's U for every signal")
     parser.add_argument("--report", type=Path, help="folder for report.html and metrics.json")
     parser.add_argument("--channel-map", type=Path, help="TOML/JSON [channels] for the log's outputs")
-    parser.add_argument("--jobs", type=int, default=min(4, os.cpu_count() or 1), help="batch worker processes")
+    parser.add_argument("--jobs", type=int, default=min(4, os.cpu_count() or 1),
+                        help="local worker processes (batch and --mc; ignored with --scheduler)")
+    parser.add_argument("--scheduler", default=os.environ.get("UAVFMU_SCHEDULER"),
+                        help="dask scheduler of a running cluster, tcp://HOST:PORT (default: $UAVFMU_SCHEDULER, "
+                             "else local workers); see docs/scale-out.md")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -108,12 +112,9 @@ def _run_one(job: object, args: argparse.Namespace) -> int:
 
 
 def _run_batch(jobs: list, args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from identification.validation_workflow import batch_summary, validate_batch, write_batch_report
 
-    with tqdm(total=len(jobs), desc="validate", disable=args.quiet) as bar:
-        results = validate_batch(jobs, args.jobs, progress=lambda done, total: bar.update(1))
+    results = validate_batch(jobs, args.jobs, progress=not args.quiet, scheduler=args.scheduler)
     for r in results:
         print("\n".join(r.lines()))
     print(batch_summary(results))
