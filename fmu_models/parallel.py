@@ -194,7 +194,9 @@ class Executor(AbstractContextManager):
             with dask.config.set(SCHEDULER_CONFIG):
                 self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                                             dashboard_address=None, memory_limit=memory_limit,
-                                            silence_logs=logging.CRITICAL)
+                                            silence_logs=logging.CRITICAL,
+                                            # no dashboard; the scheduler's health routes on a free loopback port
+                                            scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"})
             self.client = Client(self.cluster)
         self.address = address or self.cluster.scheduler_address
 

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 from pydantic import Field
 
+from fmu_models.common.params import Uncertainty
 from fmu_models.config import (
     ConfigError,
     FiniteFloat,
@@ -31,7 +32,7 @@ from fmu_models.config import (
     validate_config,
 )
 from fmu_models.fmi.host import FmuRunError
-from identification.validation import Horizon, ReplayResult, ValidationOptions, options
+from identification.validation import Horizon, ReplayResult, ValidationInputError, ValidationOptions, options
 
 if TYPE_CHECKING:
     from fmu_models.parallel import Executor
@@ -155,6 +156,10 @@ def result_of(res: ReplayResult, job: ValidationJob) -> ValidationResult:
         signals[m.fmu] = {**s.as_dict(), "log_signal": m.log, "max_theil": m.max_theil, "max_rmse": m.max_rmse,
                           "min_skill_persistence": m.min_skill_persistence, "min_skill_mean": m.min_skill_mean,
                           "windows": res.window_counts(m.fmu)}
+        if res.bands is not None:
+            verdict, why = res.bands.verdict(m.fmu)
+            signals[m.fmu] |= {"band_coverage": res.bands.coverage[m.fmu], "band_verdict": verdict,
+                               "band_reason": why}
     warnings = list(dict.fromkeys([*res.log["warnings"], *res.log.get("quality_lines", [])]))  # once each
     return ValidationResult(str(job.fmu), str(job.log), "fail" if res.failed else "pass", "", signals,
                             res.failed, len(res.windows), res.excluded, dict(res.ground), dict(res.gaps), warnings,
@@ -177,6 +182,7 @@ def metrics_document(res: ReplayResult, out: ValidationResult) -> dict[str, Any]
         "horizons": {k: [r.as_dict() for r in rows] for k, rows in res.horizons.items()},
         "one_step": out.one_step,
         "quality": res.log.get("quality"),
+        **({"monte_carlo": res.bands.info} if res.bands is not None else {}),
     }
 
 
@@ -185,6 +191,41 @@ def write_report(res: ReplayResult, out: ValidationResult, rdir: Path) -> None:
 
     _write_files(rdir, metrics_document(res, out), report.validation_page(res))
     out.report = str(rdir / "report.html")
+
+
+def validate_mc(job: ValidationJob, uncertainty: Uncertainty, draws: int, seed: int = 0, *,
+                workers: int | None = None, scheduler: str | None = None, progress: Any = False) -> ValidationResult:
+    """:func:`validate` with Monte Carlo bands: the nominal replay with the uncertainty's mean as parameters,
+    then ``draws`` replays with parameters and restart states drawn (``identification.mc_bands``) on
+    ``fmu_models.parallel``; each signal's band coverage beside its skill, in the summary, ``metrics.json`` and
+    the report. Raises like :func:`validate`."""
+    from fmu_models.parallel import Executor
+    from identification import mc_bands
+    from identification.readers import read_log
+
+    clash = sorted(set(job.start_values) & set(uncertainty.names))
+    if clash:
+        raise ValidationInputError(f"--set {', '.join(clash)}: drawn from the uncertainty in --mc runs; leave it out")
+    mc_bands.check_draws(draws, 3, 1, job.options.max_memory_mb)  # the count, before anything runs
+    job = replace(job, start_values={**dict(zip(uncertainty.names, uncertainty.mean, strict=True)),
+                                     **job.start_values})
+    nominal = validate(replace(job, report_dir=None))
+    res = nominal.replay
+    assert res is not None
+    unknown = [n for n in uncertainty.names if n not in res.fmu["parameters"]]
+    if unknown:
+        raise ValidationInputError(f"uncertainty: {', '.join(unknown)} not real parameters of {job.fmu.name}")
+    from fmu_models.fmi.host import FmuHost
+
+    with FmuHost(job.fmu) as host:
+        units = {m.fmu: host.unit(m.fmu) for m in res.maps}
+    log = read_log(job.log, channel_map=job.channel_map)
+    with Executor(scheduler, workers) as ex:
+        res.bands = mc_bands.monte_carlo(job, uncertainty, res, log, draws, seed, ex, units, progress)
+    out = result_of(res, job)
+    if job.report_dir is not None:
+        write_report(res, out, Path(job.report_dir))
+    return out
 
 
 def _attempt(job: ValidationJob) -> ValidationResult:
