@@ -217,7 +217,8 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
         ys = np.concatenate(rows)[:, 1:] if rows else np.full((0, len(res.t_s)), np.nan)
         ys = ys[np.isfinite(ys).any(axis=1)]
         if len(ys) < MIN_DRAWS:
-            raise ValidationInputError(f"Monte Carlo: fewer than {MIN_DRAWS} of {draws} draws ran ({'; '.join(failed[:3])})")
+            raise ValidationInputError(f"Monte Carlo: fewer than {MIN_DRAWS} of {draws} draws ran "
+                                       f"({'; '.join(failed[:3])})")
         lo[m.fmu], hi[m.fmu] = prediction_band(ys)
         y = res.measured[m.fmu]
         ok = np.isfinite(y) & np.isfinite(lo[m.fmu]) & np.isfinite(res.model[m.fmu])

@@ -366,20 +366,36 @@ def summary_lines(r: ValidationResult) -> list[str]:
     if r.ground:
         out.append("  ground windows/samples are left out by default; --include-ground scores them")
     out += [f"  log warning: {w}" for w in r.warnings]
+    bands = any("band_coverage" in v for v in r.signals.values())
     out.append(f"  {'signal':<18} {'verdict':<7} {'skill/pers':>10} {'skill/mean':>10} {'RMSE':>9} {'Theil U':>7} "
-               f"{'R^2':>7} {'windows pass/FAIL/n/a':>21}  reason")
+               f"{'R^2':>7}{' band cover' if bands else ''} {'windows pass/FAIL/n/a':>21}  reason")
     for s, v in r.signals.items():
         w = v["windows"]
         tag = v["verdict"] + ("" if v["gated"] or v["verdict"] != "FAIL" else "*")
+        cover = f" {_fmt(100 * v['band_coverage'], '9.0f')} %" if bands else ""
         out.append(f"  {s:<18} {tag:<7} {_fmt(v['skill_persistence'], '+10.2f')} {_fmt(v['skill_mean'], '+10.2f')} "
-                   f"{_fmt(v['rmse'], '9.3g')} {_fmt(v['theil_u'], '7.3f')} {_fmt(v['r2'], '7.2f')} "
+                   f"{_fmt(v['rmse'], '9.3g')} {_fmt(v['theil_u'], '7.3f')} {_fmt(v['r2'], '7.2f')}{cover} "
                    f"{w['pass']:>9}/{w['FAIL']}/{w['n/a']:<6}  {v['reason']}")
+    out += _band_lines(r) if bands else []
     if ungated:
         out.append(f"  * not gated (reported only): {', '.join(ungated)}")
     if na:
         out.append(f"  n/a: {', '.join(na)} stayed within tolerance of persistence: neither pass nor fail")
     for name, v in r.one_step.items():
         out.append(f"  one-step force check {name}: RMSE {_fmt(v['rmse'], '.3g')} m/s2, {v['reason']}")
+    return out
+
+
+def _band_lines(r: ValidationResult) -> list[str]:
+    """What the Monte Carlo bands say: signals the model and its stated uncertainty do not explain."""
+    bad = {s: v for s, v in r.signals.items() if v.get("band_verdict") == "not explained"}
+    wide = [s for s, v in r.signals.items() if v.get("band_verdict") == "wide"]
+    out = ["  band cover: share of logged samples inside the 5-95 % Monte Carlo band (parameters drawn from the "
+           "identified covariance, restart states and sensor noise from the log); about 90 % when the model and its "
+           "uncertainty explain the log"]
+    out += [f"  NOT EXPLAINED {s}: {v['band_reason']}" for s, v in bad.items()]
+    if wide:
+        out.append(f"  wide bands (uncertainty overstated, or a noise-free log signal): {', '.join(wide)}")
     return out
 
 
