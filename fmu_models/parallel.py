@@ -12,8 +12,8 @@ Where the work runs: an in-process ``LocalCluster`` of ``workers`` single-thread
 (else the ``UAVFMU_SCHEDULER`` environment variable). Results are the same bit for bit either way: a task
 carries its own seed (:func:`task_rng`), and results are reduced in task order, never completion order.
 
-Files (FMUs, logs, mappings) travel as bytes, scattered once per file, and are written once per worker machine
-into a content-hash cache; inside ``fn``, :func:`local_path` turns the client's path into the cached copy, and
+Files (FMUs, logs, mappings) travel as bytes with the tasks that read them and are written once per worker
+machine into a content-hash cache; inside ``fn``, :func:`local_path` turns the client's path into the cached copy, and
 every cached path in a result or error message is turned back into the client's path. No model object is
 pickled: ``fn`` must be an importable module-level function whose tasks and results are plain data.
 
@@ -223,7 +223,6 @@ class Executor(AbstractContextManager):
             raise ValueError(f"{len(tasks)} tasks: allowed at most {MAX_TASKS:,}")
         run = _new_run(out_dir, len(tasks), self.threads())
         per_task = files if callable(files) else (lambda _task, common=list(files): common)
-        registry, blobs = self._ship(f for t in tasks for f in per_task(t))
         limit = max(1, max_in_flight or 2 * run.workers)
         attempt: dict[int, int] = {}
 
@@ -231,9 +230,8 @@ class Executor(AbstractContextManager):
             attempt[i] = attempt.get(i, 0) + 1
             others = [w for w in self.client.scheduler_info()["workers"] if w != avoid] if avoid else []
             where = {"workers": others, "allow_other_workers": True} if others else {}
-            shipped = {str(f): registry[str(f)] for f in per_task(tasks[i]) if str(f) in registry}
-            mine = {sha: blobs[sha] for sha, _ in shipped.values()}
-            fut = self.client.submit(_run_task, fn, tasks[i], shipped, mine, pure=False, **where,
+            shipped, blobs = _ship(per_task(tasks[i]))
+            fut = self.client.submit(_run_task, fn, tasks[i], shipped, blobs, pure=False, **where,
                                      key=f"{desc}-{i}-{attempt[i]}-{os.getpid()}-{id(run)}")
             index[fut.key] = i
             queue.add(fut)
@@ -274,20 +272,23 @@ class Executor(AbstractContextManager):
         _write(run.out_dir, i, out)
         return None, None
 
-    def _ship(self, files: Iterable[str | Path]) -> tuple[dict[str, tuple[str, str]], dict[str, Any]]:
-        """Scatter each existing file's bytes once: ``{client path: (sha256, name)}``, ``{sha256: future}``."""
-        shipped: dict[str, tuple[str, str]] = {}
-        blobs: dict[str, Any] = {}
-        for f in dict.fromkeys(str(p) for p in files if p is not None):
-            path = Path(f)
-            if not path.is_file():
-                continue  # the task reports the missing file by its own path
-            data = path.read_bytes()
-            sha = hashlib.sha256(data).hexdigest()
-            if sha not in blobs:
-                blobs[sha] = self.client.scatter(data, hash=False, broadcast=False)
-            shipped[f] = (sha, path.name)
-        return shipped, blobs
+
+def _ship(files: Iterable[str | Path | None]) -> tuple[dict[str, tuple[str, str]], dict[str, bytes]]:
+    """A task's existing files as bytes: ``{client path: (sha256, name)}``, ``{sha256: bytes}``. They travel with
+    the task, not as scattered data: a task that depends on data held by one worker is sent to that worker (no
+    balancing, no queuing on the scheduler) and is lost with it. Read when the task is submitted, so the client
+    holds the bytes of the tasks in flight only."""
+    shipped: dict[str, tuple[str, str]] = {}
+    blobs: dict[str, bytes] = {}
+    for f in dict.fromkeys(str(p) for p in files if p is not None):
+        path = Path(f)
+        if not path.is_file():
+            continue  # the task reports the missing file by its own path
+        data = path.read_bytes()
+        sha = hashlib.sha256(data).hexdigest()
+        blobs.setdefault(sha, data)
+        shipped[f] = (sha, path.name)
+    return shipped, blobs
 
 
 def _new_run(out_dir: Path | None, n: int, workers: int) -> TaskRun:

@@ -79,6 +79,8 @@ class ValidationJob:
     start_values: Mapping[str, float] = field(default_factory=dict)
     max_theil: float | None = None
     report_dir: Path | None = None
+    #: with ``report_dir``: also ``report.html`` (plots: about a second a run), else ``metrics.json`` alone
+    report_html: bool = True
 
 
 @dataclass
@@ -261,7 +263,8 @@ def batch_task(job: ValidationJob) -> dict[str, Any]:
     out = _attempt(replace(job, report_dir=None, **files))
     doc: dict[str, Any] = {"result": out.as_dict()}
     if job.report_dir is not None and out.replay is not None:
-        doc |= {"metrics": metrics_document(out.replay, out), "html": report.validation_page(out.replay)}
+        doc |= {"metrics": metrics_document(out.replay, out),
+                "html": report.validation_page(out.replay) if job.report_html else None}
     return doc
 
 
@@ -285,17 +288,18 @@ def validate_batch(jobs: Sequence[ValidationJob], workers: int | None = 2,
             out = ValidationResult(**got["result"])
             if "metrics" in got and job.report_dir is not None:
                 _write_files(Path(job.report_dir), got["metrics"], got["html"])
-                out.report = str(Path(job.report_dir) / "report.html")
+                out.report = str(Path(job.report_dir) / ("report.html" if got["html"] else "metrics.json"))
             out.retried = run.retried.get(i, "")
             results.append(out)
     return results
 
 
-def _write_files(rdir: Path, metrics: dict[str, Any], page: str) -> None:
+def _write_files(rdir: Path, metrics: dict[str, Any], page: str | None) -> None:
     from identification.jsonio import write_json
 
     rdir.mkdir(parents=True, exist_ok=True)
-    (rdir / "report.html").write_text(page)
+    if page is not None:
+        (rdir / "report.html").write_text(page)
     write_json(rdir / "metrics.json", metrics)
 
 
