@@ -201,6 +201,7 @@ def validate_mc(job: ValidationJob, uncertainty: Uncertainty, draws: int, seed: 
     then ``draws`` replays with parameters and restart states drawn (``identification.mc_bands``) on
     ``fmu_models.parallel``; each signal's band coverage beside its skill, in the summary, ``metrics.json`` and
     the report. Raises like :func:`validate`."""
+    from fmu_models.fmi.host import FmuHost
     from fmu_models.parallel import Executor
     from identification import mc_bands
     from identification.readers import read_log
@@ -209,18 +210,18 @@ def validate_mc(job: ValidationJob, uncertainty: Uncertainty, draws: int, seed: 
     if clash:
         raise ValidationInputError(f"--set {', '.join(clash)}: drawn from the uncertainty in --mc runs; leave it out")
     mc_bands.check_draws(draws, 3, 1, job.options.max_memory_mb)  # the count, before anything runs
+    with FmuHost(job.fmu) as host:
+        real = {n for n, v in host.variables.items() if v.causality == "parameter" and v.type == "Real"}
+        unknown = [n for n in uncertainty.names if n not in real]
+        if unknown:
+            raise ValidationInputError(f"uncertainty: {', '.join(unknown)} not real parameters of {job.fmu.name}")
+        units = {n: host.unit(n) for n in host.variables}
     job = replace(job, start_values={**dict(zip(uncertainty.names, uncertainty.mean, strict=True)),
                                      **job.start_values})
     nominal = validate(replace(job, report_dir=None))
     res = nominal.replay
     assert res is not None
-    unknown = [n for n in uncertainty.names if n not in res.fmu["parameters"]]
-    if unknown:
-        raise ValidationInputError(f"uncertainty: {', '.join(unknown)} not real parameters of {job.fmu.name}")
-    from fmu_models.fmi.host import FmuHost
-
-    with FmuHost(job.fmu) as host:
-        units = {m.fmu: host.unit(m.fmu) for m in res.maps}
+    mc_bands.check_draws(draws, len(res.t_s) + 1, len(res.maps), job.options.max_memory_mb)  # before the cluster
     log = read_log(job.log, channel_map=job.channel_map)
     with Executor(scheduler, workers) as ex:
         res.bands = mc_bands.monte_carlo(job, uncertainty, res, log, draws, seed, ex, units, progress)
