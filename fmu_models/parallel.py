@@ -147,8 +147,9 @@ class TaskRun:
     workers: int = 0
     _tmp: Any = None
 
-    def result(self, i: int) -> dict[str, Any] | None:
-        """Result of task ``i`` read back from disk (None when it failed twice)."""
+    def result(self, i: int, arrays: Iterable[str] | None = None) -> dict[str, Any] | None:
+        """Result of task ``i`` read back from disk (None when it failed twice); of its arrays only those named in
+        ``arrays`` (all when None)."""
         path = self.out_dir / f"{i:06d}.json"
         if not path.is_file():
             return None
@@ -156,13 +157,15 @@ class TaskRun:
         npz = path.with_suffix(".npz")
         if npz.is_file():
             with np.load(npz, allow_pickle=False) as data:
-                out.update({k: data[k] for k in data.files})
+                keys = data.files if arrays is None else [k for k in arrays if k in data.files]
+                out.update({k: data[k] for k in keys})
         return out
 
-    def results(self) -> Iterator[tuple[int, dict[str, Any] | None]]:
+    def results(self, arrays: Iterable[str] | None = None) -> Iterator[tuple[int, dict[str, Any] | None]]:
         """``(index, result or None)`` of every task, in task order (one result in memory at a time)."""
+        keep = None if arrays is None else list(arrays)
         for i in range(self.n_tasks):
-            yield i, self.result(i)
+            yield i, self.result(i, keep)
 
     def failure_lines(self) -> list[str]:
         return [f"task {i}: failed twice: {err}" for i, err in sorted(self.failures.items())]

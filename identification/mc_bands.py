@@ -205,15 +205,15 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
     check_draws(draws, len(res.t_s) + 1, len(res.maps), res.options["max_memory_mb"])
     params = {**{k: float(v) for k, v in res.fmu["parameters"].items()}, **dict(job.start_values)}
     state_std, out_std = _state_noise(log), output_noise(log, res.maps, units, params)
-    chunk = max(1, math.ceil(draws / (4 * executor.threads())))
+    chunk = max(1, math.ceil(draws / (2 * executor.threads())))  # each chunk reads the log and sets up once
     tasks = [McTask(job, unc, seed, tuple(range(a, min(draws, a + chunk))), state_std, out_std)
              for a in range(0, draws, chunk)]
     run = executor.map_tasks(mc_task, tasks, files=lambda t: job_files(t.job), progress=progress, desc="mc")
     failed = [*([f"draws {t.draws[0]}..{t.draws[-1]}: {e}" for i, e in run.failures.items() for t in [tasks[i]]]),
-              *(f"draw {k}: {e}" for _, r in run.results() if r for k, e in r["failed"])]
+              *(f"draw {k}: {e}" for _, r in run.results(arrays=()) if r for k, e in r["failed"])]
     lo, hi, cov = {}, {}, {}
     for m in res.maps:  # one signal of all draws in memory at a time
-        rows = [r[f"y:{m.fmu}"] for _, r in run.results() if r is not None]
+        rows = [r[f"y:{m.fmu}"] for _, r in run.results(arrays=[f"y:{m.fmu}"]) if r is not None]
         ys = np.concatenate(rows)[:, 1:] if rows else np.full((0, len(res.t_s)), np.nan)
         ys = ys[np.isfinite(ys).any(axis=1)]
         if len(ys) < MIN_DRAWS:

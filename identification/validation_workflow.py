@@ -1,6 +1,6 @@
-"""The validation workflow as library functions: one FMU against one log (:func:`validate`), a job that never
-raises (:func:`validate_job`, for batches), a batch of FMU x log jobs in worker processes
-(:func:`validate_batch`) and the batch manifest (:func:`load_manifest`). Each returns
+"""The validation workflow as library functions: one FMU against one log (:func:`validate`), with Monte Carlo
+bands (:func:`validate_mc`), a job that never raises (:func:`validate_job`), a batch of FMU x log jobs on the
+workers of ``fmu_models.parallel`` (:func:`validate_batch`) and the batch manifest (:func:`load_manifest`). Each returns
 :class:`ValidationResult` objects; ``uavfmu validate`` only parses arguments and prints their ``lines()``.
 
 Batch manifest (TOML; paths relative to it; ``fmu`` and ``log`` may be lists: every pair runs)::
@@ -16,6 +16,7 @@ Batch manifest (TOML; paths relative to it; ``fmu`` and ``log`` may be lists: ev
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -278,7 +279,7 @@ def validate_batch(jobs: Sequence[ValidationJob], workers: int | None = 2,
     retried run says so in ``retried``."""
     from fmu_models.parallel import Executor
 
-    with executor if executor is not None else Executor(scheduler, workers) as ex:
+    with nullcontext(executor) if executor is not None else Executor(scheduler, workers) as ex:  # theirs: kept open
         run = ex.map_tasks(batch_task, list(jobs), files=job_files, progress=progress, desc="validate")
         results = []
         for (i, got), job in zip(run.results(), jobs, strict=True):
@@ -362,6 +363,8 @@ def summary_lines(r: ValidationResult) -> list[str]:
     verdict = "PASS" if r.status == "pass" else f"FAIL ({len(r.failed)} of {len(r.signals)} signals fail: " \
                                                  f"{', '.join(r.failed)})"
     out = [head + verdict]
+    if r.retried:
+        out.append(f"  run twice: the first attempt failed ({r.retried})")
     scored = r.windows - r.excluded
     why = ", ".join(f"{k}: {n}" for k, n in {**r.ground, **r.gaps}.items())
     out.append(f"  {scored} of {r.windows} replay windows scored"
@@ -407,7 +410,9 @@ def _band_lines(r: ValidationResult) -> list[str]:
 def batch_summary(results: Sequence[ValidationResult]) -> str:
     n_fail = sum(r.status == "fail" for r in results)
     n_err = sum(r.status == "error" for r in results)
-    return f"{len(results)} runs: {len(results) - n_fail - n_err} pass, {n_fail} fail, {n_err} error"
+    n_retry = sum(bool(r.retried) for r in results)
+    return (f"{len(results)} runs: {len(results) - n_fail - n_err} pass, {n_fail} fail, {n_err} error"
+            + (f"; {n_retry} retried after a failed first attempt" if n_retry else ""))
 
 
 def write_batch_report(results: Sequence[ValidationResult], root: Path) -> Path:

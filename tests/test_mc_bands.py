@@ -151,3 +151,15 @@ def test_cli_bounds_mc_before_running(fixed_wing_fmu: Path, wing, tmp_path: Path
                                                                            "C_m_alpha", "C_ell_delta_a", "wingspan"]}}))
     assert main([*base, "--mc", "20", "--uncertainty", str(bad), "--jobs", "1"]) == 2
     assert "wingspan" in capsys.readouterr().err
+
+
+def test_cli_mc_prints_coverage_beside_skill(fixed_wing_fmu: Path, wing, tmp_path: Path, capsys) -> None:
+    params = tmp_path / "params.json"
+    params.write_text(json.dumps({"uncertainty": identified(scale=1.3).model_dump()}))
+    rc = main(["validate", str(fixed_wing_fmu), str(wing["log"]), "--mapping", str(wing["mapping"]), "--quiet",
+               "--mc", "19", "--uncertainty", str(params), "--jobs", "1", "--report", str(tmp_path / "r")])
+    out = capsys.readouterr().out
+    metrics = json.loads((tmp_path / "r" / "metrics.json").read_text())
+    assert rc == (1 if metrics["failed"] else 0)  # coverage is reported, the exit status is the skill verdicts'
+    assert "band cover" in out and "NOT EXPLAINED" in out
+    assert metrics["monte_carlo"]["draws"] == 19

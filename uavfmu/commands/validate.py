@@ -10,6 +10,11 @@ of ``--window-s`` seconds are each re-initialised from the logged state (0: one 
 windows with the vehicle on the ground are left out unless ``--include-ground``. The work is done by
 ``identification.validation_workflow``; this module parses and prints.
 
+Runs go through ``fmu_models.parallel`` (dask.distributed): local worker processes (``--jobs``), or a running
+cluster (``--scheduler tcp://HOST:PORT`` or ``UAVFMU_SCHEDULER``; docs/scale-out.md). ``--mc N --uncertainty
+PARAMS`` adds Monte Carlo bands: N replays with parameters drawn from the parameter file's ``uncertainty``
+block, restart states and sensor noise from the log; each signal's band coverage is printed beside its skill.
+
 Exit status: 0 every gated signal of every run passes, 1 a signal fails (or a batch run errors), 2 bad input.
 """
 
@@ -143,9 +148,14 @@ def _run_one(job: object, args: argparse.Namespace, uncertainty: object = None) 
 
 
 def _run_batch(jobs: list, args: argparse.Namespace) -> int:
+    from fmu_models.parallel import ParallelError
     from identification.validation_workflow import batch_summary, validate_batch, write_batch_report
 
-    results = validate_batch(jobs, args.jobs, progress=not args.quiet, scheduler=args.scheduler)
+    try:
+        results = validate_batch(jobs, args.jobs, progress=not args.quiet, scheduler=args.scheduler)
+    except ParallelError as err:
+        print(f"uavfmu validate: error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     for r in results:
         print("\n".join(r.lines()))
     print(batch_summary(results))
