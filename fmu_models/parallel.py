@@ -175,7 +175,7 @@ class Executor(AbstractContextManager):
     """A dask client on a started ``LocalCluster`` or on a running cluster; reuse it for several jobs."""
 
     def __init__(self, scheduler: str | None = None, workers: int | None = None,
-                 memory_limit: str | float | None = "auto") -> None:
+                 memory_limit: str | float | None = "auto", connect_timeout_s: float = 20.0) -> None:
         import dask
         from distributed import Client, LocalCluster
 
@@ -183,7 +183,7 @@ class Executor(AbstractContextManager):
         self.cluster = None
         if address:
             try:
-                self.client = Client(address, timeout="20s")
+                self.client = Client(address, timeout=f"{connect_timeout_s}s")
             except (OSError, TimeoutError) as err:
                 raise ParallelError(f"cannot reach the dask scheduler at {address} ({err}); start it with "
                                     "`dask scheduler` or leave --scheduler/UAVFMU_SCHEDULER unset for local "
