@@ -50,10 +50,7 @@ def make_logs(d: Path, pairs: int, seconds: float) -> list[Path]:
     t, sig = synthetic.fixed_wing_flight(seconds=seconds, rate_hz=50.0)
     logs = []
     for k in range(pairs):
-        rng = np.random.default_rng(k)
-        noisy = {c: v + rng.normal(0.0, synthetic.NOISE[c], len(v)) if c in synthetic.NOISE else v
-                 for c, v in sig.items()}
-        logs.append(synthetic.write_csv_log(d / f"wing{k:03d}.csv", t, noisy))
+        logs.append(synthetic.write_csv_log(d / f"wing{k:03d}.csv", t, synthetic.with_noise(sig, k)))
     return logs
 
 

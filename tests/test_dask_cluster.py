@@ -14,7 +14,6 @@ import threading
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from fmu_models.parallel import Executor
@@ -33,10 +32,7 @@ def batch(fixed_wing_fmu: Path, tmp_path_factory: pytest.TempPathFactory) -> tup
     t, sig = synthetic.fixed_wing_flight(seconds=3.0, rate_hz=50.0)
     logs = []
     for k in range(PAIRS):
-        rng = np.random.default_rng(k)
-        noisy = {c: v + rng.normal(0.0, synthetic.NOISE[c], len(v)) if c in synthetic.NOISE else v
-                 for c, v in sig.items()}
-        logs.append(synthetic.write_csv_log(d / f"wing{k:02d}.csv", t, noisy))
+        logs.append(synthetic.write_csv_log(d / f"wing{k:02d}.csv", t, synthetic.with_noise(sig, k)))
     return synthetic.write_mapping_toml(d / "mapping.toml"), logs
 
 
