@@ -428,6 +428,23 @@ def _fz_aligner(
     return fz
 
 
+# --------------------------------------------------------------------------- damaged logs
+def damage_gate(log: Any, accept: bool) -> tuple[str, ...]:
+    """Refuse (``LogError``) a log damaged beyond the limit, naming ``--accept-damaged-log``; with ``accept``,
+    return the sentence saying what was overridden."""
+    from identification.flightlog import LogError, check_quality
+
+    try:
+        check_quality(log)
+    except LogError as err:
+        message = str(err).replace("pass --force", "pass --accept-damaged-log")
+        if not accept:
+            raise LogError(message) from None
+        return (f"--accept-damaged-log: using {message.split(': ', 1)[0]} although "
+                f"{message.split(': ', 1)[-1].split('. Repair')[0]}",)
+    return ()
+
+
 # --------------------------------------------------------------------------- the paper's gate
 def check_gate(
     correlations: dict[str, float],
@@ -438,7 +455,8 @@ def check_gate(
 ) -> list[str]:
     """Refuse (``CorrelationGateError``) when a training input's Pearson r with F_z is below ``threshold``.
 
-    With ``force`` the refusal becomes a returned warning (and a ``UserWarning``). Returns the warnings.
+    With ``force`` (``--skip-pearson-gate``) the refusal becomes a returned warning (and a ``UserWarning``).
+    Returns the warnings.
     """
     weak = {n: correlations.get(n, float("nan")) for n in inputs}
     weak = {n: r for n, r in weak.items() if not (r >= threshold)}
@@ -456,7 +474,7 @@ def check_gate(
         "data would mostly fit noise. Usual causes on real logs: vibration on the accelerometer (try "
         "--lowpass-hz 1), ground samples (check altitude_m is logged), battery sag with no voltage logged "
         "(the PWM needed for a given thrust drifts during the flight), and a hover-only flight with little "
-        f"thrust variation.{hint} Pass --force to train anyway (the metrics file records the override)."
+        f"thrust variation.{hint} Pass --skip-pearson-gate to train anyway (the metrics file records the override)."
     )
     if not force:
         raise CorrelationGateError(message, correlations)
