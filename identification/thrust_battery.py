@@ -12,7 +12,9 @@ causal, exponentially forgetting ratio
 so ``s`` follows a battery state with time constant ``tau`` (chosen by nested cross-validation on the
 training flights) and needs no accelerometer: mass, PWM and climb rate only. This is the same signal an
 autopilot's hover-throttle learning tracks (ArduCopter ``MOT_THST_HOVER``), so a HIL bench can compute it
-online. Before the first hover sample ``s = 1``.
+online. A recursive estimator knows nothing at first, so up to ``tau`` after the first hover sample the
+estimate is the batch ratio over that first window (the only look-ahead: at most ``tau`` seconds at the
+start of a log); a flight with no hover sample keeps ``s = 1``.
 
 The FMU receives it through its ``battery_voltage_V`` input as an equivalent voltage ``V_nom s``: a map
 identified without voltage has ``thrust_voltage_exponent = 1``, so its thrust scales as ``V / V_nom``.
@@ -48,6 +50,11 @@ def hover_thrust_scale(time_s: np.ndarray, model_N: np.ndarray, hover: np.ndarra
             den += pred[k]
         if den > 0.0:
             out[k] = num / den
+    idx = np.flatnonzero(h)
+    if idx.size:
+        start = t <= t[idx[0]] + tau_s
+        first = idx[start[idx]]
+        out[start] = weight_N * first.size / float(pred[first].sum())
     return out
 
 

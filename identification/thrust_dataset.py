@@ -57,6 +57,9 @@ class ThrustDatasetConfig:
     ``lag_s``: accelerometer delay behind the PWM command [s]; ``None`` estimates it within
     ``+-max_lag_s``. ``lowpass_hz``: cut-off of a zero-phase Butterworth filter applied to every aligned
     series per segment (``None``: no filter). ``extra_inputs``: more candidate inputs, used when logged.
+    ``edge_guard_s``: samples this close to the start or end of an airborne segment are dropped: at
+    take-off and touch-down the landing gear touches the ground while the motors still run (a barometric
+    altitude lags), and the accelerometer then measures contact forces, not thrust.
     """
 
     mass_kg: float = bounded(MISSING, 0.05, 50.0, "kg")
@@ -69,6 +72,7 @@ class ThrustDatasetConfig:
     lowpass_hz: float | None = bounded(None, 1e-3, 1000.0, "Hz (None: no filter)", optional=True)
     extra_inputs: tuple[str, ...] = EXTRA_INPUTS
     pwm_idle_us: float = bounded(PWM_IDLE_US, 800.0, 1500.0, "us")
+    edge_guard_s: float = bounded(1.0, 0.0, 60.0, "s")  #: dropped at both ends of every airborne segment
     airborne_on_mean_pwm: bool = False  #: airborne test on the mean motor PWM instead of every motor
 
     def __post_init__(self) -> None:
@@ -257,7 +261,8 @@ def build_thrust_dataset(log: Any, config: ThrustDatasetConfig, source: str = ""
     pwm_sum = grid.pwm_us.sum(axis=1)
     lag = _fit_lag(config, float(np.median(np.diff(acc[0]))), fz_of_lag, pwm_sum, mask)
     fz = fz_of_lag(lag.lag_s)
-    mask, seg = _drop_short_segments(mask & np.isfinite(fz), grid, config.min_segment_s, notes)
+    mask = _trim_edges(mask & np.isfinite(fz), grid, config.edge_guard_s, notes)
+    mask, seg = _drop_short_segments(mask, grid, config.min_segment_s, notes)
     if mask.sum() < 10:
         raise ThrustDataError(
             f"{src}: only {int(mask.sum())} airborne samples (armed, "
@@ -356,6 +361,30 @@ def _fit_lag(
     r_arr = np.nan_to_num(np.array(rs), nan=-np.inf)
     lag_s = float(lags[int(np.argmax(r_arr))])
     return _LagFit(lag_s, True, (tuple(float(v) for v in lags), tuple(float(v) for v in rs)))
+
+
+def _trim_edges(mask: np.ndarray, grid: _PwmGrid, guard_s: float, notes: list[str]) -> np.ndarray:
+    """``mask`` without the samples within ``guard_s`` of a take-off or touch-down: the start (end) of an
+    airborne segment that follows (precedes) at least ``guard_s`` on the ground or the log's start (end).
+    Short dips in between (an aggressive descent at low PWM) are not ground contacts and keep their edges."""
+    if guard_s <= 0.0 or not mask.any():
+        return mask
+    seg = _segments(mask, grid.gap)
+    ids = seg[mask]
+    t, t_hi = grid.t_s[mask], grid.hi_s[mask]
+    n = ids.max() + 1
+    first, last = np.full(n, np.inf), np.full(n, -np.inf)
+    np.minimum.at(first, ids, t)
+    np.maximum.at(last, ids, t_hi)
+    ground_before = np.concatenate([[np.inf], first[1:] - last[:-1]]) >= guard_s
+    ground_after = np.concatenate([first[1:] - last[:-1], [np.inf]]) >= guard_s
+    drop = (ground_before[ids] & (t < first[ids] + guard_s)) | (ground_after[ids] & (t_hi > last[ids] - guard_s))
+    out = mask.copy()
+    out[np.flatnonzero(mask)[drop]] = False
+    if drop.any():
+        notes.append(f"dropped {int(drop.sum())} samples within {guard_s} s of take-off or touch-down "
+                     "(ground contact)")
+    return out
 
 
 def _drop_short_segments(

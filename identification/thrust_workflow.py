@@ -324,7 +324,8 @@ def score_fold(name: str, train: list[FlightData], test: FlightData, base: Model
     scale = hover_scale(pred, test)
     if calibrate:
         for key in [k for k in series if k not in ("measured", CONSTANT)]:
-            series[f"{key} (calibrated)"] = series[key] * hover_scale(series[key], test)
+            own = key == "model" and spec.tau_s is not None  # its hover battery state is its calibration
+            series[f"{key} (calibrated)"] = series[key] * (1.0 if own else hover_scale(series[key], test))
     scores = {k: Score(rmse(v, y), r_squared(v, y)) for k, v in series.items() if k not in ("measured", "model")}
     return FoldResult(name, int(y.size), Score(rmse(pred, y), r_squared(pred, y)), scores, scale, spec,
                       test.period_s, series)
@@ -339,7 +340,9 @@ def comparisons(folds: list[FoldResult], calibrate: bool, block_s: float) -> dic
     """Model vs each baseline, pooled over the held-out sets and per held-out set, as skill intervals.
 
     Raw: the model (with its battery state) against the raw baselines. Calibrated (when ``calibrate``): the
-    calibrated model against the calibrated polynomials and the constant m g."""
+    calibrated model against the calibrated polynomials and the constant m g. A model with a hover battery
+    state is calibrated by that state (time-varying, from the same mass, PWM and hover samples), not by a
+    second constant scale on top; without a state it gets the baselines' constant per-flight scale."""
     pairs = [("model", b) for b in folds[0].series if _is_baseline(b) and "(calibrated)" not in b]
     if calibrate:
         pairs += [("model (calibrated)", b) for b in folds[0].series if b == CONSTANT or
