@@ -726,7 +726,7 @@ def _feature_epochs(x, r, y, features, prem, centre, half, cfg, check) -> tuple:
     hist_c: list[float] = []
     for epoch in range(cfg.epochs):
         wb = [_normalised_firing(_log_memberships(zi[:, None], prem)[0], rules) for zi in z]
-        theta = np.linalg.lstsq(feature_design(x, r, wb, features), y, rcond=None)[0]
+        theta = _lstsq(feature_design(x, r, wb, features), y, 1).ravel()  # Gram route: 5-50x faster than SVD
         cons = theta.reshape(cfg.n_mfs, len(features))
         fw = _feature_forward(z, x, r, prem, cons, features, rules)
         err = y - sum(F for _w, _f, F, _u in fw)

@@ -198,21 +198,25 @@ def inner_folds(flights: list[FlightData], n_blocks: int) -> list[tuple[str, lis
 
 
 def candidates(base: ModelSpec, max_rules: int, states: bool) -> list[list[ModelSpec]]:
-    """Candidate structures, grouped by map (same fit), simplest first; each group lists its battery states."""
+    """Candidate structures, grouped by map (same fit), simplest first; each group lists its battery states.
+
+    With ``states`` (no voltage log) every candidate carries a hover battery state: a new flight's battery is
+    unknown, and a cross-validation inside one training flight (two-flight LOFO) cannot show what the state
+    gains between flights; only its time constant is chosen."""
     sets = VOLTAGE_CANDIDATES if base.voltage else (NO_VOLTAGE_CANDIDATE,)
-    taus: tuple[float | None, ...] = (None,) + (tuple(sorted(HOVER_TAUS_S, reverse=True)) if states else ())
+    taus: tuple[float | None, ...] = tuple(sorted(HOVER_TAUS_S, reverse=True)) if states else (None,)
     return [[replace(base, input_name=i, features=feats, n_rules=n, tau_s=t) for t in taus]
             for n in range(1, max_rules + 1) for i, feats in sets]
 
 
 def select_spec(train: list[FlightData], base: ModelSpec, max_rules: int, epochs: int, check_block_s: float,
-                n_blocks: int, calibrate: bool) -> tuple[ModelSpec, dict[str, float]]:
+                n_blocks: int, calibrate: bool, states: bool = True) -> tuple[ModelSpec, dict[str, float]]:
     """The candidate with the lowest pooled inner-CV RMSE on ``train`` alone (raw, plus calibrated when
     ``calibrate``); a more complex one must be better by ``SIMPLER_MARGIN``. Also returns every score."""
     folds = inner_folds(train, n_blocks)
     scores: dict[str, float] = {}
     best: tuple[float, ModelSpec] = (math.inf, base)
-    for group in candidates(base, max_rules, states=not base.voltage):
+    for group in candidates(base, max_rules, states=states and not base.voltage):
         sse = np.zeros(len(group))
         count = 0
         for _, tr, te in folds:

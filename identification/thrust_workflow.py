@@ -81,8 +81,8 @@ class ThrustConfig:
     """Options of :func:`identify_thrust` (checked by :func:`check_config`).
 
     ``calibrate``: also score with a per-flight hover calibration (``auto``: when no voltage is logged).
-    ``use_voltage``: use the logged battery voltage when every flight has it. ``battery_state``: allow the
-    hover-condition battery state without voltage (kept only when the inner CV says it helps). ``n_mfs``:
+    ``use_voltage``: use the logged battery voltage when every flight has it. ``battery_state``: without a
+    voltage log, carry the hover-condition battery state (its time constant chosen by inner CV). ``n_mfs``:
     most rules tried (the count is chosen by inner CV). ``fmu_mass_kg``: the FMU's ``mass_kg`` (required
     when the flights' masses differ). ``accept_damaged_log``: use logs whose damaged share exceeds the limit.
     ``write_losing_model``: write the parameter file even when a baseline beats the model (the verdict and
@@ -306,9 +306,8 @@ def base_spec(flights: list[Flight], cfg: ThrustConfig) -> tuple[ModelSpec, list
 
 
 def _select(train: list[FlightData], base: ModelSpec, cfg: ThrustConfig, calibrate: bool) -> ModelSpec:
-    spec, _ = select_spec(train, base, cfg.n_mfs, cfg.epochs, cfg.check_block_s, cfg.n_folds_single, calibrate)
-    if not cfg.battery_state:
-        spec = dataclasses.replace(spec, tau_s=None)
+    spec, _ = select_spec(train, base, cfg.n_mfs, cfg.epochs, cfg.check_block_s, cfg.n_folds_single, calibrate,
+                          states=cfg.battery_state)
     return spec
 
 
@@ -511,7 +510,7 @@ def _battery_state(spec: ModelSpec) -> dict[str, Any]:
     if spec.voltage:
         return {"method": "logged battery voltage", "fmu_input": "battery_voltage_V"}
     if spec.tau_s is None:
-        return {"method": "none (the inner CV kept no battery state)"}
+        return {"method": "none (--no-battery-state)"}
     return {"method": "hover condition (identification.thrust_battery.hover_thrust_scale)", "tau_s": spec.tau_s,
             "hover_climb_m_s": HOVER_CLIMB_M_S, "fmu_input": "battery_voltage_V",
             "equivalent_voltage": "battery_nominal_V * s(t); thrust_voltage_exponent = 1"}
