@@ -300,30 +300,39 @@ def test_erle_without_voltage_the_battery_state_wins_raw_and_no_baseline_beats_i
 @pytest.mark.slow
 def test_erle_yaw_torque_replay_no_worse_than_holding_yaw_rate() -> None:
     """Issue 13 item 6: c = b/k by output error with its CR bound; replaying PWM with it is no worse than
-    holding the logged yaw rate, also on a flight left out of the fit."""
-    from identification.thrust_model import battery_input_V
-    from identification.thrust_workflow import load_flight
-    from identification.yaw_torque import identify_yaw_torque, replay_rmse, spin_thrust, windows
-
+    holding the logged yaw rate on the fitted flights."""
     r = identify_thrust(ThrustConfig(flights=_erle_flights(), calibrate="on"))
     yaw = r.metrics["yaw"]
     assert yaw["n_windows"] > 50 and 0.0 < yaw["crb_std_m"] < abs(yaw["torque_per_thrust_m"])
     assert yaw["rmse_identified_rad_s"] <= yaw["rmse_hold_rad_s"] < yaw["rmse_default_rad_s"]
     assert r.params.b_drag_N_m_s2 == pytest.approx(yaw["b_drag_N_m_s2"])
-    # held out: fit c on 218 and 104, replay 105 with it
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="measured: with the 1 s take-off/touch-down guard (ground contact out of "
+                   "the data) the yaw torque fitted on 218 and 104 loses to holding the yaw rate on 105, skill "
+                   "-0.09 [-0.15, -0.03]; the earlier win came from touch-down samples")
+def test_erle_yaw_torque_on_a_held_out_flight_is_not_beaten_by_holding_the_rate() -> None:
+    from identification.metrics import skill_interval
+    from identification.thrust_model import battery_input_V
+    from identification.thrust_workflow import load_flight
+    from identification.yaw_torque import identify_yaw_torque, replay, spin_thrust, windows
+
     cfg = ThrustConfig(flights=_erle_flights())
+    r = identify_thrust(cfg)
     flights = [load_flight(f, cfg) for f in cfg.flights]
 
     def wins(f: object) -> list:
         volt = battery_input_V(r.params, r.spec, f.model_data(False))
         per_motor = np.stack([fmu_total_thrust(r.params, f.pwm_us[:, [i] * 4], volt) / 4
-                              for i in range(4)], axis=1) * r.calibration[f.spec.name]
+                              for i in range(4)], axis=1)
         return windows(f.data.time_s, f.data.segment, spin_thrust(per_motor), f.yaw_rate, f.data.sample_period_s)
 
     fit = identify_yaw_torque(wins(flights[0]) + wins(flights[1]), r.params)
     held = wins(flights[2])
-    jzz = r.params.Jz_kg_m2
-    assert replay_rmse(held, max(fit.torque_per_thrust_m, 0.0), jzz) <= replay_rmse(held, 0.0, jzz)
+    model, logged, starts = replay(held, max(fit.torque_per_thrust_m, 0.0), r.params.Jz_kg_m2)
+    hold = replay(held, 0.0, r.params.Jz_kg_m2)[0]
+    assert skill_interval(logged, model, hold, starts).outcome != "lose"
 
 
 class _Damaged:
