@@ -67,7 +67,8 @@ def _feature_params(input_name: str = "u", features: tuple[str, ...] = ("x2", "x
                                       "thrust_voltage_exponent": exponent, "thrust_map": amap.to_dict()})
 
 
-@pytest.mark.parametrize("input_name,features", [("u", ("x2", "x")), ("u", ("x2", "x", "x2_r")), ("u_eff", ("x2", "x"))])
+@pytest.mark.parametrize("input_name,features",
+                         [("u", ("x2", "x")), ("u", ("x2", "x", "x2_r")), ("u_eff", ("x2", "x"))])
 @pytest.mark.parametrize("volt", [9.0, 11.1, 12.6])
 def test_feature_map_zero_at_idle_monotone_and_continuous_at_the_band_edges(
     input_name: str, features: tuple[str, ...], volt: float
