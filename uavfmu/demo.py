@@ -119,7 +119,7 @@ def identify(logs: dict[str, list[Path]], work: Path, keep_going: bool = False) 
         flights = tuple(FlightSpec(Path(p), ERLE_MASS_KG) for p in logs["quadrotor"])
         thrust = identify_thrust(ThrustConfig(flights=flights, out=out, write_losing_model=keep_going))
         if thrust.written is not None:  # a losing model is written only with keep_going (write_losing_model)
-            merged.update(json.loads(out.read_text()))
+            merged["quadrotor"] = json.loads(out.read_text())["quadrotor"]
         found["thrust"] = thrust.metrics
         found["calibration"] = dict(thrust.calibration)
     if "fixed_wing" in logs:
