@@ -7,7 +7,8 @@ no voltage logged, the flight's own log still says how much thrust the vehicle n
 seconds the mean vertical acceleration is ~0) the rotors carry the weight ``m g``. The estimate is the
 causal, exponentially forgetting ratio
 
-    s(t) = sum_k a_k m g / sum_k a_k T_model(k),   a_k = exp(-(t - t_k) / tau),   over hover samples t_k <= t,
+    s(t) = sum_k a_k m g / sum_k a_k T_model(k) cos(roll_k) cos(pitch_k),   a_k = exp(-(t - t_k) / tau),
+    over hover samples t_k <= t (a tilted rotor disc carries the weight with its vertical part only),
 
 so ``s`` follows a battery state with time constant ``tau`` (chosen by nested cross-validation on the
 training flights) and needs no accelerometer: mass, PWM and climb rate only. This is the same signal an
@@ -32,8 +33,8 @@ HOVER_TAUS_S = (10.0, 30.0, 120.0)
 
 def hover_thrust_scale(time_s: np.ndarray, model_N: np.ndarray, hover: np.ndarray, weight_N: float,
                        tau_s: float) -> np.ndarray:
-    """Causal thrust-scale estimate ``s(t)`` (see the module docstring); ``model_N`` is the model's total
-    thrust without the state [N], ``hover`` the samples where the rotors carry the weight."""
+    """Causal thrust-scale estimate ``s(t)`` (see the module docstring); ``model_N`` is the vertical part of
+    the model's total thrust without the state [N], ``hover`` the samples where the rotors carry the weight."""
     if not (math.isfinite(tau_s) and tau_s > 0.0):
         raise ValueError(f"tau_s = {tau_s}; allowed a finite time constant > 0 s")
     t = np.asarray(time_s, float)

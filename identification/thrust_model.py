@@ -59,7 +59,7 @@ class ModelSpec:
 @dataclass
 class FlightData:
     """What the model needs of one flight: per-motor PWM (N, 4) [us], voltage [V] or None, hover mask,
-    time [s], measured thrust [N], weight [N]."""
+    time [s], measured thrust [N], weight [N], and ``cos(roll) cos(pitch)`` (None: attitude not logged)."""
 
     name: str
     pwm_us: np.ndarray
@@ -69,11 +69,17 @@ class FlightData:
     thrust_N: np.ndarray
     weight_N: float
     period_s: float
+    tilt_cos: np.ndarray | None = None
 
     def take(self, idx: np.ndarray, name: str) -> FlightData:
         v = None if self.volt_V is None else self.volt_V[idx]
+        c = None if self.tilt_cos is None else self.tilt_cos[idx]
         return FlightData(name, self.pwm_us[idx], v, self.hover[idx], self.time_s[idx], self.thrust_N[idx],
-                          self.weight_N, self.period_s)
+                          self.weight_N, self.period_s, c)
+
+    def vertical(self, thrust_N: np.ndarray) -> np.ndarray:
+        """The vertical part [N] of a body-z thrust: ``T cos(roll) cos(pitch)`` (T when attitude is not logged)."""
+        return thrust_N if self.tilt_cos is None else thrust_N * self.tilt_cos
 
 
 # --------------------------------------------------------------------------- model evaluation
@@ -104,7 +110,7 @@ def battery_input_V(p: QuadrotorParams, spec: ModelSpec, f: FlightData, state: b
     nominal = np.full(len(f.thrust_N), spec.nominal_V)
     if not (state and spec.tau_s):
         return nominal
-    base = fmu_total_thrust(p, f.pwm_us, nominal)
+    base = f.vertical(fmu_total_thrust(p, f.pwm_us, nominal))
     return equivalent_voltage_V(hover_thrust_scale(f.time_s, base, f.hover, f.weight_N, spec.tau_s), spec.nominal_V)
 
 
@@ -114,8 +120,9 @@ def predict(p: QuadrotorParams, spec: ModelSpec, f: FlightData, state: bool = Tr
 
 
 def hover_scale(pred_N: np.ndarray, f: FlightData) -> float:
-    """Per-flight calibration: the scale making the mean predicted thrust over the hover samples m g."""
-    m = float(np.mean(pred_N[f.hover]))
+    """Per-flight calibration: the scale making the mean predicted vertical thrust over the hover samples m g
+    (the same for the model and the baselines)."""
+    m = float(np.mean(f.vertical(pred_N)[f.hover]))
     return f.weight_N / m if m > 0.0 else 1.0
 
 

@@ -59,6 +59,7 @@ from identification.thrust_model import (
 )
 
 HOVER_CLIMB_M_S = 0.3  #: |climb rate| below this is hover (calibration, battery state, summaries)
+#: the hover condition: the rotors' vertical thrust T cos(roll) cos(pitch) carries the weight m g
 CALIBRATIONS = ("auto", "on", "off")
 CONSTANT = "constant m g"
 OUTCOMES = ("win", "tie", "lose")
@@ -123,6 +124,7 @@ class Flight:
     reader_warnings: tuple[str, ...] = ()
     quality: dict[str, Any] | None = None  #: the log's data-quality summary (``DataQuality.to_dict``)
     overrides: tuple[str, ...] = ()  #: what an option overrode for this flight (printed and in the metrics)
+    tilt_cos: np.ndarray | None = None  #: cos(roll) cos(pitch) per sample (None: attitude not logged)
 
     @property
     def weight_N(self) -> float:
@@ -131,7 +133,7 @@ class Flight:
     def model_data(self, use_voltage: bool) -> FlightData:
         """The arrays the thrust model needs."""
         return FlightData(self.spec.name, self.pwm_us, self.volt_V if use_voltage else None, self.hover,
-                          self.data.time_s, self.data.fz_N, self.weight_N, self.data.sample_period_s)
+                          self.data.time_s, self.data.fz_N, self.weight_N, self.data.sample_period_s, self.tilt_cos)
 
 
 @dataclass(frozen=True)
@@ -249,7 +251,19 @@ def load_flight(spec: FlightSpec, cfg: ThrustConfig) -> Flight:
         hover = np.ones(data.n_samples, bool)
     quality = log.quality.to_dict() if getattr(log, "quality", None) is not None else None
     return Flight(spec, data, pwm, volt, hover, _yaw_rate(log, data), tuple(getattr(log, "warnings", ()) or ()),
-                  quality, overrides)
+                  quality, overrides, _tilt_cos(log, data))
+
+
+def _tilt_cos(log: Any, data: ThrustDataset) -> np.ndarray | None:
+    """``cos(roll) cos(pitch)`` at the middle of each PWM sample interval, or None when not logged."""
+    from identification.thrust_dataset import _series
+
+    angles = [_series(log, name) for name in ("roll_rad", "pitch_rad")]
+    if any(a is None or a[0].size < 2 for a in angles):
+        return None
+    mid = data.time_s + data.sample_period_s / 2.0
+    roll, pitch = (np.interp(mid, *a) for a in angles)  # type: ignore[misc]
+    return np.cos(roll) * np.cos(pitch)
 
 
 def _yaw_rate(log: Any, data: ThrustDataset) -> np.ndarray | None:
@@ -280,6 +294,7 @@ def flight_summary(f: Flight) -> dict[str, Any]:
         "hover_pwm_mean_us": float(f.pwm_us[f.hover].mean()),
         "hover_samples": int(f.hover.sum()),
         "mean_thrust_N": float(f.data.fz_N.mean()),
+        "attitude_logged": f.tilt_cos is not None,
         "weight_N": f.weight_N,
         "lag_s": f.data.lag_s,
         "voltage_range_V": None if f.volt_V is None else [float(f.volt_V.min()), float(f.volt_V.max())],

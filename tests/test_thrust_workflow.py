@@ -251,6 +251,16 @@ def test_px4_lofo_beats_every_baseline_raw_and_the_fmu_evaluates_it(tmp_path: Pa
     _fmu_matches_scored_function(out, r.params)
 
 
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="measured: PX4 LOFO with per-flight hover calibration, pooled RMSE "
+                   "1.010 N vs 1.054 N of the calibrated voltage polynomial = 0.958, above the 0.95 target")
+def test_px4_lofo_calibrated_within_095_of_the_best_calibrated_baseline() -> None:
+    r = identify_thrust(ThrustConfig(flights=_px4_flights(), fmu_mass_kg=1.2, calibrate="on"))
+    cal = [c for k, c in r.comparisons.items() if k.startswith("model (calibrated) vs")]
+    assert all("lose" not in {o["outcome"] for o in c["per_held_out"].values()} for c in cal)
+    assert max(c["rmse_ratio"] for c in cal) <= 0.95
+
+
 def _fmu_matches_scored_function(params_file: Path, p: QuadrotorParams) -> None:
     from fmpy import extract, instantiate_fmu, read_model_description
 
@@ -292,8 +302,11 @@ def test_erle_without_voltage_the_battery_state_wins_raw_and_no_baseline_beats_i
     for f in r.folds:  # the battery state is what wins: without it the same map loses to the constant
         assert f.model.rmse_N < f.baselines["model without battery state"].rmse_N
     assert r.verdict in ("win", "tie") and r.exit_code == 0
-    cal = r.comparisons["model (calibrated) vs poly sum u^2, sum u (calibrated)"]
-    assert cal["pooled"]["outcome"] != "lose"
+    cal = {k: c for k, c in r.comparisons.items() if k.startswith("model (calibrated) vs")}
+    for c in cal.values():  # calibrated too: <= 0.95 x and never beaten on a held-out flight
+        assert c["rmse_ratio"] <= 0.95 and c["pooled"]["outcome"] != "lose"
+        assert "lose" not in {o["outcome"] for o in c["per_held_out"].values()}
+    assert all(f["attitude_logged"] for f in r.flights)  # the hover condition uses T cos(roll) cos(pitch)
     assert all(0.8 < s < 1.25 for s in r.calibration.values())
 
 
