@@ -568,13 +568,13 @@ def k_thrust_from_curve(amap: AnfisMap, pwm_sum_us: np.ndarray, motor: MotorSpee
     if np.any(excess <= 0.0):
         raise ThrustDataError(
             f"pwm_idle_us = {motor.pwm_idle_us} is not below every per-motor PWM of the data "
-            f"(min {s.min() / 4.0:.0f} us); k cannot be derived"
+            f"(min {s.min() / N_MOTORS:.0f} us); k cannot be derived"
         )
     K = motor.omega_per_us
     g = 2.0 * K * K * excess
     k = float(np.sum(slope * g) / np.sum(g * g))
     h = (K * excess) ** 2
-    level = np.asarray(amap.evaluate([s])) / 4.0
+    level = np.asarray(amap.evaluate([s])) / N_MOTORS
     k_level = float(np.sum(level * h) / np.sum(h * h))
     if not k > 0.0:
         raise ThrustDataError(

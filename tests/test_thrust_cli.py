@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import identification.thrust_paper as paper
+from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.params import QuadrotorParams
 from identification.anfis_train import AnfisTrainConfig, predict
 from identification.thrust_dataset import ThrustDatasetConfig
@@ -91,7 +92,7 @@ def test_identify_writes_params_metrics_and_plots(logs: dict[str, Path], tmp_pat
     assert params.mass_kg == MASS_KG
     assert params.k_thrust_N_s2 == pytest.approx(K_TRUE_N_S2, rel=0.05)
     lo, hi = params.thrust_map.input_range[0]
-    sums = sum(train.signals[f"motor_{k}_pwm_us"][1] for k in range(1, 5))
+    sums = sum(train.signals[f"motor_{k}_pwm_us"][1] for k in range(1, N_MOTORS + 1))
     assert 6000 < lo < hi < 8000 and lo >= sums.min() and hi <= sums.max()
     grid = np.linspace(lo, hi, 50)
     assert np.max(np.abs(predict(params.thrust_map, grid) - true_thrust_N(grid))) < 0.15

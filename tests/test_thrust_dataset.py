@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from fmu_models.quadrotor.constants import N_MOTORS
 from identification.anfis_train import AnfisTrainConfig, train_anfis
 from identification.thrust_dataset import (
     CorrelationGateError,
@@ -106,7 +107,7 @@ def test_touchdown_guard_keeps_the_edges_of_short_dips_in_the_air() -> None:
     log = SyntheticLog(accel_noise_m_s2=0.3)
     t, alt = log.signals["altitude_m"]
     mid = t[alt > 0][len(t[alt > 0]) // 2]
-    for k in range(1, 5):
+    for k in range(1, N_MOTORS + 1):
         tk, pk = log.signals[f"motor_{k}_pwm_us"]
         log.signals[f"motor_{k}_pwm_us"] = (tk, np.where((tk >= mid) & (tk < mid + 0.3), 1000.0, pk))
     ds = build_thrust_dataset(log, ThrustDatasetConfig(mass_kg=MASS_KG, lag_s=0.0))

@@ -9,6 +9,7 @@ import pytest
 
 from fmu_models.common.simulate import Simulator
 from fmu_models.quadrotor.anfis import AnfisMap, published_map
+from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.model import QuadrotorModel
 from fmu_models.quadrotor.params import QuadrotorParams
 from fmu_models.quadrotor.thrust import ThrustConstants, constants_of, motor_thrust, thrust_sum
@@ -131,7 +132,7 @@ def test_native_fmu_thrust_equals_the_python_function(tmp_path, input_name: str,
     inst.exitInitializationMode()
     got = []
     for k, (row, v) in enumerate(zip(pwm, volt, strict=True)):
-        inst.setReal([vr[f"pwm_{i}_us"] for i in range(1, 5)] + [vr["battery_voltage_V"]], [*row, v])
+        inst.setReal([vr[f"pwm_{i}_us"] for i in range(1, N_MOTORS + 1)] + [vr["battery_voltage_V"]], [*row, v])
         inst.doStep(currentCommunicationPoint=k * 1e-4, communicationStepSize=1e-4)
         got.append(inst.getReal([vr["thrust_total_N"]])[0])
     inst.terminate()

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import identification.readers as readers
+from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.params import QuadrotorParams
 from identification.thrust_dataset import ThrustDataError
 from identification.thrust_model import fmu_total_thrust
@@ -152,7 +153,7 @@ def test_per_flight_calibration_recovers_the_level_and_replays_with_thrust_scale
     lo = cal.params_for("lo")
     assert lo.thrust_scale == cal.calibration["lo"] != 1.0
     t = np.asarray(fake_logs["lo"].signals["motor_1_pwm_us"][0])
-    pwm = np.stack([fake_logs["lo"].signals[f"motor_{k}_pwm_us"][1] for k in range(1, 5)], axis=1)
+    pwm = np.stack([fake_logs["lo"].signals[f"motor_{k}_pwm_us"][1] for k in range(1, N_MOTORS + 1)], axis=1)
     mean = fmu_total_thrust(lo, pwm, np.full(t.size, lo.battery_nominal_V))[t > 1.5].mean()
     assert mean == pytest.approx(1.2 * G, rel=0.02)
 
@@ -211,7 +212,7 @@ def test_bad_logs_name_flight_and_field(fake_logs: dict[str, VoltLog]) -> None:
         identify_thrust(_cfg([("nomotor", 1.2)]))
     log = VoltLog(1.2, 12.0, 11.0, seed=8)
     t = log.signals["motor_1_pwm_us"][0]
-    for k in range(1, 5):
+    for k in range(1, N_MOTORS + 1):
         log.signals[f"motor_{k}_pwm_us"] = (t, np.full(t.size, 1050.0))
     fake_logs["ground"] = log
     with pytest.raises(ThrustDataError, match=r"flight ground: only 0 airborne samples"):
@@ -280,7 +281,7 @@ def _fmu_matches_scored_function(params_file: Path, p: QuadrotorParams) -> None:
     inst.exitInitializationMode()
     got = []
     for k, (row, v) in enumerate(zip(pwm, volt, strict=True)):
-        inst.setReal([vr[f"pwm_{i}_us"] for i in range(1, 5)] + [vr["battery_voltage_V"]], [*row, v])
+        inst.setReal([vr[f"pwm_{i}_us"] for i in range(1, N_MOTORS + 1)] + [vr["battery_voltage_V"]], [*row, v])
         inst.doStep(currentCommunicationPoint=k * 1e-4, communicationStepSize=1e-4)
         got.append(inst.getReal([vr["thrust_total_N"]])[0])
     inst.terminate()
@@ -337,8 +338,8 @@ def test_erle_yaw_torque_on_a_held_out_flight_is_not_beaten_by_holding_the_rate(
 
     def wins(f: object) -> list:
         volt = battery_input_V(r.params, r.spec, f.model_data(False))
-        per_motor = np.stack([fmu_total_thrust(r.params, f.pwm_us[:, [i] * 4], volt) / 4
-                              for i in range(4)], axis=1)
+        per_motor = np.stack([fmu_total_thrust(r.params, f.pwm_us[:, [i] * N_MOTORS], volt) / N_MOTORS
+                              for i in range(N_MOTORS)], axis=1)
         return windows(f.data.time_s, f.data.segment, spin_thrust(per_motor), f.yaw_rate, f.data.sample_period_s)
 
     fit = identify_yaw_torque(wins(flights[0]) + wins(flights[1]), r.params)
