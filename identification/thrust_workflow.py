@@ -190,7 +190,9 @@ class ThrustResult:
         return self.pooled["model"]
 
     def params_for(self, flight: str) -> QuadrotorParams:
-        """The parameters to replay ``flight`` with: its calibration scale as ``thrust_scale`` (else 1)."""
+        """The parameters to replay ``flight`` with when the replay cannot drive the battery state: its
+        calibration scale as ``thrust_scale`` (else 1). A replay that drives ``battery_voltage_V`` with
+        :func:`identification.thrust_model.battery_input_V` needs no scale."""
         return dataclasses.replace(self.params, thrust_scale=self.calibration.get(flight, 1.0))
 
     @property
@@ -424,7 +426,8 @@ def identify_thrust(cfg: ThrustConfig) -> ThrustResult:
     if not is_physical(final, data, spec):
         raise ThrustDataError("identify thrust: the final map falls with the command on its band; the data do "
                               "not show thrust rising with PWM")
-    cal = {d.name: hover_scale(predict(final, spec, d), d) for d in data} if calibrate else {}
+    # thrust_scale for replays that cannot drive the battery state: the model without it, calibrated per flight
+    cal = {d.name: hover_scale(predict(final, spec, d, state=False), d) for d in data} if calibrate else {}
     yaw, yaw_note = _yaw(flights, data, final, spec, cal)
     if yaw is not None:
         final = dataclasses.replace(final, b_drag_N_m_s2=yaw.b_drag_N_m_s2)
@@ -469,9 +472,10 @@ def _yaw(flights: list[Flight], data: list[FlightData], p: QuadrotorParams, spec
         return None, "yaw torque not identified: a flight has no gyro_body_z_rad_s"
     ms = []
     for f, d in zip(flights, data, strict=True):
-        volt = battery_input_V(p, spec, d)
+        volt = battery_input_V(p, spec, d)  # with the battery state when the model has one, else calibrated
+        scale = 1.0 if spec.tau_s is not None else cal.get(f.spec.name, 1.0)
         per_motor = np.stack([fmu_total_thrust(p, f.pwm_us[:, [i] * N_MOTORS], volt) / N_MOTORS
-                              for i in range(N_MOTORS)], axis=1) * cal.get(f.spec.name, 1.0)
+                              for i in range(N_MOTORS)], axis=1) * scale
         ok = np.isfinite(f.yaw_rate)  # type: ignore[arg-type]
         seg = np.where(ok, f.data.segment, -1)
         ms += windows(f.data.time_s, seg, spin_thrust(per_motor), np.nan_to_num(f.yaw_rate),  # type: ignore[arg-type]

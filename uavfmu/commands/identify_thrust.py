@@ -299,6 +299,7 @@ def format_report(r: Any) -> str:
                      f"[{p['skill_lo']:+.3f}, {p['skill_hi']:+.3f}] {p['outcome'].upper()} ({per})")
     lines.append(f"model: {r.spec.describe()}")
     if r.calibration:
-        lines.append("per-flight calibration scale: " + ", ".join(f"{k} {v:.4f}" for k, v in r.calibration.items()))
+        lines.append("per-flight calibration scale (thrust_scale for replays that do not drive the battery state): "
+                     + ", ".join(f"{k} {v:.4f}" for k, v in r.calibration.items()))
     lines.append(f"verdict: {r.metrics.get('verdict_text')}")
     return "\n".join(lines)
