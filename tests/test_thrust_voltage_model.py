@@ -104,6 +104,30 @@ def test_no_voltage_map_scales_with_the_equivalent_voltage_and_the_fmu_expressio
     assert {"anfis_cons_1_x2_N", "anfis_cons_2_x_N", "anfis_band_lo", "anfis_mean_2", "pwm_full_us"} <= names
 
 
+def fmu_thrust_total(params_file, pwm: np.ndarray, volt: np.ndarray) -> np.ndarray:
+    """Build the native quadrotor FMU from ``params_file`` and step it once per row: ``thrust_total_N`` [N]."""
+    from fmpy import extract, instantiate_fmu, read_model_description
+
+    from build_fmus import build
+
+    fmu = build(params_file, params_file.parent / "fmu", ["quadrotor"])[0]
+    md = read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    inst = instantiate_fmu(extract(str(fmu)), md)
+    inst.setupExperiment(startTime=0.0)
+    inst.enterInitializationMode()
+    inst.exitInitializationMode()
+    got = []
+    refs = [vr[f"pwm_{i}_us"] for i in range(1, N_MOTORS + 1)] + [vr["battery_voltage_V"]]
+    for k, (row, v) in enumerate(zip(pwm, volt, strict=True)):
+        inst.setReal(refs, [*row, v])
+        inst.doStep(currentCommunicationPoint=k * 1e-4, communicationStepSize=1e-4)
+        got.append(inst.getReal([vr["thrust_total_N"]])[0])
+    inst.terminate()
+    inst.freeInstance()
+    return np.array(got)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("input_name,features,exponent", [("u", ("x2", "x"), 1.0), ("u_eff", ("x2", "x"), 0.0)])
 def test_native_fmu_thrust_equals_the_python_function(tmp_path, input_name: str, features: tuple[str, ...],
@@ -111,30 +135,11 @@ def test_native_fmu_thrust_equals_the_python_function(tmp_path, input_name: str,
     """The native FMU built from an identified-style feature map gives the numpy function's thrust."""
     import json
 
-    from fmpy import extract, instantiate_fmu, read_model_description
-
-    from build_fmus import build
-
     p = _feature_params(input_name, features, exponent)
     params_file = tmp_path / "params.json"
     params_file.write_text(json.dumps({"quadrotor": p.to_dict()}))
-    fmu = build(params_file, tmp_path / "fmu", ["quadrotor"])[0]
-    md = read_model_description(str(fmu))
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    inst = instantiate_fmu(extract(str(fmu)), md)
     rng = np.random.default_rng(0)
-    pwm = rng.uniform(900.0, 2200.0, (60, 4))  # below idle, inside and above the band
+    pwm = rng.uniform(900.0, 2200.0, (60, N_MOTORS))  # below idle, inside and above the band
     volt = rng.uniform(9.0, 12.6, 60)
-    c = constants_of(p)
-    want = np.asarray(motor_thrust(p.thrust_map, pwm, volt[:, None], c, 4)).sum(axis=1)
-    inst.setupExperiment(startTime=0.0)
-    inst.enterInitializationMode()
-    inst.exitInitializationMode()
-    got = []
-    for k, (row, v) in enumerate(zip(pwm, volt, strict=True)):
-        inst.setReal([vr[f"pwm_{i}_us"] for i in range(1, N_MOTORS + 1)] + [vr["battery_voltage_V"]], [*row, v])
-        inst.doStep(currentCommunicationPoint=k * 1e-4, communicationStepSize=1e-4)
-        got.append(inst.getReal([vr["thrust_total_N"]])[0])
-    inst.terminate()
-    inst.freeInstance()
-    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
+    want = np.asarray(motor_thrust(p.thrust_map, pwm, volt[:, None], constants_of(p), N_MOTORS)).sum(axis=1)
+    np.testing.assert_allclose(fmu_thrust_total(params_file, pwm, volt), want, rtol=1e-9, atol=1e-9)
