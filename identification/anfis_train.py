@@ -536,84 +536,9 @@ def polynomial_baselines(
     return out
 
 
-# --------------------------------------------------------------------------- per-motor training
-def _motor_design(wbar: list[np.ndarray], z: list[np.ndarray], order: int) -> np.ndarray:
-    """Design of ``yhat = mean_i F(z_i)`` over the motors: the mean of the per-motor designs."""
-    return sum(_design(w, zi[:, None], order) for w, zi in zip(wbar, z, strict=True)) / len(z)
-
-
-def _motor_forward(z: list[np.ndarray], prem: _Premise, cons: np.ndarray, rules: np.ndarray, order: int):
-    """Per motor: (wbar, f, F(z_i), u) of the one-input map; ``yhat = n_motors * mean_i F / n``."""
-    out = []
-    for zi in z:
-        logmu, u = _log_memberships(zi[:, None], prem)
-        wbar = _normalised_firing(logmu, rules)
-        f = _rule_outputs(cons, zi[:, None], order)
-        out.append((wbar, f, np.einsum("nr,nr->n", wbar, f), u[:, 0, :]))
-    return out
-
-
-def train_anfis_motors(
-    x_motor_us: np.ndarray,
-    y: np.ndarray,
-    config: AnfisTrainConfig | None = None,
-    check: tuple[np.ndarray, np.ndarray] | None = None,
-    source: str = "",
-) -> TrainResult:
-    """Hybrid-train a one-input Gaussian ANFIS ``F`` of summed PWM so that ``y ~ sum_i F(n x_i) / n``.
-
-    ``x_motor_us`` (N, n): per-motor (effective) PWM [us]; the map's input is ``n`` times a motor's PWM,
-    the convention of the quadrotor FMU (``T_i = F(n pwm_i)/n``), so a measured total thrust ``y`` [N]
-    trains it even when the motors differ. Per epoch: least squares for the consequents over the motor
-    sum, then one Jang gradient step on the MF centres and widths. ``check``: (x, y) for early stopping.
-    """
-    cfg = config or AnfisTrainConfig(n_mfs=2, order=1)
-    if cfg.mf_type != "gaussian":
-        raise AnfisTrainingError(f"mf_type = {cfg.mf_type!r}; per-motor training supports 'gaussian' only")
-    x = np.asarray(x_motor_us, float)
-    y = np.asarray(y, float)
-    if x.ndim != 2 or y.shape != (x.shape[0],) or not (np.isfinite(x).all() and np.isfinite(y).all()):
-        raise AnfisTrainingError(f"training data: x must be finite (N, n_motors), y (N,); got {x.shape}, {y.shape}")
-    n = x.shape[1]
-    xs = n * x
-    lo, hi = float(xs.min()), float(xs.max())
-    if not hi > lo:
-        raise AnfisTrainingError(f"motor PWM is constant ({lo / n} us); an ANFIS needs a spread of values")
-    centre, half = (hi + lo) / 2.0, (hi - lo) / 2.0
-    z = [(xs[:, i] - centre) / half for i in range(n)]
-    zc = None if check is None else [(n * np.asarray(check[0], float)[:, i] - centre) / half for i in range(n)]
-    rules = _rule_index(1, cfg.n_mfs)
-    prem = _grid_init(1, cfg)
-    step = _StepSize(cfg)
-    hist_t: list[float] = []
-    hist_c: list[float] = []
-    best = (math.inf, -1, prem.copy(), np.zeros((cfg.n_mfs, 1)))
-    for epoch in range(cfg.epochs):
-        fw = _motor_forward(z, prem, np.zeros((cfg.n_mfs, 1 + cfg.order)), rules, cfg.order)
-        cons = _lstsq(_motor_design([w for w, *_ in fw], z, cfg.order), y, cfg.n_mfs)
-        fw = _motor_forward(z, prem, cons, rules, cfg.order)
-        err = y - sum(F for *_, F, _u in fw) / n
-        sse = float(err @ err)
-        hist_t.append(math.sqrt(sse / y.size))
-        score = hist_t[-1]
-        if zc is not None:
-            fc = _motor_forward(zc, prem, cons, rules, cfg.order)
-            score = _rmse(sum(F for *_, F, _u in fc) / n, np.asarray(check[1], float))  # type: ignore[index]
-            hist_c.append(score)
-        if score < best[0]:
-            best = (score, epoch, prem.copy(), cons.copy())
-        step.update(sse)
-        _motor_premise_step(prem, fw, err / n, step.kappa)
-    if best[1] < 0:
-        raise AnfisTrainingError(f"no epoch gave a finite error (last training RMSE {hist_t[-1:]})")
-    _, ep, bp, bc = best
-    amap = _to_map(bp, bc, np.array([centre]), np.array([half]), cfg, ("pwm_sum_us",),
-                   (np.array([lo]), np.array([hi])), "thrust_N", source)
-    return TrainResult(amap, tuple(hist_t), tuple(hist_c) if zc is not None else None, int(ep))
-
-
+# --------------------------------------------------------------------------- per-motor feature ANFIS
 def _motor_premise_step(prem: _Premise, fw: list, err_scaled: np.ndarray, kappa: float) -> None:
-    """One Jang step on the Gaussian centres/widths for ``yhat = mean_i F(z_i)``; ``err_scaled = err / n``.
+    """One Jang step on the Gaussian centres/widths for ``yhat = sum_i F(z_i)`` (``err_scaled`` = error).
 
     dE/dlog w_r summed over the motors (each motor's firing enters its own F), then as in
     :func:`_premise_gradient` (one input: one rule per MF).
@@ -632,14 +557,6 @@ def _motor_premise_step(prem: _Premise, fw: list, err_scaled: np.ndarray, kappa:
     prem.sigma = np.maximum(prem.sigma - eta * g_s[None], MIN_SIGMA_SCALED)
 
 
-def is_monotone(amap: AnfisMap, n_points: int = 400) -> bool:
-    """True when the one-input map does not decrease anywhere on its trained band (dense grid)."""
-    lo, hi = amap.input_range[0]
-    y = predict(amap, np.linspace(lo, hi, n_points))
-    return bool(np.all(np.diff(y) >= -1e-9 * max(1.0, float(np.abs(y).max()))))
-
-
-# --------------------------------------------------------------------------- per-motor feature ANFIS
 def feature_design(x: np.ndarray, r: np.ndarray, wbar: list[np.ndarray] | None,
                    features: tuple[str, ...]) -> np.ndarray:
     """Least-squares design of ``y ~ sum_i sum_r wbar_r(x_i) sum_k c_rk phi_k(x_i, r)``: columns rule-major

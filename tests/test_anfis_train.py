@@ -222,22 +222,19 @@ def test_bad_data_is_named() -> None:
 
 
 def test_per_motor_training_recovers_a_known_motor_curve() -> None:
-    """Total thrust of four different motors trains one map F with T_i = F(4 pwm_i)/4."""
-    from identification.anfis_train import is_monotone, train_anfis_motors
-
+    """Total thrust of four motors at different commands trains one per-motor map G with y = sum_i G(u_i)."""
     rng = np.random.default_rng(3)
-    pwm = rng.uniform(1200.0, 1900.0, (3000, 4))
+    u = rng.uniform(0.2, 0.9, (3000, 4))
 
-    def motor(p: np.ndarray) -> np.ndarray:
-        return 8.0 * ((p - 1000.0) / 1000.0) ** 2  # N per motor
+    def motor(x: np.ndarray) -> np.ndarray:
+        return 8.0 * x**2 * (1.0 - 0.3 * x)  # N per motor, flattening at the top
 
-    y = motor(pwm).sum(axis=1) + 0.05 * rng.standard_normal(3000)
-    res = train_anfis_motors(pwm[:2400], y[:2400], AnfisTrainConfig(n_mfs=2, order=1, epochs=20),
-                             (pwm[2400:], y[2400:]))
-    grid = np.linspace(1250.0, 1850.0, 50)
-    got = predict(res.amap, 4 * grid) / 4
-    np.testing.assert_allclose(got, motor(grid), atol=0.05)
-    assert is_monotone(res.amap) and res.amap.input_range[0][0] >= 4 * 1200.0
+    y = motor(u).sum(axis=1) + 0.05 * rng.standard_normal(3000)
+    res = at.train_feature_anfis(u[:2400], None, y[:2400], ("x2", "x"), 2, epochs=40,
+                                 check=(u[2400:], None, y[2400:]))
+    grid = np.linspace(0.25, 0.85, 50)
+    np.testing.assert_allclose(predict(res.amap, grid), motor(grid), atol=0.05)
+    assert at.feature_map_monotone(res.amap) and res.amap.input_range[0] == pytest.approx((0.2, 0.9), abs=1e-3)
     assert res.check_rmse is not None and min(res.check_rmse) < 0.07
 
 
