@@ -86,7 +86,7 @@ def speed() -> bool:
 
 def lofo_table(r: ThrustResult) -> list[str]:
     """Model vs constant vs polynomial per held-out flight, raw and calibrated (RMSE [N])."""
-    cols = [k for k in r.pooled if k == "model" or k.startswith(("constant", "poly", "model without"))]
+    cols = [k for k in r.pooled if k.startswith(("model", "constant", "poly"))]
     head = ["held-out", *cols]
     rows = [[f.held_out, *(f"{({'model': f.model, **f.baselines})[c].rmse_N:.3f}" for c in cols)] for f in r.folds]
     rows.append(["pooled", *(f"{r.pooled[c]:.3f}" for c in cols)])
