@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from identification.readers import read_log
 from identification.thrust_dataset import ThrustDatasetConfig, build_thrust_dataset
-from identification.thrust_model import fit
+from identification.thrust_model import fit_physical
 from identification.thrust_workflow import (
     FlightSpec,
     ThrustConfig,
@@ -62,7 +62,7 @@ def phases(cfg: ThrustConfig) -> dict[str, float]:
         score_fold(name, train, test, base, cfg, calibrate=True)
     t["nested cross-validation + scores"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    fit(data, _select(data, base, cfg, True), cfg.epochs, cfg.check_block_s, "bench")
+    fit_physical(data, _select(data, base, cfg, True), cfg.epochs, cfg.check_block_s, "bench")
     t["final selection + fit"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     identify_thrust(cfg)

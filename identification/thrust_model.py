@@ -162,6 +162,20 @@ def fit(train: list[FlightData], spec: ModelSpec, epochs: int, check_block_s: fl
     return Fit(params, design, y - design @ theta)
 
 
+def fit_physical(train: list[FlightData], spec: ModelSpec, epochs: int, check_block_s: float, source: str,
+                 mass_kg: float | None = None) -> tuple[Fit, ModelSpec]:
+    """:func:`fit`, falling back to simpler structures while the map falls with the command somewhere on its
+    band: one rule, then the square law ``x^2`` alone (thrust ~ speed^2, monotone when its coefficient is
+    positive). ThrustDataError when even that falls: the data do not show thrust rising with PWM."""
+    tried = [spec, replace(spec, n_rules=1), replace(spec, n_rules=1, features=("x2",))]
+    for s in dict.fromkeys(tried):  # distinct, in order
+        fitted = fit(train, s, epochs, check_block_s, source, mass_kg)
+        if is_physical(fitted.params, train, s):
+            return fitted, s
+    raise ThrustDataError(f"{source}: even the square law T = a u^2 falls with the command on the band; the data "
+                          "do not show thrust rising with PWM")
+
+
 def is_physical(p: QuadrotorParams, train: list[FlightData], spec: ModelSpec) -> bool:
     """The map rises with the command over its band at the lowest, mean and highest battery ratio flown."""
     r = np.concatenate([_ratio(f, spec) for f in train])
@@ -228,7 +242,7 @@ def select_spec(train: list[FlightData], base: ModelSpec, max_rules: int, epochs
         count = 0
         for _, tr, te in folds:
             p = fit(tr, group[0], epochs, check_block_s, "inner CV").params
-            if not is_physical(p, tr, group[0]):
+            if not is_physical(p, tr, group[0]):  # candidates that fall with the command are not kept
                 sse[:] = math.inf
                 break
             for k, spec in enumerate(group):

@@ -53,3 +53,23 @@ def test_bad_time_constant_is_named(tau: float) -> None:
 
 def test_equivalent_voltage_is_nominal_times_scale() -> None:
     np.testing.assert_allclose(equivalent_voltage_V(np.array([1.0, 0.9]), 11.1), [11.1, 9.99])
+
+
+def test_a_map_that_falls_with_the_command_falls_back_to_the_square_law() -> None:
+    """Thrust that peaks inside the band (what battery sag does to a one-flight fit): the least-squares
+    polynomial falls at the top, so the written map is the square law a u^2, a > 0, monotone; data that fall
+    everywhere are refused."""
+    from identification.thrust_dataset import ThrustDataError
+    from identification.thrust_model import FlightData, ModelSpec, fit_physical, is_physical
+
+    rng = np.random.default_rng(1)
+    u = rng.uniform(0.3, 0.6, (2000, 4))
+    y = (10.0 * u - 12.0 * u**2).sum(axis=1)  # per motor: rises to u = 0.42, falls after
+    flight = FlightData("f", 1000.0 + 1000.0 * u, None, np.ones(2000, bool), np.arange(2000) * 0.1, y, 7.0, 0.1)
+    spec = ModelSpec(1000.0, 2000.0, 11.1, False, n_rules=2)
+    fitted, used = fit_physical([flight], spec, 20, 5.0, "test")
+    assert used.features == ("x2",) and used.n_rules == 1
+    assert fitted.params.thrust_map.consequents[0][0] > 0.0 and is_physical(fitted.params, [flight], used)
+    falling = FlightData("g", 1000.0 + 1000.0 * u, None, np.ones(2000, bool), np.arange(2000) * 0.1, -y, 7.0, 0.1)
+    with pytest.raises(ThrustDataError, match="square law"):
+        fit_physical([falling], spec, 20, 5.0, "test")
