@@ -165,9 +165,10 @@ def fit(train: list[FlightData], spec: ModelSpec, epochs: int, check_block_s: fl
 def fit_physical(train: list[FlightData], spec: ModelSpec, epochs: int, check_block_s: float, source: str,
                  mass_kg: float | None = None) -> tuple[Fit, ModelSpec]:
     """:func:`fit`, falling back to simpler structures while the map falls with the command somewhere on its
-    band: one rule, then the square law ``x^2`` alone (thrust ~ speed^2, monotone when its coefficient is
-    positive). ThrustDataError when even that falls: the data do not show thrust rising with PWM."""
-    tried = [spec, replace(spec, n_rules=1), replace(spec, n_rules=1, features=("x2",))]
+    band: one rule fewer at a time, then the square law ``x^2`` alone (thrust ~ speed^2, monotone when its
+    coefficient is positive). ThrustDataError when even that falls: the data do not show thrust rising."""
+    tried = [replace(spec, n_rules=n) for n in range(spec.n_rules, 0, -1)]
+    tried.append(replace(spec, n_rules=1, features=("x2",)))
     for s in dict.fromkeys(tried):  # distinct, in order
         fitted = fit(train, s, epochs, check_block_s, source, mass_kg)
         if is_physical(fitted.params, train, s):
