@@ -117,8 +117,9 @@ def identify(logs: dict[str, list[Path]], work: Path, keep_going: bool = False) 
 
         out = work / "quadrotor_identified.json"
         flights = tuple(FlightSpec(Path(p), ERLE_MASS_KG) for p in logs["quadrotor"])
-        thrust = identify_thrust(ThrustConfig(flights=flights, out=out, force=keep_going))
-        merged.update(json.loads(out.read_text()))
+        thrust = identify_thrust(ThrustConfig(flights=flights, out=out, write_losing_model=keep_going))
+        if thrust.written is not None:  # a losing model is written only with keep_going (write_losing_model)
+            merged["quadrotor"] = json.loads(out.read_text())["quadrotor"]
         found["thrust"] = thrust.metrics
         found["calibration"] = dict(thrust.calibration)
     if "fixed_wing" in logs:
@@ -181,11 +182,13 @@ def run(args: argparse.Namespace) -> int:
     if "thrust" in found:
         m = found["thrust"]
         print(f"thrust model identified from the quadrotor log(s) (per-motor ANFIS, {m['cross_validation']})")
-        print(f"  {'held-out RMSE [N], model (FMU)':<36} {m['pooled_model_rmse_N']:10.4f}")
-        for name, value in m["pooled_baseline_rmse_N"].items():
-            print(f"  {'  baseline ' + name:<36} {value:10.4f}")
-        print(f"  {'verdict':<36} {m['verdict']}")
-        print(f"  {'trained band [us summed]':<36} {m['band_us'][0]:10.0f} {m['band_us'][1]:8.0f}")
+        for name, value in m["pooled_rmse_N"].items():
+            print(f"  {'held-out RMSE [N] ' + name:<36} {value:10.4f}")
+        print(f"  {'verdict':<36} {m['verdict_text']}")
+        print(f"  {'model':<36} {m['model']}")
+        print(f"  {'trained band [command u]':<36} {m['band'][0]:10.3f} {m['band'][1]:8.3f}")
+        if not m.get("parameters_written"):
+            print("  the thrust model lost: not written; the quadrotor FMU keeps the published map")
         for flight, scale in found.get("calibration", {}).items():
             print(f"  {'calibration scale ' + flight:<36} {scale:10.4f}  (applied when that flight is replayed)")
     if "aero" in found:
