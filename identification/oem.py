@@ -747,17 +747,28 @@ def _linearised(data: list[Manoeuvre], sims: list[Any], weight: np.ndarray | Non
     return res, [s[1] for s in sims], W, _cost(res, W)
 
 
+@dataclass
+class Consider:
+    """Parameters held fixed and what their uncertainty does to the estimate (see :func:`consider_covariance`)."""
+
+    names: list[str]
+    sd: np.ndarray  #: the std each fixed parameter was given
+    cov: np.ndarray  #: consider covariance of the model parameters (n_global x n_global)
+    influence: np.ndarray  #: ``A``: shift of each model parameter per unit error of each fixed one
+    informed: np.ndarray  #: posterior std / given std of each fixed parameter were it freed (1: data silent)
+
+
 def consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Sequence[Manoeuvre],
-                        consider: dict[str, float], weight: np.ndarray | None = None,
-                        ) -> tuple[np.ndarray, np.ndarray]:
+                        consider: dict[str, float], weight: np.ndarray | None = None) -> Consider:
     """Consider covariance of the model parameters from parameters held fixed at values known to ``consider``
     (name -> std) only (Tapley, Schutz & Born 2004, sec. 6.3; Bierman 1977): with ``A = M_θθ⁻¹ M_θc``, the
     linearised shift of the estimate per unit error of the fixed parameters, the covariance is
-    ``A diag(σ_c²) Aᵀ``. Returns that covariance (n_global x n_global) and ``A`` (n_global x n_c)."""
+    ``A diag(σ_c²) Aᵀ``. ``informed`` is each fixed parameter's std, were all of them freed with their std as
+    a prior, over that std (white-residual information): below ~0.5 the data could estimate it."""
     names = [n for n in consider if n not in oe.free]
     ng = len(oe.free)
     if not names:
-        return np.zeros((ng, ng)), np.zeros((ng, 0))
+        return Consider([], np.zeros(0), np.zeros((ng, ng)), np.zeros((ng, 0)), np.zeros(0))
     p = oe.p_nominal.copy()
     p[oe.i_free] = est.values[:ng]
     big = OutputErrorEstimator(oe.model, p, oe.free + names, oe.outputs, estimate_states=oe.states_est,
@@ -774,4 +785,9 @@ def consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Sequence[
     Mtt = M[np.ix_(keep, keep)] + np.diag(oe.prior_information(len(keep)))
     A = np.linalg.lstsq(Mtt, M[np.ix_(keep, cons)], rcond=None)[0][:ng]
     sd = np.array([consider[n] for n in names])
-    return (A * sd ** 2) @ A.T, A
+    info = np.zeros(len(theta))
+    info[keep] = oe.prior_information(len(keep))
+    info[cons] = 1.0 / sd ** 2
+    aug = np.linalg.pinv(M + np.diag(info))
+    informed = np.sqrt(np.maximum(np.diag(aug)[cons], 0.0)) / sd
+    return Consider(names, sd, (A * sd ** 2) @ A.T, A, informed)
