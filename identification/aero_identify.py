@@ -615,9 +615,12 @@ def _equation_error_start(model: FixedWingModel, p: np.ndarray, pool: Pool, free
     used = []
     for n in free:
         v = ee.values.get(n)
+        start = float(p[model.params.index[n]])
         if v is None or not math.isfinite(v) or (opt.stability_constraints and n in STABILITY_SIGNS
                                                  and STABILITY_SIGNS[n] * v <= 0):
             continue
+        if ee.std[n] > 0.5 * abs(v) or (start != 0.0 and not 0.2 < v / start < 5.0):
+            continue  # poorly determined, or far from the start: the start value is the safer guess
         p[model.params.index[n]] = v
         used.append(n)
     notes.append(f"output-error start from the equation-error estimate for {', '.join(used) or 'none'}")
