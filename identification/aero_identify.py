@@ -31,6 +31,7 @@ from identification.flightlog import DEFAULT_MAX_DAMAGE, FlightLog, check_qualit
 from identification.identifiability import Identifiability
 from identification.metrics import FitMetrics, skill_interval
 from identification.oem import (
+    FREE_IMPACT,
     Consider,
     Estimate,
     EstimationError,
@@ -38,6 +39,7 @@ from identification.oem import (
     Manoeuvre,
     OutputErrorEstimator,
     consider_covariance,
+    fixed_worth_freeing,
 )
 from identification.priors import CONSIDERED, Prior, fixed_sd, geometry_priors
 
@@ -485,12 +487,6 @@ def _consider(result: AeroResult, model: FixedWingModel, p: np.ndarray, opt: Aer
     return con
 
 
-#: ``free="auto"`` frees a fixed parameter whose consider share shifts a free one by more than this many of
-#: its data-only std, when the data would pin it down (std freed / std given below ``AUTO_INFORMED``)
-AUTO_IMPACT = 1.0
-AUTO_INFORMED = 0.5
-
-
 def _free_fixed(result: AeroResult, model: FixedWingModel, p: np.ndarray, opt: AeroOptions,
                 weight: np.ndarray | None) -> None:
     """One round of ``free="auto"``: free the fixed parameters that matter and that the data inform, refit
@@ -500,11 +496,7 @@ def _free_fixed(result: AeroResult, model: FixedWingModel, p: np.ndarray, opt: A
     if con is None or not con.names:
         return
     n = est.n_global
-    data_std = np.sqrt(np.maximum(np.diag(est.covariance_printed() - (est.consider_cov if est.consider_cov
-                                                                         is not None else 0.0)), 1e-300))
-    impact = np.abs(con.influence) * con.sd[None, :] / data_std[:n, None]
-    chosen = [c for j, c in enumerate(con.names) if impact[:, j].max() > AUTO_IMPACT and
-              con.informed[j] < AUTO_INFORMED]
+    chosen = fixed_worth_freeing(est, con)
     if not chosen:
         result.notes.append("free=auto: no fixed coefficient both matters and is informed by the data")
         return
@@ -516,7 +508,7 @@ def _free_fixed(result: AeroResult, model: FixedWingModel, p: np.ndarray, opt: A
     result.fit, result.free = new, free
     result.start.update({c: float(p[model.params.index[c]]) for c in chosen})
     result.notes.append(f"free=auto freed {', '.join(chosen)}: held fixed, each shifted a free derivative by more "
-                        f"than {AUTO_IMPACT:g} std of its bound and the data inform it")
+                        f"than {FREE_IMPACT:g} std of its data bound and the data inform it")
     _consider(result, model, p, opt, weight)
 
 

@@ -791,3 +791,24 @@ def consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Sequence[
     aug = np.linalg.pinv(M + np.diag(info))
     informed = np.sqrt(np.maximum(np.diag(aug)[cons], 0.0)) / sd
     return Consider(names, sd, (A * sd ** 2) @ A.T, A, informed)
+
+
+#: a fixed parameter is worth freeing when its consider share shifts a free one by more than this many of
+#: its data-only std ...
+FREE_IMPACT = 1.0
+#: ... and the data would pin it down (its std, were it freed, below this fraction of the std it was given)
+FREE_INFORMED = 0.5
+
+
+def fixed_worth_freeing(est: Estimate, con: Consider) -> list[str]:
+    """The fixed parameters of ``con`` that matter (shift a free estimate by more than :data:`FREE_IMPACT`
+    data-only std) and that the data inform (``informed`` below :data:`FREE_INFORMED`), as ``--free auto``
+    frees them."""
+    if not con.names:
+        return []
+    n = est.n_global
+    data_std = est.crb_std[:n].copy()
+    if est.bootstrap_std is not None and est.bound_method.startswith("max("):
+        data_std = np.maximum(data_std, est.bootstrap_std)
+    impact = np.abs(con.influence) * con.sd[None, :] / np.maximum(data_std[:, None], 1e-300)
+    return [c for j, c in enumerate(con.names) if impact[:, j].max() > FREE_IMPACT and con.informed[j] < FREE_INFORMED]

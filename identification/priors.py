@@ -31,6 +31,9 @@ GEOMETRY_RELATIVE_SD = {"C_ell_p": 0.5, "C_m_q": 0.6, "C_m_alpha": 0.6, "C_n_r":
                         "C_Y_beta": 1.0}
 #: std of a fixed parameter that has no prior: this fraction of |value| ...
 FIXED_RELATIVE_SD = 0.5
+#: ... except the lift slope: the wing geometry predicts it (Helmbold/DATCOM) far better than the damping
+#: and cross derivatives, so 20 % is given instead of 50 %
+FIXED_RELATIVE_SD_BY_NAME = {"C_L_alpha": 0.2}
 #: ... and at least this much, per coefficient family (for parameters that sit at 0 or near it)
 FIXED_SD_FLOOR = {"C_ell": 0.005, "C_n": 0.005, "C_Y": 0.05, "C_m": 0.02, "C_L": 0.1, "C_D": 0.01}
 #: the aerodynamic coefficients whose fixed values enter the consider covariance
@@ -91,7 +94,8 @@ def geometry_priors(p: FixedWingParams | dict[str, float]) -> dict[str, Prior]:
 def fixed_sd(name: str, value: float) -> float:
     """The std a fixed parameter without a prior gets: ``FIXED_RELATIVE_SD |value|``, at least its floor."""
     family = next((f for f in FIXED_SD_FLOOR if name.startswith(f + "_")), None)
-    return max(FIXED_RELATIVE_SD * abs(value), FIXED_SD_FLOOR.get(family, 0.0) if family else 0.0)
+    rel = FIXED_RELATIVE_SD_BY_NAME.get(name, FIXED_RELATIVE_SD)
+    return max(rel * abs(value), FIXED_SD_FLOOR.get(family, 0.0) if family else 0.0)
 
 
 def parse_priors(text: str, known: set[str] | None = None) -> dict[str, Prior]:
