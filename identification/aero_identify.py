@@ -143,6 +143,7 @@ class AeroResult:
             "baselines_validation": self.baselines, "losing_outputs": self.losing_outputs,
             "quality": self.quality,
             "prior_dominated": self.estimate.prior_dominated(),
+            "not_data_dominated": self.estimate.not_data_dominated(),
             "considered_fixed": self.estimate.considered,
             "equation_error": self.rival.as_dict() if self.rival is not None else None,
         }
@@ -164,10 +165,14 @@ class AeroResult:
             lines.append(f"held-out {n}: {'LOSES' if b['loses_to'] else 'beats'} - against {verdicts}")
         if self.rival is not None:
             lines += ["", *self.rival.beside(self.estimate)]
-        dominated = self.estimate.prior_dominated()
+        dominated, joint = self.estimate.prior_dominated(), self.estimate.not_data_dominated()
         if dominated:
             lines.append(f"only the prior determines {', '.join(dominated)}: the data do not (posterior std above "
                          "0.8 of the prior's); add manoeuvres that excite them")
+        joint = [n for n in joint if n not in dominated]
+        if joint:
+            lines.append(f"the prior co-determines {', '.join(joint)} (posterior std 0.5-0.8 of the prior's): "
+                         "not the data's alone")
         if self.estimate.considered:
             lines.append(f"bounds include the consider covariance of {len(self.estimate.considered)} fixed "
                          "coefficients (each at its prior std): " + ", ".join(self.estimate.considered))

@@ -137,6 +137,11 @@ class Estimate:
         """Model parameters that only the prior determines (posterior std above 0.8 of the prior's)."""
         return [n for n, d in zip(self.names, self.dominance(), strict=False) if d == "prior"]
 
+    def not_data_dominated(self) -> list[str]:
+        """Model parameters the prior determines alone or with the data (posterior std above half the
+        prior's: the data carry at most three times the prior's information)."""
+        return [n for n, d in zip(self.names, self.dominance(), strict=False) if d in ("prior", "data+prior")]
+
     def covariance_printed(self) -> np.ndarray:
         """Covariance of the model parameters whose diagonal is the printed bound squared: the data's
         (coloured Cramér-Rao correlations, scaled up where the bootstrap is wider) plus the consider term."""
@@ -205,6 +210,7 @@ class Estimate:
             "converged": self.converged,
             "warnings": self.warnings,
             "prior_dominated": self.prior_dominated(),
+            "not_data_dominated": self.not_data_dominated(),
         }
 
 
