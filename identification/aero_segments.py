@@ -28,8 +28,10 @@ from identification.flightlog import FlightLog
 
 #: recovery time kept after a block's end [s]: the response to the last pulse is still informative
 TAIL_S = 2.0
-#: longest segment fitted as one record [s]; longer activity spans are split (output error drifts)
-MAX_SEGMENT_S = 12.0
+#: longest segment cut from detected input activity [s]; longer spans are split into equal pieces, each fitted
+#: from the log's state at its start (closed-loop flight moves the surfaces all the time: without a split
+#: the whole flight would be one record, and drift, not the manoeuvres, would dominate the fit)
+MAX_SEGMENT_S = 4.0
 
 
 @dataclass(frozen=True)
