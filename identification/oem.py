@@ -11,10 +11,11 @@ eq. 9). Cramér-Rao bounds carry Morelli & Klein's correction for coloured resid
 Parameter vector: the free model parameters, then per manoeuvre the estimated initial states and output
 biases (``m<j>.x0.<state>``, ``m<j>.bias.<output>``).
 
-A-priori values with standard deviations turn the fit into a maximum-a-posteriori estimate (the prior enters
-the cost as ``1/2 Σ ((θ - θ_p)/σ_p)²``, Klein & Morelli 2006 sec. 6.7 "a priori information"); the bounds then
-include it (its information enters the sandwich beside the coloured-residual term). Parameters kept fixed at
-uncertain values enter the bounds as a consider covariance (:func:`consider_covariance`).
+A-priori values with standard deviations turn the fit into a maximum-a-posteriori estimate: the prior enters
+the cost as ``1/2 Σ ((θ - θ_p)/σ_p)²`` (a priori information as in Klein & Morelli 2006 and Jategaonkar 2015),
+and the bounds include it (its information enters the sandwich beside the coloured-residual term).
+Parameters kept fixed at uncertain values enter the bounds as a consider covariance
+(:func:`consider_covariance`).
 """
 
 from __future__ import annotations
