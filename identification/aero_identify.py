@@ -130,6 +130,15 @@ class AeroResult:
     def estimate(self) -> Estimate:
         return self.fit.estimate
 
+    def _main_fixed(self, names: list[str]) -> str:
+        """The fixed parameters that move ``names`` most (largest |influence| x std)."""
+        con = self.consider
+        if con is None or not con.names:
+            return "-"
+        rows = [self.estimate.names.index(n) for n in names]
+        share = (np.abs(con.influence[rows]) * con.sd[None, :]).max(axis=0)
+        return ", ".join(con.names[j] for j in np.argsort(-share)[:3])
+
     def as_dict(self) -> dict[str, Any]:
         return {
             "free": self.free, "outputs": self.outputs,
@@ -167,9 +176,13 @@ class AeroResult:
             lines += ["", *self.rival.beside(self.estimate)]
         dominated, joint = self.estimate.prior_dominated(), self.estimate.not_data_dominated()
         if dominated:
-            lines.append(f"only the prior determines {', '.join(dominated)}: the data do not (posterior std above "
-                         "0.8 of the prior's); add manoeuvres that excite them")
-        joint = [n for n in joint if n not in dominated]
+            lines.append(f"only the prior determines {', '.join(dominated)}: the data do not (posterior std without "
+                         "the consider share above 0.8 of the prior's); add manoeuvres that excite them")
+        fixed = [n for n, d in zip(self.estimate.names, self.estimate.dominance(), strict=False) if d == "fixed"]
+        if fixed:
+            lines.append(f"the values held fixed determine {', '.join(fixed)} more than the data do (consider share "
+                         f"above the data's std; mainly {self._main_fixed(fixed)}): free those or give priors")
+        joint = [n for n in joint if n not in dominated and n not in fixed]
         if joint:
             lines.append(f"the prior co-determines {', '.join(joint)} (posterior std 0.5-0.8 of the prior's): "
                          "not the data's alone")

@@ -120,14 +120,26 @@ class Estimate:
             out[:self.n_global] = np.hypot(out[:self.n_global], self.consider_std)
         return out
 
+    @property
+    def data_std(self) -> np.ndarray:
+        """The posterior std from the data and the prior (coloured Cramér-Rao or bootstrap), without the
+        consider share of the parameters held fixed."""
+        out = self.crb_std[:self.n_global].copy()
+        if self.bootstrap_std is not None and self.bound_method.startswith("max("):
+            out = np.maximum(out, self.bootstrap_std)
+        return out
+
     def dominance(self) -> list[str]:
-        """Per model parameter: "data" when the posterior std is below half the prior's, "prior" when above
-        0.8 of it, "data+prior" between, "data (no prior)" without a prior."""
+        """Per model parameter: "fixed" when the consider share of the parameters held fixed exceeds the data's
+        std; else "data" when the posterior std (data and prior, without the consider share) is below half the
+        prior's, "prior" when above 0.8 of it, "data+prior" between, "data (no prior)" without a prior."""
         out = []
-        std = self.std
+        std, cons = self.data_std, self.consider_std
         for i in range(self.n_global):
             sp = np.inf if self.prior_sd is None else self.prior_sd[i]
-            if not np.isfinite(sp):
+            if cons is not None and cons[i] > std[i]:
+                out.append("fixed")  # the values held fixed move it more than the data pin it down
+            elif not np.isfinite(sp):
                 out.append("data (no prior)")
             else:
                 ratio = std[i] / sp
@@ -140,16 +152,15 @@ class Estimate:
 
     def not_data_dominated(self) -> list[str]:
         """Model parameters the prior determines alone or with the data (posterior std above half the
-        prior's: the data carry at most three times the prior's information)."""
-        return [n for n, d in zip(self.names, self.dominance(), strict=False) if d in ("prior", "data+prior")]
+        prior's: the data carry at most three times the prior's information), or that the values held fixed
+        (their priors) move more than the data pin them down."""
+        return [n for n, d in zip(self.names, self.dominance(), strict=False)
+                if d in ("prior", "data+prior", "fixed")]
 
     def covariance_printed(self) -> np.ndarray:
         """Covariance of the model parameters whose diagonal is the printed bound squared: the data's
         (coloured Cramér-Rao correlations, scaled up where the bootstrap is wider) plus the consider term."""
-        n = self.n_global
-        data_std = self.crb_std[:n].copy()
-        if self.bootstrap_std is not None and self.bound_method.startswith("max("):
-            data_std = np.maximum(data_std, self.bootstrap_std)
+        data_std = self.data_std
         cov = np.diag(data_std ** 2) if self.covariance is None else self.covariance
         d = np.sqrt(np.maximum(np.diag(cov), 1e-300))
         scale = data_std / d
@@ -813,9 +824,6 @@ def fixed_worth_freeing(est: Estimate, con: Consider) -> list[str]:
     frees them."""
     if not con.names:
         return []
-    n = est.n_global
-    data_std = est.crb_std[:n].copy()
-    if est.bootstrap_std is not None and est.bound_method.startswith("max("):
-        data_std = np.maximum(data_std, est.bootstrap_std)
+    data_std = est.data_std
     impact = np.abs(con.influence) * con.sd[None, :] / np.maximum(data_std[:, None], 1e-300)
     return [c for j, c in enumerate(con.names) if impact[:, j].max() > FREE_IMPACT and con.informed[j] < FREE_INFORMED]
