@@ -86,3 +86,41 @@ def test_consider_covariance_predicts_the_shift_from_a_wrong_fixed_value(lateral
     assert np.any(np.abs(shift) > 1.96 * est.data_std)  # the data bound alone misses the mismatch
     assert np.all(np.abs(shift) <= 1.96 * est.std[:4])  # with the consider share it covers it
     assert "C_ell_r" in fixed_worth_freeing(est, con)  # matters and the roll data inform it
+
+
+def test_a_horizon_step_that_diverges_says_how_far_it_fitted(lateral) -> None:  # type: ignore[no-untyped-def]
+    """Continuation from an unstable roll start: the short spans simulate, a longer one diverges; the error
+    names the last span that fitted (identify aero then cuts its segments to that length)."""
+    from identification.oem import HorizonDivergedError
+
+    sim, p, data = lateral
+    oe = OutputErrorEstimator(sim.model, p, ["C_ell_p"], OUT)
+    with pytest.raises(HorizonDivergedError) as err:
+        oe.estimate(data, theta0=[0.1], max_iter=0, horizon_s=0.2)
+    assert 0.2 <= err.value.last_ok_s < 6.0 and "diverges over" in str(err.value)
+
+
+def test_two_logs_pool_into_one_estimate(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from fmu_models.signals.pwm_mapping import PwmMapping
+    from identification import aero
+    from identification.aero_identify import AeroOptions, AeroSource, identify_aero
+    from identification.readers import read_log
+    from uavfmu import synthetic
+
+    mapping = PwmMapping.load(synthetic.write_mapping_toml(tmp_path / "m.toml"))
+    sources = []
+    for k in range(2):
+        t, sig = synthetic.fixed_wing_flight(seconds=20.0, rate_hz=50.0, noise=True, seed=k)
+        log = read_log(synthetic.write_csv_log(tmp_path / f"f{k}.csv", t, sig))
+        sources.append(AeroSource(log, mapping, segments=[aero.Segment(0.0, 9.0)],
+                                  validate_segments=[aero.Segment(10.0, 19.0)]))
+    free = ["C_ell_p", "C_ell_delta_a", "C_n_r", "C_n_delta_r"]
+    res = identify_aero(sources, None, FixedWingParams(), AeroOptions(
+        free=free, outputs=("roll_rad", "rate_body_x_rad_s", "rate_body_z_rad_s"), max_delay_s=0.0,
+        nuisance="none", equation_error=False, consider=False))
+    assert len(res.fit.data) == 2 and len(res.validation_segments) == 2
+    truth = FixedWingParams().to_dict()
+    d = res.estimate.derivatives()
+    for n in free:
+        i = res.estimate.names.index(n)
+        assert abs(d[n] - truth[n]) <= 4 * res.estimate.std[i] and res.estimate.std[i] < 0.1 * abs(truth[n]), n
