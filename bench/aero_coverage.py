@@ -124,7 +124,7 @@ def _auto_fit(oe: OutputErrorEstimator, data: list[Manoeuvre], start: np.ndarray
     coefficients, the ones worth freeing freed (their start value and consider std as prior), a refit from
     the estimate, the consider covariance of the rest."""
     est = oe.estimate(data, theta0=start, max_iter=30)
-    con = consider_covariance(oe, est, data, consider)
+    con = consider_covariance(oe, est, data, consider, compile=True)
     est.consider_cov = con.cov
     chosen = tuple(fixed_worth_freeing(est, con))
     freed[chosen] = freed.get(chosen, 0) + 1
@@ -136,7 +136,7 @@ def _auto_fit(oe: OutputErrorEstimator, data: list[Manoeuvre], start: np.ndarray
     big = _ESTIMATORS[chosen]
     theta0 = np.concatenate([est.values, big.p_nominal[big.i_free[len(oe.free):]]])
     est2 = big.estimate(data, theta0=theta0, max_iter=30)
-    est2.consider_cov = consider_covariance(big, est2, data, consider).cov
+    est2.consider_cov = consider_covariance(big, est2, data, consider, compile=True).cov
     return est2
 
 

@@ -777,20 +777,23 @@ class Consider:
 
 
 def consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Sequence[Manoeuvre],
-                        consider: dict[str, float], weight: np.ndarray | None = None) -> Consider:
+                        consider: dict[str, float], weight: np.ndarray | None = None, compile: bool = False
+                        ) -> Consider:
     """Consider covariance of the model parameters from parameters held fixed at values known to ``consider``
     (name -> std) only (Tapley, Schutz & Born 2004, sec. 6.3; Bierman 1977): with ``A = M_θθ⁻¹ M_θc``, the
     linearised shift of the estimate per unit error of the fixed parameters, the covariance is
     ``A diag(σ_c²) Aᵀ``. ``informed`` is each fixed parameter's std, were all of them freed with their std as
-    a prior, over that std (white-residual information): below ~0.5 the data could estimate it."""
+    a prior, over that std (white-residual information): below ~0.5 the data could estimate it. ``compile``:
+    compile the sensitivity step to C (worth it when the same sets recur, as in a Monte Carlo study)."""
     names = [n for n in consider if n not in oe.free]
     ng = len(oe.free)
     if not names:
         return Consider([], np.zeros(0), np.zeros((ng, ng)), np.zeros((ng, 0)), np.zeros(0))
     p = oe.p_nominal.copy()
     p[oe.i_free] = est.values[:ng]
+    # one pass with sensitivities: by default CasADi's virtual machine, not a C compile of a function used once
     big = OutputErrorEstimator(oe.model, p, oe.free + names, oe.outputs, estimate_states=oe.states_est,
-                               estimate_biases=oe.biases)
+                               estimate_biases=oe.biases, compile=compile)
     nc = len(names)
     theta = np.concatenate([est.values[:ng], p[big.i_free[ng:]], est.values[ng:]])
     sims = [big.simulate(theta, m, j) for j, m in enumerate(data)]
