@@ -6,9 +6,9 @@ fitted model's (model mismatch, :data:`MISMATCH`: C_n_p, C_n_delta_a, C_ell_delt
 C_L_alpha, C_m_0, C_D_p, each within its consider std), plus seeded white noise and coloured noise (AR(1),
 pole 0.9) per output. Twelve lateral-directional and pitch derivatives are estimated from a start 10 % off
 the truth, as ``identify aero`` does: printed bound = the larger of the coloured-residual Cramér-Rao bound
-and the block bootstrap over manoeuvres, plus the consider covariance of every fixed coefficient at its
-prior std (``identification.priors.fixed_sd``). Run twice: with the built-in geometry priors (MAP term) on,
-and off. An interval covers when |estimate - truth| <= 1.96 printed std.
+and the block bootstrap over manoeuvres (times t(m-1)/z for m manoeuvres), plus the consider covariance of
+every fixed coefficient at its prior std (``identification.priors.fixed_sd``). Run twice: with the built-in
+geometry priors (MAP term) on, and off. An interval covers when |estimate - truth| <= 1.96 printed std.
 
 Printed per parameter and run: bias over scatter, the coverage of the Cramér-Rao bound alone, of the data
 bound (max with bootstrap), of the printed bound, and the printed bound over the actual scatter.
@@ -104,8 +104,7 @@ def run_study(repeats: int, seed: int = 0, count: int = 8, seconds: float = 8.0,
         rows["values"].append(est.values[:n])
         rows["crb"].append(est.crb_std[:n])
         rows["boot"].append(est.bootstrap_std[:n] if est.bootstrap_std is not None else np.full(n, np.nan))
-        rows["data"].append(np.hypot(est.std[:n], 0.0) if est.consider_cov is None else
-                            np.sqrt(np.maximum(est.std[:n] ** 2 - np.diag(est.consider_cov)[:n], 0.0)))
+        rows["data"].append(est.data_std[:n])
         rows["printed"].append(est.std[:n])
     arr = {key: np.array(v) for key, v in rows.items()}
     if freed:

@@ -100,6 +100,7 @@ class Estimate:
     consider_cov: np.ndarray | None = None  #: covariance from parameters held fixed (consider covariance)
     considered: dict[str, float] = field(default_factory=dict)  #: fixed parameter -> the std it was given
     covariance: np.ndarray | None = None  #: covariance of the model parameters behind the printed bound
+    n_segments: int = 0  #: manoeuvres the bootstrap resampled (its small-sample factor)
 
     def __post_init__(self) -> None:
         if self.n_global < 0:
@@ -112,10 +113,10 @@ class Estimate:
     @property
     def std(self) -> np.ndarray:
         """The printed 1-sigma bound: the larger of the coloured-residual Cramér-Rao bound and the block
-        bootstrap over manoeuvres (derivatives; nuisance parameters keep the Cramér-Rao bound)."""
+        bootstrap over manoeuvres scaled by :func:`small_sample_factor` (derivatives; nuisance parameters keep
+        the Cramér-Rao bound), with the consider share of the parameters held fixed added in quadrature."""
         out = self.crb_std.copy()
-        if self.bootstrap_std is not None and self.bound_method.startswith("max("):
-            out[:self.n_global] = np.maximum(out[:self.n_global], self.bootstrap_std)
+        out[:self.n_global] = self.data_std
         if self.consider_std is not None:
             out[:self.n_global] = np.hypot(out[:self.n_global], self.consider_std)
         return out
@@ -126,7 +127,7 @@ class Estimate:
         consider share of the parameters held fixed."""
         out = self.crb_std[:self.n_global].copy()
         if self.bootstrap_std is not None and self.bound_method.startswith("max("):
-            out = np.maximum(out, self.bootstrap_std)
+            out = np.maximum(out, self.bootstrap_std * small_sample_factor(self.n_segments))
         return out
 
     def dominance(self) -> list[str]:
@@ -227,7 +228,16 @@ class Estimate:
 
 
 #: how the printed bound is made (``Estimate.bound_method``)
-BOUND_METHODS = ("cramer-rao-coloured", "max(cramer-rao-coloured, segment-bootstrap)")
+BOUND_METHODS = ("cramer-rao-coloured", "max(cramer-rao-coloured, segment-bootstrap x t(m-1)/z)")
+
+
+def small_sample_factor(m: int) -> float:
+    """``t_{0.975, m-1} / z_{0.975}``: a std estimated from ``m`` resampled segments carries about ``m - 1``
+    degrees of freedom, so its 95 % interval is Student's, not the normal one (2.36 / 1.96 = 1.21 for 8
+    segments, 1.04 for 40)."""
+    from scipy.stats import norm, t
+
+    return float(t.ppf(0.975, max(m - 1, 1)) / norm.ppf(0.975))
 #: fewest manoeuvres for which the block bootstrap over manoeuvres is computed
 BOOTSTRAP_MIN_SEGMENTS = 6
 
@@ -729,7 +739,7 @@ class OutputErrorEstimator:
         ident = analyse(M + np.diag(prior_info), names, len(self.free), exc, cov=cov)
         printed = std.copy()
         if boot is not None:
-            printed[:len(self.free)] = np.maximum(printed[:len(self.free)], boot)
+            printed[:len(self.free)] = np.maximum(printed[:len(self.free)], boot * small_sample_factor(len(data)))
         warnings = []
         for i, n in enumerate(names[:len(self.free)]):
             if printed[i] > RELATIVE_STD_WARN * abs(theta[i]):
@@ -746,7 +756,7 @@ class OutputErrorEstimator:
         ng = len(self.free)
         return Estimate(names, theta, std, std_white, corr, resid_cov, history, warnings, converged,
                         n_global=ng, bootstrap_std=boot, bound_method=method, identifiability=ident,
-                        prior_sd=self.prior_sd.copy(), covariance=cov[:ng, :ng].copy())
+                        prior_sd=self.prior_sd.copy(), covariance=cov[:ng, :ng].copy(), n_segments=len(data))
 
 
 def _cost(res: list[np.ndarray], W: np.ndarray) -> float:
