@@ -204,6 +204,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"  {'held-out roll angle Theil U':<36} {theil:10.4f}")
         print(f"  {'held-out roll RMSE [rad] model':<36} {rm['model']:10.4f}  (persistence {rm['persistence']:.4f}, "
               f"segment mean {rm['segment_mean']:.4f})")
+        for rival, sk in found["aero"]["baselines_validation"]["roll_rad"]["skill"].items():
+            print(f"  {'held-out roll skill vs ' + rival:<36} {sk['skill']:+10.3f}  [{sk['skill_lo']:+.3f}, "
+                  f"{sk['skill_hi']:+.3f}] {sk['outcome']}")
     failures = print_validation(results, report_dir)
     print(f"total time {time.perf_counter() - t_start:.1f} s")
     return 1 if failures else 0
