@@ -114,11 +114,11 @@ def generate(model: VehicleModel, out_dir: Path) -> dict[str, Path]:
     c_file = out_dir / c_name
     with c_file.open("a") as fh:
         fh.write(_wrapper(model, funcs, prefix))
-    step_file = out_dir / f"{model.name}_step.casadi"
-    init_file = out_dir / f"{model.name}_init.casadi"
-    step.save(str(step_file))
-    init.save(str(init_file))
-    return {"c": c_file, "step": step_file, "init": init_file}
+    saved = {}
+    for key in ("step", "init", "outputs"):
+        saved[key] = out_dir / f"{model.name}_{key}.casadi"
+        funcs[key].save(str(saved[key]))
+    return {"c": c_file, **saved}
 
 
 def find_compiler() -> str | None:

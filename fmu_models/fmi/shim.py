@@ -33,17 +33,17 @@ warnings and errors, which FMI 2.0 expects to reach the importer whatever its de
 
 from __future__ import annotations
 
-import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
 import fmpy
 
+from fmu_models.fmi import statemachine
 from fmu_models.fmi.codegen import compile_library
 
 HEADERS = Path(fmpy.__file__).parent / "c-code"
 
-#: (value reference, type letter R/I/B/S, settable: 0 never, 1 before exitInitializationMode, 2 also while stepping)
+#: (value reference, type letter R/I/B/S, settable: 0 never (output), 1 fixed parameter, 2 tunable parameter, 3 input)
 VarRow = tuple[int, str, int]
 
 _TYPES = {"Real": "R", "Integer": "I", "Enumeration": "I", "Boolean": "B", "String": "S"}
@@ -61,21 +61,11 @@ def variable_table(model_description: bytes) -> list[VarRow]:
         variability = sv.get("variability", "continuous")
         settable = 0
         if causality == "input":
-            settable = 2
+            settable = 3
         elif causality == "parameter":
             settable = 2 if variability == "tunable" else 1
         rows.append((int(sv.get("valueReference")), kind, settable))
     return sorted(rows)
-
-
-def model_guid(model_description: bytes) -> str:
-    """The ``guid`` of a modelDescription.xml (the shim refuses instantiation with another one)."""
-    return ET.fromstring(model_description).get("guid", "")
-
-
-def fmu_variable_table(fmu: Path) -> list[VarRow]:
-    with zipfile.ZipFile(fmu) as z:
-        return variable_table(z.read("modelDescription.xml"))
 
 
 C_CORE = r"""
@@ -90,14 +80,18 @@ C_CORE = r"""
 #include <stdlib.h>
 #include <string.h>
 #include "fmi2Functions.h"
+#include "uavfmu_states.h" /* the one state machine table (fmu_models/fmi/statemachine.py) */
 
 typedef struct { fmi2ValueReference vr; char type; char settable; } VarInfo;
 @TABLE@
 
-enum { S_INSTANTIATED = 1, S_INIT = 2, S_STEPPING = 4, S_TERMINATED = 8, S_ERROR = 16, S_FATAL = 32 };
-#define S_ANY (S_INSTANTIATED | S_INIT | S_STEPPING | S_TERMINATED | S_ERROR)
-#define S_GET (S_INIT | S_STEPPING | S_TERMINATED | S_ERROR)
-#define S_SET (S_INSTANTIATED | S_INIT | S_STEPPING)
+/* the pythonfmu slave is Co-Simulation only: these are the states it can be in */
+#define S_INSTANTIATED Instantiated
+#define S_INIT InitializationMode
+#define S_STEPPING StepComplete
+#define S_TERMINATED Terminated
+#define S_ERROR Error
+#define S_FATAL Fatal
 #define INST_MAGIC 0x7561766675696e73ULL
 #define STATE_MAGIC 0x7561766673746174ULL
 #define MAX_NVR 1000000u
@@ -110,7 +104,7 @@ typedef struct State { uint64_t magic; struct Inst* owner; fmi2FMUstate real; do
 typedef struct Slot { fmi2Component real; struct Inst* owner; fmi2CallbackFunctions cb; char key[4096];
                       struct Slot* next; } Slot;
 typedef struct Inst { uint64_t magic; struct Inst* next; fmi2Component real; Slot* slot; int state; double time;
-                      fmi2CallbackFunctions cb; char name[128]; State* states; } Inst;
+                      fmi2CallbackFunctions cb; char name[128]; State* states; int logged_error; } Inst;
 
 static Inst* live = NULL;
 static Slot* pool = NULL;  /* freed instances kept for reuse: pythonfmu leaks ~1 KB per fmi2Instantiate */
@@ -157,13 +151,6 @@ static void say(const Inst* in, fmi2Status s, const char* fmt, ...) {
   in->cb.logger(in->cb.componentEnvironment, in->name, s, s == fmi2Error ? "logStatusError" : "logAll", "%s", buf);
 }
 
-static const char* state_name(int s) {
-  switch (s) {
-    case S_INSTANTIATED: return "instantiated"; case S_INIT: return "initialization mode";
-    case S_STEPPING: return "initialized (stepping)"; case S_TERMINATED: return "terminated";
-    case S_ERROR: return "error (only get, reset or free)"; default: return "fatal (only free)";
-  }
-}
 
 static Inst* find(fmi2Component c) {
   for (Inst* in = live; in; in = in->next) if ((void*)in == c && in->magic == INST_MAGIC) return in;
@@ -175,10 +162,11 @@ static Inst* enter(fmi2Component c, const char* fn, int allowed) {
   Inst* in = find(c);
   if (!in) return NULL;  /* NULL, freed or foreign handle: no logger to tell */
   if (!(in->state & allowed)) {
-    say(in, fmi2Error, "%s is not allowed in state %s (FMI 2.0 co-simulation state machine)", fn,
-        state_name(in->state));
+    say(in, fmi2Error, "%s: not allowed in state '%s' (FMI Co-Simulation state machine)", fn,
+        uavfmu_state_name(in->state));
     return NULL;
   }
+  in->logged_error = 0;  /* an error the slave logs during this call makes the call an fmi2Error */
   return in;
 }
 
@@ -186,7 +174,8 @@ static fmi2Status after(Inst* in, const char* fn, fmi2Status s) {
   if (s == fmi2Fatal) {
     in->state = S_FATAL;
     say(in, fmi2Error, "%s: the model failed fatally; the instance is quarantined (only fmi2FreeInstance)", fn);
-  } else if (s == fmi2Error) {
+  } else if (s == fmi2Error || (s <= fmi2Warning && in->logged_error)) {
+    s = fmi2Error;  /* our slave reports model failures by logging an error (it never raises into pythonfmu) */
     in->state = S_ERROR;
   }
   return s;
@@ -210,9 +199,12 @@ static int check_refs(Inst* in, const char* fn, const fmi2ValueReference vr[], s
       return 0; }
     if (v->type != type) { say(in, fmi2Error, "%s: value reference %u is of type %c, not %c", fn, vr[i], v->type, type);
       return 0; }
-    if (setting && (v->settable == 0 || (v->settable == 1 && (in->state & S_STEPPING)))) {
-      say(in, fmi2Error, "%s: value reference %u is not settable %s (only inputs and %s parameters)", fn, vr[i],
-          v->settable ? "after initialization" : "", v->settable ? "tunable" : "");
+    int mask = v->settable == 3 ? MASK_SetInput : v->settable == 2 ? MASK_SetTunable : v->settable == 1
+               ? MASK_SetFixed : 0;
+    if (setting && !(in->state & mask)) {
+      say(in, fmi2Error, "%s: value reference %u (%s) cannot be set in state '%s'", fn, vr[i], v->settable == 3
+          ? "input" : v->settable == 2 ? "tunable parameter" : v->settable ? "fixed parameter" : "output",
+          uavfmu_state_name(in->state));
       return 0;
     }
     if (setting && type == 'S' && !((const fmi2String*)values)[i]) {
@@ -230,8 +222,9 @@ static void forward_log(fmi2ComponentEnvironment env, fmi2String name, fmi2Statu
                         fmi2String msg, ...) {
   /* pythonfmu passes its message as the format string: forwarded as a plain string, never formatted */
   const Slot* slot = (const Slot*)env;
-  const Inst* in = slot ? slot->owner : NULL;
+  Inst* in = slot ? slot->owner : NULL;
   (void)name;
+  if (in && s >= fmi2Error) in->logged_error = 1;
   if (in && in->cb.logger) in->cb.logger(in->cb.componentEnvironment, in->name, s, cat ? cat : "logAll", "%s",
                                          msg ? msg : "");
 }
@@ -274,8 +267,17 @@ fmi2Component fmi2Instantiate(fmi2String n, fmi2Type t, fmi2String g, fmi2String
     cb->logger(cb->componentEnvironment, who, fmi2Error, "logStatusError",
                "fmi2Instantiate: GUID %s does not match this FMU's %s", g ? g : "(null)", MODEL_GUID);
     return NULL; }
-  if (!g || !r) { cb->logger(cb->componentEnvironment, who, fmi2Error, "logStatusError",
-                             "fmi2Instantiate: fmuGUID and fmuResourceLocation must not be NULL"); return NULL; }
+  char derived[4200];
+  if (!r) {  /* no resource location given (allowed): pythonfmu needs it, so it is found from this library */
+    Dl_info info;
+    if (!dladdr((void*)&fmi2Instantiate, &info) || !info.dli_fname || !realpath(info.dli_fname, derived + 7)) {
+      cb->logger(cb->componentEnvironment, who, fmi2Error, "logStatusError",
+                 "fmi2Instantiate: no fmuResourceLocation and this library's folder is unknown"); return NULL; }
+    memcpy(derived, "file://", 7);
+    for (int up = 0; up < 3; ++up) { char* sl = strrchr(derived + 7, '/'); if (sl) *sl = 0; }
+    strncat(derived, "/resources", sizeof derived - strlen(derived) - 1);
+    r = derived;
+  }
   fmi2InstantiateTYPE* f = (fmi2InstantiateTYPE*)sym("fmi2Instantiate");
   if (!f) { cb->logger(cb->componentEnvironment, n, fmi2Error, "logStatusError", "cannot load @REAL@: %s",
                        load_error); return NULL; }
@@ -324,7 +326,7 @@ void fmi2FreeInstance(fmi2Component c) {
 }
 
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cats[]) {
-  Inst* in = enter(c, "fmi2SetDebugLogging", S_ANY);
+  Inst* in = enter(c, "fmi2SetDebugLogging", MASK_SetDebugLogging);
   if (!in) return fmi2Error;
   if (n > 0 && !cats) { say(in, fmi2Error, "fmi2SetDebugLogging: NULL categories for n = %zu", n); return fmi2Error; }
   for (size_t i = 0; i < n; ++i) if (!cats[i]) { say(in, fmi2Error, "fmi2SetDebugLogging: NULL category %zu", i);
@@ -339,11 +341,11 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const 
 
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean td, fmi2Real tol, fmi2Real t0, fmi2Boolean sd,
                                fmi2Real t1) {
-  Inst* in = enter(c, "fmi2SetupExperiment", S_INSTANTIATED);
+  Inst* in = enter(c, "fmi2SetupExperiment", MASK_SetupExperiment);
   if (!in) return fmi2Error;
-  if (!isfinite(t0) || (sd && !(isfinite(t1) && t1 >= t0)) || (td && !(isfinite(tol) && tol > 0))) {
-    say(in, fmi2Error, "fmi2SetupExperiment: start %g, stop %g (defined %d), tolerance %g (defined %d): start "
-        "must be finite, stop finite and >= start, tolerance finite and > 0", t0, t1, sd, tol, td);
+  char why[256];
+  if (!uavfmu_rule_setup(why, sizeof why, td, tol, t0, sd, t1)) {
+    say(in, fmi2Error, "fmi2SetupExperiment: %s", why);
     return fmi2Error;
   }
   REAL(fmi2SetupExperiment);
@@ -363,15 +365,15 @@ static fmi2Status transition(fmi2Component c, const char* fn, int allowed, int n
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
-  return transition(c, "fmi2EnterInitializationMode", S_INSTANTIATED, S_INIT);
+  return transition(c, "fmi2EnterInitializationMode", MASK_EnterInitializationMode, S_INIT);
 }
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
-  return transition(c, "fmi2ExitInitializationMode", S_INIT, S_STEPPING);
+  return transition(c, "fmi2ExitInitializationMode", MASK_ExitInitializationMode, S_STEPPING);
 }
-fmi2Status fmi2Terminate(fmi2Component c) { return transition(c, "fmi2Terminate", S_STEPPING, S_TERMINATED); }
+fmi2Status fmi2Terminate(fmi2Component c) { return transition(c, "fmi2Terminate", MASK_Terminate, S_TERMINATED); }
 
 fmi2Status fmi2Reset(fmi2Component c) {
-  fmi2Status s = transition(c, "fmi2Reset", S_ANY, S_INSTANTIATED);
+  fmi2Status s = transition(c, "fmi2Reset", MASK_Reset, S_INSTANTIATED);
   Inst* in = find(c);
   if (in && s <= fmi2Warning) in->time = 0.0;
   return s;
@@ -387,26 +389,21 @@ C_VALUES = r"""
     REAL(NAME);                                                                                    \
     return after(in, #NAME, f(in->real, vr, nvr, value));                                          \
   }
-GETSET(fmi2GetReal, fmi2Real, 'R', 0, S_GET)
-GETSET(fmi2GetInteger, fmi2Integer, 'I', 0, S_GET)
-GETSET(fmi2GetBoolean, fmi2Boolean, 'B', 0, S_GET)
-GETSET(fmi2GetString, fmi2String, 'S', 0, S_GET)
-GETSET(fmi2SetReal, const fmi2Real, 'R', 1, S_SET)
-GETSET(fmi2SetInteger, const fmi2Integer, 'I', 1, S_SET)
-GETSET(fmi2SetBoolean, const fmi2Boolean, 'B', 1, S_SET)
-GETSET(fmi2SetString, const fmi2String, 'S', 1, S_SET)
+GETSET(fmi2GetReal, fmi2Real, 'R', 0, MASK_GetValue)
+GETSET(fmi2GetInteger, fmi2Integer, 'I', 0, MASK_GetValue)
+GETSET(fmi2GetBoolean, fmi2Boolean, 'B', 0, MASK_GetValue)
+GETSET(fmi2GetString, fmi2String, 'S', 0, MASK_GetValue)
+GETSET(fmi2SetReal, const fmi2Real, 'R', 1, MASK_SetInput)
+GETSET(fmi2SetInteger, const fmi2Integer, 'I', 1, MASK_SetInput)
+GETSET(fmi2SetBoolean, const fmi2Boolean, 'B', 1, MASK_SetInput)
+GETSET(fmi2SetString, const fmi2String, 'S', 1, MASK_SetInput)
 
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_prior) {
-  Inst* in = enter(c, "fmi2DoStep", S_STEPPING);
+  Inst* in = enter(c, "fmi2DoStep", MASK_DoStep);
   if (!in) return fmi2Error;
-  double tol = 1e-9 * (fabs(in->time) > 1.0 ? fabs(in->time) : 1.0);
-  if (!isfinite(t) || !isfinite(h) || !(h > 0.0)) {
-    say(in, fmi2Error, "fmi2DoStep: communication point %g and step size %g must be finite, step size > 0", t, h);
-    return fmi2Error;
-  }
-  if (fabs(t - in->time) > tol) {
-    say(in, fmi2Error, "fmi2DoStep: communication point %.17g s does not continue the last one (%.17g s)",
-        t, in->time);
+  char why[256];
+  if (!uavfmu_rule_step(why, sizeof why, t, h, in->time)) {
+    say(in, fmi2Error, "fmi2DoStep: %s", why);
     return fmi2Error;
   }
   REAL(fmi2DoStep);
@@ -417,37 +414,48 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
   return s;
 }
 
-static fmi2Status unsupported(fmi2Component c, const char* fn) {
-  Inst* in = enter(c, fn, S_ANY);
-  if (in) say(in, fmi2Error, "%s is not supported by this FMU", fn);
+static fmi2Status unsupported(fmi2Component c, const char* fn, int mask) {
+  Inst* in = enter(c, fn, mask);
+  if (in) say(in, fmi2Error, "%s: not supported by this FMU", fn);
   return fmi2Error;
 }
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference a[], size_t n,
     const fmi2ValueReference b[], size_t m, const fmi2Real d[], fmi2Real e[]) {
-  (void)a; (void)n; (void)b; (void)m; (void)d; (void)e; return unsupported(c, "fmi2GetDirectionalDerivative"); }
+  (void)a; (void)n; (void)b; (void)m; (void)d; (void)e;
+  return unsupported(c, "fmi2GetDirectionalDerivative", MASK_GetDirectionalDerivative); }
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference a[], size_t n,
     const fmi2Integer b[], const fmi2Real d[]) {
-  (void)a; (void)n; (void)b; (void)d; return unsupported(c, "fmi2SetRealInputDerivatives"); }
+  (void)a; (void)n; (void)b; (void)d; return unsupported(c, "fmi2SetRealInputDerivatives", MASK_SetInputDerivatives); }
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference a[], size_t n,
     const fmi2Integer b[], fmi2Real d[]) {
-  (void)a; (void)n; (void)b; (void)d; return unsupported(c, "fmi2GetRealOutputDerivatives"); }
-fmi2Status fmi2CancelStep(fmi2Component c) { return unsupported(c, "fmi2CancelStep"); }
-fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind k, fmi2Status* v) {
-  (void)k; (void)v; return unsupported(c, "fmi2GetStatus"); }
-fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind k, fmi2Integer* v) {
-  (void)k; (void)v; return unsupported(c, "fmi2GetIntegerStatus"); }
-fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind k, fmi2Boolean* v) {
-  (void)k; (void)v; return unsupported(c, "fmi2GetBooleanStatus"); }
-fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind k, fmi2String* v) {
-  (void)k; (void)v; return unsupported(c, "fmi2GetStringStatus"); }
-fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind k, fmi2Real* v) {
-  Inst* in = enter(c, "fmi2GetRealStatus", S_STEPPING | S_ERROR | S_TERMINATED);
+  (void)a; (void)n; (void)b; (void)d;
+  return unsupported(c, "fmi2GetRealOutputDerivatives", MASK_GetOutputDerivatives); }
+/* fmi2DoStep is synchronous: StepInProgress is never entered, so this is always a state error */
+fmi2Status fmi2CancelStep(fmi2Component c) { enter(c, "fmi2CancelStep", MASK_CancelStep); return fmi2Error; }
+
+/* as the native layer (fmu_models/fmi/native/fmi2Functions.c): fmi2LastSuccessfulTime and fmi2Terminated are
+   answered, the kinds about an asynchronous step are not available (fmi2Discard) */
+static fmi2Status get_status(fmi2Component c, const char* fn, fmi2StatusKind k, int kind, void* v) {
+  Inst* in = enter(c, fn, MASK_GetStatus);
   if (!in) return fmi2Error;
-  if (k != fmi2LastSuccessfulTime || !v) {
-    say(in, fmi2Error, "fmi2GetRealStatus: only fmi2LastSuccessfulTime with a non-NULL value"); return fmi2Error; }
-  *v = in->time;
+  if (!v) { say(in, fmi2Error, "%s: value is NULL", fn); return fmi2Error; }
+  if (kind < 0 || (int)k != kind || k == fmi2DoStepStatus || k == fmi2PendingStatus) {
+    say(in, fmi2Discard, "%s: status kind %d is not available (no asynchronous step)", fn, (int)k);
+    return fmi2Discard;
+  }
+  if (k == fmi2LastSuccessfulTime) *(fmi2Real*)v = in->time; else *(fmi2Boolean*)v = fmi2False;
   return fmi2OK;
 }
+#define GET_STATUS(Type, TypeName, kind)                                                      \
+  fmi2Status fmi2Get##Type##Status(fmi2Component c, const fmi2StatusKind k, TypeName* v) {   \
+    return get_status(c, "fmi2Get" #Type "Status", k, kind, v);                              \
+  }
+GET_STATUS(, fmi2Status, fmi2DoStepStatus)
+GET_STATUS(Real, fmi2Real, fmi2LastSuccessfulTime)
+GET_STATUS(Integer, fmi2Integer, -1)
+GET_STATUS(Boolean, fmi2Boolean, fmi2Terminated)
+GET_STATUS(String, fmi2String, fmi2PendingStatus)
+#undef GET_STATUS
 """
 
 C_STATES = r"""
@@ -458,7 +466,7 @@ static State* owned(Inst* in, const char* fn, fmi2FMUstate s) {
 }
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate* out) {
-  Inst* in = enter(c, "fmi2GetFMUstate", S_ANY);
+  Inst* in = enter(c, "fmi2GetFMUstate", MASK_FMUState);
   if (!in) return fmi2Error;
   if (!out) { say(in, fmi2Error, "fmi2GetFMUstate: NULL state pointer"); return fmi2Error; }
   State* st = *out ? owned(in, "fmi2GetFMUstate", *out) : NULL;
@@ -481,7 +489,7 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate* out) {
 }
 
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate s) {
-  Inst* in = enter(c, "fmi2SetFMUstate", S_ANY);
+  Inst* in = enter(c, "fmi2SetFMUstate", MASK_FMUState);
   State* st = in ? owned(in, "fmi2SetFMUstate", s) : NULL;
   if (!st) return fmi2Error;
   REAL(fmi2SetFMUstate);
@@ -491,7 +499,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate s) {
 }
 
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate* s) {
-  Inst* in = enter(c, "fmi2FreeFMUstate", S_ANY);
+  Inst* in = enter(c, "fmi2FreeFMUstate", MASK_FMUState);
   if (!in) return fmi2Error;
   if (!s || !*s) return fmi2OK;  /* freeing NULL is a no-op */
   State* st = owned(in, "fmi2FreeFMUstate", *s);
@@ -511,7 +519,7 @@ static uint64_t fnv(const fmi2Byte* b, size_t n) {
 }
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate s, size_t* n) {
-  Inst* in = enter(c, "fmi2SerializedFMUstateSize", S_ANY);
+  Inst* in = enter(c, "fmi2SerializedFMUstateSize", MASK_FMUState);
   State* st = in ? owned(in, "fmi2SerializedFMUstateSize", s) : NULL;
   if (!st) return fmi2Error;
   if (!n) { say(in, fmi2Error, "fmi2SerializedFMUstateSize: NULL size pointer"); return fmi2Error; }
@@ -523,7 +531,7 @@ fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate s, size_t* n
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate s, fmi2Byte b[], size_t n) {
-  Inst* in = enter(c, "fmi2SerializeFMUstate", S_ANY);
+  Inst* in = enter(c, "fmi2SerializeFMUstate", MASK_FMUState);
   State* st = in ? owned(in, "fmi2SerializeFMUstate", s) : NULL;
   if (!st) return fmi2Error;
   REAL(fmi2SerializedFMUstateSize);
@@ -545,7 +553,7 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate s, fmi2Byte b[], 
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n, fmi2FMUstate* out) {
-  Inst* in = enter(c, "fmi2DeSerializeFMUstate", S_ANY);
+  Inst* in = enter(c, "fmi2DeSerializeFMUstate", MASK_FMUState);
   if (!in) return fmi2Error;
   uint64_t key = 0, sum = 0, ms = 0; double t = 0.0;
   if (!b || !out || n < SER_HEADER) {
@@ -593,8 +601,9 @@ def shim_source(real_library_name: str, rows: list[VarRow] | None = None, model_
 def build_shim(model_identifier: str, out_dir: Path, compiler: str, rows: list[VarRow] | None = None,
                guid: str = "") -> Path:
     """Compile ``<id>.so`` guarding and forwarding to ``<id>_pythonfmu.so``; return its path."""
+    (out_dir / "uavfmu_states.h").write_text(statemachine.header())
     src = out_dir / f"{model_identifier}_shim.c"
     src.write_text(shim_source(f"{model_identifier}_pythonfmu.so", rows, model_identifier, guid))
     lib = out_dir / f"{model_identifier}.so"
-    compile_library(src, lib, compiler, extra=["-I", str(HEADERS), "-ldl"])
+    compile_library(src, lib, compiler, extra=["-I", str(HEADERS), "-I", str(out_dir), "-ldl"])
     return lib

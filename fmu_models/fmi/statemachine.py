@@ -17,7 +17,6 @@ machines; FMI 3.0's Step Mode is FMI 2.0's stepComplete. Deliberate, documented 
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 #: one bit per state (the bit values are shared by the FMI 2.0 and FMI 3.0 layers)
@@ -118,10 +117,12 @@ RULES: tuple[Rule, ...] = (
         ("!stop_defined || (isfinite(stop) && stop >= start)",
          "stopTime %g must be finite and >= startTime %g", "stop, start"),
     )),
-    Rule("step", "double t, double h, double last, double internal_step", (
+    Rule("step", "double t, double h, double last", (
         ("isfinite(h) && h > 0.0", "communication step size %g must be finite and > 0", "h"),
         ("isfinite(t) && fabs(t - last) <= UAVFMU_TIME_TOLERANCE * (fabs(last) > 1.0 ? fabs(last) : 1.0)",
          "currentCommunicationPoint %.17g is not the last communication point %.17g", "t, last"),
+    )),
+    Rule("internal_steps", "double h, double internal_step", (
         ("isfinite(internal_step) && internal_step > 0.0",
          "the internal step %g s must be finite and > 0", "internal_step"),
         ("h / internal_step <= UAVFMU_MAX_INTERNAL_STEPS + 0.5",
@@ -163,17 +164,3 @@ def header() -> str:
         lines += ["    (void)msg; (void)n;", "    return 1;", "}", ""]
     lines += ["#endif", ""]
     return "\n".join(lines)
-
-
-def step_allowed(t: float, h: float, last: float, internal_step: float) -> str:
-    """Python twin of ``uavfmu_rule_step`` (the pythonfmu runtime): "" or why the step is refused."""
-    if not (math.isfinite(h) and h > 0.0):
-        return f"communication step size {h:g} must be finite and > 0"
-    if not (math.isfinite(t) and abs(t - last) <= TIME_TOLERANCE * max(1.0, abs(last))):
-        return f"currentCommunicationPoint {t!r} is not the last communication point {last!r}"
-    if not (math.isfinite(internal_step) and internal_step > 0.0):
-        return f"the internal step {internal_step:g} s must be finite and > 0"
-    if h / internal_step > MAX_INTERNAL_STEPS + 0.5:
-        return (f"a step of {h:g} s needs {math.ceil(h / internal_step):.3g} internal steps of {internal_step:g} s, "
-                f"more than the {MAX_INTERNAL_STEPS} allowed per communication step")
-    return ""

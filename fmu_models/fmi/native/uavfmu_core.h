@@ -319,7 +319,9 @@ static int uav_warn(Instance* c) {
 static int uav_outputs_ready(Instance* c, const char* fn) {
     if (c->state == InitializationMode) {
         if (c->init_valid && !c->params_dirty && !c->outputs_dirty) return UAV_OK;
-        return uav_initialize(c, fn);
+        if (uav_initialize(c, fn) == UAV_OK) return UAV_OK;
+        c->state = Error;
+        return UAV_ERROR;
     }
     if (!c->outputs_dirty || c->state == Error) return UAV_OK;
     char when[96], why[256];
@@ -433,7 +435,8 @@ static int uav_no_such_type(Instance* c, const unsigned* vr, size_t n, const cha
 static int uav_do_step(Instance* c, double t, double h, const char* fn) {
     const uavfmu_model_info* m = c->model;
     double dt = c->p[m->i_step_internal];
-    if (!uavfmu_rule_step(c->message, sizeof c->message, t, h, c->time, dt))
+    if (!uavfmu_rule_step(c->message, sizeof c->message, t, h, c->time) ||
+        !uavfmu_rule_internal_steps(c->message, sizeof c->message, h, dt))
         return uav_fail(c, UAV_ERROR, "%s: %s", fn, c->message);
     char when[64];
     snprintf(when, sizeof when, "t = %g s", t);
@@ -480,14 +483,22 @@ static int uav_set_states(Instance* c, const double* x, size_t n, const char* fn
 
 static int uav_get_states(Instance* c, double* x, size_t n, const char* fn) {
     if (uav_check_nx(c, x, n, fn)) return UAV_ERROR;
-    if (c->state == InitializationMode && (!c->init_valid || c->params_dirty) && uav_initialize(c, fn)) return UAV_ERROR;
+    if (c->state == InitializationMode && (!c->init_valid || c->params_dirty || c->outputs_dirty) &&
+        uav_initialize(c, fn)) {
+        c->state = Error;
+        return UAV_ERROR;
+    }
     memcpy(x, c->x, sizeof(double) * n);
     return UAV_OK;
 }
 
 static int uav_get_derivatives(Instance* c, double* xdot, size_t n, const char* fn) {
     if (uav_check_nx(c, xdot, n, fn)) return UAV_ERROR;
-    if (c->state == InitializationMode && (!c->init_valid || c->params_dirty) && uav_initialize(c, fn)) return UAV_ERROR;
+    if (c->state == InitializationMode && (!c->init_valid || c->params_dirty || c->outputs_dirty) &&
+        uav_initialize(c, fn)) {
+        c->state = Error;
+        return UAV_ERROR;
+    }
     char when[96], why[256];
     snprintf(when, sizeof when, "%s at t = %g s", fn, c->time);
     if (c->state != Error && uav_check_inputs(c, when)) return UAV_ERROR;
