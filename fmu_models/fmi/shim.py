@@ -33,6 +33,7 @@ warnings and errors, which FMI 2.0 expects to reach the importer whatever its de
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
@@ -43,8 +44,9 @@ from fmu_models.fmi.codegen import compile_library
 
 HEADERS = Path(fmpy.__file__).parent / "c-code"
 
-#: (value reference, type letter R/I/B/S, settable: 0 never (output), 1 fixed parameter, 2 tunable parameter, 3 input)
-VarRow = tuple[int, str, int]
+#: (value reference, type letter R/I/B/S, settable: 0 never (output), 1 fixed parameter, 2 tunable parameter, 3 input,
+#: name)
+VarRow = tuple[int, str, int, str]
 
 _TYPES = {"Real": "R", "Integer": "I", "Enumeration": "I", "Boolean": "B", "String": "S"}
 
@@ -64,7 +66,7 @@ def variable_table(model_description: bytes) -> list[VarRow]:
             settable = 3
         elif causality == "parameter":
             settable = 2 if variability == "tunable" else 1
-        rows.append((int(sv.get("valueReference")), kind, settable))
+        rows.append((int(sv.get("valueReference")), kind, settable, sv.get("name", "")))
     return sorted(rows)
 
 
@@ -82,7 +84,7 @@ C_CORE = r"""
 #include "fmi2Functions.h"
 #include "uavfmu_states.h" /* the one state machine table (fmu_models/fmi/statemachine.py) */
 
-typedef struct { fmi2ValueReference vr; char type; char settable; } VarInfo;
+typedef struct { fmi2ValueReference vr; char type; char settable; const char* name; } VarInfo;
 @TABLE@
 
 /* the pythonfmu slave is Co-Simulation only: these are the states it can be in */
@@ -144,13 +146,21 @@ static void* sym(const char* name) {
 }
 #define REAL(fn) static fn##TYPE* f = NULL; if (!f) f = (fn##TYPE*)sym(#fn); if (!f) return fmi2Error
 
+/* a message to the importer as the logger's format with every '%' doubled (as the native layer does), so a
+   logger that does not expand variadic arguments (ctypes, many bindings) still shows the text */
+static void emit(const Inst* in, fmi2Status s, const char* category, const char* text) {
+  char buf[2100]; size_t j = 0;
+  for (size_t i = 0; text[i] && j + 2 < sizeof buf; ++i) { if (text[i] == '%') buf[j++] = '%'; buf[j++] = text[i]; }
+  buf[j] = 0;
+  in->cb.logger(in->cb.componentEnvironment, in->name, s, category, buf);
+}
+
 static void say(const Inst* in, fmi2Status s, const char* fmt, ...) {
   char buf[1024]; va_list ap;
   if (!in || !in->cb.logger) return;
   va_start(ap, fmt); vsnprintf(buf, sizeof buf, fmt, ap); va_end(ap);
-  in->cb.logger(in->cb.componentEnvironment, in->name, s, s == fmi2Error ? "logStatusError" : "logAll", "%s", buf);
+  emit(in, s, s == fmi2Error ? "logStatusError" : s == fmi2Discard ? "logStatusDiscard" : "logAll", buf);
 }
-
 
 static Inst* find(fmi2Component c) {
   for (Inst* in = live; in; in = in->next) if ((void*)in == c && in->magic == INST_MAGIC) return in;
@@ -202,7 +212,7 @@ static int check_refs(Inst* in, const char* fn, const fmi2ValueReference vr[], s
     int mask = v->settable == 3 ? MASK_SetInput : v->settable == 2 ? MASK_SetTunable : v->settable == 1
                ? MASK_SetFixed : 0;
     if (setting && !(in->state & mask)) {
-      say(in, fmi2Error, "%s: value reference %u (%s) cannot be set in state '%s'", fn, vr[i], v->settable == 3
+      say(in, fmi2Error, "%s: %s (%s) cannot be set in state '%s'", fn, v->name, v->settable == 3
           ? "input" : v->settable == 2 ? "tunable parameter" : v->settable ? "fixed parameter" : "output",
           uavfmu_state_name(in->state));
       return 0;
@@ -225,8 +235,7 @@ static void forward_log(fmi2ComponentEnvironment env, fmi2String name, fmi2Statu
   Inst* in = slot ? slot->owner : NULL;
   (void)name;
   if (in && s >= fmi2Error) in->logged_error = 1;
-  if (in && in->cb.logger) in->cb.logger(in->cb.componentEnvironment, in->name, s, cat ? cat : "logAll", "%s",
-                                         msg ? msg : "");
+  if (in && in->cb.logger) emit(in, s, cat ? cat : "logAll", msg ? msg : "");
 }
 
 /* A pooled pythonfmu instance of the same FMU, reset, or a new one; NULL after logging why not. */
@@ -581,9 +590,10 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n
 
 
 def _table_c(rows: list[VarRow], model_identifier: str, guid: str) -> str:
-    body = ",\n".join(f"  {{{vr}u, '{kind}', {settable}}}" for vr, kind, settable in rows) or "  {0u, 0, 0}"
+    body = ",\n".join(f"  {{{vr}u, '{kind}', {settable}, {json.dumps(name)}}}" for vr, kind, settable, name in rows)
+    body = body or '  {0u, 0, 0, ""}'
     key = 1469598103934665603
-    for ch in f"{model_identifier}:{rows}".encode():
+    for ch in f"{model_identifier}:{[r[:3] for r in rows]}".encode():
         key = ((key ^ ch) * 1099511628211) % (1 << 64)
     return (f"static const VarInfo VARS[] = {{\n{body}\n}};\n"
             f"static const size_t NVARS = {len(rows)};\n"
