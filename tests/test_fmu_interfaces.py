@@ -81,13 +81,18 @@ def test_model_exchange_under_cvode_agrees_with_co_simulation_over_10_s(
     np.testing.assert_allclose(b, a, rtol=1e-6, atol=1e-6)
 
 
-@pytest.fixture(scope="module")
-def c_host(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    exe = tmp_path_factory.mktemp("host") / "native_host"
+def compile_host(folder: Path) -> Path:
+    """tests/native_host.c compiled into ``folder`` (no Python in the program)."""
+    exe = folder / "native_host"
     cmd = [*zigcc.zig_cc(), "-target", "x86_64-linux-gnu", "-O2", f"-I{FMI_INCLUDE}", f"-I{FMI3_INCLUDE}", "-o",
            str(exe), str(HERE / "native_host.c"), "-ldl"]
     subprocess.run(cmd, check=True, capture_output=True)
     return exe
+
+
+@pytest.fixture(scope="module")
+def c_host(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return compile_host(tmp_path_factory.mktemp("host"))
 
 
 def run_host(c_host: Path, fmu: Path, mode: str, steps: int, h: float, tmp: Path) -> tuple[np.ndarray, list[int]]:

@@ -18,8 +18,8 @@ from fmpy.validation import validate_fmu
 
 from fmu_models.fmi import zigcc
 from fmu_models.fmi.fmus import build_fmus
-from fmu_models.fmi.native_build import FMI_INCLUDE
 from tests.binexports import IMAGE_FILE_MACHINE_AMD64, macho_exports, pe_exports
+from tests.test_fmu_interfaces import compile_host
 
 HERE = Path(__file__).resolve().parent
 VEHICLES = ("quadrotor", "fixed_wing")
@@ -211,11 +211,7 @@ def test_sources_compile_for_this_platform_and_run(built_fmus: dict[str, Path], 
 
 @pytest.fixture(scope="module")
 def c_host(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    exe = tmp_path_factory.mktemp("host") / "native_host"
-    cmd = [*zigcc.zig_cc(), "-target", "x86_64-linux-gnu", "-O2", f"-I{FMI_INCLUDE}", "-o", str(exe),
-           str(HERE / "native_host.c"), "-ldl"]
-    subprocess.run(cmd, check=True, capture_output=True)
-    return exe
+    return compile_host(tmp_path_factory.mktemp("host"))
 
 
 @pytest.mark.parametrize("name", VEHICLES)

@@ -7,6 +7,8 @@ by the same table (``allowed``). States follow the FMI 2.0.4 (sections 3.2.3, 4.
 machines; FMI 3.0's Step Mode is FMI 2.0's stepComplete. Deliberate, documented choices beyond the figures:
 
 * the Get functions (values, status, continuous states) also answer in the Error state, for diagnostics;
+* Terminate is also accepted in the Error state (importers such as FMPy terminate after a failed step before
+  freeing; it only moves the instance to Terminated, from which Reset starts again);
 * fmi2DoStep is synchronous: the StepInProgress state is never entered, so fmi2CancelStep always answers
   "not allowed in state" (and the Get*Status kinds about a pending step are never available);
 * no structural parameters, clocks or event mode in Co-Simulation: the FMI 3.0 configuration and clock
@@ -62,7 +64,7 @@ MASKS: dict[str, tuple[str, ...]] = {
     "SetupExperiment": ("Instantiated",),
     "EnterInitializationMode": ("Instantiated",),
     "ExitInitializationMode": ("InitializationMode",),
-    "Terminate": ("EventMode", "ContinuousTimeMode", "StepComplete", "StepFailed"),
+    "Terminate": ("EventMode", "ContinuousTimeMode", "StepComplete", "StepFailed", "Error"),
     "Reset": LIVE,
     "GetValue": ("InitializationMode", *INITIALIZED, "Error"),
     "SetInput": ("Instantiated", "InitializationMode", "EventMode", "ContinuousTimeMode", "StepComplete"),
