@@ -35,13 +35,9 @@ FMI3_INCLUDE = NATIVE / "third_party" / "fmi3"  #: the official FMI 3.0 headers,
 FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
 FMI3_HEADERS = ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")
 KINDS = ("cs", "me")
-LOG_CATEGORIES = (
-    ("logStatusWarning", "Log messages with Warning status."),
-    ("logStatusDiscard", "Log messages with Discard status."),
-    ("logStatusError", "Log messages with Error status."),
-    ("logStatusFatal", "Log messages with Fatal status."),
-    ("logAll", "Log all messages."),
-)
+LOG_CATEGORIES = tuple(zip(statemachine.LOG_CATEGORIES, (
+    "Log messages with Warning status.", "Log messages with Discard status.", "Log messages with Error status.",
+    "Log messages with Fatal status.", "Log all messages."), strict=True))
 #: (causality in the C table, modelDescription causality)
 C_KIND = {"input": "UAVFMU_INPUT", "parameter": "UAVFMU_PARAMETER", "output": "UAVFMU_OUTPUT",
           "state": "UAVFMU_STATE", "derivative": "UAVFMU_DERIVATIVE", "time": "UAVFMU_TIME"}

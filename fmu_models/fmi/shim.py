@@ -45,8 +45,10 @@ from fmu_models.fmi.codegen import compile_library
 HEADERS = Path(fmpy.__file__).parent / "c-code"
 
 #: (value reference, type letter R/I/B/S, settable: 0 never (output), 1 fixed parameter, 2 tunable parameter, 3 input,
-#: name)
-VarRow = tuple[int, str, int, str]
+#: name, start value or None)
+VarRow = tuple[int, str, int, str, float | None]
+#: the parameter the shim tracks to refuse a step needing too many internal steps (as the native layer)
+INTERNAL_STEP = "step_internal_s"
 
 _TYPES = {"Real": "R", "Integer": "I", "Enumeration": "I", "Boolean": "B", "String": "S"}
 
@@ -66,7 +68,9 @@ def variable_table(model_description: bytes) -> list[VarRow]:
             settable = 3
         elif causality == "parameter":
             settable = 2 if variability == "tunable" else 1
-        rows.append((int(sv.get("valueReference")), kind, settable, sv.get("name", "")))
+        start = next((c.get("start") for c in sv if c.tag in _TYPES and c.get("start") is not None), None)
+        rows.append((int(sv.get("valueReference")), kind, settable, sv.get("name", ""),
+                     float(start) if start is not None and kind == "R" else None))
     return sorted(rows)
 
 
@@ -98,15 +102,17 @@ typedef struct { fmi2ValueReference vr; char type; char settable; const char* na
 #define STATE_MAGIC 0x7561766673746174ULL
 #define MAX_NVR 1000000u
 static const char SER_MAGIC[8] = {'U', 'A', 'V', 'F', 'M', 'U', 'S', '1'};
-enum { SER_HEADER = 8 + 8 + 8 + 8 + 8 };  /* magic, model key, payload checksum, time, machine state */
+/* magic, model key, checksum (of everything after it), time, machine state, internal step */
+enum { SER_HEADER = 8 + 8 + 8 + 8 + 8 + 8 };
 
 typedef struct State { uint64_t magic; struct Inst* owner; fmi2FMUstate real; double time; int mstate;
-                       struct State* next; } State;
+                       struct State* next; double dt; } State;
 /* A pythonfmu instance with the callbacks the shim gave it (its logger forwards to the current owner). */
 typedef struct Slot { fmi2Component real; struct Inst* owner; fmi2CallbackFunctions cb; char key[4096];
                       struct Slot* next; } Slot;
+/* dt: the model's internal step (s), tracked from SetReal so a step needing too many is refused up front */
 typedef struct Inst { uint64_t magic; struct Inst* next; fmi2Component real; Slot* slot; int state; double time;
-                      fmi2CallbackFunctions cb; char name[128]; State* states; int logged_error; } Inst;
+                      fmi2CallbackFunctions cb; char name[128]; State* states; int logged_error; double dt; } Inst;
 
 static Inst* live = NULL;
 static Slot* pool = NULL;  /* freed instances kept for reuse: pythonfmu leaks ~1 KB per fmi2Instantiate */
@@ -299,7 +305,7 @@ fmi2Component fmi2Instantiate(fmi2String n, fmi2Type t, fmi2String g, fmi2String
   in->slot = take_slot(in, f, n, g, r, v);
   if (!in->slot) { free(in); return NULL; }
   in->real = in->slot->real;
-  in->magic = INST_MAGIC; in->state = S_INSTANTIATED; in->time = 0.0;
+  in->magic = INST_MAGIC; in->state = S_INSTANTIATED; in->time = 0.0; in->dt = DT_START;
   in->next = live; live = in;
   return in;
 }
@@ -337,9 +343,9 @@ void fmi2FreeInstance(fmi2Component c) {
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cats[]) {
   Inst* in = enter(c, "fmi2SetDebugLogging", MASK_SetDebugLogging);
   if (!in) return fmi2Error;
-  if (n > 0 && !cats) { say(in, fmi2Error, "fmi2SetDebugLogging: NULL categories for n = %zu", n); return fmi2Error; }
-  for (size_t i = 0; i < n; ++i) if (!cats[i]) { say(in, fmi2Error, "fmi2SetDebugLogging: NULL category %zu", i);
-    return fmi2Error; }
+  char why[256];
+  if (!uavfmu_rule_categories(why, sizeof why, n, cats)) {
+    say(in, fmi2Error, "fmi2SetDebugLogging: %s", why); return fmi2Error; }
   REAL(fmi2SetDebugLogging);
   /* warnings and errors always reach the importer: pythonfmu keeps logging on for every category (a category
      list would filter out its error messages, and a pooled instance would keep the filter for its next owner);
@@ -384,7 +390,7 @@ fmi2Status fmi2Terminate(fmi2Component c) { return transition(c, "fmi2Terminate"
 fmi2Status fmi2Reset(fmi2Component c) {
   fmi2Status s = transition(c, "fmi2Reset", MASK_Reset, S_INSTANTIATED);
   Inst* in = find(c);
-  if (in && s <= fmi2Warning) in->time = 0.0;
+  if (in && s <= fmi2Warning) { in->time = 0.0; in->dt = DT_START; }
   return s;
 }
 """
@@ -396,7 +402,10 @@ C_VALUES = r"""
     if (!in || !check_refs(in, #NAME, vr, nvr, value, LETTER, SETTING)) return fmi2Error;          \
     if (nvr == 0) return fmi2OK;                                                                   \
     REAL(NAME);                                                                                    \
-    return after(in, #NAME, f(in->real, vr, nvr, value));                                          \
+    fmi2Status s = after(in, #NAME, f(in->real, vr, nvr, value));                                  \
+    if (SETTING && LETTER == 'R' && s <= fmi2Warning)                                              \
+      for (size_t i = 0; i < nvr; ++i) if ((long long)vr[i] == DT_VR) in->dt = *(const double*)&value[i]; \
+    return s;                                                                                      \
   }
 GETSET(fmi2GetReal, fmi2Real, 'R', 0, MASK_GetValue)
 GETSET(fmi2GetInteger, fmi2Integer, 'I', 0, MASK_GetValue)
@@ -411,7 +420,8 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
   Inst* in = enter(c, "fmi2DoStep", MASK_DoStep);
   if (!in) return fmi2Error;
   char why[256];
-  if (!uavfmu_rule_step(why, sizeof why, t, h, in->time)) {
+  if (!uavfmu_rule_step(why, sizeof why, t, h, in->time) ||
+      (DT_VR >= 0 && !uavfmu_rule_internal_steps(why, sizeof why, h, in->dt))) {
     say(in, fmi2Error, "fmi2DoStep: %s", why);
     return fmi2Error;
   }
@@ -492,7 +502,7 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate* out) {
     if (!st) { say(in, fmi2Error, "fmi2GetFMUstate: out of memory"); return fmi2Error; }
     st->magic = STATE_MAGIC; st->owner = in; st->next = in->states; in->states = st;
   }
-  st->real = real; st->time = in->time; st->mstate = in->state;
+  st->real = real; st->time = in->time; st->mstate = in->state; st->dt = in->dt;
   *out = st;
   return s;
 }
@@ -503,7 +513,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate s) {
   if (!st) return fmi2Error;
   REAL(fmi2SetFMUstate);
   fmi2Status r = after(in, "fmi2SetFMUstate", f(in->real, st->real));
-  if (r <= fmi2Warning) { in->time = st->time; in->state = st->mstate; }
+  if (r <= fmi2Warning) { in->time = st->time; in->state = st->mstate; in->dt = st->dt; }
   return r;
 }
 
@@ -555,22 +565,25 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate s, fmi2Byte b[], 
   if (!g) return fmi2Error;
   fmi2Status r = after(in, "fmi2SerializeFMUstate", g(in->real, st->real, b + SER_HEADER, m));
   if (r > fmi2Warning) return r;
-  uint64_t key = MODEL_KEY, sum = fnv(b + SER_HEADER, m), ms = (uint64_t)st->mstate;
-  memcpy(b, SER_MAGIC, 8); memcpy(b + 8, &key, 8); memcpy(b + 16, &sum, 8); memcpy(b + 24, &st->time, 8);
-  memcpy(b + 32, &ms, 8);
+  uint64_t key = MODEL_KEY, ms = (uint64_t)st->mstate;
+  memcpy(b, SER_MAGIC, 8); memcpy(b + 8, &key, 8); memcpy(b + 24, &st->time, 8); memcpy(b + 32, &ms, 8);
+  memcpy(b + 40, &st->dt, 8);
+  uint64_t sum = fnv(b + 24, m + SER_HEADER - 24);
+  memcpy(b + 16, &sum, 8);
   return r;
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n, fmi2FMUstate* out) {
   Inst* in = enter(c, "fmi2DeSerializeFMUstate", MASK_FMUState);
   if (!in) return fmi2Error;
-  uint64_t key = 0, sum = 0, ms = 0; double t = 0.0;
+  uint64_t key = 0, sum = 0, ms = 0; double t = 0.0, dt = 0.0;
   if (!b || !out || n < SER_HEADER) {
     say(in, fmi2Error, "fmi2DeSerializeFMUstate: %s", !b || !out ? "NULL argument" : "shorter than the header");
     return fmi2Error;
   }
   memcpy(&key, b + 8, 8); memcpy(&sum, b + 16, 8); memcpy(&t, b + 24, 8); memcpy(&ms, b + 32, 8);
-  if (memcmp(b, SER_MAGIC, 8) || key != MODEL_KEY || sum != fnv(b + SER_HEADER, n - SER_HEADER) || !isfinite(t)
+  memcpy(&dt, b + 40, 8);
+  if (memcmp(b, SER_MAGIC, 8) || key != MODEL_KEY || sum != fnv(b + 24, n - 24) || !isfinite(t)
       || !(ms == S_INSTANTIATED || ms == S_INIT || ms == S_STEPPING || ms == S_TERMINATED || ms == S_ERROR)) {
     say(in, fmi2Error, "fmi2DeSerializeFMUstate: not a serialised state of this model (or damaged)");
     return fmi2Error;
@@ -581,7 +594,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n
   if (r > fmi2Warning) return r;
   State* st = (State*)calloc(1, sizeof(State));
   if (!st) { say(in, fmi2Error, "fmi2DeSerializeFMUstate: out of memory"); return fmi2Error; }
-  st->magic = STATE_MAGIC; st->owner = in; st->real = real; st->time = t; st->mstate = (int)ms;
+  st->magic = STATE_MAGIC; st->owner = in; st->real = real; st->time = t; st->mstate = (int)ms; st->dt = dt;
   st->next = in->states; in->states = st;
   *out = st;
   return r;
@@ -590,13 +603,15 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n
 
 
 def _table_c(rows: list[VarRow], model_identifier: str, guid: str) -> str:
-    body = ",\n".join(f"  {{{vr}u, '{kind}', {settable}, {json.dumps(name)}}}" for vr, kind, settable, name in rows)
+    body = ",\n".join(f"  {{{r[0]}u, '{r[1]}', {r[2]}, {json.dumps(r[3])}}}" for r in rows)
+    dt = next(((r[0], r[4]) for r in rows if r[3] == INTERNAL_STEP and r[4] is not None), (-1, 0.0))
     body = body or '  {0u, 0, 0, ""}'
     key = 1469598103934665603
     for ch in f"{model_identifier}:{[r[:3] for r in rows]}".encode():
         key = ((key ^ ch) * 1099511628211) % (1 << 64)
     return (f"static const VarInfo VARS[] = {{\n{body}\n}};\n"
             f"static const size_t NVARS = {len(rows)};\n"
+            f"#define DT_VR {dt[0]}LL\n#define DT_START {dt[1]!r}\n"
             f"#define MODEL_KEY 0x{key:016x}ULL\n"
             f"static const char MODEL_GUID[] = \"{guid.replace(chr(92), '').replace(chr(34), '')}\";\n")
 

@@ -85,13 +85,8 @@ const char* fmi2GetVersion(void) { return fmi2Version; }
 fmi2Status fmi2SetDebugLogging(fmi2Component comp, fmi2Boolean loggingOn, size_t nCategories,
                                const fmi2String categories[]) {
     BEGIN("fmi2SetDebugLogging", SetDebugLogging)
-    if (nCategories > 0 && !categories) return (fmi2Status)uav_fail(c, UAV_ERROR, "fmi2SetDebugLogging: categories is NULL");
-    for (size_t i = 0; i < nCategories; ++i) {
-        const char* k = categories[i];
-        if (!k || (strcmp(k, "logStatusWarning") && strcmp(k, "logStatusDiscard") && strcmp(k, "logStatusError") &&
-                   strcmp(k, "logStatusFatal") && strcmp(k, "logAll")))
-            return (fmi2Status)uav_fail(c, UAV_ERROR, "fmi2SetDebugLogging: unknown log category %s", k ? k : "(null)");
-    }
+    if (!uavfmu_rule_categories(c->why, sizeof c->why, nCategories, categories))
+        return (fmi2Status)uav_fail(c, UAV_ERROR, "fmi2SetDebugLogging: %s", c->why);
     c->logging_on = loggingOn ? 1 : 0;
     return fmi2OK;
 }

@@ -103,13 +103,8 @@ const char* fmi3GetVersion(void) { return fmi3Version; }
 fmi3Status fmi3SetDebugLogging(fmi3Instance comp, fmi3Boolean loggingOn, size_t nCategories,
                                const fmi3String categories[]) {
     BEGIN("fmi3SetDebugLogging", SetDebugLogging)
-    if (nCategories > 0 && !categories) return (fmi3Status)uav_fail(c, UAV_ERROR, "fmi3SetDebugLogging: categories is NULL");
-    for (size_t i = 0; i < nCategories; ++i) {
-        const char* k = categories[i];
-        if (!k || (strcmp(k, "logStatusWarning") && strcmp(k, "logStatusDiscard") && strcmp(k, "logStatusError") &&
-                   strcmp(k, "logStatusFatal") && strcmp(k, "logAll")))
-            return (fmi3Status)uav_fail(c, UAV_ERROR, "fmi3SetDebugLogging: unknown log category %s", k ? k : "(null)");
-    }
+    if (!uavfmu_rule_categories(c->why, sizeof c->why, nCategories, categories))
+        return (fmi3Status)uav_fail(c, UAV_ERROR, "fmi3SetDebugLogging: %s", c->why);
     c->logging_on = loggingOn ? 1 : 0;
     return fmi3OK;
 }

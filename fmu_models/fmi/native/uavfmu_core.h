@@ -59,6 +59,7 @@ typedef struct Instance {
     int n_in, n_par, n_warn;
     struct FmuState* states; /* every FMU state this instance handed out, freed with it */
     char message[512];
+    char why[256];           /* an argument rule's message, before it is logged */
 } Instance;
 
 typedef struct FmuState {
@@ -143,8 +144,8 @@ static Instance* uav_new(Instance* tmp, const char* name, const char* token, int
     const uavfmu_model_info* m = &uavfmu_model;
     tmp->name = (char*)(name && name[0] ? name : "?");
     tmp->model_exchange = model_exchange;
-    if (!uavfmu_rule_name(tmp->message, sizeof tmp->message, name)) {
-        uav_fail(tmp, UAV_ERROR, "instantiate: %s", tmp->message);
+    if (!uavfmu_rule_name(tmp->why, sizeof tmp->why, name)) {
+        uav_fail(tmp, UAV_ERROR, "instantiate: %s", tmp->why);
         return NULL;
     }
     if (!token || strcmp(token, m->guid) != 0) {
@@ -198,8 +199,8 @@ static Instance* uav_new(Instance* tmp, const char* name, const char* token, int
 
 static int uav_setup(Instance* c, int tol_defined, double tol, double start, int stop_defined, double stop,
                      const char* fn) {
-    if (!uavfmu_rule_setup(c->message, sizeof c->message, tol_defined, tol, start, stop_defined, stop))
-        return uav_fail(c, UAV_ERROR, "%s: %s", fn, c->message);
+    if (!uavfmu_rule_setup(c->why, sizeof c->why, tol_defined, tol, start, stop_defined, stop))
+        return uav_fail(c, UAV_ERROR, "%s: %s", fn, c->why);
     c->start_time = c->time = start;
     return UAV_OK;
 }
@@ -435,9 +436,9 @@ static int uav_no_such_type(Instance* c, const unsigned* vr, size_t n, const cha
 static int uav_do_step(Instance* c, double t, double h, const char* fn) {
     const uavfmu_model_info* m = c->model;
     double dt = c->p[m->i_step_internal];
-    if (!uavfmu_rule_step(c->message, sizeof c->message, t, h, c->time) ||
-        !uavfmu_rule_internal_steps(c->message, sizeof c->message, h, dt))
-        return uav_fail(c, UAV_ERROR, "%s: %s", fn, c->message);
+    if (!uavfmu_rule_step(c->why, sizeof c->why, t, h, c->time) ||
+        !uavfmu_rule_internal_steps(c->why, sizeof c->why, h, dt))
+        return uav_fail(c, UAV_ERROR, "%s: %s", fn, c->why);
     char when[64];
     snprintf(when, sizeof when, "t = %g s", t);
     if (uav_check_inputs(c, when)) return UAV_ERROR;
@@ -459,7 +460,7 @@ static int uav_do_step(Instance* c, double t, double h, const char* fn) {
 /* ------------------------------------------------------------------ Model Exchange */
 
 static int uav_set_time(Instance* c, double t, const char* fn) {
-    if (!uavfmu_rule_time(c->message, sizeof c->message, t)) return uav_fail(c, UAV_ERROR, "%s: %s", fn, c->message);
+    if (!uavfmu_rule_time(c->why, sizeof c->why, t)) return uav_fail(c, UAV_ERROR, "%s: %s", fn, c->why);
     c->time = t;
     return UAV_OK;
 }
@@ -615,10 +616,17 @@ static int uav_free_fmu_state(Instance* c, void** slot, const char* fn) {
     return UAV_OK;
 }
 
-/* serialised layout: tag, guid, 8 int32 (sizes, state, flags), 2 doubles (times), values, warned */
+/* serialised layout: tag, guid, 8 int32 (sizes, state, flags), 2 doubles (times), values, warned, then a
+   64-bit FNV-1a checksum of all that (a damaged byte anywhere is refused, as by the pythonfmu shim) */
 static size_t uav_serial_size(const uavfmu_model_info* m) {
     return sizeof SERIAL_TAG + strlen(m->guid) + 1 + 8 * sizeof(int32_t) + (2 + uav_n_values(m)) * sizeof(double) +
-           (size_t)m->ny;
+           (size_t)m->ny + sizeof(uint64_t);
+}
+
+static uint64_t uav_fnv(const unsigned char* b, size_t n) {
+    uint64_t h = 1469598103934665603ULL;
+    for (size_t i = 0; i < n; ++i) { h ^= b[i]; h *= 1099511628211ULL; }
+    return h;
 }
 
 static int uav_serialized_size(Instance* c, const void* state, size_t* size, const char* fn) {
@@ -639,12 +647,15 @@ static int uav_serialize(Instance* c, const void* state, unsigned char* b, size_
     int32_t ints[8] = {m->nx, m->nu, m->np, m->ny, (int32_t)s->state, s->params_dirty, s->init_valid,
                        s->outputs_dirty};
     double times[2] = {s->time, s->start_time};
+    unsigned char* start = b;
     memcpy(b, SERIAL_TAG, sizeof SERIAL_TAG); b += sizeof SERIAL_TAG;
     memcpy(b, m->guid, strlen(m->guid) + 1); b += strlen(m->guid) + 1;
     memcpy(b, ints, sizeof ints); b += sizeof ints;
     memcpy(b, times, sizeof times); b += sizeof times;
     memcpy(b, s->values, uav_n_values(m) * sizeof(double)); b += uav_n_values(m) * sizeof(double);
-    memcpy(b, s->warned, (size_t)m->ny);
+    memcpy(b, s->warned, (size_t)m->ny); b += m->ny;
+    uint64_t sum = uav_fnv(start, (size_t)(b - start));
+    memcpy(b, &sum, sizeof sum);
     return UAV_OK;
 }
 
@@ -652,8 +663,10 @@ static int uav_deserialize(Instance* c, const unsigned char* b, size_t size, voi
     const uavfmu_model_info* m = c->model;
     if (!b || !slot) return uav_fail(c, UAV_ERROR, "%s: NULL argument", fn);
     size_t glen = strlen(m->guid) + 1;
+    uint64_t sum = 0;
+    if (size == uav_serial_size(m)) memcpy(&sum, b + size - sizeof sum, sizeof sum);
     if (size != uav_serial_size(m) || memcmp(b, SERIAL_TAG, sizeof SERIAL_TAG) ||
-        memcmp(b + sizeof SERIAL_TAG, m->guid, glen))
+        memcmp(b + sizeof SERIAL_TAG, m->guid, glen) || sum != uav_fnv(b, size - sizeof sum))
         return uav_fail(c, UAV_ERROR, "%s: %zu bytes are not a serialised state of this FMU (%s)", fn, size, m->guid);
     b += sizeof SERIAL_TAG + glen;
     int32_t ints[8];
