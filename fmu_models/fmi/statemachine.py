@@ -173,7 +173,10 @@ def header() -> str:
     lines += [
         "/* SetDebugLogging: every category one of the modelDescription's LogCategories */",
         "static inline int uavfmu_rule_categories(char* msg, size_t n, size_t count, const char* const* cats) {",
-        '    if (count > 0 && !cats) { snprintf(msg, n, "categories is NULL with nCategories = %zu", count); return 0; }',
+        "    if (count > 0 && !cats) {",
+        '        snprintf(msg, n, "categories is NULL with nCategories = %zu", count);',
+        "        return 0;",
+        "    }",
         "    for (size_t i = 0; i < count; ++i) {",
         "        const char* k = cats[i];",
         f'        if (!k || ({known})) {{',

@@ -4,7 +4,8 @@
 operations (``[op, slot, args...]``, see ``OPS``) run on up to two instance slots per model; the answer line
 holds, per operation, the returned status (``null`` for void calls, ``-1`` for an ``fmi2Instantiate`` that
 returned NULL, ``-2`` for a call the worker skipped because its slot is empty), the number of messages the
-FMU logged during the call and whether one of them was a state-machine refusal ("not allowed in state"). After the sequence every live instance is freed and a fresh instance must
+FMU logged during the call and whether one of them was a state-machine refusal ("not allowed in state").
+After the sequence every live instance is freed and a fresh instance must
 initialise and step: the last entry says whether it did. Run in a subprocess by test_fmi_sequences.py: a
 crash here kills only this process, and the test names the sequence that did it.
 """
