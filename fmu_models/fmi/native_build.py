@@ -187,6 +187,15 @@ def _root(model: VehicleModel, guid: str, date: str, version: str) -> ET.Element
     })
 
 
+def _categories_experiment_variables(root: ET.Element) -> ET.Element:
+    """Append LogCategories and DefaultExperiment (same in FMI 2.0 and 3.0); return a new ModelVariables."""
+    cats = ET.SubElement(root, "LogCategories")
+    for name, text in LOG_CATEGORIES:
+        ET.SubElement(cats, "Category", name=name, description=text)
+    ET.SubElement(root, "DefaultExperiment", startTime="0.0", stopTime="10.0", stepSize="0.01")
+    return ET.SubElement(root, "ModelVariables")
+
+
 def model_description(model: VehicleModel, guid: str, date: str, interface: Interface | None = None) -> bytes:
     """modelDescription.xml of the native FMU (inputs, parameters, outputs as in the pythonfmu backend)."""
     interface = interface or Interface(2, ("cs",))
@@ -205,11 +214,7 @@ def model_description(model: VehicleModel, guid: str, date: str, interface: Inte
         ET.SubElement(root, "CoSimulation", {"modelIdentifier": model.name,
                                              "canHandleVariableCommunicationStepSize": "true",
                                              "canInterpolateInputs": "false", **state_caps})
-    cats = ET.SubElement(root, "LogCategories")
-    for name, text in LOG_CATEGORIES:
-        ET.SubElement(cats, "Category", name=name, description=text)
-    ET.SubElement(root, "DefaultExperiment", startTime="0.0", stopTime="10.0", stepSize="0.01")
-    mv = ET.SubElement(root, "ModelVariables")
+    mv = _categories_experiment_variables(root)
     index = {}
     for vr, r in enumerate(rows):
         causality = {"state": "local", "derivative": "local"}.get(r.kind, r.kind)
@@ -250,11 +255,7 @@ def _model_description3(model: VehicleModel, guid: str, date: str, interface: In
     units = unit_definitions(_meta(rows))
     if len(units):
         root.append(units)
-    cats = ET.SubElement(root, "LogCategories")
-    for name, text in LOG_CATEGORIES:
-        ET.SubElement(cats, "Category", name=name, description=text)
-    ET.SubElement(root, "DefaultExperiment", startTime="0.0", stopTime="10.0", stepSize="0.01")
-    mv = ET.SubElement(root, "ModelVariables")
+    mv = _categories_experiment_variables(root)
     vr_of = {}
     for vr, r in enumerate(rows):
         vr_of[(r.kind, r.index)] = vr

@@ -458,7 +458,7 @@ static fmi2Status get_status(fmi2Component c, const char* fn, fmi2StatusKind k, 
   Inst* in = enter(c, fn, MASK_GetStatus);
   if (!in) return fmi2Error;
   if (!v) { say(in, fmi2Error, "%s: value is NULL", fn); return fmi2Error; }
-  if (kind < 0 || (int)k != kind || k == fmi2DoStepStatus || k == fmi2PendingStatus) {
+  if (!uavfmu_status_available(kind, (int)k)) {
     say(in, fmi2Discard, "%s: status kind %d is not available (no asynchronous step)", fn, (int)k);
     return fmi2Discard;
   }

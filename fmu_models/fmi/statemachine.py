@@ -186,5 +186,11 @@ def header() -> str:
         "    }",
         "    return 1;",
         "}", "",
+        "/* FMI 2.0 Get*Status: 1 if the function answering status kind `answered` (-1: none) answers `asked`.",
+        "   Synchronous DoStep: the kinds about an asynchronous step (fmi2DoStepStatus 0, fmi2PendingStatus 1) are",
+        "   never available; fmi2LastSuccessfulTime (2) and fmi2Terminated (3) are. */",
+        "static inline int uavfmu_status_available(int answered, int asked) {",
+        "    return answered >= 2 && asked == answered;",
+        "}", "",
         "#endif", ""]
     return "\n".join(lines)

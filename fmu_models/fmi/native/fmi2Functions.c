@@ -238,7 +238,7 @@ fmi2Status fmi2CancelStep(fmi2Component comp) {
 static fmi2Status get_status(fmi2Component comp, const char* fn, fmi2StatusKind s, int kind, void* value) {
     BEGIN(fn, GetStatus)
     if (!value) return (fmi2Status)uav_fail(c, UAV_ERROR, "%s: value is NULL", fn);
-    if (kind < 0 || (int)s != kind || s == fmi2DoStepStatus || s == fmi2PendingStatus)
+    if (!uavfmu_status_available(kind, (int)s))
         return (fmi2Status)uav_fail(c, UAV_DISCARD, "%s: status kind %d is not available (no asynchronous step)",
                                     fn, (int)s);
     if (s == fmi2LastSuccessfulTime) *(fmi2Real*)value = c->time;

@@ -316,14 +316,18 @@ static int uav_warn(Instance* c) {
     return status == UAV_WARNING ? UAV_OK : status; /* logged; the call itself succeeded */
 }
 
+/* initialisation mode: x and y are the initial state of the current inputs and parameters (computed when they
+   changed; a failure moves the instance to the Error state); any other state: nothing to do */
+static int uav_initial_state_ready(Instance* c, const char* fn) {
+    if (c->state != InitializationMode || (c->init_valid && !c->params_dirty && !c->outputs_dirty)) return UAV_OK;
+    if (uav_initialize(c, fn) == UAV_OK) return UAV_OK;
+    c->state = Error;
+    return UAV_ERROR;
+}
+
 /* y for the current x, u, p: initialisation mode computes the initial state first */
 static int uav_outputs_ready(Instance* c, const char* fn) {
-    if (c->state == InitializationMode) {
-        if (c->init_valid && !c->params_dirty && !c->outputs_dirty) return UAV_OK;
-        if (uav_initialize(c, fn) == UAV_OK) return UAV_OK;
-        c->state = Error;
-        return UAV_ERROR;
-    }
+    if (c->state == InitializationMode) return uav_initial_state_ready(c, fn);
     if (!c->outputs_dirty || c->state == Error) return UAV_OK;
     char when[96], why[256];
     snprintf(when, sizeof when, "%s at t = %g s", fn, c->time);
@@ -483,23 +487,13 @@ static int uav_set_states(Instance* c, const double* x, size_t n, const char* fn
 }
 
 static int uav_get_states(Instance* c, double* x, size_t n, const char* fn) {
-    if (uav_check_nx(c, x, n, fn)) return UAV_ERROR;
-    if (c->state == InitializationMode && (!c->init_valid || c->params_dirty || c->outputs_dirty) &&
-        uav_initialize(c, fn)) {
-        c->state = Error;
-        return UAV_ERROR;
-    }
+    if (uav_check_nx(c, x, n, fn) || uav_initial_state_ready(c, fn)) return UAV_ERROR;
     memcpy(x, c->x, sizeof(double) * n);
     return UAV_OK;
 }
 
 static int uav_get_derivatives(Instance* c, double* xdot, size_t n, const char* fn) {
-    if (uav_check_nx(c, xdot, n, fn)) return UAV_ERROR;
-    if (c->state == InitializationMode && (!c->init_valid || c->params_dirty || c->outputs_dirty) &&
-        uav_initialize(c, fn)) {
-        c->state = Error;
-        return UAV_ERROR;
-    }
+    if (uav_check_nx(c, xdot, n, fn) || uav_initial_state_ready(c, fn)) return UAV_ERROR;
     char when[96], why[256];
     snprintf(when, sizeof when, "%s at t = %g s", fn, c->time);
     if (c->state != Error && uav_check_inputs(c, when)) return UAV_ERROR;
