@@ -353,3 +353,78 @@ def test_outputs_follow_an_input_set_while_stepping_on_both_backends(built_fmus:
         assert after[1] == pytest.approx(before[1] / 2.0, rel=1e-9)  # same forces, double mass
         assert after[0] == before[0] and after[2] == before[2]  # thrust and position are states: unchanged
     np.testing.assert_allclose(got["native"][1], got["python"][1], rtol=1e-12)
+
+
+# ------------------------------------------------------------------ FMI 3.0 bad calls, raw ctypes
+
+LOG3 = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p)
+
+
+class Raw3:
+    """The FMI 3.0 library of a native FMU through ctypes, with every log message kept."""
+
+    def __init__(self, fmu: Path, tmp: Path) -> None:
+        d = Path(extract(str(fmu), unzipdir=str(tmp)))
+        self.md = read_model_description(str(fmu))
+        plat = zigcc.host_platform()
+        self.lib = ctypes.CDLL(str(d / "binaries" / plat.fmi3_name / f"{fmu.stem}{plat.suffix}"))
+        self.messages: list[str] = []
+        self.log = LOG3(lambda env, status, cat, msg: self.messages.append(msg.decode()))
+        v, d_, b = ctypes.c_void_p, ctypes.c_double, ctypes.c_bool
+        self.lib.fmi3InstantiateCoSimulation.restype = v
+        self.lib.fmi3InstantiateCoSimulation.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_char_p, b, b, b,
+                                                         b, v, ctypes.c_size_t, v, LOG3, v]
+        self.lib.fmi3InstantiateScheduledExecution.restype = v
+        self.lib.fmi3EnterInitializationMode.argtypes = [v, b, d_, d_, b, d_]
+        self.lib.fmi3DoStep.argtypes = [v, d_, d_, b, v, v, v, v]
+        self.lib.fmi3SetTime.argtypes = [v, d_]
+
+    def new(self, event_mode: bool = False) -> int | None:
+        return self.lib.fmi3InstantiateCoSimulation(b"raw3", self.md.instantiationToken.encode(), None, False, False,
+                                                    event_mode, False, None, 0, None, self.log, None)
+
+    def step(self, c: int, t: float, h: float) -> int:
+        flags = [ctypes.c_bool() for _ in range(3)]
+        last = ctypes.c_double()
+        return self.lib.fmi3DoStep(c, t, h, True, *[ctypes.byref(f) for f in flags], ctypes.byref(last))
+
+    def last(self) -> str:
+        return self.messages[-1] if self.messages else ""
+
+
+def test_fmi3_bad_calls_are_errors_with_a_message_and_the_instance_stays_usable(fmi3_fmus: dict[str, Path],
+                                                                               tmp_path: Path) -> None:
+    q = Raw3(fmi3_fmus["quadrotor"], tmp_path / "q")
+    lib = q.lib
+    assert q.new(event_mode=True) is None and "eventModeUsed" in q.last()
+    assert lib.fmi3InstantiateScheduledExecution(b"s", q.md.instantiationToken.encode(), None, False, False, None,
+                                                 q.log, None, None, None) is None
+    c = ctypes.c_void_p(q.new())  # NULL resource path accepted
+    assert c.value
+    assert q.step(c, 0.0, 0.01) == 3 and "not allowed in state 'instantiated'" in q.last()
+    assert lib.fmi3EnterInitializationMode(c, True, math.nan, 0.0, False, 0.0) == 3 and "tolerance" in q.last()
+    assert lib.fmi3EnterInitializationMode(c, False, 0.0, 0.0, True, math.inf) == 3 and "stopTime" in q.last()
+    assert lib.fmi3EnterInitializationMode(c, True, 1e-6, 0.0, True, 10.0) == 0
+    assert lib.fmi3ExitInitializationMode(c) == 0  # Co-Simulation without event mode: Step Mode
+    assert lib.fmi3SetTime(c, 1.0) == 3 and "not allowed in state 'step complete'" in q.last()  # an ME function
+    assert lib.fmi3EnterConfigurationMode(c) == 3 and "structural parameters" in q.last()
+    out = (ctypes.c_double * 2)()
+    vr = (ctypes.c_uint * 1)(0)
+    assert lib.fmi3GetFloat64(c, vr, 1, out, 2) == 3 and "nValues" in q.last()
+    assert lib.fmi3GetInt32(c, vr, 1, out, 1) == 3 and "no variable of this type" in q.last()
+    assert q.step(c, 0.0, 1e9) == 3 and str(MAX_INTERNAL_STEPS) in q.last()
+    assert q.step(c, 0.0, 0.01) == 0  # refused calls changed nothing
+    state = ctypes.c_void_p()
+    assert lib.fmi3GetFMUState(c, ctypes.byref(state)) == 0
+    size = ctypes.c_size_t()
+    assert lib.fmi3SerializedFMUStateSize(c, state, ctypes.byref(size)) == 0
+    buf = ctypes.create_string_buffer(size.value)
+    assert lib.fmi3SerializeFMUState(c, state, buf, size.value) == 0
+    raw = bytearray(buf.raw)
+    raw[len(raw) // 2] ^= 0xFF
+    damaged = (ctypes.c_ubyte * len(raw))(*raw)
+    assert lib.fmi3DeserializeFMUState(c, damaged, len(raw), ctypes.byref(ctypes.c_void_p())) == 3
+    assert q.step(c, 0.01, 0.01) == 0
+    assert lib.fmi3SetFMUState(c, state) == 0 and q.step(c, 0.01, 0.01) == 0  # back at t = 0.01 s
+    assert lib.fmi3Terminate(c) == 0 and lib.fmi3Reset(c) == 0
+    lib.fmi3FreeInstance(c)  # frees the FMU state too
