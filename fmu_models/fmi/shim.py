@@ -26,6 +26,13 @@ the calls that pass its checks. Why a C layer, and what it protects against in p
   ``finalizePythonInterpreter``; both later releases then see an empty pointer.
 * pythonfmu returns fmi2Discard when ``do_step`` returns False; the FMI 2.0 standard asks for fmi2Error when a
   step cannot be computed (NaN input, divergence) but the instance may be reset or freed: mapped here.
+* One state machine with the native layer: the allowed-state masks and argument rules come from the same
+  generated ``uavfmu_states.h`` (``fmu_models/fmi/statemachine.py``), so both backends answer every call alike
+  (tests/robustness/test_fmi_sequences.py requires identical statuses). The slave never raises into pythonfmu:
+  it reports a model failure (a refused parameter at initialisation, an output recomputed from a refused input)
+  by logging an error, which the shim turns into fmi2Error and the Error state, as the native layer does. The
+  shim tracks ``step_internal_s`` from the values set, to refuse a step needing too many internal steps before
+  pythonfmu sees it, and derives the resource location from its own path when the importer passes NULL.
 
 pythonfmu forwards log messages only when logging is on, so the shim turns it on: the slave logs nothing but
 warnings and errors, which FMI 2.0 expects to reach the importer whatever its debug-logging setting.
