@@ -257,17 +257,51 @@ class Px4Server:
         for sink in self.sinks:
             sink(self.plant.t_s, self.plant.state)
 
+    def _free_run(self, conn: socket.socket, pacer: Pacer) -> bool | None:
+        """Before the first actuator message of a connection: take whatever arrived, without waiting for more,
+        then keep the real-time pace (Gazebo's mavlink interface steps on at its real-time rate until PX4's
+        first actuator message, then locks step). True when an actuator message arrived, None when the
+        connection ended."""
+        pacer.wait()
+        conn.setblocking(False)
+        try:
+            while True:
+                data = conn.recv(65536)
+                if not data:
+                    return None
+                if self._absorb(data):
+                    return True
+        except BlockingIOError:
+            return False
+        finally:
+            conn.settimeout(self.watchdog.timeout_s)
+
     def _run_lockstep(self, conn: socket.socket, stop: threading.Event | None, max_steps: int | None) -> bool:
-        """Returns False when the connection ended."""
+        """Returns False when the connection ended. Until the autopilot's first actuator message the steps run
+        at the wall-clock pace without waiting for it (PX4 boots in seconds instead of a watchdog timeout per
+        step), then in lockstep."""
         conn.settimeout(self.watchdog.timeout_s)
         spinner = SocketSpinner(conn, self.busy_poll_s)
         got_input: float | None = None
+        pacer: Pacer | None = Pacer(self.dt_s, Stats())  # its overruns are not the lockstep loop's
         while not (stop is not None and stop.is_set()) and (max_steps is None or self.stats.steps < max_steps):
             t0 = time.perf_counter()
             self._send_step(conn)
             if got_input is not None:
                 self.stats.busy.append(time.perf_counter() - got_input)
             self._after_send()
+            if pacer is not None:
+                started = self._free_run(conn, pacer)
+                if started is None:
+                    return False
+                if not started:
+                    self.stats.free_steps += 1
+                    self._step()
+                    continue
+                pacer = None
+                self.watchdog.fed()
+                self._step()
+                continue
             while True:
                 spinner.wait()
                 try:

@@ -4,10 +4,13 @@ Pure Python/numpy, no I/O. Every random number comes from ``numpy.random.Generat
 one seed (one independent stream per sensor, so changing e.g. the GPS settings does not change the IMU
 noise); ``SensorSuite.reset()`` restarts them and a rerun repeats exactly.
 
-Each sensor reads ``truth + bias + drift + noise``: ``bias`` is constant, ``drift`` a random walk whose
-increment over ``dt`` seconds has the std ``drift_std * sqrt(dt)`` (so it grows like ``sqrt(t)``), and
-``noise`` is white with the std ``noise_std`` per sample (a per-sample std, not a density: it does not
-change with the sample rate). A configuration with every std and bias 0 reproduces the FMU outputs exactly.
+Each sensor reads ``truth + bias + drift + noise``: ``bias`` is constant; ``drift`` a random walk whose
+increment over ``dt`` seconds has the std ``drift_std * sqrt(dt)``, for the IMU and magnetometer a first-order
+Gauss-Markov process (``drift_tau_s``) started at a turn-on bias, as in PX4's Gazebo IMU plugin; ``noise`` is
+white, a per-sample std ``noise_std`` and, for the IMU and magnetometer, a density ``noise_density`` (per sample
+``density / sqrt(dt)``). Profiles (``PROFILES``, ``[sensors] profile``): ``px4_gazebo`` (the default: PX4's
+Gazebo plugins, each default citing its source in its field description), ``ublox_m8`` (data sheets: u-blox
+NEO-M8, TDK ICM-20602, MS5611) and ``ideal`` (no errors; reproduces the FMU outputs exactly).
 
 Frames and conventions follow the FMUs: body FRD, NED world, ``quat_w/x/y/z`` rotates body vectors into NED,
 the accelerometer reads specific force (``-9.80665`` on z at rest, level). Configurations are pydantic schemas
@@ -99,30 +102,97 @@ class _Section(Schema):
         return type(self).model_validate({**self.model_dump(), **changes})
 
 
-class AccelConfig(_Section):
-    """Accelerometer [m/s^2]; drift_std in m/s^2 per sqrt(s)."""
+# Where the defaults come from (the source of each is also in the field's description):
+#: PX4's Gazebo models (PX4-SITL_gazebo-classic, models/iris/iris.sdf, gazebo_imu_plugin; the rotors IMU model:
+#: white noise of a density, bias a first-order Gauss-Markov process of a random walk and correlation time,
+#: started at a turn-on bias)
+GAZEBO_IMU = "PX4-SITL_gazebo-classic iris.sdf <gazebo_imu_plugin>"
+#: gazebo_magnetometer_plugin.h kDefaultNoiseDensity / kDefaultRandomWalk / kDefaultBiasCorrelationTime
+GAZEBO_MAG = "PX4-SITL_gazebo-classic gazebo_magnetometer_plugin.h"
+#: gazebo_barometer_plugin.cpp: 1 Pa RMS white noise, baroDriftPaPerSec 0 by default
+GAZEBO_BARO = "PX4-SITL_gazebo-classic gazebo_barometer_plugin.cpp"
+#: gazebo_airspeed_plugin.cpp: diff_pressure_stddev_ 0.01 hPa
+GAZEBO_AIRSPEED = "PX4-SITL_gazebo-classic gazebo_airspeed_plugin.cpp"
+GAZEBO_GPS = "PX4-SITL_gazebo-classic gazebo_gps_plugin.{h,cpp}"
+#: the Gazebo physics step the GPS plugin's per-step update runs at (PX4's worlds: max_step_size 0.004 s)
+GAZEBO_STEP_S = 0.004
 
-    noise_std: float = _num(0.0, 10.0, 0.02)
+
+def gazebo_gps_error(random_walk: float, step_s: float = GAZEBO_STEP_S, correlation: float = 60.0) -> tuple[float,
+                                                                                                           float]:
+    """(stationary std [m], time constant [s]) of the GPS position error PX4's Gazebo plugin really simulates.
+
+    Its update per physics step is ``b += random_walk * sqrt(dt) * n * dt - b / correlation`` (the constant named
+    a correlation time, 60, divides per *step*, not per second): a discrete Gauss-Markov process with the pole
+    ``1 - 1/60`` per step, i.e. a time constant of 60 steps (0.24 s at 4 ms), and a drive of
+    ``random_walk * dt**1.5`` per step: millimetres, not metres."""
+    phi = 1.0 - 1.0 / correlation
+    drive = random_walk * step_s ** 1.5
+    return drive / math.sqrt(1.0 - phi * phi), step_s / (1.0 - phi)
+
+
+_GPS_H_STD_M, GAZEBO_GPS_TAU_S = gazebo_gps_error(2.0)  #: kDefaultGpsXYRandomWalk 2 (m/s)/sqrt(Hz)
+_GPS_V_STD_M, _ = gazebo_gps_error(4.0)  #: kDefaultGpsZRandomWalk 4 (m/s)/sqrt(Hz)
+
+
+def _src(lo: float, hi: float, default: float, source: str) -> Any:
+    """A bounded number whose default cites ``source`` (kept in the schema: ``Model.model_fields[f].description``)."""
+    return Field(default, ge=lo, le=hi, allow_inf_nan=False, description=f"default from {source}")
+
+
+class _Inertial(_Section):
+    """Shared model of the IMU axes and the magnetometer: ``truth + bias + b(t) + white``, the white noise from
+    a per-sample std ``noise_std`` and a density ``noise_density`` [unit/sqrt(Hz)] (per sample
+    ``density / sqrt(dt)``, as an integrating sampler), ``b(t)`` a first-order Gauss-Markov process with the
+    random walk ``drift_std`` [unit/sqrt(s)] and correlation time ``drift_tau_s`` [s] (0: a pure random walk),
+    started at a turn-on bias of std ``turn_on_bias_std`` per axis."""
+
+    def drift_step(self, dt: float) -> tuple[float, float]:
+        """(pole, drive std) of the drift over ``dt`` seconds (exact discretisation, Maybeck 4-114)."""
+        if self.drift_tau_s <= 0.0:
+            return 1.0, self.drift_std * math.sqrt(dt)
+        phi = math.exp(-dt / self.drift_tau_s)
+        return phi, self.drift_std * math.sqrt(self.drift_tau_s / 2.0 * (1.0 - phi * phi))
+
+    def white_std(self, dt: float) -> float:
+        """Per-sample white noise std at the sample interval ``dt`` [s] (the density term needs dt > 0)."""
+        density = self.noise_density * self.noise_density / dt if dt > 0.0 else 0.0
+        return math.sqrt(self.noise_std * self.noise_std + density)
+
+
+class AccelConfig(_Inertial):
+    """Accelerometer [m/s^2]."""
+
+    noise_std: float = _src(0.0, 10.0, 0.0, "none: white noise set by its density")
+    noise_density: float = _src(0.0, 1.0, 0.00186, f"{GAZEBO_IMU} accelerometerNoiseDensity [m/s^2/sqrt(Hz)]")
     bias: _vec3(-10.0, 10.0) = (0.0, 0.0, 0.0)  # type: ignore[valid-type]
-    drift_std: float = _num(0.0, 1.0, 0.0006)
+    drift_std: float = _src(0.0, 1.0, 0.006, f"{GAZEBO_IMU} accelerometerRandomWalk [m/s^3/sqrt(Hz)]")
+    drift_tau_s: float = _src(0.0, 1e5, 300.0, f"{GAZEBO_IMU} accelerometerBiasCorrelationTime [s]")
+    turn_on_bias_std: float = _src(0.0, 5.0, 0.196, f"{GAZEBO_IMU} accelerometerTurnOnBiasSigma [m/s^2]")
 
 
-class GyroConfig(_Section):
-    """Gyroscope [rad/s]; drift_std in rad/s per sqrt(s)."""
+class GyroConfig(_Inertial):
+    """Gyroscope [rad/s]."""
 
-    noise_std: float = _num(0.0, 1.0, 0.003)
+    noise_std: float = _src(0.0, 1.0, 0.0, "none: white noise set by its density")
+    noise_density: float = _src(0.0, 0.1, 0.00018665, f"{GAZEBO_IMU} gyroscopeNoiseDensity [rad/s/sqrt(Hz)]")
     bias: _vec3(-1.0, 1.0) = (0.0, 0.0, 0.0)  # type: ignore[valid-type]
-    drift_std: float = _num(0.0, 0.1, 4e-5)
+    drift_std: float = _src(0.0, 0.1, 3.8785e-5, f"{GAZEBO_IMU} gyroscopeRandomWalk [rad/s^2/sqrt(Hz)]")
+    drift_tau_s: float = _src(0.0, 1e5, 1000.0, f"{GAZEBO_IMU} gyroscopeBiasCorrelationTime [s]")
+    turn_on_bias_std: float = _src(0.0, 0.5, 0.0087, f"{GAZEBO_IMU} gyroscopeTurnOnBiasSigma [rad/s]")
 
 
-class MagConfig(_Section):
+class MagConfig(_Inertial):
     """Magnetometer [gauss] and the Earth field it measures: total intensity [gauss] (the Earth's is 0.22..0.67),
     declination (east of true north, positive) and inclination (below the horizon, positive) [deg]; constant
     over the flight."""
 
-    noise_std: float = _num(0.0, 1.0, 0.005)
+    noise_std: float = _src(0.0, 1.0, 0.0, "none: white noise set by its density")
+    noise_density: float = _src(0.0, 0.1, 0.4e-3, f"{GAZEBO_MAG} kDefaultNoiseDensity [gauss/sqrt(Hz)]")
     bias: _vec3(-2.0, 2.0) = (0.0, 0.0, 0.0)  # type: ignore[valid-type]
-    drift_std: float = _num(0.0, 0.1, 0.0)
+    drift_std: float = _src(0.0, 0.1, 6.4e-6, f"{GAZEBO_MAG} kDefaultRandomWalk [gauss*sqrt(Hz)]")
+    drift_tau_s: float = _src(0.0, 1e5, 600.0, f"{GAZEBO_MAG} kDefaultBiasCorrelationTime [s]")
+    turn_on_bias_std: float = _src(0.0, 1.0, 0.0, f"{GAZEBO_MAG} (none)")
     intensity_gauss: float = _num(0.1, 1.0, 0.5)
     declination_deg: float = _num(-180.0, 180.0, 0.0)
     inclination_deg: float = _num(-90.0, 90.0, 60.0)
@@ -138,15 +208,15 @@ class MagConfig(_Section):
 class BaroConfig(_Section):
     """Barometer static pressure [Pa]; drift_std in Pa per sqrt(s). The temperature is the noise-free ISA one."""
 
-    noise_std: float = _num(0.0, 1000.0, 2.0)
+    noise_std: float = _src(0.0, 1000.0, 1.0, f"{GAZEBO_BARO}: 1 Pa RMS")
     bias: float = _num(-5000.0, 5000.0, 0.0)
-    drift_std: float = _num(0.0, 100.0, 0.1)
+    drift_std: float = _src(0.0, 100.0, 0.0, f"{GAZEBO_BARO}: baroDriftPaPerSec 0")
 
 
 class DiffPressureConfig(_Section):
     """Pitot differential pressure [Pa]; drift_std in Pa per sqrt(s). Used only when the FMU has airspeed."""
 
-    noise_std: float = _num(0.0, 100.0, 0.5)
+    noise_std: float = _src(0.0, 100.0, 1.0, f"{GAZEBO_AIRSPEED}: DiffPressureStdev 0.01 hPa")
     bias: float = _num(-100.0, 100.0, 0.0)
     drift_std: float = _num(0.0, 10.0, 0.0)
 
@@ -155,32 +225,60 @@ class GpsConfig(_Section):
     """GPS receiver: fix rate [Hz], latency [s] (a fix delivered at t describes the state at t - latency),
     the reported accuracies eph/epv [m], fix type (MAVLink GPS_FIX_TYPE: 3 = 3D), satellites.
 
-    Position error = a first-order Gauss-Markov process per axis (what receivers show: errors that wander
-    slowly, from atmosphere and multipath) plus white noise: ``e(t+dt) = exp(-dt/tau) e(t) + std *
-    sqrt(1 - exp(-2 dt/tau)) n``, stationary std ``pos_gm_std_h_m`` (north and east) / ``pos_gm_std_v_m``
-    (down) [m], time constant ``pos_gm_tau_s`` [s], started in its stationary distribution. The defaults
-    follow PX4's Gazebo GPS plugin: correlation time 60 s; its random walk of 2 (horizontal) and 4 (vertical)
-    (m/s)/sqrt(Hz) at 5 Hz settles to a std of about 1 m and 2 m; its white noise (2e-4 m/sqrt(Hz)) is
-    negligible. White position noise (``pos_noise_std_*``) trips PX4's preflight drift check, so it is 0 by
-    default. NED velocity: white noise std [m/s]."""
+    Position error = a first-order Gauss-Markov process per axis plus white noise: ``e(t+dt) = exp(-dt/tau) e(t)
+    + std * sqrt(1 - exp(-2 dt/tau)) n``, stationary std ``pos_gm_std_h_m`` (north and east) / ``pos_gm_std_v_m``
+    (down) [m], time constant ``pos_gm_tau_s`` [s], started in its stationary distribution. The defaults are
+    what PX4's Gazebo GPS plugin really simulates (``gazebo_gps_error``: millimetres, 0.24 s; its random walks of
+    2 and 4 (m/s)/sqrt(Hz) are applied per 4 ms physics step with a pole of 1 - 1/60 per step, not the 1 m / 2 m,
+    60 s its constants suggest). NED velocity: white noise std [m/s], horizontal and down."""
 
-    rate_hz: float = _num(0.1, 100.0, 5.0)
-    latency_s: float = _num(0.0, 1.0, 0.1)
-    eph_m: float = _num(0.0, 600.0, 1.0)
-    epv_m: float = _num(0.0, 600.0, 2.0)
+    rate_hz: float = _src(0.1, 100.0, 5.0, f"{GAZEBO_GPS} kDefaultUpdateRate")
+    latency_s: float = _src(0.0, 1.0, 0.12, f"{GAZEBO_GPS} gps_delay_ 120 ms")
+    eph_m: float = _src(0.0, 600.0, 1.0, f"{GAZEBO_GPS} std_xy 1.0")
+    epv_m: float = _src(0.0, 600.0, 1.0, f"{GAZEBO_GPS} std_z 1.0")
     fix_type: int = Field(3, ge=0, le=8)
     satellites: int = Field(10, ge=0, le=255)
-    pos_gm_std_h_m: float = _num(0.0, 100.0, 1.0)
-    pos_gm_std_v_m: float = _num(0.0, 100.0, 2.0)
-    pos_gm_tau_s: float = _num(0.1, 3600.0, 60.0)
-    pos_noise_std_h_m: float = _num(0.0, 100.0, 0.0)
-    pos_noise_std_v_m: float = _num(0.0, 100.0, 0.0)
-    vel_noise_std_m_s: float = _num(0.0, 10.0, 0.05)
+    pos_gm_std_h_m: float = _src(0.0, 100.0, _GPS_H_STD_M, f"{GAZEBO_GPS} (gazebo_gps_error, 2 (m/s)/sqrt(Hz))")
+    pos_gm_std_v_m: float = _src(0.0, 100.0, _GPS_V_STD_M, f"{GAZEBO_GPS} (gazebo_gps_error, 4 (m/s)/sqrt(Hz))")
+    pos_gm_tau_s: float = _src(0.01, 3600.0, GAZEBO_GPS_TAU_S, f"{GAZEBO_GPS} (60 steps of 4 ms)")
+    pos_noise_std_h_m: float = _src(0.0, 100.0, 2.0e-4 * math.sqrt(GAZEBO_STEP_S),
+                                    f"{GAZEBO_GPS} kDefaultGpsXYNoiseDensity * sqrt(dt)")
+    pos_noise_std_v_m: float = _src(0.0, 100.0, 4.0e-4 * math.sqrt(GAZEBO_STEP_S),
+                                    f"{GAZEBO_GPS} kDefaultGpsZNoiseDensity * sqrt(dt)")
+    vel_noise_std_m_s: float = _src(0.0, 10.0, 0.2 * math.sqrt(GAZEBO_STEP_S),
+                                    f"{GAZEBO_GPS} kDefaultGpsVXYNoiseDensity * sqrt(dt)")
+    vel_noise_std_down_m_s: float = _src(0.0, 10.0, 0.4 * math.sqrt(GAZEBO_STEP_S),
+                                         f"{GAZEBO_GPS} kDefaultGpsVZNoiseDensity * sqrt(dt)")
+
+
+#: u-blox NEO-M8 data sheet (UBX-15031086 R11): 2.5 m CEP horizontal (GPS+GLONASS), velocity 0.05 m/s, up to
+#: 10 Hz concurrent GNSS; CEP = 1.1774 sigma for a circular normal error. The data sheet gives no vertical figure
+#: and no correlation time: vertical = 1.5 x horizontal (a typical VDOP/HDOP) and 60 s are ASSUMPTIONS, said so.
+#: IMU: TDK ICM-20602 data sheet, gyro 0.004 dps/sqrt(Hz), accel 100 ug/sqrt(Hz) (bias processes as Gazebo's).
+#: Baro: TE MS5611-01BA03 data sheet, resolution 0.012 mbar RMS at OSR 4096 (1.2 Pa).
+_M8_SIGMA_H_M = 2.5 / 1.1774
+PROFILES: dict[str, dict[str, dict[str, float]]] = {
+    "px4_gazebo": {},
+    "ublox_m8": {
+        "gps": {"rate_hz": 10.0, "latency_s": 0.1, "eph_m": 2.5, "epv_m": 3.75, "pos_gm_std_h_m": _M8_SIGMA_H_M,
+                "pos_gm_std_v_m": 1.5 * _M8_SIGMA_H_M, "pos_gm_tau_s": 60.0, "pos_noise_std_h_m": 0.0,
+                "pos_noise_std_v_m": 0.0, "vel_noise_std_m_s": 0.05, "vel_noise_std_down_m_s": 0.05},
+        "gyro": {"noise_density": math.radians(0.004)},
+        "accel": {"noise_density": 100e-6 * 9.80665},
+        "baro": {"noise_std": 1.2},
+    },
+    "ideal": {name: {"noise_std": 0.0, "noise_density": 0.0, "drift_std": 0.0, "turn_on_bias_std": 0.0}
+              for name in ("accel", "gyro", "mag")}
+    | {"baro": {"noise_std": 0.0, "drift_std": 0.0}, "diff_pressure": {"noise_std": 0.0, "drift_std": 0.0},
+       "gps": {"pos_gm_std_h_m": 0.0, "pos_gm_std_v_m": 0.0, "pos_noise_std_h_m": 0.0, "pos_noise_std_v_m": 0.0,
+               "vel_noise_std_m_s": 0.0, "vel_noise_std_down_m_s": 0.0}},
+}
 
 
 class SensorConfig(Schema):
-    """All sensors; the defaults are plausible small-MEMS/u-blox values. TOML layout: one table per sensor,
-    ``[accel] [gyro] [mag] [baro] [diff_pressure] [gps]``, each optional, missing keys keep their defaults."""
+    """All sensors; defaults: PX4's Gazebo sensor plugins (each field's description names its source). TOML
+    layout: one table per sensor, ``[accel] [gyro] [mag] [baro] [diff_pressure] [gps]``, each optional, missing
+    keys keep the profile's value (``from_dict(data, profile=...)``, ``PROFILES``)."""
 
     accel: AccelConfig = AccelConfig()
     gyro: GyroConfig = GyroConfig()
@@ -190,9 +288,21 @@ class SensorConfig(Schema):
     gps: GpsConfig = GpsConfig()
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], source: str = "sensor config") -> SensorConfig:
-        """Check every field of every table; ``SensorConfigError`` lists all problems, prefixed by ``source``."""
-        return _validated(cls, data, source)
+    def from_dict(cls, data: Mapping[str, Any], source: str = "sensor config",
+                  profile: str = "px4_gazebo") -> SensorConfig:
+        """Check every field of every table over the ``profile``'s values; ``SensorConfigError`` lists all
+        problems, prefixed by ``source``."""
+        if profile not in PROFILES:
+            raise SensorConfigError(source, [f"profile = {profile!r}: allowed {', '.join(sorted(PROFILES))}"])
+        merged: dict[str, Any] = {k: dict(v) for k, v in PROFILES[profile].items()}
+        for key, table in data.items():
+            merged[key] = {**merged.get(key, {}), **table} if isinstance(table, Mapping) else table
+        return _validated(cls, merged, source)
+
+    @classmethod
+    def profile(cls, name: str) -> SensorConfig:
+        """The named profile (``PROFILES``: ``px4_gazebo`` the default, ``ublox_m8``, ``ideal``)."""
+        return cls.from_dict({}, f"profile {name}", profile=name)
 
     def replace(self, **sections: Any) -> SensorConfig:
         """A copy with whole sections replaced."""
@@ -201,12 +311,7 @@ class SensorConfig(Schema):
     @classmethod
     def noise_free(cls) -> SensorConfig:
         """Every noise, bias and drift 0 (GPS rate, latency and the Earth field keep their defaults)."""
-        zero = {"noise_std": 0.0, "bias": 0.0, "drift_std": 0.0}
-        d = cls()
-        return cls(accel=d.accel.replace(**zero), gyro=d.gyro.replace(**zero), mag=d.mag.replace(**zero),
-                   baro=d.baro.replace(**zero), diff_pressure=d.diff_pressure.replace(**zero),
-                   gps=d.gps.replace(pos_noise_std_h_m=0.0, pos_noise_std_v_m=0.0, vel_noise_std_m_s=0.0,
-                                     pos_gm_std_h_m=0.0, pos_gm_std_v_m=0.0))
+        return cls.profile("ideal")
 
 
 # ------------------------------------------------------------------------------------------ frames
@@ -293,7 +398,7 @@ class SensorSuite:
     (``airspeed_m_s`` taken as true airspeed); exactly 0 when the FMU has no airspeed (no pitot).
     """
 
-    _STREAMS = ("accel", "gyro", "mag", "baro", "diff_pressure", "gps")
+    _STREAMS = ("accel", "gyro", "mag", "baro", "diff_pressure", "gps", "turn_on")
 
     def __init__(self, config: SensorConfig | None = None, seed: int = 0) -> None:
         if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
@@ -314,6 +419,11 @@ class SensorSuite:
                                        "baro": 0.0, "diff_pressure": 0.0}
         self._bias3 = {name: [float(v) for v in np.broadcast_to(getattr(self.config, name).bias, 3)]
                        for name in ("accel", "gyro", "mag")}
+        for name in ("accel", "gyro", "mag"):  # the Gauss-Markov biases start at their turn-on value
+            on = getattr(self.config, name).turn_on_bias_std
+            self._drift[name] = [on * z for z in self._normals("turn_on", 3)]
+        #: per sensor: the sample interval the coefficients below were computed for, (pole, drive, white std)
+        self._coef: dict[str, tuple[float, tuple[float, float, float]]] = {}
         gps = self.config.gps
         z = self._normals("gps", 3)  # the Gauss-Markov errors start in their stationary distribution
         self._gps_err = [gps.pos_gm_std_h_m * z[0], gps.pos_gm_std_h_m * z[1], gps.pos_gm_std_v_m * z[2]]
@@ -338,16 +448,26 @@ class SensorSuite:
         state[1] = pos + n
         return buf[pos:pos + n]
 
-    def _vector(self, name: str, truth: tuple[float, float, float], sqrt_dt: float) -> tuple[float, float, float]:
+    def _coefficients(self, name: str, dt: float) -> tuple[float, float, float]:
+        """(drift pole, drift drive std, white std) of an inertial sensor at the sample interval ``dt``, cached:
+        in lockstep the interval is constant, and exp/sqrt per sample and sensor would cost microseconds."""
+        cached = self._coef.get(name)
+        if cached is not None and cached[0] == dt:
+            return cached[1]
         cfg = getattr(self.config, name)
+        # the first sample has no interval yet: its white noise is taken at Gazebo's 4 ms step
+        coef = (*cfg.drift_step(dt), cfg.white_std(dt if dt > 0.0 else GAZEBO_STEP_S))
+        self._coef[name] = (dt, coef)
+        return coef
+
+    def _vector(self, name: str, truth: tuple[float, float, float], dt: float) -> tuple[float, float, float]:
         z = self._normals(name, 6)  # always 6 draws: the stream does not depend on the settings
-        walk = cfg.drift_std * sqrt_dt
+        phi, walk, sigma = self._coefficients(name, dt)
         d = self._drift[name]
-        d[0] += walk * z[3]
-        d[1] += walk * z[4]
-        d[2] += walk * z[5]
+        d[0] = phi * d[0] + walk * z[3]
+        d[1] = phi * d[1] + walk * z[4]
+        d[2] = phi * d[2] + walk * z[5]
         b = self._bias3[name]
-        sigma = cfg.noise_std
         return (truth[0] + b[0] + d[0] + sigma * z[0], truth[1] + b[1] + d[1] + sigma * z[1],
                 truth[2] + b[2] + d[2] + sigma * z[2])
 
@@ -380,7 +500,9 @@ class SensorSuite:
         if east == 0.0:
             lon = s.lon_deg  # exact (wrapping may change the last bit)
         alt = s.height_m - err_d + cfg.pos_noise_std_v_m * float(z[2])
-        vn, ve, vd = (v + cfg.vel_noise_std_m_s * float(n) for v, n in zip(s.vel_ned_m_s, z[3:6], strict=True))
+        vn = s.vel_ned_m_s[0] + cfg.vel_noise_std_m_s * z[3]
+        ve = s.vel_ned_m_s[1] + cfg.vel_noise_std_m_s * z[4]
+        vd = s.vel_ned_m_s[2] + cfg.vel_noise_std_down_m_s * z[5]
         speed = math.hypot(vn, ve)
         course = math.degrees(math.atan2(ve, vn)) % 360.0 if speed > 0.0 else 0.0
         if course >= 360.0:  # -tiny % 360 rounds to 360.0
@@ -449,13 +571,13 @@ class SensorSuite:
             diff_pressure = self._scalar("diff_pressure", 0.5 * rho * float(airspeed) ** 2, sqrt_dt)
 
         gps = self._gps(t_s, _GpsState(t_s, lat, lon, height, (vn, ve, vd)))
-        return SensorFrame(self._vector("accel", (ax, ay, az), sqrt_dt), self._vector("gyro", (p, q, r), sqrt_dt),
-                           self._vector("mag", mag_body, sqrt_dt), abs_pressure, temp_k - KELVIN_OFFSET,
+        return SensorFrame(self._vector("accel", (ax, ay, az), dt), self._vector("gyro", (p, q, r), dt),
+                           self._vector("mag", mag_body, dt), abs_pressure, temp_k - KELVIN_OFFSET,
                            diff_pressure, pressure_altitude_m(abs_pressure), gps)
 
 
 __all__ = [
-    "REQUIRED_OUTPUTS", "AccelConfig", "BaroConfig", "DiffPressureConfig", "GpsConfig", "GpsFix", "GyroConfig",
+    "PROFILES", "REQUIRED_OUTPUTS", "AccelConfig", "BaroConfig", "DiffPressureConfig", "GpsConfig", "GpsFix", "GyroConfig",
     "MagConfig", "MissingOutputError", "SensorConfig", "SensorConfigError", "SensorFrame", "SensorSuite",
-    "pressure_altitude_m",
+    "gazebo_gps_error", "pressure_altitude_m",
 ]

@@ -48,7 +48,7 @@ def noise_free(**sections) -> SensorConfig:
 def quiet_gps(**settings) -> GpsConfig:
     """A GPS without position and velocity noise."""
     return GpsConfig(**{"pos_noise_std_h_m": 0.0, "pos_noise_std_v_m": 0.0, "vel_noise_std_m_s": 0.0,
-                        "pos_gm_std_h_m": 0.0, "pos_gm_std_v_m": 0.0, **settings})
+                        "vel_noise_std_down_m_s": 0.0, "pos_gm_std_h_m": 0.0, "pos_gm_std_v_m": 0.0, **settings})
 
 
 # ------------------------------------------------------------------------------------------ noise-free physics
@@ -90,8 +90,7 @@ def test_diff_pressure_is_dynamic_pressure_of_airspeed() -> None:
     assert high == pytest.approx(0.5 * 1.1116 * 400.0, rel=1e-4)  # thinner air at 1000 m
 
 
-MAG = MagConfig(noise_std=0.0, bias=0.0, drift_std=0.0, intensity_gauss=0.5, declination_deg=0.0,
-                inclination_deg=60.0)
+MAG = SensorConfig.noise_free().mag.replace(intensity_gauss=0.5, declination_deg=0.0, inclination_deg=60.0)
 
 
 def test_mag_level_heading_north_points_north_and_down() -> None:
@@ -120,7 +119,7 @@ def test_mag_with_unnormalised_quaternion() -> None:
 
 
 def test_constant_bias_is_added() -> None:
-    cfg = noise_free(accel=AccelConfig(noise_std=0.0, bias=(0.1, -0.2, 0.3), drift_std=0.0))
+    cfg = noise_free(accel=SensorConfig.noise_free().accel.replace(bias=(0.1, -0.2, 0.3)))
     suite = SensorSuite(cfg)
     for k in range(10):
         assert suite.sample(k * 0.01, outputs()).accel_body_m_s2 == pytest.approx((0.1, -0.2, -G0 + 0.3))
@@ -179,8 +178,8 @@ def test_gps_latency_between_samples_interpolates() -> None:
 
 def test_gps_fix_fields() -> None:
     cfg = GpsConfig(rate_hz=10.0, latency_s=0.0, eph_m=2.5, epv_m=4.0, fix_type=3, satellites=12,
-                    pos_noise_std_h_m=0.0, pos_noise_std_v_m=0.0, vel_noise_std_m_s=0.0, pos_gm_std_h_m=0.0,
-                    pos_gm_std_v_m=0.0)
+                    pos_noise_std_h_m=0.0, pos_noise_std_v_m=0.0, vel_noise_std_m_s=0.0, vel_noise_std_down_m_s=0.0,
+                    pos_gm_std_h_m=0.0, pos_gm_std_v_m=0.0)
     suite = SensorSuite(noise_free(gps=cfg))
     fix = suite.sample(0.0, outputs(vel_north_m_s=3.0, vel_east_m_s=4.0, height_m=432.1)).gps
     assert fix is not None
@@ -234,12 +233,12 @@ def test_noise_is_noise() -> None:
 def test_white_noise_has_the_configured_std() -> None:
     n = 20000
     cfg = SensorConfig.noise_free().replace(
-        accel=AccelConfig(noise_std=0.08, bias=0.0, drift_std=0.0),
+        accel=SensorConfig.noise_free().accel.replace(noise_std=0.08),
         gyro=SensorConfig.noise_free().gyro.replace(noise_std=0.004),
         baro=SensorConfig.noise_free().baro.replace(noise_std=3.0),
         diff_pressure=SensorConfig.noise_free().diff_pressure.replace(noise_std=0.7),
         gps=GpsConfig(rate_hz=100.0, latency_s=0.0, pos_noise_std_h_m=1.5, pos_noise_std_v_m=2.5,
-                      vel_noise_std_m_s=0.2, pos_gm_std_h_m=0.0, pos_gm_std_v_m=0.0),
+                      vel_noise_std_m_s=0.2, vel_noise_std_down_m_s=0.2, pos_gm_std_h_m=0.0, pos_gm_std_v_m=0.0),
     )
     suite = SensorSuite(cfg, seed=11)
     truth = outputs(airspeed_m_s=0.0)
