@@ -577,7 +577,7 @@ class SensorSuite:
 
 
 __all__ = [
-    "PROFILES", "REQUIRED_OUTPUTS", "AccelConfig", "BaroConfig", "DiffPressureConfig", "GpsConfig", "GpsFix", "GyroConfig",
-    "MagConfig", "MissingOutputError", "SensorConfig", "SensorConfigError", "SensorFrame", "SensorSuite",
+    "PROFILES", "REQUIRED_OUTPUTS", "AccelConfig", "BaroConfig", "DiffPressureConfig", "GpsConfig", "GpsFix",
+    "GyroConfig", "MagConfig", "MissingOutputError", "SensorConfig", "SensorConfigError", "SensorFrame", "SensorSuite",
     "gazebo_gps_error", "pressure_altitude_m",
 ]

@@ -18,6 +18,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "identify": ("uavfmu.commands.identify", "identify a thrust map (thrust) or aero derivatives (aero) from a log"),
     "validate": ("uavfmu.commands.validate", "replay a flight log through an FMU with FMPy and score it"),
     "hil": ("uavfmu.commands.hil", "drive an FMU from an autopilot (PX4, ArduPilot JSON, MAVLink, NMEA)"),
+    "autopilot-params": ("uavfmu.commands.autopilot_params",
+                         "write ArduPlane, ArduCopter or PX4 parameters computed from an FMU's model"),
     "demo": ("uavfmu.demo", "end-to-end demo on simulated data"),
 }
 
