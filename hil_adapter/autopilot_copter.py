@@ -73,8 +73,11 @@ def arducopter(sim: Any, p: np.ndarray, out: Any) -> None:
     rms = float(np.sqrt(np.mean((thrust / thrust[-1] - ((1 - expo) * a + expo * a * a)) ** 2)))
     out("MOT_THST_EXPO", round(expo, 3), "least squares of thrust/thrust(spin max) = (1-e) a + e a^2 over the "
                                          f"spin range (model thrust map; rms misfit {rms:.3f})")
-    t_hover = _weight(sim, p) / thrust[-1]
-    out("MOT_THST_HOVER", round(t_hover, 3), f"weight / thrust at spin max = {thrust[-1]:.2f} N")
+    pwm_hover = _hover_pwm(sim, p, _weight(sim, p))
+    a_h = ((pwm_hover - PWM_MIN_US) / (PWM_MAX_US - PWM_MIN_US) - spin_min) / (SPIN_MAX - spin_min)
+    out("MOT_THST_HOVER", round((1 - expo) * a_h + expo * a_h * a_h, 3),
+        f"the model hovers at {pwm_hover:.0f} us (actuator {a_h:.3f} of the spin range): its thrust on the curve "
+        "above, so that ArduCopter's thrust-to-actuator mapping puts hover there")
     out("MOT_HOVER_LEARN", 2, "learned and saved in flight from there on")
     cells = max(1, round(pv.battery_nominal_V / CELL_NOMINAL_V))
     out("MOT_BAT_VOLT_MAX", round(cells * CELL_FULL_V, 2), f"{cells} cells (battery_nominal_V "

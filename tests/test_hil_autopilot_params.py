@@ -122,10 +122,15 @@ def test_hover_throttles_hover_the_model(built_fmus: dict[str, Path]) -> None:
     fac, hover = px4["THR_MDL_FAC"], px4["MPC_THR_HOVER"]
     c = (-(1 - fac) + np.sqrt((1 - fac) ** 2 + 4 * fac * hover)) / (2 * fac) if fac > 0 else hover
     assert thrust_curve(sim, p, np.array([1000.0 + 1000.0 * c]))[0] == pytest.approx(weight, rel=0.01)
-    copter = autopilot_params(built_fmus["quadrotor"], "arducopter").values
-    spin_max_us = 1000.0 + 1000.0 * SPIN_MAX
-    assert copter["MOT_THST_HOVER"] * thrust_curve(sim, p, np.array([spin_max_us]))[0] == pytest.approx(weight,
-                                                                                                   rel=0.01)
+    # ArduCopter: thrust demand MOT_THST_HOVER through its curve (AP_MotorsMulticopter, battery scale 1) and
+    # spin range to PWM: the model's thrust there is its weight
+    v = autopilot_params(built_fmus["quadrotor"], "arducopter").values
+    e, t = v["MOT_THST_EXPO"], v["MOT_THST_HOVER"]
+    a = ((e - 1) + np.sqrt((1 - e) ** 2 + 4 * e * t)) / (2 * e) if e != 0 else t
+    pwm = v["MOT_PWM_MIN"] + (v["MOT_SPIN_MIN"] + (v["MOT_SPIN_MAX"] - v["MOT_SPIN_MIN"]) * a) * (
+        v["MOT_PWM_MAX"] - v["MOT_PWM_MIN"])
+    assert v["MOT_SPIN_MAX"] == SPIN_MAX
+    assert thrust_curve(sim, p, np.array([pwm]))[0] == pytest.approx(weight, rel=0.01)
 
 
 def _rate_step(fmu: Path, params: dict[str, float], axis: str, step_deg_s: float, gain_scale: float = 1.0,
