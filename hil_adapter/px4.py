@@ -41,26 +41,32 @@ MG_PER_M_S2 = 1000.0 / G0_M_S2  #: HIL_STATE_QUATERNION accelerations are in mil
 WING_CONTROLS = {1: 0, 2: 1, 3: 3, 4: 2}
 
 
+def _clip(v: float, lo: float, hi: float) -> float:
+    return lo if not math.isfinite(v) else min(max(v, lo), hi)
+
+
+_MOTORS_OFF = dict.fromkeys(range(1, 5), 1000.0)
+
+
 def controls_to_pwm(controls: Sequence[float], vehicle: str, armed: bool,
                     wing_controls: Mapping[int, int] | None = None) -> dict[int, float]:
     """PWM by output channel from normalised controls: motors/throttle 0..1 -> 1000..2000 us, surfaces
     -1..1 -> 1000..2000 us around 1500; unarmed: motors and throttle at 1000 us. ``wing_controls`` maps output
     channel -> control index for the fixed wing (default ``WING_CONTROLS``; channel 3 is the throttle)."""
-    def clip(v: float, lo: float, hi: float) -> float:
-        return lo if not math.isfinite(v) else min(max(v, lo), hi)
-
     if vehicle == "quadrotor":
         if not armed:
-            return dict.fromkeys(range(1, 5), 1000.0)
-        c1, c2, c3, c4 = controls[:4]
-        return {1: 1000.0 + 1000.0 * clip(c1, 0.0, 1.0), 2: 1000.0 + 1000.0 * clip(c2, 0.0, 1.0),
-                3: 1000.0 + 1000.0 * clip(c3, 0.0, 1.0), 4: 1000.0 + 1000.0 * clip(c4, 0.0, 1.0)}
+            return dict(_MOTORS_OFF)
+        c1, c2, c3, c4 = controls[:4]  # in range is the common case: one chained test each (NaN fails it)
+        return {1: 1000.0 + 1000.0 * (c1 if 0.0 <= c1 <= 1.0 else _clip(c1, 0.0, 1.0)),
+                2: 1000.0 + 1000.0 * (c2 if 0.0 <= c2 <= 1.0 else _clip(c2, 0.0, 1.0)),
+                3: 1000.0 + 1000.0 * (c3 if 0.0 <= c3 <= 1.0 else _clip(c3, 0.0, 1.0)),
+                4: 1000.0 + 1000.0 * (c4 if 0.0 <= c4 <= 1.0 else _clip(c4, 0.0, 1.0))}
     out = {}
     for ch, idx in (wing_controls or WING_CONTROLS).items():
         if ch == 3:
-            out[ch] = 1000.0 + 1000.0 * (clip(controls[idx], 0.0, 1.0) if armed else 0.0)
+            out[ch] = 1000.0 + 1000.0 * (_clip(controls[idx], 0.0, 1.0) if armed else 0.0)
         else:
-            out[ch] = 1500.0 + 500.0 * clip(controls[idx], -1.0, 1.0)
+            out[ch] = 1500.0 + 500.0 * _clip(controls[idx], -1.0, 1.0)
     return out
 
 
@@ -85,10 +91,10 @@ class HilMessages:
 
     def sensor(self, t_us: int, frame: Any) -> bytes:
         a, g, m = frame.accel_body_m_s2, frame.gyro_body_rad_s, frame.mag_body_gauss
-        return self.codec.pack(
+        return self.codec.pack_wire(  # wire order: time_usec, 13 floats, fields_updated, id
             mavlink2.MAVLink_hil_sensor_message, t_us, a[0], a[1], a[2], g[0], g[1], g[2], m[0], m[1], m[2],
             frame.abs_pressure_pa / 100.0, frame.diff_pressure_pa / 100.0, frame.pressure_alt_m,
-            frame.temperature_degc, FIELDS_ALL)
+            frame.temperature_degc, FIELDS_ALL, 0)
 
     def gps(self, t_us: int, fix: Any) -> bytes:
         vn, ve, vd = fix.vel_ned_m_s
@@ -102,15 +108,20 @@ class HilMessages:
         """Ground truth; velocities [cm/s] and accelerations [mG] saturate at the int16 range (a crash
         landing can exceed 32 g)."""
         mg = MG_PER_M_S2
-        airspeed_cm_s = _uint16(s.get("airspeed_m_s", 0.0) * 100)
-        return self.codec.pack(
-            mavlink2.MAVLink_hil_state_quaternion_message, t_us, (s["quat_w"], s["quat_x"], s["quat_y"],
-                                                                 s["quat_z"]),
-            s["rate_body_x_rad_s"], s["rate_body_y_rad_s"], s["rate_body_z_rad_s"], round(s["lat_deg"] * 1e7),
-            round(s["lon_deg"] * 1e7), round(s["height_m"] * 1e3), _int16(s["vel_north_m_s"] * 100),
-            _int16(s["vel_east_m_s"] * 100), _int16(s["vel_down_m_s"] * 100), airspeed_cm_s, airspeed_cm_s,
-            _int16(s["accel_body_x_m_s2"] * mg), _int16(s["accel_body_y_m_s2"] * mg),
-            _int16(s["accel_body_z_m_s2"] * mg))
+        air = round(s.get("airspeed_m_s", 0.0) * 100)
+        air = air if 0 <= air <= 65535 else min(max(air, 0), 65535)
+        small = [round(s["vel_north_m_s"] * 100), round(s["vel_east_m_s"] * 100), round(s["vel_down_m_s"] * 100),
+                 round(s["accel_body_x_m_s2"] * mg), round(s["accel_body_y_m_s2"] * mg),
+                 round(s["accel_body_z_m_s2"] * mg)]
+        for k, v in enumerate(small):  # in range is the common case: one chained test each
+            if not -32768 <= v <= 32767:
+                small[k] = min(max(v, -32768), 32767)
+        vx, vy, vz, xacc, yacc, zacc = small
+        return self.codec.pack_wire(  # wire order = declared order, the quaternion expanded
+            mavlink2.MAVLink_hil_state_quaternion_message, t_us, s["quat_w"], s["quat_x"], s["quat_y"],
+            s["quat_z"], s["rate_body_x_rad_s"], s["rate_body_y_rad_s"], s["rate_body_z_rad_s"],
+            round(s["lat_deg"] * 1e7), round(s["lon_deg"] * 1e7), round(s["height_m"] * 1e3), vx, vy, vz, air, air,
+            xacc, yacc, zacc)
 
     def heartbeat(self) -> bytes:
         return self.codec.pack(mavlink2.MAVLink_heartbeat_message, self.mav_type, mavlink2.MAV_AUTOPILOT_INVALID,
@@ -164,6 +175,9 @@ class Px4Server:
         self.wing_controls = dict(wing_controls) if wing_controls else None
         if self.wing_controls and not all(1 <= c <= 16 and 0 <= i < 16 for c, i in self.wing_controls.items()):
             raise ValueError(f"wing_controls {self.wing_controls}: channels 1..16 -> control indices 0..15")
+        #: the control indices that drive an output (checked in every actuator message)
+        self._used_controls = (tuple(range(4)) if plant.vehicle == "quadrotor"
+                               else tuple((self.wing_controls or WING_CONTROLS).values()))
         self.server = listener if listener is not None else tcp_listener(host, port)
         self.address = self.server.getsockname()
         self.mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=51)
@@ -187,9 +201,9 @@ class Px4Server:
         frame = self.sensors.sample(t_s, self.plant.state)
         self.last_frame = frame
         try:
-            out = [self.msgs.sensor(t_us, frame), self.msgs.state(t_us, self.plant.state)]
+            data = self.msgs.sensor(t_us, frame) + self.msgs.state(t_us, self.plant.state)
             if frame.gps is not None:
-                out.append(self.msgs.gps(t_us, frame.gps))
+                data += self.msgs.gps(t_us, frame.gps)
         except (struct.error, OverflowError) as err:  # outputs no MAVLink field holds: like an FMU error
             reason = f"t = {t_s:.6g} s: FMU outputs do not fit the HIL messages ({err})"
             if retry:
@@ -199,11 +213,11 @@ class Px4Server:
                 log.error("%s; not sent", reason)
             return
         if t_s - self._last_heartbeat >= 1.0:
-            out.append(self.msgs.heartbeat())
+            data += self.msgs.heartbeat()
             if self.rc_channels:
-                out.append(self.msgs.rc(round(t_s * 1e3), self.rc_channels))
+                data += self.msgs.rc(round(t_s * 1e3), self.rc_channels)
             self._last_heartbeat = t_s
-        conn.sendall(b"".join(out))
+        conn.sendall(data)
         if self._accepted is not None:  # the first state on a new connection: how long the (re)connect took
             self.stats.reconnect_s.append(time.perf_counter() - self._accepted)
             self._accepted = None
@@ -234,10 +248,10 @@ class Px4Server:
     def _actuators(self, controls: Sequence[float], mode: int) -> bool:
         """Take an actuator message; a malformed one (a used control non-finite or beyond +-1) is counted and
         dropped without touching the state. True when taken."""
-        used = range(4) if self.plant.vehicle == "quadrotor" else (self.wing_controls or WING_CONTROLS).values()
-        if not all(-CONTROL_LIMIT <= controls[i] <= CONTROL_LIMIT for i in used):  # also catches NaN
-            self.stats.malformed += 1
-            return False
+        for i in self._used_controls:
+            if not -CONTROL_LIMIT <= controls[i] <= CONTROL_LIMIT:  # also catches NaN
+                self.stats.malformed += 1
+                return False
         self.armed = bool(mode & ARMED_FLAG)
         self.pwm = controls_to_pwm(controls, self.plant.vehicle, self.armed, self.wing_controls)
         return True

@@ -21,6 +21,7 @@ problem with field, value and allowed range.
 from __future__ import annotations
 
 import math
+import operator
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -45,6 +46,8 @@ REQUIRED_OUTPUTS = (
     "vel_north_m_s", "vel_east_m_s", "vel_down_m_s",
 )
 AIRSPEED_OUTPUT = "airspeed_m_s"
+_REQUIRED = operator.itemgetter(*REQUIRED_OUTPUTS)
+_tuple_new = tuple.__new__
 _TIME_EPS_S = 1e-9  #: float slack when comparing sample times with the GPS schedule
 
 
@@ -359,15 +362,29 @@ class _GpsState(NamedTuple):
 def _ned_to_body(q: tuple[float, float, float, float], v: list[float]) -> tuple[float, float, float]:
     """``R_b2nᵀ v`` for the (normalised) quaternion ``q`` in plain floats: the per-sample path of ``sample``."""
     w, x, y, z = q
-    norm = math.sqrt(w * w + x * x + y * y + z * z)
-    if not norm > 0.0:
-        raise ValueError(f"attitude quaternion {q} has no direction")
-    w, x, y, z = w / norm, x / norm, y / norm, z / norm
+    norm2 = w * w + x * x + y * y + z * z
+    if not -1e-12 < norm2 - 1.0 < 1e-12:  # the FMU's quaternion is unit to rounding: normalise only otherwise
+        if not norm2 > 0.0:
+            raise ValueError(f"attitude quaternion {q} has no direction")
+        norm = math.sqrt(norm2)
+        w, x, y, z = w / norm, x / norm, y / norm, z / norm
     r00, r01, r02 = w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)
     r10, r11, r12 = 2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)
     r20, r21, r22 = 2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z
     return (r00 * v[0] + r10 * v[1] + r20 * v[2], r01 * v[0] + r11 * v[1] + r21 * v[2],
             r02 * v[0] + r12 * v[1] + r22 * v[2])
+
+
+def _walk_and_noise(truth: tuple[float, float, float], bias: list[float], drift: list[float],
+                    coef: tuple[float, float, float], z: list[float]) -> tuple[float, float, float]:
+    """One 3-axis reading: ``drift`` (updated in place) ``= pole * drift + drive * z[3:6]``, reading ``= truth +
+    bias + drift + white * z[0:3]`` with ``coef = (pole, drive, white)``."""
+    phi, walk, sigma = coef
+    d0 = drift[0] = phi * drift[0] + walk * z[3]
+    d1 = drift[1] = phi * drift[1] + walk * z[4]
+    d2 = drift[2] = phi * drift[2] + walk * z[5]
+    return (truth[0] + bias[0] + d0 + sigma * z[0], truth[1] + bias[1] + d1 + sigma * z[1],
+            truth[2] + bias[2] + d2 + sigma * z[2])
 
 
 def pressure_altitude_m(pressure_pa: float) -> float:
@@ -381,7 +398,10 @@ def _wrap_deg(angle_deg: float) -> float:
 
 
 # ------------------------------------------------------------------------------------------ the suite
-_BLOCK = 6 * 256  #: normal draws fetched per numpy call and stream
+_BLOCK = 6 * 256  #: normal draws fetched per numpy call for the GPS and turn-on streams
+_ROWS = 256  #: samples per block of the per-sample streams
+#: the per-sample streams and their draws per sample (white noise and drift per axis)
+_PER_SAMPLE = (("accel", 6), ("gyro", 6), ("mag", 6), ("baro", 2), ("diff_pressure", 2))
 
 
 class SensorSuite:
@@ -422,8 +442,15 @@ class SensorSuite:
         for name in ("accel", "gyro", "mag"):  # the Gauss-Markov biases start at their turn-on value
             on = getattr(self.config, name).turn_on_bias_std
             self._drift[name] = [on * z for z in self._normals("turn_on", 3)]
-        #: per sensor: the sample interval the coefficients below were computed for, (pole, drive, white std)
-        self._coef: dict[str, tuple[float, tuple[float, float, float]]] = {}
+        #: (biases, drifts) of accel, gyro, mag: the same lists as in _bias3 and _drift, looked up once
+        self._imu_state = (tuple(self._bias3[n] for n in ("accel", "gyro", "mag")),
+                           tuple(self._drift[n] for n in ("accel", "gyro", "mag")))
+        #: the sample interval the coefficients were computed for; per inertial sensor (pole, drive, white std)
+        #: and the baro / pitot random-walk steps
+        self._coef_dt = -1.0
+        self._coef: tuple[Any, ...] = ()
+        self._row = _ROWS  # the per-sample normal draws: refilled on the first sample
+        self._blocks: tuple[list[list[float]], ...] = ()
         gps = self.config.gps
         z = self._normals("gps", 3)  # the Gauss-Markov errors start in their stationary distribution
         self._gps_err = [gps.pos_gm_std_h_m * z[0], gps.pos_gm_std_h_m * z[1], gps.pos_gm_std_v_m * z[2]]
@@ -432,7 +459,9 @@ class SensorSuite:
 
     def _restart_clock(self) -> None:
         self._t_prev: float | None = None
-        self._history: deque[_GpsState] = deque()
+        #: (t_s, lat, lon, height, velocity) per sample since the GPS latency ago: plain tuples (made every
+        #: sample), read as ``_GpsState`` when a fix is due
+        self._history: deque[tuple[Any, ...]] = deque()
         self._gps_t0: float | None = None
         self._gps_k = 0
 
@@ -448,40 +477,36 @@ class SensorSuite:
         state[1] = pos + n
         return buf[pos:pos + n]
 
-    def _coefficients(self, name: str, dt: float) -> tuple[float, float, float]:
-        """(drift pole, drift drive std, white std) of an inertial sensor at the sample interval ``dt``, cached:
-        in lockstep the interval is constant, and exp/sqrt per sample and sensor would cost microseconds."""
-        cached = self._coef.get(name)
-        if cached is not None and cached[0] == dt:
-            return cached[1]
-        cfg = getattr(self.config, name)
-        # the first sample has no interval yet: its white noise is taken at Gazebo's 4 ms step
-        coef = (*cfg.drift_step(dt), cfg.white_std(dt if dt > 0.0 else GAZEBO_STEP_S))
-        self._coef[name] = (dt, coef)
-        return coef
+    def _coefficients(self, dt: float) -> tuple[Any, ...]:
+        """Per-interval constants, recomputed only when the sample interval changes (in lockstep it is constant
+        up to float rounding; exp and sqrt per sample and sensor would cost microseconds): per inertial sensor
+        (drift pole, drift drive std, white std), then the baro and pitot random-walk steps."""
+        if abs(dt - self._coef_dt) <= 1e-9 * dt:
+            return self._coef
+        cfg = self.config
+        white_dt = dt if dt > 0.0 else GAZEBO_STEP_S  # the first sample: white noise at Gazebo's 4 ms step
+        inertial = tuple((*c.drift_step(dt), c.white_std(white_dt)) for c in (cfg.accel, cfg.gyro, cfg.mag))
+        sqrt_dt = math.sqrt(dt)
+        self._coef = (*inertial, cfg.baro.drift_std * sqrt_dt, cfg.diff_pressure.drift_std * sqrt_dt)
+        self._coef_dt = dt
+        return self._coef
 
-    def _vector(self, name: str, truth: tuple[float, float, float], dt: float) -> tuple[float, float, float]:
-        z = self._normals(name, 6)  # always 6 draws: the stream does not depend on the settings
-        phi, walk, sigma = self._coefficients(name, dt)
-        d = self._drift[name]
-        d[0] = phi * d[0] + walk * z[3]
-        d[1] = phi * d[1] + walk * z[4]
-        d[2] = phi * d[2] + walk * z[5]
-        b = self._bias3[name]
-        return (truth[0] + b[0] + d[0] + sigma * z[0], truth[1] + b[1] + d[1] + sigma * z[1],
-                truth[2] + b[2] + d[2] + sigma * z[2])
+    def _draws(self) -> None:
+        """Draw the next ``_ROWS`` samples' standard normals of accel, gyro, mag (6 each: white noise and drift
+        per axis), baro and pitot (2 each) ahead, one numpy call per stream and block."""
+        self._blocks = tuple(self._rng[name].standard_normal(_ROWS * n).reshape(_ROWS, n).tolist()
+                             for name, n in _PER_SAMPLE)
 
-    def _scalar(self, name: str, truth: float, sqrt_dt: float) -> float:
-        cfg = getattr(self.config, name)
-        z = self._normals(name, 2)
-        self._drift[name] += cfg.drift_std * sqrt_dt * z[1]
-        return truth + (cfg.bias + self._drift[name] + cfg.noise_std * z[0])
+    def _scalar(self, name: str, cfg: Any, truth: float, walk: float, z: list[float]) -> float:
+        drift = self._drift[name] + walk * z[1]
+        self._drift[name] = drift
+        return truth + (cfg.bias + drift + cfg.noise_std * z[0])
 
-    def _gps(self, t_s: float, now: _GpsState) -> GpsFix | None:
+    def _gps(self, t_s: float, now: tuple[Any, ...]) -> GpsFix | None:
         cfg = self.config.gps
         self._history.append(now)
         target = t_s - cfg.latency_s
-        while len(self._history) >= 2 and self._history[1].t_s <= target:
+        while len(self._history) >= 2 and self._history[1][0] <= target:
             self._history.popleft()  # keep the one sample at or before the target, and everything after
         if self._gps_t0 is None:
             self._gps_t0 = t_s
@@ -525,10 +550,10 @@ class SensorSuite:
 
     def _state_at(self, target: float) -> _GpsState:
         """The state at ``target`` from the history, linearly interpolated; the oldest one before it."""
-        first = self._history[0]
+        first = _GpsState(*self._history[0])
         if target <= first.t_s or len(self._history) == 1:
             return first
-        second = self._history[1]
+        second = _GpsState(*self._history[1])
         if target >= second.t_s or second.t_s <= first.t_s:
             return second
         f = (target - first.t_s) / (second.t_s - first.t_s)
@@ -547,9 +572,8 @@ class SensorSuite:
         t_s = float(t_s)
         if not math.isfinite(t_s):
             raise ValueError(f"sample time must be finite, got {t_s}")
-        try:  # one pass, in the order of REQUIRED_OUTPUTS
-            ax, ay, az, p, q, r, qw, qx, qy, qz, lat, lon, height, vn, ve, vd = map(
-                float, map(outputs.__getitem__, REQUIRED_OUTPUTS))
+        try:  # one C call, in the order of REQUIRED_OUTPUTS (numbers as the FMU host gives them: floats)
+            ax, ay, az, p, q, r, qw, qx, qy, qz, lat, lon, height, vn, ve, vd = _REQUIRED(outputs)
         except KeyError:
             missing = [name for name in REQUIRED_OUTPUTS if name not in outputs]
             raise MissingOutputError(f"FMU output{'s' if len(missing) > 1 else ''} {', '.join(missing)} "
@@ -559,21 +583,31 @@ class SensorSuite:
         dt = 0.0 if self._t_prev is None else t_s - self._t_prev
         self._t_prev = t_s
 
+        coef = self._coefficients(dt)
+        row = self._row
+        if row >= _ROWS:
+            self._draws()  # refill
+            row = 0
+        self._row = row + 1
+        blocks = self._blocks
         mag_body = _ned_to_body((qw, qx, qy, qz), self._mag_ned_list)
+        (ba, bg, bm), (da, dg, dm) = self._imu_state
+        accel = _walk_and_noise((ax, ay, az), ba, da, coef[0], blocks[0][row])
+        gyro = _walk_and_noise((p, q, r), bg, dg, coef[1], blocks[1][row])
+        mag = _walk_and_noise(mag_body, bm, dm, coef[2], blocks[2][row])
+        cfg = self.config
         temp_k, p_pa, rho = isa(height)  # plain floats for a float altitude
-        sqrt_dt = math.sqrt(dt)  # the random walks' step
-        abs_pressure = self._scalar("baro", p_pa, sqrt_dt)
+        abs_pressure = self._scalar("baro", cfg.baro, p_pa, coef[3], blocks[3][row])
         airspeed = outputs.get(AIRSPEED_OUTPUT)
         if airspeed is None:
-            self._normals("diff_pressure", 2)  # keep the stream in step either way
             diff_pressure = 0.0
         else:
-            diff_pressure = self._scalar("diff_pressure", 0.5 * rho * float(airspeed) ** 2, sqrt_dt)
-
-        gps = self._gps(t_s, _GpsState(t_s, lat, lon, height, (vn, ve, vd)))
-        return SensorFrame(self._vector("accel", (ax, ay, az), dt), self._vector("gyro", (p, q, r), dt),
-                           self._vector("mag", mag_body, dt), abs_pressure, temp_k - KELVIN_OFFSET,
-                           diff_pressure, pressure_altitude_m(abs_pressure), gps)
+            diff_pressure = self._scalar("diff_pressure", cfg.diff_pressure, 0.5 * rho * float(airspeed) ** 2,
+                                         coef[4], blocks[4][row])
+        gps = self._gps(t_s, (t_s, lat, lon, height, (vn, ve, vd)))
+        # tuple.__new__ as namedtuple's own _make does: the generated __new__ is a Python call per frame
+        return _tuple_new(SensorFrame, (accel, gyro, mag, abs_pressure, temp_k - KELVIN_OFFSET, diff_pressure,
+                                        pressure_altitude_m(abs_pressure), gps))
 
 
 __all__ = [
