@@ -1,7 +1,8 @@
 """PX4 simulator interface: MAVLink 2 over TCP port 4560, PX4 connects as the client.
 
-We send HIL_SENSOR (``fields_updated`` set), HIL_GPS at the GPS rate, HIL_STATE_QUATERNION (ground truth),
-HEARTBEAT at 1 Hz and optionally RC_CHANNELS; PX4 answers with HIL_ACTUATOR_CONTROLS (``controls[16]``:
+We send HIL_SENSOR (``fields_updated``: the IMU every step, magnetometer and barometer at their own rates),
+HIL_GPS at the GPS rate, HIL_STATE_QUATERNION (ground truth), HEARTBEAT at 1 Hz and optionally RC_CHANNELS;
+PX4 answers with HIL_ACTUATOR_CONTROLS (``controls[16]``:
 motors 0..1, surfaces -1..1; ``mode`` carries the armed bit; ``flags`` bit 0 asks for lockstep).
 
 Lockstep: send the sensors of time t, log the step, busy-poll then wait for the actuator reply, step the FMU,
@@ -30,8 +31,6 @@ from hil_adapter.mavlink_fast import FastMavlink
 
 log = logging.getLogger(__name__)
 DEFAULT_PORT = 4560
-#: HIL_SENSOR.fields_updated: accel xyz, gyro xyz, mag xyz, abs pressure, diff pressure, pressure alt, temperature
-FIELDS_ALL = (1 << 13) - 1
 ARMED_FLAG = mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
 LOCKSTEP_FLAG = 1  # HIL_ACTUATOR_CONTROLS.flags bit 0
 #: a used control beyond this magnitude (PX4 sends -1..1, motors 0..1) makes the message malformed
@@ -94,7 +93,7 @@ class HilMessages:
         return self.codec.pack_wire(  # wire order: time_usec, 13 floats, fields_updated, id
             mavlink2.MAVLink_hil_sensor_message, t_us, a[0], a[1], a[2], g[0], g[1], g[2], m[0], m[1], m[2],
             frame.abs_pressure_pa / 100.0, frame.diff_pressure_pa / 100.0, frame.pressure_alt_m,
-            frame.temperature_degc, FIELDS_ALL, 0)
+            frame.temperature_degc, frame.updated, 0)
 
     def gps(self, t_us: int, fix: Any) -> bytes:
         vn, ve, vd = fix.vel_ned_m_s

@@ -196,6 +196,8 @@ class MagConfig(_Inertial):
     drift_std: float = _src(0.0, 0.1, 6.4e-6, f"{GAZEBO_MAG} kDefaultRandomWalk [gauss*sqrt(Hz)]")
     drift_tau_s: float = _src(0.0, 1e5, 600.0, f"{GAZEBO_MAG} kDefaultBiasCorrelationTime [s]")
     turn_on_bias_std: float = _src(0.0, 1.0, 0.0, f"{GAZEBO_MAG} (none)")
+    rate_hz: float = _src(1.0, 1000.0, 100.0, f"{GAZEBO_MAG} kDefaultPubRate (between samples: repeated, not "
+                                              "flagged as updated)")
     intensity_gauss: float = _num(0.1, 1.0, 0.5)
     declination_deg: float = _num(-180.0, 180.0, 0.0)
     inclination_deg: float = _num(-90.0, 90.0, 60.0)
@@ -209,8 +211,10 @@ class MagConfig(_Inertial):
 
 
 class BaroConfig(_Section):
-    """Barometer static pressure [Pa]; drift_std in Pa per sqrt(s). The temperature is the noise-free ISA one."""
+    """Barometer static pressure [Pa] at ``rate_hz`` (between its samples the last reading is repeated and not
+    flagged as updated); drift_std in Pa per sqrt(s). The temperature is the noise-free ISA one."""
 
+    rate_hz: float = _src(1.0, 1000.0, 50.0, f"{GAZEBO_BARO} kDefaultPubRate")
     noise_std: float = _src(0.0, 1000.0, 1.0, f"{GAZEBO_BARO}: 1 Pa RMS")
     bias: float = _num(-5000.0, 5000.0, 0.0)
     drift_std: float = _src(0.0, 100.0, 0.0, f"{GAZEBO_BARO}: baroDriftPaPerSec 0")
@@ -336,6 +340,14 @@ class GpsFix:
     satellites: int
 
 
+#: bits of ``SensorFrame.updated`` (MAVLink HIL_SENSOR.fields_updated: accel xyz 0-2, gyro xyz 3-5, mag xyz 6-8,
+#: abs pressure 9, diff pressure 10, pressure altitude 11, temperature 12)
+UPDATED_IMU = 0x3F
+UPDATED_MAG = 0x1C0
+UPDATED_BARO = (1 << 9) | (1 << 11) | (1 << 12)
+UPDATED_DIFF_PRESSURE = 1 << 10
+
+
 class SensorFrame(NamedTuple):
     """All sensor readings of one sample; ``gps`` is None unless a new fix is due at this sample (a named
     tuple: built once per lockstep step, it costs a third of a frozen dataclass)."""
@@ -348,6 +360,9 @@ class SensorFrame(NamedTuple):
     diff_pressure_pa: float
     pressure_alt_m: float
     gps: GpsFix | None
+    #: which readings are new at this sample, in the bit layout of MAVLink HIL_SENSOR.fields_updated
+    #: (``UPDATED_*``): the IMU always, the magnetometer and barometer at their own rates
+    updated: int = 0
 
 
 class _GpsState(NamedTuple):
@@ -448,6 +463,10 @@ class SensorSuite:
         #: the sample interval the coefficients were computed for; per inertial sensor (pole, drive, white std)
         #: and the baro / pitot random-walk steps
         self._coef_dt = -1.0
+        self._mag_coef: tuple[float, tuple[float, float, float]] | None = None
+        #: the last magnetometer and barometer readings, repeated between their samples
+        self._mag_last: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        self._baro_last: tuple[float, float, float] = (0.0, 0.0, 0.0)
         self._coef: tuple[Any, ...] = ()
         self._row = _ROWS  # the per-sample normal draws: refilled on the first sample
         self._blocks: tuple[list[list[float]], ...] = ()
@@ -464,6 +483,10 @@ class SensorSuite:
         self._history: deque[tuple[Any, ...]] = deque()
         self._gps_t0: float | None = None
         self._gps_k = 0
+        #: per sensor read below the sample rate: [grid start, next slot index, time of its last reading] and
+        #: the time its next reading is due
+        self._schedule: dict[str, list[Any]] = {"mag": [None, 0, 0.0], "baro": [None, 0, 0.0]}
+        self._next = {"mag": -math.inf, "baro": -math.inf}
 
     # ------------------------------------------------------------------ per sensor
     def _normals(self, name: str, n: int) -> list[float]:
@@ -478,24 +501,52 @@ class SensorSuite:
         return buf[pos:pos + n]
 
     def _coefficients(self, dt: float) -> tuple[Any, ...]:
-        """Per-interval constants, recomputed only when the sample interval changes (in lockstep it is constant
-        up to float rounding; exp and sqrt per sample and sensor would cost microseconds): per inertial sensor
-        (drift pole, drift drive std, white std), then the baro and pitot random-walk steps."""
+        """Per-interval constants of the every-sample sensors, recomputed only when the sample interval changes
+        (in lockstep it is constant up to float rounding; exp and sqrt per sample would cost microseconds):
+        accel and gyro (drift pole, drift drive std, white std), the pitot random-walk step."""
         if abs(dt - self._coef_dt) <= 1e-9 * dt:
             return self._coef
         cfg = self.config
         white_dt = dt if dt > 0.0 else GAZEBO_STEP_S  # the first sample: white noise at Gazebo's 4 ms step
-        inertial = tuple((*c.drift_step(dt), c.white_std(white_dt)) for c in (cfg.accel, cfg.gyro, cfg.mag))
-        sqrt_dt = math.sqrt(dt)
-        self._coef = (*inertial, cfg.baro.drift_std * sqrt_dt, cfg.diff_pressure.drift_std * sqrt_dt)
+        inertial = tuple((*c.drift_step(dt), c.white_std(white_dt)) for c in (cfg.accel, cfg.gyro))
+        self._coef = (*inertial, cfg.diff_pressure.drift_std * math.sqrt(dt))
         self._coef_dt = dt
         return self._coef
+
+    def _read(self, name: str, t_s: float, rate_hz: float) -> float:
+        """A reading of ``name`` is taken at ``t_s`` (the caller checked it is due: ``_next[name]``): the
+        interval [s] since its last one (0 for the first); the next is due at the following slot of its fixed
+        grid ``t0 + k / rate`` (missed slots are skipped, one reading per sample at most)."""
+        sched = self._schedule[name]
+        if sched[0] is None:
+            sched[:] = [t_s, 0, t_s]
+        sched[1] = math.floor((t_s - sched[0] + _TIME_EPS_S) * rate_hz) + 1
+        self._next[name] = sched[0] + sched[1] / rate_hz
+        interval, sched[2] = t_s - sched[2], t_s
+        return interval
+
+    def _mag(self, dt: float, q: tuple[float, float, float, float], z: list[float]) -> tuple[float, float, float]:
+        """A magnetometer reading after ``dt`` seconds since its last one (constants cached per interval)."""
+        cached = self._mag_coef
+        if cached is None or abs(dt - cached[0]) > 1e-9 * dt:
+            cfg = self.config.mag
+            cached = self._mag_coef = (dt, (*cfg.drift_step(dt), cfg.white_std(dt if dt > 0.0 else
+                                                                                1.0 / cfg.rate_hz)))
+        bias, drift = self._imu_state[0][2], self._imu_state[1][2]
+        return _walk_and_noise(_ned_to_body(q, self._mag_ned_list), bias, drift, cached[1], z)
 
     def _draws(self) -> None:
         """Draw the next ``_ROWS`` samples' standard normals of accel, gyro, mag (6 each: white noise and drift
         per axis), baro and pitot (2 each) ahead, one numpy call per stream and block."""
         self._blocks = tuple(self._rng[name].standard_normal(_ROWS * n).reshape(_ROWS, n).tolist()
                              for name, n in _PER_SAMPLE)
+
+    def _baro(self, dt: float, height_m: float, z: list[float]) -> tuple[float, float, float]:
+        """(pressure [Pa], temperature [degC], pressure altitude [m]) after ``dt`` seconds since the last."""
+        cfg = self.config.baro
+        temp_k, p_pa, _ = isa(height_m)  # plain floats for a float altitude
+        pressure = self._scalar("baro", cfg, p_pa, cfg.drift_std * math.sqrt(dt), z)
+        return pressure, temp_k - KELVIN_OFFSET, pressure_altitude_m(pressure)
 
     def _scalar(self, name: str, cfg: Any, truth: float, walk: float, z: list[float]) -> float:
         drift = self._drift[name] + walk * z[1]
@@ -590,28 +641,37 @@ class SensorSuite:
             row = 0
         self._row = row + 1
         blocks = self._blocks
-        mag_body = _ned_to_body((qw, qx, qy, qz), self._mag_ned_list)
-        (ba, bg, bm), (da, dg, dm) = self._imu_state
+        (ba, bg, _), (da, dg, _) = self._imu_state
         accel = _walk_and_noise((ax, ay, az), ba, da, coef[0], blocks[0][row])
         gyro = _walk_and_noise((p, q, r), bg, dg, coef[1], blocks[1][row])
-        mag = _walk_and_noise(mag_body, bm, dm, coef[2], blocks[2][row])
-        cfg = self.config
-        temp_k, p_pa, rho = isa(height)  # plain floats for a float altitude
-        abs_pressure = self._scalar("baro", cfg.baro, p_pa, coef[3], blocks[3][row])
+        updated = UPDATED_IMU
+        due = self._next
+        if t_s + _TIME_EPS_S >= due["mag"]:
+            self._mag_last = self._mag(self._read("mag", t_s, self.config.mag.rate_hz), (qw, qx, qy, qz),
+                                       blocks[2][row])
+            updated |= UPDATED_MAG
+        if t_s + _TIME_EPS_S >= due["baro"]:
+            self._baro_last = self._baro(self._read("baro", t_s, self.config.baro.rate_hz), height,
+                                         blocks[3][row])
+            updated |= UPDATED_BARO
+        pressure, temp_c, pressure_alt = self._baro_last
         airspeed = outputs.get(AIRSPEED_OUTPUT)
         if airspeed is None:
             diff_pressure = 0.0
         else:
-            diff_pressure = self._scalar("diff_pressure", cfg.diff_pressure, 0.5 * rho * float(airspeed) ** 2,
-                                         coef[4], blocks[4][row])
+            rho = isa(height)[2]
+            diff_pressure = self._scalar("diff_pressure", self.config.diff_pressure,
+                                         0.5 * rho * float(airspeed) ** 2, coef[2], blocks[4][row])
+            updated |= UPDATED_DIFF_PRESSURE
         gps = self._gps(t_s, (t_s, lat, lon, height, (vn, ve, vd)))
         # tuple.__new__ as namedtuple's own _make does: the generated __new__ is a Python call per frame
-        return _tuple_new(SensorFrame, (accel, gyro, mag, abs_pressure, temp_k - KELVIN_OFFSET, diff_pressure,
-                                        pressure_altitude_m(abs_pressure), gps))
+        return _tuple_new(SensorFrame, (accel, gyro, self._mag_last, pressure, temp_c, diff_pressure, pressure_alt,
+                                        gps, updated))
 
 
 __all__ = [
-    "PROFILES", "REQUIRED_OUTPUTS", "AccelConfig", "BaroConfig", "DiffPressureConfig", "GpsConfig", "GpsFix",
+    "PROFILES", "REQUIRED_OUTPUTS", "UPDATED_BARO", "UPDATED_DIFF_PRESSURE", "UPDATED_IMU", "UPDATED_MAG",
+    "AccelConfig", "BaroConfig", "DiffPressureConfig", "GpsConfig", "GpsFix",
     "GyroConfig", "MagConfig", "MissingOutputError", "SensorConfig", "SensorConfigError", "SensorFrame", "SensorSuite",
     "gazebo_gps_error", "pressure_altitude_m",
 ]
