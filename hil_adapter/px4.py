@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 import math
+import operator
 import socket
 import struct
 import threading
@@ -38,6 +39,13 @@ CONTROL_LIMIT = 1.0 + 1e-6
 MG_PER_M_S2 = 1000.0 / G0_M_S2  #: HIL_STATE_QUATERNION accelerations are in milli-g
 #: fixed wing: which control index drives which output channel (PX4's classic roll, pitch, yaw, throttle group)
 WING_CONTROLS = {1: 0, 2: 1, 3: 3, 4: 2}
+
+
+#: the FMU outputs HIL_STATE_QUATERNION carries, fetched in one call
+_STATE_OUTPUTS = operator.itemgetter(
+    "quat_w", "quat_x", "quat_y", "quat_z", "rate_body_x_rad_s", "rate_body_y_rad_s", "rate_body_z_rad_s",
+    "lat_deg", "lon_deg", "height_m", "vel_north_m_s", "vel_east_m_s", "vel_down_m_s",
+    "accel_body_x_m_s2", "accel_body_y_m_s2", "accel_body_z_m_s2")
 
 
 def _clip(v: float, lo: float, hi: float) -> float:
@@ -89,11 +97,10 @@ class HilMessages:
         self.mav_type = mavlink2.MAV_TYPE_QUADROTOR if vehicle == "quadrotor" else mavlink2.MAV_TYPE_FIXED_WING
 
     def sensor(self, t_us: int, frame: Any) -> bytes:
-        a, g, m = frame.accel_body_m_s2, frame.gyro_body_rad_s, frame.mag_body_gauss
+        a, g, m, pressure_pa, temp_c, diff_pa, pressure_alt_m, _, updated = frame  # a SensorFrame, in field order
         return self.codec.pack_wire(  # wire order: time_usec, 13 floats, fields_updated, id
             mavlink2.MAVLink_hil_sensor_message, t_us, a[0], a[1], a[2], g[0], g[1], g[2], m[0], m[1], m[2],
-            frame.abs_pressure_pa / 100.0, frame.diff_pressure_pa / 100.0, frame.pressure_alt_m,
-            frame.temperature_degc, frame.updated, 0)
+            pressure_pa / 100.0, diff_pa / 100.0, pressure_alt_m, temp_c, updated, 0)
 
     def gps(self, t_us: int, fix: Any) -> bytes:
         vn, ve, vd = fix.vel_ned_m_s
@@ -107,20 +114,17 @@ class HilMessages:
         """Ground truth; velocities [cm/s] and accelerations [mG] saturate at the int16 range (a crash
         landing can exceed 32 g)."""
         mg = MG_PER_M_S2
+        qw, qx, qy, qz, p, q, r, lat, lon, height, vn, ve, vd, ax, ay, az = _STATE_OUTPUTS(s)
         air = round(s.get("airspeed_m_s", 0.0) * 100)
         air = air if 0 <= air <= 65535 else min(max(air, 0), 65535)
-        small = [round(s["vel_north_m_s"] * 100), round(s["vel_east_m_s"] * 100), round(s["vel_down_m_s"] * 100),
-                 round(s["accel_body_x_m_s2"] * mg), round(s["accel_body_y_m_s2"] * mg),
-                 round(s["accel_body_z_m_s2"] * mg)]
+        small = [round(vn * 100), round(ve * 100), round(vd * 100), round(ax * mg), round(ay * mg), round(az * mg)]
         for k, v in enumerate(small):  # in range is the common case: one chained test each
             if not -32768 <= v <= 32767:
                 small[k] = min(max(v, -32768), 32767)
         vx, vy, vz, xacc, yacc, zacc = small
         return self.codec.pack_wire(  # wire order = declared order, the quaternion expanded
-            mavlink2.MAVLink_hil_state_quaternion_message, t_us, s["quat_w"], s["quat_x"], s["quat_y"],
-            s["quat_z"], s["rate_body_x_rad_s"], s["rate_body_y_rad_s"], s["rate_body_z_rad_s"],
-            round(s["lat_deg"] * 1e7), round(s["lon_deg"] * 1e7), round(s["height_m"] * 1e3), vx, vy, vz, air, air,
-            xacc, yacc, zacc)
+            mavlink2.MAVLink_hil_state_quaternion_message, t_us, qw, qx, qy, qz, p, q, r, round(lat * 1e7),
+            round(lon * 1e7), round(height * 1e3), vx, vy, vz, air, air, xacc, yacc, zacc)
 
     def heartbeat(self) -> bytes:
         return self.codec.pack(mavlink2.MAVLink_heartbeat_message, self.mav_type, mavlink2.MAV_AUTOPILOT_INVALID,

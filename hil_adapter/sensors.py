@@ -49,6 +49,7 @@ AIRSPEED_OUTPUT = "airspeed_m_s"
 _REQUIRED = operator.itemgetter(*REQUIRED_OUTPUTS)
 _tuple_new = tuple.__new__
 _TIME_EPS_S = 1e-9  #: float slack when comparing sample times with the GPS schedule
+_HISTORY_MAX = 4096  #: GPS history length at which it is trimmed even when no fix is due
 
 
 class SensorConfigError(ConfigError):
@@ -481,12 +482,10 @@ class SensorSuite:
         #: (t_s, lat, lon, height, velocity) per sample since the GPS latency ago: plain tuples (made every
         #: sample), read as ``_GpsState`` when a fix is due
         self._history: deque[tuple[Any, ...]] = deque()
-        self._gps_t0: float | None = None
-        self._gps_k = 0
         #: per sensor read below the sample rate: [grid start, next slot index, time of its last reading] and
         #: the time its next reading is due
-        self._schedule: dict[str, list[Any]] = {"mag": [None, 0, 0.0], "baro": [None, 0, 0.0]}
-        self._next = {"mag": -math.inf, "baro": -math.inf}
+        self._schedule: dict[str, list[Any]] = {name: [None, 0, 0.0] for name in ("mag", "baro", "gps")}
+        self._next = dict.fromkeys(("mag", "baro", "gps"), -math.inf)
 
     # ------------------------------------------------------------------ per sensor
     def _normals(self, name: str, n: int) -> list[float]:
@@ -554,17 +553,17 @@ class SensorSuite:
         return truth + (cfg.bias + drift + cfg.noise_std * z[0])
 
     def _gps(self, t_s: float, now: tuple[Any, ...]) -> GpsFix | None:
-        cfg = self.config.gps
-        self._history.append(now)
-        target = t_s - cfg.latency_s
-        while len(self._history) >= 2 and self._history[1][0] <= target:
-            self._history.popleft()  # keep the one sample at or before the target, and everything after
-        if self._gps_t0 is None:
-            self._gps_t0 = t_s
-        if t_s + _TIME_EPS_S < self._gps_t0 + self._gps_k / cfg.rate_hz:
+        hist = self._history
+        hist.append(now)
+        if t_s + _TIME_EPS_S < self._next["gps"] and len(hist) < _HISTORY_MAX:
             return None
-        # next fix on the fixed grid t0 + k / rate (one fix per sample at most, missed slots are skipped)
-        self._gps_k = math.floor((t_s - self._gps_t0 + _TIME_EPS_S) * cfg.rate_hz) + 1
+        cfg = self.config.gps
+        target = t_s - cfg.latency_s
+        while len(hist) >= 2 and hist[1][0] <= target:
+            hist.popleft()  # keep the one sample at or before the target, and everything after
+        if t_s + _TIME_EPS_S < self._next["gps"]:
+            return None  # only trimmed: a slow GPS at a fast sample rate
+        self._read("gps", t_s, cfg.rate_hz)  # the next fix on its grid
         s = self._state_at(target)
         z = self._normals("gps", 9)
         err_n, err_e, err_d = self._gauss_markov(s.t_s, z[6:9])
