@@ -251,8 +251,9 @@ class _NullConn:
         pass
 
 
-def adapter_work(kind: str, fmu: Path, steps: int) -> tuple[float, float]:
-    """Medians [us] of the adapter's own work and of the FMU step, timed back to back on every step."""
+def adapter_work(kind: str, fmu: Path, steps: int) -> tuple[float, float, float]:
+    """Medians [us] of the adapter's own work and of the FMU step, timed back to back on every step, and the
+    ratio of their 1 %-trimmed means."""
     from hil_adapter.ardupilot_json import ArduPilotJsonServer
     from hil_adapter.core import Plant
     from hil_adapter.px4 import Px4Server
@@ -290,7 +291,16 @@ def adapter_work(kind: str, fmu: Path, steps: int) -> tuple[float, float]:
                 own[k] = total - fmu_t[k]
     finally:
         plant.close()
-    return 1e6 * float(np.median(own)), 1e6 * float(np.median(fmu_t))
+    return 1e6 * float(np.median(own)), 1e6 * float(np.median(fmu_t)), _trimmed_mean_ratio(own, fmu_t)
+
+
+def _trimmed_mean_ratio(own: np.ndarray, fmu_t: np.ndarray, cut: float = 0.01) -> float:
+    """Ratio of the means with the slowest 1 % of steps of each left out (preemption by other processes); it
+    keeps the periodic work (GPS, barometer, magnetometer, noise blocks) that the medians pass over."""
+    def trimmed(x: np.ndarray) -> float:
+        return float(np.mean(np.sort(x)[:max(1, int(len(x) * (1 - cut)))]))
+
+    return trimmed(own) / trimmed(fmu_t)
 
 
 def reconnect_ms(fmu: Path, cycles: int = 20, steps: int = 20) -> np.ndarray:
@@ -353,13 +363,14 @@ def main() -> int:
           f"{args.steps} steps; ratio of medians within each run, median over runs):")
     missed = []
     for kind, runs in work.items():
-        ratios = [own / step for own, step in runs]
+        ratios = [own / step for own, step, _ in runs]
         ratio = float(np.median(ratios))
-        own, step = (float(np.median([r[i] for r in runs])) for i in (0, 1))
+        own, step, mean_ratio = (float(np.median([r[i] for r in runs])) for i in (0, 1, 2))
         ok = ratio <= 1.0
         missed += [] if ok else [kind]
         print(f"  {kind:<15} adapter {own:5.1f} us, FMU step {step:5.1f} us: {ratio:.2f}x "
-              f"(runs {', '.join(f'{r:.2f}' for r in ratios)}; target <= 1x) {'PASS' if ok else 'MISS'}")
+              f"(runs {', '.join(f'{r:.2f}' for r in ratios)}; target <= 1x) {'PASS' if ok else 'MISS'}; "
+              f"ratio of the means (slowest 1 % left out) {mean_ratio:.2f}x")
     if missed:
         print(f"MISS: adapter work above the FMU step for {', '.join(missed)}")
     return 1 if missed else 0

@@ -120,7 +120,9 @@ class FastMavlink:
         body = _HEADER_OUT.pack(len(payload), seq, mav.srcSystem, mav.srcComponent, lay.msg_id & 0xFFFF,
                                 lay.msg_id >> 16) + payload
         mav.seq = (seq + 1) % 256
-        return b"".join((b"\xfd", body, CRC.pack(_crc16_pair(body, lay.crc_extra))))
+        crc = (_MCRF4XX(lay.crc_extra, _MCRF4XX(body, 0xFFFF)) if _MCRF4XX is not None
+               else _crc16_pair(body, lay.crc_extra))
+        return b"".join((b"\xfd", body, CRC.pack(crc)))
 
     def actuator_controls(self, data: bytes) -> tuple[Sequence[float], int, int, bytes] | None:
         """``(controls[16], mode, flags, rest)`` when ``data`` starts with a whole, unsigned, valid

@@ -415,9 +415,9 @@ def _wrap_deg(angle_deg: float) -> float:
 
 # ------------------------------------------------------------------------------------------ the suite
 _BLOCK = 6 * 256  #: normal draws fetched per numpy call for the GPS and turn-on streams
-_ROWS = 256  #: samples per block of the per-sample streams
-#: the per-sample streams and their draws per sample (white noise and drift per axis)
-_PER_SAMPLE = (("accel", 6), ("gyro", 6), ("mag", 6), ("baro", 2), ("diff_pressure", 2))
+_ROWS = 256  #: readings per block drawn ahead, per stream
+#: the streams read by rows and their draws per reading (white noise and drift per axis)
+_ROW_SIZE = {"accel": 6, "gyro": 6, "mag": 6, "baro": 2, "diff_pressure": 2}
 
 
 class SensorSuite:
@@ -469,8 +469,11 @@ class SensorSuite:
         self._mag_last: tuple[float, float, float] = (0.0, 0.0, 0.0)
         self._baro_last: tuple[float, float, float] = (0.0, 0.0, 0.0)
         self._coef: tuple[Any, ...] = ()
-        self._row = _ROWS  # the per-sample normal draws: refilled on the first sample
+        self._row = _ROWS  # the IMU's draws (accel and gyro rows of one block index): refilled on first use
         self._blocks: tuple[list[list[float]], ...] = ()
+        #: the other row streams, drawn only when read (the magnetometer and barometer below the sample rate,
+        #: the pitot only with an airspeed): per stream [rows, next row]
+        self._rows: dict[str, list[Any]] = {name: [[], 0] for name in ("mag", "baro", "diff_pressure")}
         gps = self.config.gps
         z = self._normals("gps", 3)  # the Gauss-Markov errors start in their stationary distribution
         self._gps_err = [gps.pos_gm_std_h_m * z[0], gps.pos_gm_std_h_m * z[1], gps.pos_gm_std_v_m * z[2]]
@@ -535,10 +538,23 @@ class SensorSuite:
         return _walk_and_noise(_ned_to_body(q, self._mag_ned_list), bias, drift, cached[1], z)
 
     def _draws(self) -> None:
-        """Draw the next ``_ROWS`` samples' standard normals of accel, gyro, mag (6 each: white noise and drift
-        per axis), baro and pitot (2 each) ahead, one numpy call per stream and block."""
-        self._blocks = tuple(self._rng[name].standard_normal(_ROWS * n).reshape(_ROWS, n).tolist()
-                             for name, n in _PER_SAMPLE)
+        """Draw the IMU's next ``_ROWS`` samples of standard normals ahead (accel and gyro rows of 6: white noise
+        and drift per axis), one numpy call per stream and block."""
+        self._blocks = tuple(self._block(name) for name in ("accel", "gyro"))
+
+    def _block(self, name: str) -> list[list[float]]:
+        n = _ROW_SIZE[name]
+        return self._rng[name].standard_normal(_ROWS * n).reshape(_ROWS, n).tolist()
+
+    def _take(self, name: str) -> list[float]:
+        """The next row of draws of a stream read below the sample rate."""
+        state = self._rows[name]
+        rows, k = state
+        if k >= len(rows):
+            rows, k = self._block(name), 0
+            state[0] = rows
+        state[1] = k + 1
+        return rows[k]
 
     def _baro(self, dt: float, height_m: float, z: list[float]) -> tuple[float, float, float]:
         """(pressure [Pa], temperature [degC], pressure altitude [m]) after ``dt`` seconds since the last."""
@@ -647,11 +663,11 @@ class SensorSuite:
         due = self._next
         if t_s + _TIME_EPS_S >= due["mag"]:
             self._mag_last = self._mag(self._read("mag", t_s, self.config.mag.rate_hz), (qw, qx, qy, qz),
-                                       blocks[2][row])
+                                       self._take("mag"))
             updated |= UPDATED_MAG
         if t_s + _TIME_EPS_S >= due["baro"]:
             self._baro_last = self._baro(self._read("baro", t_s, self.config.baro.rate_hz), height,
-                                         blocks[3][row])
+                                         self._take("baro"))
             updated |= UPDATED_BARO
         pressure, temp_c, pressure_alt = self._baro_last
         airspeed = outputs.get(AIRSPEED_OUTPUT)
@@ -660,7 +676,7 @@ class SensorSuite:
         else:
             rho = isa(height)[2]
             diff_pressure = self._scalar("diff_pressure", self.config.diff_pressure,
-                                         0.5 * rho * float(airspeed) ** 2, coef[2], blocks[4][row])
+                                         0.5 * rho * float(airspeed) ** 2, coef[2], self._take("diff_pressure"))
             updated |= UPDATED_DIFF_PRESSURE
         gps = self._gps(t_s, (t_s, lat, lon, height, (vn, ve, vd)))
         # tuple.__new__ as namedtuple's own _make does: the generated __new__ is a Python call per frame
