@@ -226,7 +226,7 @@ class DiffPressureConfig(_Section):
 
     noise_std: float = _src(0.0, 100.0, 1.0, f"{GAZEBO_AIRSPEED}: DiffPressureStdev 0.01 hPa")
     bias: float = _num(-100.0, 100.0, 0.0)
-    drift_std: float = _num(0.0, 10.0, 0.0)
+    drift_std: float = _src(0.0, 10.0, 0.0, f"{GAZEBO_AIRSPEED}: white noise only, no drift")
 
 
 class GpsConfig(_Section):

@@ -394,3 +394,70 @@ def test_gps_position_error_is_gauss_markov_with_the_configured_time_constant() 
         assert -1.0 / rate / math.log(rho1) == pytest.approx(tau, rel=0.1)
     white = np.diff(north)  # not white noise: consecutive fixes differ by far less than the std
     assert np.std(white) < 0.4 * 1.2
+
+
+# ------------------------------------------------------------------------------------------ profiles and sources
+def test_gazebo_gps_error_is_what_the_plugin_update_law_gives() -> None:
+    """PX4's Gazebo GPS plugin updates its bias every 4 ms physics step as b += rw sqrt(dt) n dt - b / 60; run
+    that law directly: its stationary std and its correlation after 0.24 s are what ``gazebo_gps_error`` says
+    (millimetres and e^-1), not 1 m and 60 s."""
+    from scipy.signal import lfilter
+
+    from hil_adapter.sensors import GAZEBO_STEP_S, gazebo_gps_error
+
+    rng = np.random.default_rng(3)
+    n = 400_000
+    drive = 2.0 * math.sqrt(GAZEBO_STEP_S) * GAZEBO_STEP_S * rng.standard_normal(n)
+    b = lfilter([1.0], [1.0, -(1.0 - 1.0 / 60.0)], drive)[1000:]  # b_k = (1 - 1/60) b_{k-1} + drive_k
+    std, tau = gazebo_gps_error(2.0)
+    assert np.std(b) == pytest.approx(std, rel=0.05) and 0.002 < std < 0.004
+    lag = round(tau / GAZEBO_STEP_S)
+    assert np.corrcoef(b[:-lag], b[lag:])[0, 1] == pytest.approx(math.exp(-1.0), abs=0.03)
+    assert tau == pytest.approx(0.24, rel=1e-9)
+    d = GpsConfig()
+    assert (d.pos_gm_std_h_m, d.pos_gm_tau_s, d.latency_s, d.rate_hz) == (std, tau, 0.12, 5.0)
+
+
+@pytest.mark.parametrize("section", ["accel", "gyro", "mag", "baro", "diff_pressure", "gps"])
+def test_every_noise_default_names_its_source(section: str) -> None:
+    cls = type(getattr(SensorConfig(), section))
+    for name in ("noise_std", "noise_density", "drift_std", "drift_tau_s", "turn_on_bias_std", "rate_hz",
+                 "latency_s", "pos_gm_std_h_m", "pos_gm_std_v_m", "pos_gm_tau_s", "vel_noise_std_m_s"):
+        if name in cls.model_fields:
+            text = cls.model_fields[name].description or ""
+            assert text.startswith("default from ") and len(text) > 20, (section, name, text)
+
+
+@pytest.mark.parametrize("dt", [0.004, 0.001])
+def test_imu_white_noise_follows_its_density(dt: float) -> None:
+    """Per-sample std = density / sqrt(dt): a faster loop sees more noise per sample, the same density."""
+    density = 0.01
+    cfg = noise_free(gyro=SensorConfig.noise_free().gyro.replace(noise_density=density))
+    suite = SensorSuite(cfg, seed=5)
+    g = np.array([suite.sample((k + 1) * dt, outputs()).gyro_body_rad_s for k in range(20000)])
+    assert np.std(g[1:]) == pytest.approx(density / math.sqrt(dt), rel=0.05)
+
+
+def test_ublox_profile_horizontal_error_has_the_datasheet_cep() -> None:
+    """u-blox NEO-M8: 2.5 m CEP: half of the fixes (over receivers: independent seeds) within 2.5 m."""
+    r_m, r_n = radii_of_curvature(math.radians(47.3977))
+    cos_lat = math.cos(math.radians(47.3977))
+    radii = []
+    for seed in range(2000):
+        fix = SensorSuite(SensorConfig.profile("ublox_m8"), seed=seed).sample(0.0, outputs()).gps
+        north = math.radians(fix.lat_deg - 47.3977) * float(r_m)
+        east = math.radians(fix.lon_deg - 8.5456) * float(r_n) * cos_lat
+        radii.append(math.hypot(north, east))
+    assert np.median(radii) == pytest.approx(2.5, rel=0.08)
+
+
+def test_profile_from_the_bench_config(tmp_path) -> None:
+    from hil_adapter.config import ConfigError, load_hil_config, sensor_suite
+
+    path = tmp_path / "bench.toml"
+    path.write_text('[sensors]\nprofile = "ublox_m8"\n[sensors.gps]\nrate_hz = 5.0\n')
+    suite = sensor_suite(load_hil_config(path))
+    assert suite.config.gps.rate_hz == 5.0 and suite.config.gps.eph_m == 2.5  # the profile, one value overridden
+    path.write_text('[sensors]\nprofile = "gazebo"\n')
+    with pytest.raises(ConfigError, match="px4_gazebo"):
+        load_hil_config(path)
