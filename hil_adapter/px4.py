@@ -282,16 +282,22 @@ class Px4Server:
         pacer.wait()
         conn.setblocking(False)
         try:
+            return self._drain(conn)
+        finally:
+            conn.settimeout(self.watchdog.timeout_s)
+
+    def _drain(self, conn: socket.socket) -> bool | None:
+        """Take every byte waiting on the non-blocking ``conn``: True when an actuator message was among them,
+        None when the connection ended."""
+        got = False
+        try:
             while True:
                 data = conn.recv(65536)
                 if not data:
                     return None
-                if self._absorb(data):
-                    return True
+                got = self._absorb(data) or got
         except BlockingIOError:
-            return False
-        finally:
-            conn.settimeout(self.watchdog.timeout_s)
+            return got
 
     def _run_lockstep(self, conn: socket.socket, stop: threading.Event | None, max_steps: int | None) -> bool:
         """Returns False when the connection ended. Until the autopilot's first actuator message the steps run
@@ -343,15 +349,11 @@ class Px4Server:
         pacer = Pacer(self.dt_s, self.stats)
         while not (stop is not None and stop.is_set()) and (max_steps is None or self.stats.steps < max_steps):
             t0 = time.perf_counter()
-            try:
-                while True:
-                    data = conn.recv(65536)
-                    if not data:
-                        return False
-                    if self._absorb(data):
-                        self.watchdog.fed()
-            except BlockingIOError:
-                pass
+            got = self._drain(conn)
+            if got is None:
+                return False
+            if got:
+                self.watchdog.fed()
             self.watchdog.check(self.plant, self.stats)
             self._step()
             try:
