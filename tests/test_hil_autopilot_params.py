@@ -211,3 +211,16 @@ def test_generated_plane_rate_loops_rise_fast_without_overshoot(axis: str, step_
     # the bound is not loose: a third of the gains misses it
     t, r = _rate_step(built_fmus["fixed_wing"], params, axis, step_deg_s, gain_scale=0.3)
     assert _rise_and_overshoot(t, r, step_deg_s)[0] >= 0.3
+
+
+def test_wrong_vehicle_and_bad_options_are_clear_errors(built_fmus: dict[str, Path], tmp_path: Path) -> None:
+    from hil_adapter.autopilot_params import autopilot_params
+
+    with pytest.raises(ValueError, match="quadrotor model; arduplane flies a fixed_wing"):
+        autopilot_params(built_fmus["quadrotor"], "arduplane")
+    with pytest.raises(ValueError, match="allowed arduplane, arducopter, px4"):
+        autopilot_params(built_fmus["quadrotor"], "inav")
+    with pytest.raises(ValueError, match=r"servo_tau_s = 0.0: allowed 0 < tau <= 0.5 s"):
+        autopilot_params(built_fmus["fixed_wing"], "arduplane", servo_tau_s=0.0)
+    out = autopilot_params(built_fmus["quadrotor"], "px4").write(tmp_path / "p.params")
+    assert out.read_text().startswith("#!/bin/sh\n") and "param set-default MPC_THR_HOVER" in out.read_text()
