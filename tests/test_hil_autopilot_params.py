@@ -85,24 +85,27 @@ GENERATED = {"arduplane": ("ardupilot/plane-aerosonde.parm", "fixed_wing"),
              "px4": ("px4/px4-rc.params", "quadrotor")}
 
 
+@pytest.fixture(scope="module")
+def generated(built_fmus: dict[str, Path]) -> dict[str, object]:
+    """Each autopilot's parameter set computed once from the default FMUs (the ArduPlane design takes seconds)."""
+    from hil_adapter.autopilot_params import autopilot_params
+
+    return {name: autopilot_params(built_fmus[model], name) for name, (_, model) in GENERATED.items()}
+
+
 @pytest.mark.parametrize("autopilot", sorted(GENERATED))
-def test_shipped_files_are_generated_from_the_default_fmus(autopilot: str, built_fmus: dict[str, Path]) -> None:
+def test_shipped_files_are_generated_from_the_default_fmus(autopilot: str, generated: dict[str, object]) -> None:
     """autopilot/ holds exactly what `uavfmu autopilot-params` computes from the default FMUs (regenerate with
     `uavfmu autopilot-params dist/<model>.fmu --autopilot <name> -o autopilot/<file>`)."""
-    from hil_adapter.autopilot_params import autopilot_params
-
-    path, model = GENERATED[autopilot]
+    path, _ = GENERATED[autopilot]
     shipped = (AUTOPILOT / path).read_text()
-    generated = autopilot_params(built_fmus[model], autopilot).text()
-    assert shipped == generated, f"autopilot/{path} is out of date: regenerate it"
+    assert shipped == generated[autopilot].text(), f"autopilot/{path} is out of date: regenerate it"
 
 
-def test_px4_limits_are_mutually_consistent(built_fmus: dict[str, Path]) -> None:
+def test_px4_limits_are_mutually_consistent(generated: dict[str, object]) -> None:
     """PX4 v1.13 constrains each auto speed by its manual maximum (a CRITICAL at boot otherwise); takeoff and
     landing speeds within them; the settings that let pxh `commander takeoff` fly without RC or ground station."""
-    from hil_adapter.autopilot_params import autopilot_params
-
-    v = autopilot_params(built_fmus["quadrotor"], "px4").values
+    v = generated["px4"].values
     assert v["MPC_Z_V_AUTO_UP"] <= v["MPC_Z_VEL_MAX_UP"] and v["MPC_TKO_SPEED"] <= v["MPC_Z_VEL_MAX_UP"]
     assert v["MPC_Z_V_AUTO_DN"] <= v["MPC_Z_VEL_MAX_DN"] and v["MPC_LAND_SPEED"] <= v["MPC_Z_VEL_MAX_DN"]
     assert v["MPC_XY_CRUISE"] <= v["MPC_XY_VEL_MAX"] and v["MPC_VEL_MANUAL"] <= v["MPC_XY_VEL_MAX"]
@@ -110,21 +113,21 @@ def test_px4_limits_are_mutually_consistent(built_fmus: dict[str, Path]) -> None
     assert v["MPC_THR_MIN"] < v["MPC_THR_HOVER"] < 1.0
 
 
-def test_hover_throttles_hover_the_model(built_fmus: dict[str, Path]) -> None:
+def test_hover_throttles_hover_the_model(built_fmus: dict[str, Path], generated: dict[str, object]) -> None:
     """The hover settings are the model's own: at PX4's hover control the model's thrust equals its weight,
     and ArduCopter's hover thrust fraction times the thrust at spin max is the weight (1 %)."""
     from hil_adapter.autopilot_copter import SPIN_MAX, thrust_curve
-    from hil_adapter.autopilot_params import _simulator, autopilot_params, fmu_parameters
+    from hil_adapter.autopilot_params import _simulator, fmu_parameters
 
     sim, p = _simulator("quadrotor", fmu_parameters(built_fmus["quadrotor"]))
     weight = sim.model.params.view(p).mass_kg * 9.80665
-    px4 = autopilot_params(built_fmus["quadrotor"], "px4").values
+    px4 = generated["px4"].values
     fac, hover = px4["THR_MDL_FAC"], px4["MPC_THR_HOVER"]
     c = (-(1 - fac) + np.sqrt((1 - fac) ** 2 + 4 * fac * hover)) / (2 * fac) if fac > 0 else hover
     assert thrust_curve(sim, p, np.array([1000.0 + 1000.0 * c]))[0] == pytest.approx(weight, rel=0.01)
     # ArduCopter: thrust demand MOT_THST_HOVER through its curve (AP_MotorsMulticopter, battery scale 1) and
     # spin range to PWM: the model's thrust there is its weight
-    v = autopilot_params(built_fmus["quadrotor"], "arducopter").values
+    v = generated["arducopter"].values
     e, t = v["MOT_THST_EXPO"], v["MOT_THST_HOVER"]
     a = ((e - 1) + np.sqrt((1 - e) ** 2 + 4 * e * t)) / (2 * e) if e != 0 else t
     pwm = v["MOT_PWM_MIN"] + (v["MOT_SPIN_MIN"] + (v["MOT_SPIN_MAX"] - v["MOT_SPIN_MIN"]) * a) * (
@@ -198,12 +201,11 @@ def _rise_and_overshoot(t: np.ndarray, r: np.ndarray, step: float) -> tuple[floa
 
 @pytest.mark.parametrize(("axis", "step_deg_s"), [("roll", 30.0), ("pitch", 10.0)])
 def test_generated_plane_rate_loops_rise_fast_without_overshoot(axis: str, step_deg_s: float,
-                                                                built_fmus: dict[str, Path]) -> None:
+                                                                built_fmus: dict[str, Path],
+                                                                generated: dict[str, object]) -> None:
     """The generated ArduPlane rate gains, closed in ArduPilot's rate-loop structure (FF + PI on the rate error,
     50 ms servo) around the Aerosonde FMU at its cruise trim: 10-90 % rise under 0.3 s, overshoot under 15 %."""
-    from hil_adapter.autopilot_params import autopilot_params
-
-    params = autopilot_params(built_fmus["fixed_wing"], "arduplane").values
+    params = generated["arduplane"].values
     t, r = _rate_step(built_fmus["fixed_wing"], params, axis, step_deg_s)
     rise, overshoot = _rise_and_overshoot(t, r, step_deg_s)
     print(f"{axis} rate step {step_deg_s} deg/s: rise {rise:.3f} s, overshoot {100 * overshoot:.1f} %")
