@@ -392,7 +392,9 @@ def _loop_context(fmu: Path, args: argparse.Namespace, poll_s: float) -> None:
             r["own_us"] = r["overhead_us"] - r["send_us"]
         m = {key: float(np.median([run[kind][key] for run in runs])) for key in runs[0][kind]}
         print(f"  {kind:<15} {m['rate']:5.0f} steps/s; round trip p50 {m['p50_us']:4.0f} us, p99 {m['p99_us']:4.0f} us;"
-              f" busy - FMU step {m['overhead_us']:3.0f} us, of it the send alone {m['send_us']:3.0f} us")
+              f" busy - FMU step {m['overhead_us']:3.0f} us, of it the send alone {m['send_us']:3.0f} us; the rest "
+              f"{m['own_us']:3.0f} us = {m['own_us'] / m['fmu_us']:.2f}x the FMU step in the loop (cold caches, "
+              "another process waking: context, not the target)")
 
 
 if __name__ == "__main__":
