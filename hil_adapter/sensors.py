@@ -392,15 +392,15 @@ def _ned_to_body(q: tuple[float, float, float, float], v: list[float]) -> tuple[
 
 
 def _walk_and_noise(truth: tuple[float, float, float], bias: list[float], drift: list[float],
-                    coef: tuple[float, float, float], z: list[float]) -> tuple[float, float, float]:
-    """One 3-axis reading: ``drift`` (updated in place) ``= pole * drift + drive * z[3:6]``, reading ``= truth +
-    bias + drift + white * z[0:3]`` with ``coef = (pole, drive, white)``."""
+                    coef: tuple[float, float, float], z: list[float], i: int = 0) -> tuple[float, float, float]:
+    """One 3-axis reading from the six draws ``z[i:i + 6]``: ``drift`` (updated in place) ``= pole * drift +
+    drive * z[i+3:i+6]``, reading ``= truth + bias + drift + white * z[i:i+3]``, ``coef = (pole, drive, white)``."""
     phi, walk, sigma = coef
-    d0 = drift[0] = phi * drift[0] + walk * z[3]
-    d1 = drift[1] = phi * drift[1] + walk * z[4]
-    d2 = drift[2] = phi * drift[2] + walk * z[5]
-    return (truth[0] + bias[0] + d0 + sigma * z[0], truth[1] + bias[1] + d1 + sigma * z[1],
-            truth[2] + bias[2] + d2 + sigma * z[2])
+    d0 = drift[0] = phi * drift[0] + walk * z[i + 3]
+    d1 = drift[1] = phi * drift[1] + walk * z[i + 4]
+    d2 = drift[2] = phi * drift[2] + walk * z[i + 5]
+    return (truth[0] + bias[0] + d0 + sigma * z[i], truth[1] + bias[1] + d1 + sigma * z[i + 1],
+            truth[2] + bias[2] + d2 + sigma * z[i + 2])
 
 
 def pressure_altitude_m(pressure_pa: float) -> float:
@@ -470,7 +470,7 @@ class SensorSuite:
         self._baro_last: tuple[float, float, float] = (0.0, 0.0, 0.0)
         self._coef: tuple[Any, ...] = ()
         self._row = _ROWS  # the IMU's draws (accel and gyro rows of one block index): refilled on first use
-        self._blocks: tuple[list[list[float]], ...] = ()
+        self._blocks: tuple[list[float], ...] = ()  # flat: sample k's six draws at 6k
         #: the other row streams, drawn only when read (the magnetometer and barometer below the sample rate,
         #: the pitot only with an airspeed): per stream [rows, next row]
         self._rows: dict[str, list[Any]] = {name: [[], 0] for name in ("mag", "baro", "diff_pressure")}
@@ -538,9 +538,9 @@ class SensorSuite:
         return _walk_and_noise(_ned_to_body(q, self._mag_ned_list), bias, drift, cached[1], z)
 
     def _draws(self) -> None:
-        """Draw the IMU's next ``_ROWS`` samples of standard normals ahead (accel and gyro rows of 6: white noise
-        and drift per axis), one numpy call per stream and block."""
-        self._blocks = tuple(self._block(name) for name in ("accel", "gyro"))
+        """Draw the IMU's next ``_ROWS`` samples of standard normals ahead (accel and gyro: 6 per sample, white
+        noise and drift per axis), one numpy call per stream and block, kept flat (a list per row costs more)."""
+        self._blocks = tuple(self._rng[name].standard_normal(_ROWS * 6).tolist() for name in ("accel", "gyro"))
 
     def _block(self, name: str) -> list[list[float]]:
         n = _ROW_SIZE[name]
@@ -657,8 +657,8 @@ class SensorSuite:
         self._row = row + 1
         blocks = self._blocks
         (ba, bg, _), (da, dg, _) = self._imu_state
-        accel = _walk_and_noise((ax, ay, az), ba, da, coef[0], blocks[0][row])
-        gyro = _walk_and_noise((p, q, r), bg, dg, coef[1], blocks[1][row])
+        accel = _walk_and_noise((ax, ay, az), ba, da, coef[0], blocks[0], 6 * row)
+        gyro = _walk_and_noise((p, q, r), bg, dg, coef[1], blocks[1], 6 * row)
         updated = UPDATED_IMU
         due = self._next
         if t_s + _TIME_EPS_S >= due["mag"]:
