@@ -24,7 +24,6 @@ import math
 import operator
 from collections import deque
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Annotated, Any, NamedTuple
 
 import numpy as np
@@ -152,7 +151,9 @@ class _Inertial(_Section):
     started at a turn-on bias of std ``turn_on_bias_std`` per axis."""
 
     def drift_step(self, dt: float) -> tuple[float, float]:
-        """(pole, drive std) of the drift over ``dt`` seconds (exact discretisation, Maybeck 4-114)."""
+        """(pole, drive std) of the drift over ``dt`` seconds (exact discretisation, Maybeck 4-114; a negative
+        interval counts as none)."""
+        dt = max(dt, 0.0)
         if self.drift_tau_s <= 0.0:
             return 1.0, self.drift_std * math.sqrt(dt)
         phi = math.exp(-dt / self.drift_tau_s)
@@ -323,10 +324,10 @@ class SensorConfig(Schema):
 
 
 # ------------------------------------------------------------------------------------------ frames
-@dataclass(frozen=True)
-class GpsFix:
+class GpsFix(NamedTuple):
     """One GPS solution. ``time_s`` is the time the fix describes (delivery time minus the latency, no
-    earlier than the first sample); ``alt_msl_m`` is the FMU's ellipsoidal height (see ``SensorSuite``)."""
+    earlier than the first sample); ``alt_msl_m`` is the FMU's ellipsoidal height (see ``SensorSuite``).
+    (A named tuple: immutable like a frozen dataclass, and cheaper to build.)"""
 
     time_s: float
     lat_deg: float
@@ -527,15 +528,15 @@ class SensorSuite:
         interval, sched[2] = t_s - sched[2], t_s
         return interval
 
-    def _mag(self, dt: float, q: tuple[float, float, float, float], z: list[float]) -> tuple[float, float, float]:
-        """A magnetometer reading after ``dt`` seconds since its last one (constants cached per interval)."""
+    def _mag(self, t_s: float, q: tuple[float, float, float, float]) -> tuple[float, float, float]:
+        """The magnetometer reading due at ``t_s`` (constants cached per interval between readings)."""
+        cfg = self.config.mag
+        dt = self._read("mag", t_s, cfg.rate_hz)
         cached = self._mag_coef
         if cached is None or abs(dt - cached[0]) > 1e-9 * dt:
-            cfg = self.config.mag
-            cached = self._mag_coef = (dt, (*cfg.drift_step(dt), cfg.white_std(dt if dt > 0.0 else
-                                                                                1.0 / cfg.rate_hz)))
-        bias, drift = self._imu_state[0][2], self._imu_state[1][2]
-        return _walk_and_noise(_ned_to_body(q, self._mag_ned_list), bias, drift, cached[1], z)
+            cached = self._mag_coef = (dt, (*cfg.drift_step(dt), cfg.white_std(dt if dt > 0.0 else 1.0 / cfg.rate_hz)))
+        return _walk_and_noise(_ned_to_body(q, self._mag_ned_list), self._imu_state[0][2], self._imu_state[1][2],
+                               cached[1], self._take("mag"))
 
     def _draws(self) -> None:
         """Draw the IMU's next ``_ROWS`` samples of standard normals ahead (accel and gyro: 6 per sample, white
@@ -662,8 +663,7 @@ class SensorSuite:
         updated = UPDATED_IMU
         due = self._next
         if t_s + _TIME_EPS_S >= due["mag"]:
-            self._mag_last = self._mag(self._read("mag", t_s, self.config.mag.rate_hz), (qw, qx, qy, qz),
-                                       self._take("mag"))
+            self._mag_last = self._mag(t_s, (qw, qx, qy, qz))
             updated |= UPDATED_MAG
         if t_s + _TIME_EPS_S >= due["baro"]:
             self._baro_last = self._baro(self._read("baro", t_s, self.config.baro.rate_hz), height,
