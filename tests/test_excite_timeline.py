@@ -72,7 +72,7 @@ def test_segment_chooser_reads_through_the_schema(tmp_path: Path) -> None:
 
     bad = tmp_path / "bad.timeline.json"
     bad.write_text(json.dumps(_minimal(end_s=0.5)))
-    with pytest.raises(SegmentError, match=r"bad\.timeline\.json.*blocks\.0"):
+    with pytest.raises(SegmentError, match=r"(?s)bad\.timeline\.json.*blocks\.0"):
         load_timeline_blocks(bad)
     good = tmp_path / "good.timeline.json"
     good.write_text(json.dumps({**_minimal(), "log_span_s": [12.5, 80.0]}))
