@@ -488,6 +488,10 @@ def _after_fit(result: AeroResult, model: FixedWingModel, p: np.ndarray, init: F
             result.identified = {**init.to_dict(), **fit.estimate.derivatives()}
     except (ValueError, EstimationError) as err:
         result.failures.append(f"delay scan: {err}")
+    if result.fit.estimate.unbounded:
+        result.failures.append(f"bounds: the fitted model runs away in {', '.join(result.fit.estimate.unbounded)} "
+                               "(output sensitivities above 1e3 x the measured range): no printed interval is "
+                               "credible; fit shorter segments (--segments) or fix the derivatives of that mode")
     _score(result, model, p, opt)
 
 

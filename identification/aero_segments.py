@@ -14,17 +14,17 @@ into windows as before, and the caller says so.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
+from fmu_models.config import ConfigError
 from identification.aero import Segment, SegmentError, airborne_segments
 from identification.flightlog import FlightLog
+from identification.timeline import load_timeline
 
 #: recovery time kept after a block's end [s]: the response to the last pulse is still informative
 TAIL_S = 2.0
@@ -54,38 +54,18 @@ class TimelineFile:
 
 
 def load_timeline_blocks(path: Path) -> TimelineFile:
-    """Read a timeline file (the shared schema of ``identification.timeline`` when that module exists)."""
+    """Read a timeline file through the shared schema (:func:`identification.timeline.load_timeline`); a bad file
+    raises :class:`SegmentError` naming the file, the field and the value."""
     try:
-        raw = json.loads(Path(path).read_text())
-    except (OSError, json.JSONDecodeError) as err:
-        raise SegmentError(f"timeline {path}: {err}") from None
-    try:
-        from identification.timeline import load_timeline  # type: ignore[import-not-found]
-    except ImportError:
-        blocks = _blocks(raw, path)
-    else:
-        blocks = [Block(str(b.axis), float(b.start_s), float(b.excitation_start_s), float(b.end_s))
-                  for b in load_timeline(path).blocks]
-    start = raw.get("log_first_sample_s") if isinstance(raw, dict) else None
-    if start is None and isinstance(raw, dict) and isinstance(raw.get("log_span_s"), list) and raw["log_span_s"]:
-        start = raw["log_span_s"][0]
+        tl = load_timeline(path)
+    except ConfigError as err:
+        raise SegmentError(str(err)) from None
+    blocks = [Block(str(b.axis), float(b.start_s), float(b.excitation_start_s), float(b.end_s)) for b in tl.blocks]
+    start = tl.log_first_sample_s
+    span = (tl.model_extra or {}).get("log_span_s")
+    if start is None and isinstance(span, list) and span and isinstance(span[0], (int, float)):
+        start = float(span[0])
     return TimelineFile(Path(path), blocks, None if start is None else float(start))
-
-
-def _blocks(raw: Any, path: Path) -> list[Block]:
-    if not isinstance(raw, dict) or not isinstance(raw.get("blocks"), list):
-        raise SegmentError(f"timeline {path}: needs a list 'blocks'")
-    out = []
-    for i, b in enumerate(raw["blocks"]):
-        try:
-            blk = Block(str(b["axis"]), float(b["start_s"]), float(b["excitation_start_s"]), float(b["end_s"]))
-        except (KeyError, TypeError, ValueError) as err:
-            raise SegmentError(f"timeline {path}: block {i}: needs axis, start_s, excitation_start_s, end_s "
-                               f"({err})") from None
-        if not (math.isfinite(blk.start_s) and blk.start_s <= blk.excitation_start_s < blk.end_s):
-            raise SegmentError(f"timeline {path}: block {i}: needs start_s <= excitation_start_s < end_s")
-        out.append(blk)
-    return out
 
 
 def timeline_beside(log_path: Path) -> Path | None:

@@ -62,3 +62,19 @@ def test_shifted_moves_every_block(tmp_path: Path) -> None:
     b = tl.blocks[0]
     assert (b.start_s, b.excitation_start_s, b.end_s) == (100.0, 101.0, 105.0)
     assert tl.time_base == "seconds since boot"
+
+
+def test_segment_chooser_reads_through_the_schema(tmp_path: Path) -> None:
+    """``identify aero``'s segment chooser uses this schema only: a bad block is a SegmentError naming file and
+    field; ``log_span_s`` stands in for a missing ``log_first_sample_s``."""
+    from identification.aero import SegmentError
+    from identification.aero_segments import load_timeline_blocks
+
+    bad = tmp_path / "bad.timeline.json"
+    bad.write_text(json.dumps(_minimal(end_s=0.5)))
+    with pytest.raises(SegmentError, match=r"(?s)bad\.timeline\.json.*blocks\.0"):
+        load_timeline_blocks(bad)
+    good = tmp_path / "good.timeline.json"
+    good.write_text(json.dumps({**_minimal(), "log_span_s": [12.5, 80.0]}))
+    tl = load_timeline_blocks(good)
+    assert tl.log_start_s == pytest.approx(12.5) and tl.blocks[0].end_s == pytest.approx(5.0)

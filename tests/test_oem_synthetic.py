@@ -216,3 +216,17 @@ def test_all_axes_from_30_percent_off(all_axes) -> None:
     assert np.all(np.abs(est.values - true)[identifiable] <= 3 * est.crb_std[identifiable]), est.table()
     exact = oe.estimate(clean, theta0=start, weight=np.diag(1 / OEM_SIGMA**2), max_iter=80, horizon_s=1.0)
     np.testing.assert_allclose(exact.values[identifiable], true[identifiable], rtol=1e-4)
+
+
+def test_runaway_sensitivities_mark_the_bounds_not_credible() -> None:
+    """A record whose sensitivities dwarf its measured range (a trajectory that runs away) is named."""
+    from identification.oem import SENSITIVITY_GROWTH_MAX, sensitivity_growth
+
+    y = np.column_stack([np.linspace(0.0, 1.0, 50), np.linspace(0.0, 2.0, 50)])
+    m = Manoeuvre(np.zeros(1), np.zeros((50, 1)), y, DT, "calm")
+    theta = np.array([0.5, -2.0])
+    calm = np.ones((50, 2, 2))
+    runaway = calm.copy()
+    runaway[-1, 1, 0] = 1e30
+    assert sensitivity_growth([m], [calm], theta, 2)[0] == pytest.approx(2.0)  # |dy/dθ| |θ| / range = 1 x 2 / 1
+    assert sensitivity_growth([m, m], [calm, runaway], theta, 2)[1] > SENSITIVITY_GROWTH_MAX
