@@ -14,6 +14,9 @@ Runs go through ``fmu_models.parallel`` (dask.distributed): local worker process
 cluster (``--scheduler tcp://HOST:PORT`` or ``UAVFMU_SCHEDULER``; docs/scale-out.md). ``--mc N --uncertainty
 PARAMS`` adds Monte Carlo bands: N replays with parameters drawn from the parameter file's ``uncertainty``
 block, restart states and sensor noise from the log; each signal's band coverage is printed beside its skill.
+``--params PARAMS`` (an ``identify thrust`` parameter file; manifest key ``params``) drives the quadrotor's
+``battery_voltage_V`` from its battery-state model: the logged voltage, else the hover state computed from the
+log (``identification.replay_battery``); the source is printed and in ``metrics.json``.
 
 Exit status: 0 every gated signal of every run passes, 1 a signal fails (or a batch run errors), 2 bad input.
 """
@@ -46,6 +49,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-theil", type=float, help="pass threshold on Theil's U for every signal")
     parser.add_argument("--report", type=Path, help="folder for report.html and metrics.json")
     parser.add_argument("--channel-map", type=Path, help="TOML/JSON [channels] for the log's outputs")
+    parser.add_argument("--params", type=Path, metavar="PARAMS",
+                        help="parameter file of `identify thrust`: its battery-state model drives the quadrotor's "
+                             "battery_voltage_V (logged voltage, else the hover state from the log; default with "
+                             "--mc: the --uncertainty file)")
     parser.add_argument("--jobs", type=int, default=min(4, os.cpu_count() or 1),
                         help="local worker processes (batch and --mc; ignored with --scheduler)")
     parser.add_argument("--scheduler", default=os.environ.get("UAVFMU_SCHEDULER"),
@@ -93,13 +100,16 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"--max-theil = {args.max_theil:g}: allowed > 0")
         values = {k: v for k, v in _option_values(args).items() if v is not None}
         opts = check_options(**values)
+        if args.batch and args.params:
+            raise ValueError("--params applies to FMU LOG; in a --batch manifest give params = \"FILE\" per job")
         if args.batch:
             jobs = load_manifest(args.batch, values, args.report)
         elif args.fmu is None or args.log is None:
             raise ValueError("give FMU and LOG, or --batch manifest.toml")
         else:
             jobs = [ValidationJob(args.fmu, args.log, opts, args.map, args.mapping, args.channel_map,
-                                  _parse_set(args.set), args.max_theil, args.report)]
+                                  _parse_set(args.set), args.max_theil, args.report,
+                                  params_file=args.params or (args.uncertainty if args.mc else None))]
         uncertainty = _uncertainty(args)
     except (ValueError, ConfigError) as err:
         print(f"uavfmu validate: error: {err}", file=sys.stderr)
