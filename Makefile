@@ -17,6 +17,7 @@ $(BENCH_STAMP): $(STAMP)
 	$(PY) -m pip install --quiet -e ".[test,bench]"
 	touch $(BENCH_STAMP)
 
+# the demo builds this machine's platform only; `make fmus` builds linux64, win64 and darwin64 in parallel
 demo: $(STAMP)
 	$(PY) -m uavfmu.cli demo
 
