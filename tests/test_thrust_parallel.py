@@ -88,3 +88,22 @@ def test_a_failing_fold_names_the_held_out_flight(fake_logs: dict[str, VoltLog],
     monkeypatch.setattr(tw, "score_fold", lambda n, *a: (_ for _ in ()).throw(ValueError(f"bad {n}")))
     with pytest.raises(ThrustDataError, match="fold without a: ValueError: bad a"):
         fold_results(data, base, cfg, True)
+
+
+def test_aero_bootstrap_repeats_are_the_same_bits_in_process_on_workers_and_serially() -> None:
+    from identification.oem import BOOTSTRAP_CHUNK, bootstrap_repeats, bootstrap_task
+
+    rng = np.random.default_rng(5)
+    m, n = 7, 3
+    J = rng.standard_normal((m, 20, n))
+    A = np.einsum("sia,sib->sab", J, J)
+    g = np.einsum("sia,si->sa", J, rng.standard_normal((m, 20)))
+    P, gp = np.eye(n) * 1e-3, np.zeros(n)
+    inline = bootstrap_repeats(A, g, P, gp, 120, seed=3)
+    assert inline.shape == (120, n)
+    serial = np.concatenate([bootstrap_task({"A": A, "g": g, "P": P, "gp": gp, "seed": 3, "index": i,
+                                             "count": min(BOOTSTRAP_CHUNK, 120 - f)})["reps"]
+                             for i, f in enumerate(range(0, 120, BOOTSTRAP_CHUNK))])
+    np.testing.assert_array_equal(inline, serial)
+    np.testing.assert_array_equal(inline, bootstrap_repeats(A, g, P, gp, 120, seed=3, workers=2))
+    assert not np.array_equal(inline, bootstrap_repeats(A, g, P, gp, 120, seed=4))  # the seed matters
