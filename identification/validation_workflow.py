@@ -208,11 +208,12 @@ def write_report(res: ReplayResult, out: ValidationResult, rdir: Path) -> None:
 
 
 def validate_mc(job: ValidationJob, uncertainty: Uncertainty, draws: int, seed: int = 0, *,
-                workers: int | None = None, scheduler: str | None = None, progress: Any = False) -> ValidationResult:
+                workers: int | None = None, scheduler: str | None = None, progress: Any = False,
+                executor: Executor | None = None) -> ValidationResult:
     """:func:`validate` with Monte Carlo bands: the nominal replay with the uncertainty's mean as parameters,
     then ``draws`` replays with parameters and restart states drawn (``identification.mc_bands``) on
     ``fmu_models.parallel``; each signal's band coverage beside its skill, in the summary, ``metrics.json`` and
-    the report. Raises like :func:`validate`."""
+    the report (``executor``: an open one, kept open). Raises like :func:`validate`."""
     from fmu_models.fmi.host import FmuHost
     from fmu_models.parallel import Executor
     from identification import mc_bands
@@ -235,11 +236,29 @@ def validate_mc(job: ValidationJob, uncertainty: Uncertainty, draws: int, seed: 
     assert res is not None
     mc_bands.check_draws(draws, len(res.t_s) + 1, len(res.maps), job.options.max_memory_mb)  # before the cluster
     log = read_log(job.log, channel_map=job.channel_map)
-    with Executor(scheduler, workers) as ex:
+    with nullcontext(executor) if executor is not None else Executor(scheduler, workers) as ex:
         res.bands = mc_bands.monte_carlo(job, uncertainty, res, log, draws, seed, ex, units, progress)
     out = result_of(res, job)
     if job.report_dir is not None:
         write_report(res, out, Path(job.report_dir))
+    return out
+
+
+def validate_mc_batch(jobs: Sequence[ValidationJob], uncertainty: Uncertainty, draws: int, seed: int = 0, *,
+                      workers: int | None = None, scheduler: str | None = None,
+                      progress: Any = False) -> list[ValidationResult]:
+    """:func:`validate_mc` of every job on one cluster (the same ``seed``: every job sees the same parameter
+    draws); a job with bad input or a failing FMU is an ``error`` result naming why, and the rest runs."""
+    from fmu_models.parallel import Executor
+
+    out = []
+    with Executor(scheduler, workers) as ex:
+        for job in jobs:
+            try:
+                out.append(validate_mc(job, uncertainty, draws, seed, progress=progress, executor=ex))
+            except (FmuRunError, OSError, ValueError, KeyError) as err:
+                out.append(ValidationResult(str(job.fmu), str(job.log), "error", error=str(err).strip("'\"")))
+            out[-1].replay = None  # one replay's arrays in memory at a time
     return out
 
 

@@ -114,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
     except (ValueError, ConfigError) as err:
         print(f"uavfmu validate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    return _run_batch(jobs, args) if args.batch else _run_one(jobs[0], args, uncertainty)
+    return _run_batch(jobs, args, uncertainty) if args.batch else _run_one(jobs[0], args, uncertainty)
 
 
 def _uncertainty(args: argparse.Namespace) -> object:
@@ -128,8 +128,6 @@ def _uncertainty(args: argparse.Namespace) -> object:
         return None
     if not MIN_DRAWS <= args.mc <= MAX_DRAWS:
         raise ValueError(f"--mc = {args.mc}: allowed {MIN_DRAWS}..{MAX_DRAWS}")
-    if args.batch:
-        raise ValueError("--mc runs one FMU against one log, not --batch")
     if args.uncertainty is None:
         raise ValueError("--mc needs --uncertainty PARAMS (a parameter file with an 'uncertainty' key)")
     if not 0 <= args.seed < 2**63:
@@ -157,12 +155,16 @@ def _run_one(job: object, args: argparse.Namespace, uncertainty: object = None) 
     return EXIT_FAIL if res.failed else EXIT_PASS
 
 
-def _run_batch(jobs: list, args: argparse.Namespace) -> int:
+def _run_batch(jobs: list, args: argparse.Namespace, uncertainty: object = None) -> int:
     from fmu_models.parallel import ParallelError
-    from identification.validation_workflow import batch_summary, validate_batch, write_batch_report
+    from identification.validation_workflow import batch_summary, validate_batch, validate_mc_batch, write_batch_report
 
     try:
-        results = validate_batch(jobs, args.jobs, progress=not args.quiet, scheduler=args.scheduler)
+        if uncertainty is None:
+            results = validate_batch(jobs, args.jobs, progress=not args.quiet, scheduler=args.scheduler)
+        else:  # every run's draws on the same cluster, one run after another
+            results = validate_mc_batch(jobs, uncertainty, args.mc, args.seed, workers=args.jobs,  # type: ignore[arg-type]
+                                        scheduler=args.scheduler, progress=not args.quiet)
     except ParallelError as err:
         print(f"uavfmu validate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
