@@ -101,3 +101,13 @@ def test_a_parameter_file_of_another_fmu_is_refused(identified: tuple[Path, Path
     log = write_csv_log(tmp_path / "x.csv", rec.t_s, recording_signals(rec))
     with pytest.raises(ValueError, match=r"battery_nominal_V = 11\.1 in the FMU, 14\.8 in"):
         validate(ValidationJob(fmu, log, params_file=other))
+
+
+def test_the_identified_file_carries_an_uncertainty_validate_mc_reads(identified: tuple[Path, Path]) -> None:
+    from fmu_models.common.params import read_uncertainty
+    from fmu_models.fmi.host import FmuHost
+
+    params, fmu = identified
+    unc = read_uncertainty(params)  # the file identify thrust writes, with its note
+    with FmuHost(fmu) as host:
+        assert all(host.variables[n].causality == "parameter" for n in unc.names)
