@@ -7,7 +7,9 @@
         ...
     run.failures                      # {task index: error} of tasks that failed twice
 
-Where the work runs: an in-process ``LocalCluster`` of ``workers`` single-threaded worker processes bound to
+Where the work runs: in the calling process (``workers=0``, no ``scheduler``: for small jobs that would not repay a
+cluster start-up; same seeding, result streaming and failure accounting, but a task that kills the process kills
+the job), an in-process ``LocalCluster`` of ``workers`` single-threaded worker processes bound to
 127.0.0.1 with no dashboard (the default), or the cluster whose scheduler is ``scheduler="tcp://HOST:PORT"``
 (else the ``UAVFMU_SCHEDULER`` environment variable). Results are the same bit for bit either way: a task
 carries its own seed (:func:`task_rng`), and results are reduced in task order, never completion order.
@@ -305,11 +307,37 @@ def _new_run(out_dir: Path | None, n: int, workers: int) -> TaskRun:
     return TaskRun(out_dir, n, workers=workers, _tmp=tmp)
 
 
+def run_inline(fn: Callable[[Any], dict[str, Any]], tasks: Sequence[Any], *, out_dir: Path | None = None,
+               progress: Progress = True, desc: str = "tasks") -> TaskRun:
+    """:func:`map_tasks` in the calling process, one task after another: results streamed to ``out_dir``, a task
+    that raises run once more, a task that fails twice listed in ``failures`` (files are read in place)."""
+    from tqdm import tqdm
+
+    if len(tasks) > MAX_TASKS:
+        raise ValueError(f"{len(tasks)} tasks: allowed at most {MAX_TASKS:,}")
+    run = _new_run(out_dir, len(tasks), 0)
+    with tqdm(total=len(tasks), desc=desc, disable=progress is not True, unit="task") as bar:
+        for i, task in enumerate(tasks):
+            for attempt in range(1, ATTEMPTS + 1):
+                out = _run_task(fn, task, {}, {})
+                if "__error__" not in out:
+                    _write(run.out_dir, i, out)
+                    break
+                (run.retried if attempt < ATTEMPTS else run.failures)[i] = str(out["__error__"])
+            bar.update(1)
+            if callable(progress):
+                progress(i + 1, len(tasks))
+    return run
+
+
 def map_tasks(fn: Callable[[Any], dict[str, Any]], tasks: Sequence[Any], *, out_dir: Path | None = None,
               files: Files = (), scheduler: str | None = None, workers: int | None = None,
               max_in_flight: int | None = None, progress: Progress = True, desc: str = "tasks") -> TaskRun:
-    """Run ``fn(task)`` for every task on a fresh :class:`Executor` and stream the results to ``out_dir`` (a
-    temporary folder, kept as long as the returned run, when None). See the module docstring."""
+    """Run ``fn(task)`` for every task on a fresh :class:`Executor` (in the calling process with ``workers=0``
+    and no ``scheduler``) and stream the results to ``out_dir`` (a temporary folder, kept as long as the
+    returned run, when None). See the module docstring."""
+    if workers == 0 and not scheduler:
+        return run_inline(fn, tasks, out_dir=out_dir, progress=progress, desc=desc)
     with Executor(scheduler, workers) as ex:
         return ex.map_tasks(fn, tasks, out_dir=out_dir, files=files, max_in_flight=max_in_flight,
                             progress=progress, desc=desc)

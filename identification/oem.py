@@ -231,6 +231,40 @@ class Estimate:
 
 
 #: how the printed bound is made (``Estimate.bound_method``)
+#: bootstrap resamples per task of ``fmu_models.parallel`` (fixed: the draws never depend on the worker count)
+BOOTSTRAP_CHUNK = 50
+
+
+def bootstrap_task(task: dict[str, Any]) -> dict[str, Any]:
+    """Resamples ``task["first"]..`` of the block bootstrap: manoeuvre weights from the task's own generator
+    (``fmu_models.parallel.task_rng``), one linearised Gauss-Newton step each; plain arrays in and out."""
+    from fmu_models.parallel import task_rng
+
+    A, g, P, gp = (np.asarray(task[k], float) for k in ("A", "g", "P", "gp"))
+    m = A.shape[0]
+    rng = task_rng(task["seed"], task["index"])
+    reps = []
+    for _ in range(task["count"]):
+        w = np.bincount(rng.integers(0, m, m), minlength=m).astype(float)
+        reps.append(np.linalg.lstsq(np.einsum("j,jab->ab", w, A) + P, w @ g + gp, rcond=None)[0])
+    return {"reps": np.array(reps)}
+
+
+def bootstrap_repeats(A: np.ndarray, g: np.ndarray, P: np.ndarray, gp: np.ndarray, repeats: int, seed: int,
+                      workers: int = 0, scheduler: str | None = None) -> np.ndarray:
+    """``repeats`` bootstrap steps (rows) as tasks of ``fmu_models.parallel``, in task order: in this process by
+    default (a few hundred small solves do not repay a cluster start-up), the same bits on any cluster."""
+    from fmu_models.parallel import map_tasks
+
+    firsts = range(0, repeats, BOOTSTRAP_CHUNK)
+    tasks = [{"A": A, "g": g, "P": P, "gp": gp, "seed": seed, "index": i,
+              "count": min(BOOTSTRAP_CHUNK, repeats - first)} for i, first in enumerate(firsts)]
+    run = map_tasks(bootstrap_task, tasks, workers=workers, scheduler=scheduler, progress=False, desc="bootstrap")
+    if run.failures:
+        raise RuntimeError("bootstrap: " + "; ".join(run.failure_lines()))
+    return np.concatenate([got["reps"] for _, got in run.results() if got is not None])
+
+
 BOUND_METHODS = ("cramer-rao-coloured", "max(cramer-rao-coloured, segment-bootstrap x t(m-1)/z)")
 
 
@@ -708,12 +742,7 @@ class OutputErrorEstimator:
         ng = len(self.free)
         P = np.diag(self.prior_information(ng))  # the prior is not resampled: it is not data
         gp = P @ (self.prior_mean - theta[:ng]) if theta is not None else np.zeros(ng)
-        rng = np.random.default_rng(seed)
-        reps = []
-        for _ in range(repeats):
-            w = np.bincount(rng.integers(0, m, m), minlength=m).astype(float)
-            Ab = np.einsum("j,jab->ab", w, A) + P
-            reps.append(np.linalg.lstsq(Ab, w @ g + gp, rcond=None)[0])
+        reps = bootstrap_repeats(A, g, P, gp, repeats, seed)
         # robust spread (IQR / 1.349): a resample that leaves a parameter unexcited gives a wild step, which
         # would dominate a plain std
         q75, q25 = np.percentile(np.array(reps), [75, 25], axis=0)

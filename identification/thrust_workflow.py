@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -108,6 +109,10 @@ class ThrustConfig:
     fmu_mass_kg: float | None = bounded(None, 0.05, 50.0, "kg (None: the flights' common mass)", optional=True)
     accept_damaged_log: bool = False
     write_losing_model: bool = False
+    #: where the cross-validation folds run (``fmu_models.parallel``): None in this process unless a scheduler is
+    #: given (``scheduler`` or ``UAVFMU_SCHEDULER``), 0 in this process, N local worker processes
+    workers: int | None = bounded(None, 0, 64, "worker processes (0: in this process)", optional=True)
+    scheduler: str | None = None
 
 
 @dataclass
@@ -352,6 +357,53 @@ def outer_folds(flights: list[FlightData], n_blocks: int) -> list[tuple[str, lis
     return inner_folds(flights, n_blocks)
 
 
+def fold_results(data: list[FlightData], base: ModelSpec, cfg: ThrustConfig, calibrate: bool) -> list[FoldResult]:
+    """:func:`score_fold` of every outer fold as tasks of ``fmu_models.parallel`` (in this process by default: a
+    few folds do not repay a cluster start-up); in fold order whatever the order they finish in. The fit has no
+    randomness (``identification.anfis_train``), so no task seed is needed and every worker gives the same bits."""
+    from fmu_models.parallel import SCHEDULER_ENV, map_tasks
+
+    opts = {k: getattr(cfg, k) for k in _FOLD_OPTIONS}
+    tasks = [{"held_out": n, "train": [dataclasses.asdict(d) for d in tr], "test": dataclasses.asdict(te),
+              "base": dataclasses.asdict(base), "options": opts, "calibrate": calibrate}
+             for n, tr, te in outer_folds(data, cfg.n_folds_single)]
+    workers = cfg.workers
+    if workers is None:
+        workers = None if cfg.scheduler or os.environ.get(SCHEDULER_ENV) else 0
+    run = map_tasks(fold_task, tasks, scheduler=cfg.scheduler, workers=workers, progress=False, desc="thrust folds")
+    if run.failures:
+        raise ThrustDataError("cross-validation: " + "; ".join(f"fold without {tasks[i]['held_out']}: {err}"
+                                                               for i, err in sorted(run.failures.items())))
+    return [_fold_of(got) for _, got in run.results() if got is not None]
+
+
+#: the options of :class:`ThrustConfig` that a fold reads
+_FOLD_OPTIONS = ("n_mfs", "epochs", "check_block_s", "n_folds_single", "battery_state")
+
+
+def fold_task(task: dict[str, Any]) -> dict[str, Any]:
+    """One outer fold on a worker (``fmu_models.parallel``): plain data in, plain data out."""
+    cfg = ThrustConfig(flights=(), **task["options"])
+    base = task["base"]
+    spec = ModelSpec(**{**base, "features": tuple(base["features"])})
+    f = score_fold(task["held_out"], [FlightData(**d) for d in task["train"]], FlightData(**task["test"]), spec,
+                   cfg, task["calibrate"])
+    out: dict[str, Any] = {"held_out": f.held_out, "n_samples": f.n_samples, "model": dataclasses.asdict(f.model),
+                           "baselines": {k: dataclasses.asdict(v) for k, v in f.baselines.items()},
+                           "calibration_scale": f.calibration_scale, "spec": dataclasses.asdict(f.spec),
+                           "period_s": f.period_s, "series_names": list(f.series)}
+    out.update({f"series_{i}": np.asarray(v) for i, v in enumerate(f.series.values())})
+    return out
+
+
+def _fold_of(got: dict[str, Any]) -> FoldResult:
+    spec = got["spec"]
+    return FoldResult(got["held_out"], got["n_samples"], Score(**got["model"]),
+                      {k: Score(**v) for k, v in got["baselines"].items()}, got["calibration_scale"],
+                      ModelSpec(**{**spec, "features": tuple(spec["features"])}), got["period_s"],
+                      {k: got[f"series_{i}"] for i, k in enumerate(got["series_names"])})
+
+
 def comparisons(folds: list[FoldResult], calibrate: bool, block_s: float) -> dict[str, dict[str, Any]]:
     """Model vs each baseline, pooled over the held-out sets and per held-out set, as skill intervals.
 
@@ -416,7 +468,7 @@ def identify_thrust(cfg: ThrustConfig) -> ThrustResult:
     base, notes = base_spec(flights, cfg)
     calibrate = cfg.calibrate == "on" or (cfg.calibrate == "auto" and not base.voltage)
     data = [f.model_data(base.voltage) for f in flights]
-    results = [score_fold(n, tr, te, base, cfg, calibrate) for n, tr, te in outer_folds(data, cfg.n_folds_single)]
+    results = fold_results(data, base, cfg, calibrate)
     comp = comparisons(results, calibrate, cfg.check_block_s)
     verdict = verdict_of(comp)
     chosen = _select(data, base, cfg, calibrate)

@@ -139,6 +139,8 @@ class ReplayResult:
     options: dict[str, Any] = field(default_factory=dict)
     #: Monte Carlo bands and their coverage per signal (``identification.mc_bands.Bands``; ``validate --mc``)
     bands: Any = None
+    #: where ``battery_voltage_V`` came from when a battery-state model fed it (``identification.replay_battery``)
+    battery: dict[str, Any] | None = None
 
     @property
     def failed(self) -> list[str]:
@@ -378,12 +380,14 @@ class ReplaySetup:
     params: dict[str, float]
     notes: list[str]
     opts: ValidationOptions
+    battery: dict[str, Any] | None = None
 
 
 def replay_setup(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalMap], opts: ValidationOptions,
                  overrides: Mapping[str, float], mapping: PwmMapping | None = None,
-                 t_range: tuple[float, float] | None = None) -> ReplaySetup:
-    """Check the inputs and build the grid, inputs, windows and start states of a replay (nothing simulated)."""
+                 t_range: tuple[float, float] | None = None, battery: Any = None) -> ReplaySetup:
+    """Check the inputs and build the grid, inputs, windows and start states of a replay (nothing simulated);
+    ``battery`` (``identification.replay_battery.BatteryStateModel``) drives ``battery_voltage_V``."""
     vehicle = _check_inputs(host, log, log_path, maps, overrides)
     t = replay_grid(log, log_path, vehicle, opts, len(maps), t_range)
     try:
@@ -394,6 +398,14 @@ def replay_setup(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[S
     inputs.update(more)
     params = {n: host.start_value(n) for n, v in host.variables.items() if v.causality == "parameter"}
     params.update(overrides)
+    source = None
+    if battery is not None:
+        from identification.replay_battery import feed
+
+        try:
+            source = feed(battery, vehicle, params, log, t, inputs, notes)
+        except ValueError as err:
+            raise ValidationInputError(f"{log_path}: {err}") from err
     measured = _measured(maps, log, t, host, params)
     n = len(t)
     step = n - 1 if not opts.window_s else max(1, round(opts.window_s * opts.rate_hz))
@@ -404,7 +416,7 @@ def replay_setup(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[S
                                                             forward_from_airspeed=vehicle == "fixed_wing")]
     extra = [a for a in ACCEL if a in host.variables and log.has(a)]
     return ReplaySetup(vehicle, t, inputs, measured, edges, included, ground, gaps, on_ground, starts, extra, params,
-                       notes, opts)
+                       notes, opts, source)
 
 
 def simulate_setup(host: FmuHost, setup: ReplaySetup, maps: Sequence[SignalMap],
@@ -425,19 +437,21 @@ def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalM
            window_s: float | None = 2.0, start_values: Mapping[str, float] | None = None,
            mapping: PwmMapping | None = None, t_range: tuple[float, float] | None = None,
            progress: Callable[[int, int], None] | None = None, *, include_ground: bool = False,
-           horizons_s: Sequence[float] = DEFAULT_HORIZONS_S, max_memory_mb: float = 2048.0) -> ReplayResult:
-    """Replay ``log`` through the FMU of ``host`` on a ``rate_hz`` grid and score the signals of ``maps``."""
+           horizons_s: Sequence[float] = DEFAULT_HORIZONS_S, max_memory_mb: float = 2048.0,
+           battery: Any = None) -> ReplayResult:
+    """Replay ``log`` through the FMU of ``host`` on a ``rate_hz`` grid and score the signals of ``maps``
+    (``battery``: see :func:`replay_setup`)."""
     opts = options(rate_hz=rate_hz, window_s=window_s or 0.0, include_ground=include_ground,
                    horizons_s=list(horizons_s), max_memory_mb=max_memory_mb)
     overrides = dict(start_values or {})
-    s = replay_setup(host, log, log_path, maps, opts, overrides, mapping, t_range)
+    s = replay_setup(host, log, log_path, maps, opts, overrides, mapping, t_range, battery)
     t, edges, measured = s.t, s.edges, s.measured
     model, first = simulate_setup(host, s, maps, progress=progress)
     res = ReplayResult(fmu_identity(host, overrides), log_identity(log, log_path), t[1:],
                        {k: v[1:] for k, v in model.items()}, {k: v[1:] for k, v in measured.items()},
                        [(float(t[a]), float(t[b])) for a, b in itertools.pairwise(edges)],
                        [], {}, tuple(maps), overrides, included=list(s.included), ground=s.ground, gaps=s.gaps,
-                       options=opts.model_dump())
+                       options=opts.model_dump(), battery=s.battery)
     res.log["warnings"] += s.notes
     _score(res, np.asarray(edges), {m.fmu: measured[m.fmu][edges[:-1]] for m in maps})
     res.horizons = _horizons(maps, measured, model, edges, s.included, opts)

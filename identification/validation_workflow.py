@@ -10,6 +10,7 @@ Batch manifest (TOML; paths relative to it; ``fmu`` and ``log`` may be lists: ev
     [[job]]
     fmu = ["dist/quadrotor.fmu", "dist/quadrotor_identified.fmu"]
     log = "flight.bin"
+    params = "thrust.json"   # optional: its battery-state model drives battery_voltage_V
     set = { mass_kg = 1.2 }
 """
 
@@ -53,6 +54,7 @@ class JobEntry(Schema):
     map: str | None = None
     mapping: str | None = None
     channel_map: str | None = None
+    params: str | None = None  #: ``identify thrust`` parameter file whose battery state drives battery_voltage_V
     set: dict[str, FiniteFloat] = Field(default_factory=dict)
     window_s: float | None = Field(None, ge=0, le=86400, allow_inf_nan=False)
     rate_hz: float | None = Field(None, gt=0, le=2000, allow_inf_nan=False)
@@ -82,6 +84,9 @@ class ValidationJob:
     report_dir: Path | None = None
     #: with ``report_dir``: also ``report.html`` (plots: about a second a run), else ``metrics.json`` alone
     report_html: bool = True
+    #: parameter file of ``identify thrust`` whose battery-state model drives ``battery_voltage_V``
+    #: (``identification.replay_battery``; None: the input is logged or held at its start value)
+    params_file: Path | None = None
 
 
 @dataclass
@@ -105,11 +110,12 @@ class ValidationResult:
     report: str | None = None
     replay: ReplayResult | None = None
     retried: str = ""
+    battery: dict[str, Any] | None = None  #: where ``battery_voltage_V`` came from (with ``params_file``)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready summary (no arrays)."""
         keys = ("fmu", "log", "status", "error", "signals", "failed", "windows", "excluded", "ground", "gaps",
-                "warnings", "one_step", "horizons", "report", "retried")
+                "warnings", "one_step", "horizons", "report", "retried", "battery")
         return {k: getattr(self, k) for k in keys}
 
     def lines(self) -> list[str]:
@@ -135,16 +141,19 @@ def validate(job: ValidationJob, progress: Callable[[int, int], None] | None = N
     from fmu_models.fmi.host import FmuHost
     from fmu_models.signals.pwm_mapping import PwmMapping
     from identification.readers import read_log
+    from identification.replay_battery import read_battery_state
     from identification.validation import replay, vehicle_of
 
     log = read_log(job.log, channel_map=job.channel_map)
+    battery = read_battery_state(job.params_file) if job.params_file is not None else None
     o = job.options
     with FmuHost(job.fmu) as host:
         maps = _load_maps(job, vehicle_of(host))
         mapping = PwmMapping.load(job.mapping) if job.mapping else None
         res = replay(host, log, job.log, maps, rate_hz=o.rate_hz, window_s=o.window_s or None,
                      start_values=dict(job.start_values), mapping=mapping, progress=progress,
-                     include_ground=o.include_ground, horizons_s=o.horizons_s, max_memory_mb=o.max_memory_mb)
+                     include_ground=o.include_ground, horizons_s=o.horizons_s, max_memory_mb=o.max_memory_mb,
+                     battery=battery)
     out = result_of(res, job)
     if job.report_dir is not None:
         write_report(res, out, Path(job.report_dir))
@@ -167,7 +176,8 @@ def result_of(res: ReplayResult, job: ValidationJob) -> ValidationResult:
     return ValidationResult(str(job.fmu), str(job.log), "fail" if res.failed else "pass", "", signals,
                             res.failed, len(res.windows), res.excluded, dict(res.ground), dict(res.gaps), warnings,
                             {k: v.as_dict() for k, v in res.one_step.items()},
-                            {k: [r.as_dict() for r in rows] for k, rows in res.horizons.items()}, None, res)
+                            {k: [r.as_dict() for r in rows] for k, rows in res.horizons.items()}, None, res,
+                            battery=res.battery)
 
 
 def metrics_document(res: ReplayResult, out: ValidationResult) -> dict[str, Any]:
@@ -184,6 +194,7 @@ def metrics_document(res: ReplayResult, out: ValidationResult) -> dict[str, Any]
                        for w, inc, ws in zip(res.windows, res.included, res.window_scores, strict=True)],
         "horizons": {k: [r.as_dict() for r in rows] for k, rows in res.horizons.items()},
         "one_step": out.one_step,
+        "battery_voltage_V": res.battery,
         "quality": res.log.get("quality"),
         **({"monte_carlo": res.bands.info} if res.bands is not None else {}),
     }
@@ -197,11 +208,12 @@ def write_report(res: ReplayResult, out: ValidationResult, rdir: Path) -> None:
 
 
 def validate_mc(job: ValidationJob, uncertainty: Uncertainty, draws: int, seed: int = 0, *,
-                workers: int | None = None, scheduler: str | None = None, progress: Any = False) -> ValidationResult:
+                workers: int | None = None, scheduler: str | None = None, progress: Any = False,
+                executor: Executor | None = None) -> ValidationResult:
     """:func:`validate` with Monte Carlo bands: the nominal replay with the uncertainty's mean as parameters,
     then ``draws`` replays with parameters and restart states drawn (``identification.mc_bands``) on
     ``fmu_models.parallel``; each signal's band coverage beside its skill, in the summary, ``metrics.json`` and
-    the report. Raises like :func:`validate`."""
+    the report (``executor``: an open one, kept open). Raises like :func:`validate`."""
     from fmu_models.fmi.host import FmuHost
     from fmu_models.parallel import Executor
     from identification import mc_bands
@@ -224,11 +236,29 @@ def validate_mc(job: ValidationJob, uncertainty: Uncertainty, draws: int, seed: 
     assert res is not None
     mc_bands.check_draws(draws, len(res.t_s) + 1, len(res.maps), job.options.max_memory_mb)  # before the cluster
     log = read_log(job.log, channel_map=job.channel_map)
-    with Executor(scheduler, workers) as ex:
+    with nullcontext(executor) if executor is not None else Executor(scheduler, workers) as ex:
         res.bands = mc_bands.monte_carlo(job, uncertainty, res, log, draws, seed, ex, units, progress)
     out = result_of(res, job)
     if job.report_dir is not None:
         write_report(res, out, Path(job.report_dir))
+    return out
+
+
+def validate_mc_batch(jobs: Sequence[ValidationJob], uncertainty: Uncertainty, draws: int, seed: int = 0, *,
+                      workers: int | None = None, scheduler: str | None = None,
+                      progress: Any = False) -> list[ValidationResult]:
+    """:func:`validate_mc` of every job on one cluster (the same ``seed``: every job sees the same parameter
+    draws); a job with bad input or a failing FMU is an ``error`` result naming why, and the rest runs."""
+    from fmu_models.parallel import Executor
+
+    out = []
+    with Executor(scheduler, workers) as ex:
+        for job in jobs:
+            try:
+                out.append(validate_mc(job, uncertainty, draws, seed, progress=progress, executor=ex))
+            except (FmuRunError, OSError, ValueError, KeyError) as err:
+                out.append(ValidationResult(str(job.fmu), str(job.log), "error", error=str(err).strip("'\"")))
+            out[-1].replay = None  # one replay's arrays in memory at a time
     return out
 
 
@@ -250,7 +280,8 @@ def validate_job(job: ValidationJob) -> ValidationResult:
 
 def job_files(job: ValidationJob) -> list[Path]:
     """The files a job reads (shipped to the worker that runs it)."""
-    return [p for p in (job.fmu, job.log, job.output_map, job.mapping, job.channel_map) if p is not None]
+    return [p for p in (job.fmu, job.log, job.output_map, job.mapping, job.channel_map, job.params_file)
+            if p is not None]
 
 
 def batch_task(job: ValidationJob) -> dict[str, Any]:
@@ -260,7 +291,8 @@ def batch_task(job: ValidationJob) -> dict[str, Any]:
     from fmu_models.parallel import local_path
     from identification import report
 
-    files = {k: local_path(getattr(job, k)) for k in ("fmu", "log", "output_map", "mapping", "channel_map")
+    files = {k: local_path(getattr(job, k)) for k in ("fmu", "log", "output_map", "mapping", "channel_map",
+                                                      "params_file")
              if getattr(job, k) is not None}
     out = _attempt(replace(job, report_dir=None, **files))
     doc: dict[str, Any] = {"result": out.as_dict()}
@@ -333,7 +365,8 @@ def load_manifest(path: Path, base_options: Mapping[str, Any] | None = None,
                 jobs.append(ValidationJob(
                     base / f, base / lg, opts, *(base / entry[k] if k in entry else None
                                                  for k in ("map", "mapping", "channel_map")),
-                    dict(entry.get("set", {})), entry.get("max_theil")))
+                    dict(entry.get("set", {})), entry.get("max_theil"),
+                    params_file=base / entry["params"] if "params" in entry else None))
     if problems:
         raise ManifestError(str(path), problems)
     if report_root is not None:
@@ -365,6 +398,8 @@ def summary_lines(r: ValidationResult) -> list[str]:
     out = [head + verdict]
     if r.retried:
         out.append(f"  run twice: the first attempt failed ({r.retried})")
+    if r.battery:
+        out.append(f"  battery_voltage_V: {r.battery['source']} ({r.battery['detail']})")
     scored = r.windows - r.excluded
     why = ", ".join(f"{k}: {n}" for k, n in {**r.ground, **r.gaps}.items())
     out.append(f"  {scored} of {r.windows} replay windows scored"

@@ -163,3 +163,18 @@ def test_cli_mc_prints_coverage_beside_skill(fixed_wing_fmu: Path, wing, tmp_pat
     assert rc == (1 if metrics["failed"] else 0)  # coverage is reported, the exit status is the skill verdicts'
     assert "band cover" in out and "NOT EXPLAINED" in out
     assert metrics["monte_carlo"]["draws"] == 19
+
+
+def test_mc_batch_runs_every_job_on_one_cluster_and_lists_a_bad_one(fixed_wing_fmu: Path, wing,
+                                                                      tmp_path: Path) -> None:
+    from identification.validation_workflow import validate_mc_batch
+
+    good = _job(fixed_wing_fmu, wing, None)
+    bad = replace(good, log=tmp_path / "missing.csv")
+    alone = validate_mc(good, identified(), 19, seed=5, workers=1)
+    out = validate_mc_batch([bad, good], identified(), 19, seed=5, workers=1)
+    assert [r.status == "error" for r in out] == [True, False]
+    assert "missing.csv" in out[0].error
+    # the same draws as the run alone: coverage identical to the bit
+    assert {s: v["band_coverage"] for s, v in out[1].signals.items()} == \
+        {s: v["band_coverage"] for s, v in alone.signals.items()}

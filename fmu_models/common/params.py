@@ -174,6 +174,7 @@ class Uncertainty(Schema):
     mean: list[Annotated[float, Field(allow_inf_nan=False)]] = Field(min_length=1, max_length=MAX_UNCERTAIN_PARAMS)
     covariance: list[list[Annotated[float, Field(allow_inf_nan=False)]]] = Field(
         min_length=1, max_length=MAX_UNCERTAIN_PARAMS)
+    note: str = Field("", max_length=2000)  #: what the numbers are (``identify thrust`` writes one); not read
 
     @model_validator(mode="after")
     def _consistent(self) -> Uncertainty:

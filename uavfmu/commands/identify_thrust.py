@@ -62,6 +62,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     v.add_argument("--fmu-mass-kg", type=float,
                    help="the FMU's mass_kg [kg]; required when the flights' masses differ")
     v.add_argument("--folds", type=int, default=3, help="time blocks when a single flight is given (3)")
+    v.add_argument("--jobs", type=int, help="cross-validation folds on N local worker processes (default: in this "
+                   "process, no cluster start-up; 0..64)")
+    v.add_argument("--scheduler", help="run the folds on the dask cluster at tcp://HOST:PORT (default: "
+                   "$UAVFMU_SCHEDULER when set); see docs/scale-out.md")
     g = p.add_argument_group("data set and ANFIS (both methods)")
     g.add_argument("--lowpass-hz", type=float, help="zero-phase low-pass cut-off [Hz] (default: none)")
     g.add_argument("--max-lag-s", type=float, default=0.3, help="accelerometer lag search range +- [s] (0.3)")
@@ -236,6 +240,7 @@ def paper_summary(result: PaperThrustResult) -> str:
 
 def _run_voltage(args: argparse.Namespace, flights: list[tuple[Path, float]]) -> int:
     from fmu_models.common.errors import ParameterError
+    from fmu_models.parallel import ParallelError
     from identification.anfis_train import AnfisTrainingError
     from identification.flightlog import LogError
     from identification.thrust_dataset import ThrustDataError
@@ -248,11 +253,12 @@ def _run_voltage(args: argparse.Namespace, flights: list[tuple[Path, float]]) ->
         motor_min_pwm_us=args.motor_min_pwm_us, max_lag_s=args.max_lag_s, lowpass_hz=args.lowpass_hz,
         check_block_s=args.check_block_s, channel_map=args.channel_map, fmu_mass_kg=args.fmu_mass_kg,
         battery_state=not args.no_battery_state, accept_damaged_log=args.accept_damaged_log,
-        write_losing_model=args.write_losing_model,
+        write_losing_model=args.write_losing_model, workers=args.jobs, scheduler=args.scheduler,
     )
     try:
         result = identify_thrust(cfg)
-    except (ThrustDataError, AnfisTrainingError, ParameterError, LogError, FileNotFoundError) as err:
+    except (ThrustDataError, AnfisTrainingError, ParameterError, LogError, FileNotFoundError,
+            ParallelError) as err:
         return _error(str(err))
     print(format_report(result))
     for f in result.flights:

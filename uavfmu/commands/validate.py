@@ -14,6 +14,9 @@ Runs go through ``fmu_models.parallel`` (dask.distributed): local worker process
 cluster (``--scheduler tcp://HOST:PORT`` or ``UAVFMU_SCHEDULER``; docs/scale-out.md). ``--mc N --uncertainty
 PARAMS`` adds Monte Carlo bands: N replays with parameters drawn from the parameter file's ``uncertainty``
 block, restart states and sensor noise from the log; each signal's band coverage is printed beside its skill.
+``--params PARAMS`` (an ``identify thrust`` parameter file; manifest key ``params``) drives the quadrotor's
+``battery_voltage_V`` from its battery-state model: the logged voltage, else the hover state computed from the
+log (``identification.replay_battery``); the source is printed and in ``metrics.json``.
 
 Exit status: 0 every gated signal of every run passes, 1 a signal fails (or a batch run errors), 2 bad input.
 """
@@ -46,6 +49,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-theil", type=float, help="pass threshold on Theil's U for every signal")
     parser.add_argument("--report", type=Path, help="folder for report.html and metrics.json")
     parser.add_argument("--channel-map", type=Path, help="TOML/JSON [channels] for the log's outputs")
+    parser.add_argument("--params", type=Path, metavar="PARAMS",
+                        help="parameter file of `identify thrust`: its battery-state model drives the quadrotor's "
+                             "battery_voltage_V (logged voltage, else the hover state from the log; default with "
+                             "--mc: the --uncertainty file)")
     parser.add_argument("--jobs", type=int, default=min(4, os.cpu_count() or 1),
                         help="local worker processes (batch and --mc; ignored with --scheduler)")
     parser.add_argument("--scheduler", default=os.environ.get("UAVFMU_SCHEDULER"),
@@ -93,18 +100,21 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"--max-theil = {args.max_theil:g}: allowed > 0")
         values = {k: v for k, v in _option_values(args).items() if v is not None}
         opts = check_options(**values)
+        if args.batch and args.params:
+            raise ValueError("--params applies to FMU LOG; in a --batch manifest give params = \"FILE\" per job")
         if args.batch:
             jobs = load_manifest(args.batch, values, args.report)
         elif args.fmu is None or args.log is None:
             raise ValueError("give FMU and LOG, or --batch manifest.toml")
         else:
             jobs = [ValidationJob(args.fmu, args.log, opts, args.map, args.mapping, args.channel_map,
-                                  _parse_set(args.set), args.max_theil, args.report)]
+                                  _parse_set(args.set), args.max_theil, args.report,
+                                  params_file=args.params or (args.uncertainty if args.mc else None))]
         uncertainty = _uncertainty(args)
     except (ValueError, ConfigError) as err:
         print(f"uavfmu validate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    return _run_batch(jobs, args) if args.batch else _run_one(jobs[0], args, uncertainty)
+    return _run_batch(jobs, args, uncertainty) if args.batch else _run_one(jobs[0], args, uncertainty)
 
 
 def _uncertainty(args: argparse.Namespace) -> object:
@@ -118,8 +128,6 @@ def _uncertainty(args: argparse.Namespace) -> object:
         return None
     if not MIN_DRAWS <= args.mc <= MAX_DRAWS:
         raise ValueError(f"--mc = {args.mc}: allowed {MIN_DRAWS}..{MAX_DRAWS}")
-    if args.batch:
-        raise ValueError("--mc runs one FMU against one log, not --batch")
     if args.uncertainty is None:
         raise ValueError("--mc needs --uncertainty PARAMS (a parameter file with an 'uncertainty' key)")
     if not 0 <= args.seed < 2**63:
@@ -147,12 +155,16 @@ def _run_one(job: object, args: argparse.Namespace, uncertainty: object = None) 
     return EXIT_FAIL if res.failed else EXIT_PASS
 
 
-def _run_batch(jobs: list, args: argparse.Namespace) -> int:
+def _run_batch(jobs: list, args: argparse.Namespace, uncertainty: object = None) -> int:
     from fmu_models.parallel import ParallelError
-    from identification.validation_workflow import batch_summary, validate_batch, write_batch_report
+    from identification.validation_workflow import batch_summary, validate_batch, validate_mc_batch, write_batch_report
 
     try:
-        results = validate_batch(jobs, args.jobs, progress=not args.quiet, scheduler=args.scheduler)
+        if uncertainty is None:
+            results = validate_batch(jobs, args.jobs, progress=not args.quiet, scheduler=args.scheduler)
+        else:  # every run's draws on the same cluster, one run after another
+            results = validate_mc_batch(jobs, uncertainty, args.mc, args.seed, workers=args.jobs,  # type: ignore[arg-type]
+                                        scheduler=args.scheduler, progress=not args.quiet)
     except ParallelError as err:
         print(f"uavfmu validate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -1,0 +1,113 @@
+"""Validation replays drive the battery state (issue 24 item 2): a quadrotor FMU identified without voltage
+flies a synthetic flight on a sagging battery; replaying the log with the identified hover battery state as
+``battery_voltage_V`` must cut the thrust error against holding the nominal voltage."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import identification.readers as readers
+from fmu_models.quadrotor.params import QuadrotorParams
+from identification.replay_battery import read_battery_state
+from identification.thrust_model import fmu_total_thrust
+from identification.thrust_workflow import identify_thrust
+from identification.validation_workflow import ValidationJob, validate
+from tests.test_thrust_workflow import VoltLog, _cfg
+from uavfmu.scenarios import QuadrotorAutopilot, Recording, ThrustInverse, fly
+from uavfmu.synthetic import recording_signals, write_csv_log, write_log
+
+V_START, V_END, SECONDS = 12.3, 10.1, 60.0
+
+
+@pytest.fixture(scope="module")
+def identified(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """A thrust map and hover battery state identified without voltage, and the FMU built from it."""
+    from build_fmus import build
+
+    made = {"a": VoltLog(1.2, 12.4, 10.6, seed=11, voltage=False),
+            "b": VoltLog(1.2, 11.9, 10.3, seed=12, voltage=False)}
+    tmp_path = tmp_path_factory.mktemp("identified")
+    params = tmp_path / "thrust.json"
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(readers, "read_log", lambda p, channel_map=None: made[Path(p).name])
+        r = identify_thrust(_cfg([("a", 1.2), ("b", 1.2)], out=params))
+    assert r.written == params and r.spec.tau_s is not None, r.spec.describe()
+    (fmu,) = build(params, tmp_path / "fmu", ["quadrotor"])
+    return params, fmu
+
+
+def _sagging_flight(fmu: Path, p: QuadrotorParams) -> Recording:
+    def per_motor(pwm: np.ndarray) -> np.ndarray:
+        return fmu_total_thrust(p, np.repeat(pwm[:, None], 4, axis=1), np.full(pwm.size, p.battery_nominal_V)) / 4
+
+    autopilot = QuadrotorAutopilot(lambda t: 3.0 if t < 20 else (6.0 if t < 40 else 4.0), ThrustInverse(per_motor),
+                                   mass_kg=p.mass_kg)
+
+    def controller(t: float, y: dict[str, float]) -> dict[str, float]:
+        return {**autopilot(t, y), "battery_voltage_V": V_START + (V_END - V_START) * t / SECONDS}
+
+    return fly(fmu, controller, SECONDS, dt_s=0.02)
+
+
+def test_the_hover_battery_state_cuts_the_replay_thrust_error(identified: tuple[Path, Path], tmp_path: Path) -> None:
+    params, fmu = identified
+    model = read_battery_state(params)
+    assert model is not None and model.has_state
+    rec = _sagging_flight(fmu, model.params)
+    log = write_log(tmp_path / "sag.bin", rec)  # a DataFlash log: no battery voltage logged
+    held = validate(ValidationJob(fmu, log))
+    fed = validate(ValidationJob(fmu, log, params_file=params, report_dir=tmp_path / "rep", report_html=False))
+    assert held.battery is None and any("battery_voltage_V is not in the log" in w for w in held.warnings)
+    assert fed.battery is not None and fed.battery["source"] == "hover battery state"
+    assert not any("battery_voltage_V" in w for w in fed.warnings)
+    e_held, e_fed = (r.signals["thrust_total_N"]["rmse"] for r in (held, fed))
+    # the true battery runs 12.3 -> 10.1 V about the 11.1 V nominal: thrust off by up to ~10 % when held
+    assert e_fed < 0.6 * e_held, (e_fed, e_held)
+    metrics = json.loads((tmp_path / "rep" / "metrics.json").read_text())
+    assert metrics["battery_voltage_V"]["source"] == "hover battery state"
+    lo, hi = fed.battery["range_V"]
+    assert lo < p_nominal(model) < hi  # the state follows the sag through the nominal voltage
+
+
+def p_nominal(model: object) -> float:
+    return model.params.battery_nominal_V  # type: ignore[attr-defined]
+
+
+def test_a_logged_voltage_is_fed_as_logged(identified: tuple[Path, Path], tmp_path: Path) -> None:
+    params, fmu = identified
+    model = read_battery_state(params)
+    assert model is not None
+    rec = _sagging_flight(fmu, model.params)
+    sig = recording_signals(rec)
+    sig["battery_voltage_v"] = np.asarray(rec.inputs["battery_voltage_V"])
+    log = write_csv_log(tmp_path / "sag.csv", rec.t_s, sig)
+    fed = validate(ValidationJob(fmu, log, params_file=params))
+    assert fed.battery is not None and fed.battery["source"] == "logged"
+    assert fed.signals["thrust_total_N"]["rmse"] < 0.2  # the true input: only the replay's own error remains
+
+
+def test_a_parameter_file_of_another_fmu_is_refused(identified: tuple[Path, Path], tmp_path: Path) -> None:
+    params, _ = identified
+    data = json.loads(params.read_text())
+    data["quadrotor"]["battery_nominal_V"] = 14.8
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps(data))
+    _, fmu = identified
+    rec = _sagging_flight(fmu, QuadrotorParams.from_dict(json.loads(params.read_text())["quadrotor"]))
+    log = write_csv_log(tmp_path / "x.csv", rec.t_s, recording_signals(rec))
+    with pytest.raises(ValueError, match=r"battery_nominal_V = 11\.1 in the FMU, 14\.8 in"):
+        validate(ValidationJob(fmu, log, params_file=other))
+
+
+def test_the_identified_file_carries_an_uncertainty_validate_mc_reads(identified: tuple[Path, Path]) -> None:
+    from fmu_models.common.params import read_uncertainty
+    from fmu_models.fmi.host import FmuHost
+
+    params, fmu = identified
+    unc = read_uncertainty(params)  # the file identify thrust writes, with its note
+    with FmuHost(fmu) as host:
+        assert all(host.variables[n].causality == "parameter" for n in unc.names)
