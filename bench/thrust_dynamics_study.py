@@ -8,8 +8,11 @@ which for a one-rule map equals the FMU's ``tau_motor_s`` lag on the thrust), pr
 raw and with the per-flight hover calibration (hover = |climb| < 0.3 m/s, no tilt correction, so Erle
 calibrated figures differ slightly from ``identify thrust``), and the in-sample RMSE of each fold. Then the same
 map with the battery voltage replaced by an estimate of the instantaneous terminal voltage ``V_oc - R I_hat`` (``R`` and
-``V_oc`` from the 2 Hz voltage/current, ``I_hat = k sum u^3`` at the PWM rate). A study, not a target:
-exit 0 when the data are there, 2 when not.
+``V_oc`` from the 2 Hz voltage/current, ``I_hat = k sum u^3`` at the PWM rate). Last, per PX4 flight held out,
+the coherence between the model's thrust (fitted on the other flight) and the measured thrust by frequency band,
+with the transfer function ``H = S_xy / S_xx`` and the error no linear time-invariant map of the model's thrust
+(lag, delay, any filter) can remove: ``sqrt(int (1 - coh) S_yy df)``. A study, not a target: exit 0 when the
+data are there, 2 when not.
 
     .venv/bin/python bench/thrust_dynamics_study.py
 """
@@ -107,6 +110,52 @@ def terminal_voltage(f: FlightData, log: object) -> tuple[np.ndarray, float]:
     return np.interp(f.time_s, t, v_i - c[2] * i_a) + c[2] * k * power, float(-c[2])
 
 
+BANDS_HZ = ((0.0, 1.0), (1.0, 2.0), (2.0, 3.0), (3.0, 6.0), (6.0, 12.0), (12.0, 25.0))
+SEGMENT_N = 64  #: Welch segment length [samples] (about 1.4 s at 46 Hz); shorter log segments are skipped
+
+
+def spectra(x: np.ndarray, y: np.ndarray, f: FlightData) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Frequencies [Hz], cross and auto spectra (S_xy, S_xx, S_yy) averaged over the gap-free segments."""
+    starts = np.flatnonzero(np.diff(f.time_s, prepend=-np.inf) > 1.5 * f.period_s)
+    acc: list[np.ndarray] = [np.zeros(SEGMENT_N // 2 + 1, complex), np.zeros(SEGMENT_N // 2 + 1),
+                             np.zeros(SEGMENT_N // 2 + 1)]
+    used = 0
+    freq = np.zeros(0)
+    for lo, hi in zip(starts, [*starts[1:], len(x)], strict=True):
+        if hi - lo < SEGMENT_N:
+            continue
+        a, b = x[lo:hi] - x[lo:hi].mean(), y[lo:hi] - y[lo:hi].mean()
+        freq, sxy = signal.csd(a, b, fs=1.0 / f.period_s, nperseg=SEGMENT_N)
+        for k, s_k in enumerate((sxy, signal.welch(a, fs=1.0 / f.period_s, nperseg=SEGMENT_N)[1],
+                                 signal.welch(b, fs=1.0 / f.period_s, nperseg=SEGMENT_N)[1])):
+            acc[k] = acc[k] + (hi - lo) * s_k
+        used += hi - lo
+    return freq, acc[0] / used, acc[1].real / used, acc[2].real / used
+
+
+def coherence_floor(flights: list[FlightData]) -> None:
+    """Print, per held-out flight, coherence / transfer function / LTI-irreducible error by band."""
+    nominal = float(np.median(np.concatenate([f.volt_V for f in flights])))  # type: ignore[arg-type]
+    for i, test in enumerate(flights):
+        tr = flights[1 - i]
+        theta = np.linalg.lstsq(features(tr, tr.volt_V / nominal, 0.0), tr.thrust_N, rcond=None)[0]
+        pred = features(test, test.volt_V / nominal, 0.0) @ theta
+        freq, sxy, sxx, syy = spectra(pred, test.thrust_N, test)
+        coh = np.abs(sxy) ** 2 / (sxx * syy)
+        df = freq[1] - freq[0]
+        rmse = float(np.sqrt(np.mean((pred - test.thrust_N) ** 2)))
+        print(f"  {test.name}: model RMSE {rmse:.3f} N (all samples); over gap-free segments >= {SEGMENT_N} samples, "
+              "the error no LTI map of the model's thrust removes "
+              f"{np.sqrt(np.sum((1 - coh) * syy) * df):.3f} N")
+        for lo, hi in BANDS_HZ:
+            m = (freq >= lo) & (freq < hi)
+            h = sxy[m] / sxx[m]
+            floor = np.sqrt(np.sum(((1 - coh) * syy)[m]) * df)
+            print(f"    {lo:4.1f}-{hi:4.1f} Hz: coherence {coh[m].mean():.2f}, |H| {np.abs(h).mean():.2f}, "
+                  f"phase {np.degrees(np.angle(h)).mean():+4.0f} deg, irreducible {floor:.3f} N"
+                  f" of {np.sqrt(np.sum(syy[m]) * df):.3f} N")
+
+
 def main() -> int:
     if not all(p.exists() for p, _ in (*PX4, *ERLE)):
         print(f"bench/thrust_dynamics_study.py: needs {DATA}")
@@ -125,6 +174,8 @@ def main() -> int:
     fl = [f for f, _ in loaded]
     raw, cal, _ = lofo(fl, [v for v, _ in sag], 0.0)
     print(f"  V_oc - R I_hat (R = {', '.join(f'{r * 1e3:.1f}' for _, r in sag)} mOhm): {raw:.3f} / {cal:.3f}")
+    print("PX4 coherence of the held-out measured thrust with the model's (per-flight delay estimate)")
+    coherence_floor(fl)
     print("Erle LOFO, one-rule map (no voltage), per-flight delay estimate")
     erle = [flight(p, m, None)[0] for p, m in ERLE]
     for tau in TAUS_S:
