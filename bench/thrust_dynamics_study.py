@@ -1,0 +1,188 @@
+"""Study (issue 22): do motor dynamics, the PWM/IMU delay or voltage sag under load explain the PX4 thrust error?
+
+Leave-one-flight-out on the two shared PX4 flights (and the delay-free check on the three Erle flights), with
+the one-rule map ``T = a sum (u V/V_nom)^2 + b sum u V/V_nom`` (PX4) or ``a sum u^2 + b sum u`` (Erle) fitted by
+least squares on the training flight(s). For each accelerometer delay ``d`` (fixed, instead of the per-flight
+estimate of ``build_thrust_dataset``) and motor time constant ``tau`` (first-order lag of each motor's features,
+which for a one-rule map equals the FMU's ``tau_motor_s`` lag on the thrust), prints the held-out pooled RMSE,
+raw and with the per-flight hover calibration (hover = |climb| < 0.3 m/s, no tilt correction, so Erle
+calibrated figures differ slightly from ``identify thrust``), and the in-sample RMSE of each fold. Then the same
+map with the battery voltage replaced by an estimate of the instantaneous terminal voltage ``V_oc - R I_hat`` (``R`` and
+``V_oc`` from the 2 Hz voltage/current, ``I_hat = k sum u^3`` at the PWM rate). Last, per PX4 flight held out,
+the coherence between the model's thrust (fitted on the other flight) and the measured thrust by frequency band,
+with the transfer function ``H = S_xy / S_xx`` and the error no linear time-invariant map of the model's thrust
+(lag, delay, any filter) can remove: ``sqrt(int (1 - coh) S_yy df)``. A study, not a target: exit 0 when the
+data are there, 2 when not.
+
+    .venv/bin/python bench/thrust_dynamics_study.py
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+from scipy import signal
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from identification.readers import read_log
+from identification.thrust_dataset import ThrustDatasetConfig, build_thrust_dataset
+from identification.thrust_model import FlightData, command
+from identification.thrust_workflow import HOVER_CLIMB_M_S
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+PX4 = ((DATA / "quadrotor_px4_csv" / "drone1-8", 1.32), (DATA / "quadrotor_px4_csv" / "drone1-10", 1.085))
+ERLE = tuple((DATA / "quadrotor" / f"arducopter_x_quad_real_{n}.BIN", 1.14) for n in (218, 104, 105))
+IDLE_US, FULL_US, G0 = 1000.0, 2000.0, 9.80665
+DELAYS_S = (0.0, 0.01, 0.02, 0.03, 0.04)
+TAUS_S = (0.0, 0.01, 0.02, 0.03, 0.05)
+
+
+def flight(path: Path, mass_kg: float, delay_s: float | None) -> tuple[FlightData, object]:
+    """Airborne samples of one log at a fixed accelerometer delay (None: the per-flight estimate)."""
+    log = read_log(path)
+    ds = build_thrust_dataset(log, ThrustDatasetConfig(mass_kg=mass_kg, airborne_on_mean_pwm=True, lag_s=delay_s))
+    pwm = np.stack([ds.inputs[f"motor_{k}_pwm_us"] for k in range(1, 5)], axis=1)
+    climb = ds.inputs.get("climb_rate_m_s")
+    hover = np.abs(climb) < HOVER_CLIMB_M_S if climb is not None else np.ones(ds.n_samples, bool)
+    f = FlightData(path.name, pwm, ds.inputs.get("battery_voltage_V"), hover, ds.time_s, ds.fz_N, mass_kg * G0,
+                   ds.sample_period_s)
+    return f, log
+
+
+def lagged(x: np.ndarray, f: FlightData, tau_s: float) -> np.ndarray:
+    """First-order lag (time constant ``tau_s``) of ``x`` sampled on ``f``, restarted at each log gap."""
+    if tau_s <= 0.0:
+        return x
+    a = 1.0 - np.exp(-f.period_s / tau_s)
+    starts = np.flatnonzero(np.diff(f.time_s, prepend=-np.inf) > 1.5 * f.period_s)
+    out = np.empty_like(x)
+    for lo, hi in zip(starts, [*starts[1:], len(x)], strict=True):
+        seg = x[lo:hi]
+        out[lo:hi] = signal.lfilter([a], [1.0, a - 1.0], seg, zi=[seg[0] * (1.0 - a)])[0]
+    return out
+
+
+def features(f: FlightData, ratio: np.ndarray | None, tau_s: float) -> np.ndarray:
+    """Summed ``u^2`` and ``u`` (``u`` times the battery ratio ``V/V_nom`` when given), lagged by ``tau_s``."""
+    u = command(f.pwm_us, IDLE_US, FULL_US)
+    if ratio is not None:
+        u = u * ratio[:, None]
+    return np.stack([lagged((u * u).sum(axis=1), f, tau_s), lagged(u.sum(axis=1), f, tau_s)], axis=1)
+
+
+def lofo(flights: list[FlightData], volts: list[np.ndarray | None], tau_s: float) -> tuple[float, float, list[float]]:
+    """Held-out pooled RMSE [N] raw and hover-calibrated, and the in-sample RMSE of each fold (voltage [V] per
+    flight, or None; nominal voltage: the median over all flights, as ``identify thrust``)."""
+    if volts[0] is not None:
+        nominal = float(np.median(np.concatenate(volts)))  # type: ignore[arg-type]
+        volts = [v / nominal for v in volts]  # type: ignore[operator]
+    sse = sse_cal = 0.0
+    n = 0
+    inside = []
+    for i, test in enumerate(flights):
+        tr = [j for j in range(len(flights)) if j != i]
+        a = np.concatenate([features(flights[j], volts[j], tau_s) for j in tr])
+        y = np.concatenate([flights[j].thrust_N for j in tr])
+        theta = np.linalg.lstsq(a, y, rcond=None)[0]
+        inside.append(float(np.sqrt(np.mean((a @ theta - y) ** 2))))
+        pred = features(test, volts[i], tau_s) @ theta
+        cal = pred * test.weight_N / np.mean(pred[test.hover])
+        sse += float(np.sum((pred - test.thrust_N) ** 2))
+        sse_cal += float(np.sum((cal - test.thrust_N) ** 2))
+        n += len(pred)
+    return float(np.sqrt(sse / n)), float(np.sqrt(sse_cal / n)), inside
+
+
+def terminal_voltage(f: FlightData, log: object) -> tuple[np.ndarray, float]:
+    """``V_oc - R I_hat`` [V] at the PWM samples and ``R`` [ohm]: ``V = c0 + c1 t - R I`` on the 2 Hz samples."""
+    sig = log.signals  # type: ignore[attr-defined]
+    t_i, i_a = np.asarray(sig["battery_current_a"].t_s), np.asarray(sig["battery_current_a"].values, float)
+    t_v, v = np.asarray(sig["battery_voltage_v"].t_s), np.asarray(sig["battery_voltage_v"].values, float)
+    power = (command(f.pwm_us, IDLE_US, FULL_US) ** 3).sum(axis=1)
+    ok = (t_i > f.time_s[0]) & (t_i < f.time_s[-1])
+    t, i_a = t_i[ok], i_a[ok]
+    v_i = np.interp(t, t_v, v)
+    c = np.linalg.lstsq(np.stack([np.ones_like(t), t - t[0], i_a], axis=1), v_i, rcond=None)[0]
+    k = np.linalg.lstsq(np.interp(t, f.time_s, power)[:, None], i_a, rcond=None)[0][0]
+    return np.interp(f.time_s, t, v_i - c[2] * i_a) + c[2] * k * power, float(-c[2])
+
+
+BANDS_HZ = ((0.0, 1.0), (1.0, 2.0), (2.0, 3.0), (3.0, 6.0), (6.0, 12.0), (12.0, 25.0))
+SEGMENT_N = 64  #: Welch segment length [samples] (about 1.4 s at 46 Hz); shorter log segments are skipped
+
+
+def spectra(x: np.ndarray, y: np.ndarray, f: FlightData) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Frequencies [Hz], cross and auto spectra (S_xy, S_xx, S_yy) averaged over the gap-free segments."""
+    starts = np.flatnonzero(np.diff(f.time_s, prepend=-np.inf) > 1.5 * f.period_s)
+    acc: list[np.ndarray] = [np.zeros(SEGMENT_N // 2 + 1, complex), np.zeros(SEGMENT_N // 2 + 1),
+                             np.zeros(SEGMENT_N // 2 + 1)]
+    used = 0
+    freq = np.zeros(0)
+    for lo, hi in zip(starts, [*starts[1:], len(x)], strict=True):
+        if hi - lo < SEGMENT_N:
+            continue
+        a, b = x[lo:hi] - x[lo:hi].mean(), y[lo:hi] - y[lo:hi].mean()
+        freq, sxy = signal.csd(a, b, fs=1.0 / f.period_s, nperseg=SEGMENT_N)
+        for k, s_k in enumerate((sxy, signal.welch(a, fs=1.0 / f.period_s, nperseg=SEGMENT_N)[1],
+                                 signal.welch(b, fs=1.0 / f.period_s, nperseg=SEGMENT_N)[1])):
+            acc[k] = acc[k] + (hi - lo) * s_k
+        used += hi - lo
+    return freq, acc[0] / used, acc[1].real / used, acc[2].real / used
+
+
+def coherence_floor(flights: list[FlightData]) -> None:
+    """Print, per held-out flight, coherence / transfer function / LTI-irreducible error by band."""
+    nominal = float(np.median(np.concatenate([f.volt_V for f in flights])))  # type: ignore[arg-type]
+    for i, test in enumerate(flights):
+        tr = flights[1 - i]
+        theta = np.linalg.lstsq(features(tr, tr.volt_V / nominal, 0.0), tr.thrust_N, rcond=None)[0]
+        pred = features(test, test.volt_V / nominal, 0.0) @ theta
+        freq, sxy, sxx, syy = spectra(pred, test.thrust_N, test)
+        coh = np.abs(sxy) ** 2 / (sxx * syy)
+        df = freq[1] - freq[0]
+        rmse = float(np.sqrt(np.mean((pred - test.thrust_N) ** 2)))
+        print(f"  {test.name}: model RMSE {rmse:.3f} N (all samples); over gap-free segments >= {SEGMENT_N} samples, "
+              "the error no LTI map of the model's thrust removes "
+              f"{np.sqrt(np.sum((1 - coh) * syy) * df):.3f} N")
+        for lo, hi in BANDS_HZ:
+            m = (freq >= lo) & (freq < hi)
+            h = sxy[m] / sxx[m]
+            floor = np.sqrt(np.sum(((1 - coh) * syy)[m]) * df)
+            print(f"    {lo:4.1f}-{hi:4.1f} Hz: coherence {coh[m].mean():.2f}, |H| {np.abs(h).mean():.2f}, "
+                  f"phase {np.degrees(np.angle(h)).mean():+4.0f} deg, irreducible {floor:.3f} N"
+                  f" of {np.sqrt(np.sum(syy[m]) * df):.3f} N")
+
+
+def main() -> int:
+    if not all(p.exists() for p, _ in (*PX4, *ERLE)):
+        print(f"bench/thrust_dynamics_study.py: needs {DATA}")
+        return 2
+    print("PX4 LOFO, one-rule voltage map: held-out pooled RMSE [N] raw / calibrated; in-sample RMSE per fold")
+    for delay in (None, *DELAYS_S):
+        loaded = [flight(p, m, delay) for p, m in PX4]
+        fl = [f for f, _ in loaded]
+        for tau in TAUS_S if delay is not None else (0.0,):
+            raw, cal, inside = lofo(fl, [f.volt_V for f in fl], tau)
+            d = "per-flight estimate" if delay is None else f"{delay * 1e3:.0f} ms"
+            print(f"  delay {d:<19} tau {tau * 1e3:3.0f} ms: {raw:.3f} / {cal:.3f}   in-sample "
+                  + " ".join(f"{x:.3f}" for x in inside))
+    loaded = [flight(p, m, None) for p, m in PX4]
+    sag = [terminal_voltage(f, log) for f, log in loaded]
+    fl = [f for f, _ in loaded]
+    raw, cal, _ = lofo(fl, [v for v, _ in sag], 0.0)
+    print(f"  V_oc - R I_hat (R = {', '.join(f'{r * 1e3:.1f}' for _, r in sag)} mOhm): {raw:.3f} / {cal:.3f}")
+    print("PX4 coherence of the held-out measured thrust with the model's (per-flight delay estimate)")
+    coherence_floor(fl)
+    print("Erle LOFO, one-rule map (no voltage), per-flight delay estimate")
+    erle = [flight(p, m, None)[0] for p, m in ERLE]
+    for tau in TAUS_S:
+        raw, cal, inside = lofo(erle, [None] * len(erle), tau)
+        print(f"  tau {tau * 1e3:3.0f} ms: {raw:.3f} / {cal:.3f}   in-sample " + " ".join(f"{x:.3f}" for x in inside))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
