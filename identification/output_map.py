@@ -26,7 +26,10 @@ Verdict of a signal over samples (one window, or all scored windows pooled), in 
 signal and the model both stay within ``max_rmse`` of persistence (nothing to score); ``FAIL`` "loses to
 persistence" when ``1 - RMSE/RMSE_persistence <= min_skill_persistence``; ``FAIL`` when Theil's U is not below
 ``max_theil`` (and the RMSE not below ``max_rmse``); ``FAIL`` when ``min_skill_mean`` is set and not met;
-else ``pass``. ``max_rmse`` can never pass a signal that loses to persistence.
+``tie`` when the pooled skill's block-bootstrap interval (over the replay windows,
+:func:`identification.metrics.skill_interval`) reaches down to ``min_skill_persistence``: the model beats
+persistence by a margin that noise makes; else ``pass``. ``max_rmse`` can never pass a signal that loses to
+persistence. A single window has no interval: its verdict is the point rule alone.
 """
 
 from __future__ import annotations
@@ -40,20 +43,14 @@ from typing import Annotated, Any
 import numpy as np
 from pydantic import Field
 
+from fmu_models.common.units import LOG_UNITS
 from fmu_models.config import ConfigError, FiniteFloat, PositiveFiniteFloat, Schema, read_config_file, validate_config
-from identification.metrics import FitMetrics, skill
+from identification.metrics import FitMetrics, SkillInterval, skill
 
 DEFAULT_MAX_THEIL = 0.3
 DEFAULT_MIN_SKILL = 0.0
-G0_M_S2 = 9.80665
-
-#: log unit -> (SI unit, factor)
-UNIT_CONVERSIONS: dict[str, tuple[str, float]] = {
-    "deg": ("rad", math.pi / 180), "cdeg": ("rad", math.pi / 18000), "deg/s": ("rad/s", math.pi / 180),
-    "cm": ("m", 0.01), "mm": ("m", 0.001), "ft": ("m", 0.3048), "km": ("m", 1000.0),
-    "cm/s": ("m/s", 0.01), "kn": ("m/s", 1852 / 3600), "km/h": ("m/s", 1 / 3.6), "ft/s": ("m/s", 0.3048),
-    "g": ("m/s2", G0_M_S2), "mG": ("m/s2", G0_M_S2 / 1000), "kN": ("N", 1000.0),
-}
+#: log unit -> (SI unit, factor): one table for the readers and the output maps
+UNIT_CONVERSIONS = LOG_UNITS
 SI_UNITS = ("m", "rad", "m/s", "m/s2", "rad/s", "N", "1", "s")
 
 
@@ -108,8 +105,10 @@ class SignalMap:
     min_skill_mean: float | None = None
     gate: bool = True
 
-    def judge(self, fit: FitMetrics, rmse_persistence: float, rmse_mean: float) -> tuple[str, str]:
-        """``(verdict, reason)`` of a fit beside its baselines; see the module docstring for the rules."""
+    def judge(self, fit: FitMetrics, rmse_persistence: float, rmse_mean: float,
+              interval: SkillInterval | None = None) -> tuple[str, str]:
+        """``(verdict, reason)`` of a fit beside its baselines and, for pooled scores, the interval of its skill
+        against persistence; see the module docstring for the rules."""
         tol = self.max_rmse
         sp, sm = skill(fit.rmse, rmse_persistence), skill(fit.rmse, rmse_mean)
         if fit.rmse <= (tol or 0.0) and rmse_persistence <= (tol or 0.0):
@@ -124,7 +123,14 @@ class SignalMap:
             return "FAIL", f"inaccurate: Theil U {fit.theil_u:.3f} >= {self.max_theil:g}{extra}"
         if self.min_skill_mean is not None and not sm > self.min_skill_mean:
             return "FAIL", f"loses to the window mean: skill {sm:+.2f} (needs > {self.min_skill_mean:g})"
-        return "pass", f"beats persistence (skill {sp:+.2f}), Theil U {fit.theil_u:.3f} < {self.max_theil:g}"
+        if interval is not None and not interval.lo > self.min_skill_persistence:
+            return "tie", (f"no better than persistence with confidence: skill {sp:+.3f}, "
+                           f"{100 * interval.level:.0f} % interval {_signed(interval.lo)}..{_signed(interval.hi)} "
+                           f"over {interval.n_blocks} windows reaches {self.min_skill_persistence:g}")
+        margin = "" if interval is None else \
+            f" {100 * interval.level:.0f} % interval {_signed(interval.lo)}..{_signed(interval.hi)},"
+        return "pass", (f"beats persistence (skill {sp:+.2f},{margin} Theil U {fit.theil_u:.3f} < "
+                        f"{self.max_theil:g})")
 
     def convert(self, values: np.ndarray, fmu_unit: str | None, params: Mapping[str, float]) -> np.ndarray:
         """Log values in the FMU output's unit and frame."""
@@ -224,3 +230,7 @@ def from_dict(data: Mapping[str, Any], vehicle: str, source: str = "output map")
     if not base:
         raise OutputMapError(source, ["no signals to compare"])
     return tuple(base.values())
+
+
+def _signed(x: float) -> str:
+    return f"{x:+.3f}" if math.isfinite(x) else "n/a"

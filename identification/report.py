@@ -118,10 +118,11 @@ def _verdict_table(res: ReplayResult) -> str:
     rows = []
     for m in res.maps:
         s, w = res.scores[m.fmu], res.window_counts(m.fmu)
-        rows.append([m.fmu, _verdict_cell(s.verdict, m.gate), _fmt(s.skill_persistence, "+.2f"),
+        band = "" if s.interval is None else f" ({_fmt(s.interval.lo, '+.2f')}..{_fmt(s.interval.hi, '+.2f')})"
+        rows.append([m.fmu, _verdict_cell(s.verdict, m.gate), _fmt(s.skill_persistence, "+.2f") + band,
                      _fmt(s.skill_mean, "+.2f"), f"{w['pass']} / {w['FAIL']} / {w['n/a']}", html.escape(s.reason)])
-    return _table(["signal", "verdict", "skill vs persistence", "skill vs window mean", "windows pass / FAIL / n/a",
-                   "reason"], rows, raw=True)
+    return _table(["signal", "verdict", "skill vs persistence (90 % interval)", "skill vs window mean",
+                   "windows pass / FAIL / n/a", "reason"], rows, raw=True)
 
 
 def _metrics_table(res: ReplayResult) -> str:
@@ -189,14 +190,17 @@ def validation_page(res: ReplayResult) -> str:
     one-step force check, identities, overlays with the persistence baseline, residuals."""
     fmu, log = res.fmu, res.log
     params = _table(["parameter", "value"], [[k, f"{v:.6g}"] for k, v in fmu["parameters"].items()])
-    verdict = "all gated signals pass" if not res.failed else f"FAILED: {', '.join(res.failed)}"
+    verdict = {"pass": "all gated signals pass", "fail": f"FAILED: {', '.join(res.failed)}",
+               "tie": f"TIE: {', '.join(res.ties)} not better than persistence with confidence",
+               "unscored": "NOT SCORED: no gated signal has a verdict"}[res.status]
     parts = [
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>uavfmu validation</title><style>{STYLE}</style>"
         "</head><body>",
         f"<h1>{html.escape(fmu['model_name'])} against {html.escape(log['path'])}</h1>",
         _verdict_table(res),
-        f"<p class='{'fail' if res.failed else 'pass'}'>{html.escape(verdict)}. A signal passes only when it beats "
-        "persistence (the logged value at the window start, held) and meets its accuracy threshold.</p>",
+        f"<p class='{'pass' if res.status == 'pass' else 'fail'}'>{html.escape(verdict)}. A signal passes only "
+        "when it beats persistence (the logged value at the window start, held) over the whole 90 % block-bootstrap "
+        "interval of its skill and meets its accuracy threshold; a skill whose interval reaches zero is a tie.</p>",
         *_log_notes(res),
         "<h2>Metrics beside the baselines</h2>", _metrics_table(res),
         "<h2>Error against prediction horizon</h2>", *_horizon_section(res),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -48,3 +49,94 @@ def test_segment_metrics_equal_fit_metrics_per_segment() -> None:
         for field in ("rmse", "nrmse", "theil_u", "fit_percent", "r2", "max_error"):
             assert getattr(g, field) == pytest.approx(getattr(want, field), rel=1e-9, abs=1e-12), (s, field)
         assert g.n == want.n
+
+
+# --------------------------------------------------------------------------- verdicts with a margin
+WINDOWS, WINDOW_LEN = 60, 50
+
+
+def _replay(skill_target: float, spread: float, seed: int = 3):
+    """A scored replay of one signal over 60 windows whose pooled skill against persistence is exactly
+    ``skill_target`` and whose per-window error ratio (model / persistence, squared) spreads uniformly by
+    +-``spread``: the bootstrap interval of the skill is about +-0.85 ``spread`` / sqrt(60) wide."""
+    from identification.output_map import SignalMap
+    from identification.validation import ReplayResult, score
+
+    rng = np.random.default_rng(seed)
+    n = WINDOWS * WINDOW_LEN
+    init = 10.0 + np.cumsum(rng.normal(size=WINDOWS))
+    e_pers = rng.normal(size=n)  # measured minus persistence
+    ratio2 = rng.uniform(-spread, spread, WINDOWS)
+    sse = np.add.reduceat(e_pers**2, np.arange(0, n, WINDOW_LEN))
+    ratio2 += (1.0 - skill_target) ** 2 - np.sum(ratio2 * sse) / np.sum(sse)  # pooled skill exactly on target
+    y = np.repeat(init, WINDOW_LEN) + e_pers
+    model = y - np.repeat(np.sqrt(ratio2), WINDOW_LEN) * e_pers
+    edges = np.arange(0, n + 1, WINDOW_LEN)
+    res = ReplayResult({"path": "m.fmu"}, {"path": "f.bin", "warnings": []}, np.arange(n) * 0.02,
+                       {"altitude_m": model}, {"altitude_m": y},
+                       [(float(a), float(b)) for a, b in itertools.pairwise(edges)], [], {},
+                       (SignalMap("altitude_m", "altitude_m"),), included=[True] * WINDOWS,
+                       options={"rate_hz": 50.0})
+    score(res, edges, {"altitude_m": init})
+    return res
+
+
+def _summary(res):
+    from pathlib import Path
+
+    from identification.validation_workflow import ValidationJob, metrics_document, result_of
+
+    out = result_of(res, ValidationJob(Path("m.fmu"), Path("f.bin")))
+    return out, metrics_document(res, out)
+
+
+def test_a_skill_of_two_percent_plus_minus_five_is_a_tie_not_a_pass() -> None:
+    """+0.02 +- 0.05 against persistence: a difference that noise makes. The point rule alone would pass it;
+    the verdict is a tie in the score, the console, metrics.json and the exit status."""
+    from uavfmu.commands.validate import EXIT_TIE, exit_status
+
+    res = _replay(0.02, 0.80)
+    s = res.scores["altitude_m"]
+    assert s.skill_persistence == pytest.approx(0.02, abs=1e-9)
+    half = (s.interval.hi - s.interval.lo) / 2
+    assert 0.03 < half < 0.08 and s.interval.lo < 0 < s.interval.hi  # the case the issue names
+    assert s.fit.theil_u < 0.3  # accurate enough: only the margin decides
+    assert res.maps[0].judge(s.fit, s.rmse_persistence, s.rmse_mean)[0] == "pass"  # point rule, no interval
+    assert s.verdict == "tie" and "with confidence" in s.reason
+    assert res.status == "tie" and res.ties == ["altitude_m"] and not res.failed
+    out, doc = _summary(res)
+    assert out.status == doc["status"] == "tie"
+    assert doc["signals"]["altitude_m"]["skill_outcome"] == "tie"
+    sig = doc["signals"]["altitude_m"]
+    assert sig["skill_persistence_lo"] < 0 < sig["skill_persistence_hi"]
+    assert out.lines()[0].endswith("TIE (altitude_m not better than persistence with confidence; nothing fails)")
+    assert exit_status([out.status]) == EXIT_TIE != 0
+
+
+def test_a_clear_margin_passes_and_a_loss_fails() -> None:
+    from uavfmu.commands.validate import EXIT_FAIL, EXIT_PASS, exit_status
+
+    win = _replay(0.30, 0.40)
+    assert win.scores["altitude_m"].interval.lo > 0 and win.scores["altitude_m"].verdict == "pass"
+    assert win.status == "pass" and exit_status([win.status]) == EXIT_PASS
+    lose = _replay(-0.02, 0.80)
+    assert lose.scores["altitude_m"].verdict == "FAIL" and lose.status == "fail"
+    assert exit_status([lose.status, win.status]) == EXIT_FAIL
+
+
+def test_a_run_with_nothing_scored_is_not_a_pass() -> None:
+    """Every gated signal n/a (it never moved beyond its tolerance): the run proved nothing."""
+    from dataclasses import replace
+
+    from identification.validation import score
+    from uavfmu.commands.validate import EXIT_TIE, exit_status
+
+    res = _replay(0.30, 0.40)
+    res.maps = (replace(res.maps[0], max_rmse=1e6),)  # every error within tolerance: n/a
+    res.scores, res.overall = {}, {}
+    edges = np.arange(0, WINDOWS * WINDOW_LEN + 1, WINDOW_LEN)
+    score(res, edges, {"altitude_m": res.measured["altitude_m"][edges[:-1]]})
+    assert res.scores["altitude_m"].verdict == "n/a"
+    out, doc = _summary(res)
+    assert res.status == out.status == doc["status"] == "unscored"
+    assert "NOT SCORED" in out.lines()[0] and exit_status([out.status]) == EXIT_TIE
