@@ -38,6 +38,7 @@ from identification.log_state import (
     unwrapped_angle,
 )
 from identification.metrics import (
+    VERDICTS,
     FitMetrics,
     MetricsError,
     Score,
@@ -175,7 +176,7 @@ class ReplayResult:
 
     def window_counts(self, name: str) -> dict[str, int]:
         """How many scored windows gave each verdict for signal ``name``."""
-        out = {"pass": 0, "FAIL": 0, "tie": 0, "n/a": 0}
+        out = dict.fromkeys(VERDICTS, 0)
         for w in self.window_scores:
             if name in w:
                 out[w[name].verdict] += 1

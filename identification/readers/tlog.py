@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from pymavlink import mavutil
 
-from fmu_models.common.units import G0_M_S2
+from fmu_models.common.units import DEGE7_TO_DEG, G0_M_S2
 from identification.flightlog import DataQuality, FlightLog, LogError, Signal, add_battery, sanitize_log
 
 MAV_MODE_FLAG_SAFETY_ARMED = 128
@@ -25,7 +25,7 @@ FIELDS = [
     ("accel_body_x_m_s2", "SCALED_IMU", "xacc", G0_M_S2 / 1000),
     ("accel_body_y_m_s2", "SCALED_IMU", "yacc", G0_M_S2 / 1000),
     ("accel_body_z_m_s2", "SCALED_IMU", "zacc", G0_M_S2 / 1000),
-    ("lat_deg", "GLOBAL_POSITION_INT", "lat", 1e-7), ("lon_deg", "GLOBAL_POSITION_INT", "lon", 1e-7),
+    ("lat_deg", "GLOBAL_POSITION_INT", "lat", DEGE7_TO_DEG), ("lon_deg", "GLOBAL_POSITION_INT", "lon", DEGE7_TO_DEG),
     ("height_m", "GLOBAL_POSITION_INT", "alt", 1e-3), ("altitude_m", "GLOBAL_POSITION_INT", "relative_alt", 1e-3),
     ("vel_north_m_s", "GLOBAL_POSITION_INT", "vx", 0.01), ("vel_east_m_s", "GLOBAL_POSITION_INT", "vy", 0.01),
     ("vel_down_m_s", "GLOBAL_POSITION_INT", "vz", 0.01), ("airspeed_m_s", "VFR_HUD", "airspeed", 1.0),
