@@ -64,30 +64,32 @@ Skill = Annotated[float, Field(ge=-100.0, lt=1.0, allow_inf_nan=False)]
 class SignalEntry(Schema):
     """One ``[signals.<fmu output>]`` table."""
 
-    log: str | None = None
-    log_unit: str | None = None
-    scale: FiniteFloat = 1.0
-    scale_by_param: str | None = None
-    offset: FiniteFloat = 0.0
-    wrap: bool = False
-    max_theil: PositiveFiniteFloat | None = None
-    max_rmse: PositiveFiniteFloat | None = None
-    min_skill_persistence: Skill | None = None
-    min_skill_mean: Skill | None = None
-    gate: bool = True
+    log: str | None = None  # canonical log signal or raw "MSG.Field" (default: the FMU output's name)
+    log_unit: str | None = None  # unit of the log values, converted to the FMU output's unit (deg, cm, g, ...)
+    scale: FiniteFloat = 1.0  # after unit conversion; -1 flips an axis (FLU -> FRD, up -> down)
+    scale_by_param: str | None = None  # multiply by this FMU parameter too (mass_kg: specific force -> force)
+    offset: FiniteFloat = 0.0  # added after scaling [FMU unit]
+    wrap: bool = False  # an angle: every metric and plot on the wrapped difference (-180..180 deg)
+    max_theil: PositiveFiniteFloat | None = None  # Theil's U must be below this (default: thresholds.max_theil)
+    max_rmse: PositiveFiniteFloat | None = None  # tolerance [FMU unit]: accurate below it; moving less is n/a
+    min_skill_persistence: Skill | None = None  # skill against persistence must exceed this over its interval
+    min_skill_mean: Skill | None = None  # optional: must beat the window mean of the log by this too
+    gate: bool = True  # false: scored and reported, but its verdict does not set the run's status
 
 
 class Thresholds(Schema):
-    max_theil: PositiveFiniteFloat = DEFAULT_MAX_THEIL
-    min_skill_persistence: Skill = DEFAULT_MIN_SKILL
+    """Defaults for every signal of the map."""
+
+    max_theil: PositiveFiniteFloat = DEFAULT_MAX_THEIL  # Theil's U below this (0 perfect, 1 useless)
+    min_skill_persistence: Skill = DEFAULT_MIN_SKILL  # skill against persistence above this, with confidence
 
 
 class OutputMapFile(Schema):
     """An output-map file."""
 
-    thresholds: Thresholds = Thresholds()
-    signals: dict[str, SignalEntry] | None = None
-    signals_extra: dict[str, SignalEntry] = Field(default_factory=dict)
+    thresholds: Thresholds = Thresholds()  # defaults for every signal
+    signals: dict[str, SignalEntry] | None = None  # by FMU output name: replaces the vehicle's default map
+    signals_extra: dict[str, SignalEntry] = Field(default_factory=dict)  # by FMU output name: added to it
 
 
 @dataclass(frozen=True)
