@@ -221,15 +221,6 @@ class FlightLog:
         ends = [s.t_s[-1] for s in self.signals.values() if len(s.t_s)]
         return float(max(ends)) if ends else 0.0
 
-    def window(self, t0_s: float, t1_s: float) -> FlightLog:
-        """The part of the log between ``t0_s`` and ``t1_s`` (times kept as in the full log)."""
-        out = {}
-        for n, s in self.signals.items():
-            keep = (s.t_s >= t0_s) & (s.t_s <= t1_s)
-            out[n] = Signal(n, s.t_s[keep], s.values[keep], s.unit, s.description)
-        return FlightLog(self.source, self.fmt, out, dict(self.params), self.vehicle, list(self.warnings),
-                         self.quality)
-
 
 def add_battery(signals: dict[str, Signal], t_s: np.ndarray, voltage_v: np.ndarray | None,
                 current_a: np.ndarray | None, source: str) -> None:

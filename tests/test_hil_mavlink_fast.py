@@ -165,3 +165,13 @@ def test_ground_truth_saturates_int16_fields_instead_of_failing() -> None:
                                                       .state(0, state))[0]
     assert (msg.vx, msg.vy, msg.vz) == (32767, -32768, 100)
     assert (msg.xacc, msg.zacc) == (32767, -32768)
+
+
+def test_sequence_wraps_and_only_zero_bytes_are_trimmed() -> None:
+    """The sequence number after 255 is 0; a payload ending in a non-zero byte (0x58, 'X') keeps it."""
+    ours, ref = mavlink2.MAVLink(None, 1, 51), mavlink2.MAVLink(None, 1, 51)
+    ours.seq = ref.seq = 255
+    args = (1, *([0.5] * 13), 0x58000000)  # fields_updated little-endian: its last byte is 0x58
+    fast = FastMavlink(ours).pack(mavlink2.MAVLink_hil_sensor_message, *args)
+    assert fast == _reference(ref, mavlink2.MAVLink_hil_sensor_message(*args))
+    assert ours.seq == 0 and fast[-3] == 0x58  # ... then the two CRC bytes

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from identification.flightlog import LogError, MissingSignalError
+from identification.flightlog import DataQuality, FlightLog, LogError, MissingSignalError, check_quality
 from identification.readers import read_log
 from tests.conftest import shared_data
 
@@ -334,3 +334,33 @@ def test_standard_bat_layout_gives_battery_signals(tmp_path: Path) -> None:
     np.testing.assert_allclose(log.signal("battery_voltage_v").values, 16.0 - t, rtol=1e-6)
     np.testing.assert_allclose(log.signal("battery_current_a").values, 20.0 + t, rtol=1e-6)
     np.testing.assert_allclose(log.signals["BAT.Temp"].values, 25.0)
+
+
+# ------------------------------------------------------------------ refusing a damaged log
+def _damaged(bytes_skipped: int) -> FlightLog:
+    q = DataQuality("f.bin", bytes_total=1000, bytes_skipped=bytes_skipped, messages_total=100,
+                    messages_skipped=1, damaged_regions=[(40, bytes_skipped)], jumps=[(12.0, 3600.0)],
+                    samples_beyond_jumps=7, dropped_segments=[(2.0, 7)], duplicate_samples=3, gap_count=1,
+                    gaps=[(5.0, 0.8)], gap_total_s=0.8, time_total_s=10.0, time_kept_s=10.0)
+    return FlightLog("f.bin", "dataflash", {}, {}, quality=q)
+
+
+def test_check_quality_refuses_above_the_limit_and_says_what_was_lost() -> None:
+    check_quality(_damaged(50))  # exactly the 5 % limit: kept
+    check_quality(_damaged(300), force=True)  # --force: the caller takes what is left
+    check_quality(_damaged(300), max_damage=0.3)
+    with pytest.raises(LogError) as err:
+        check_quality(_damaged(60))
+    msg = str(err.value)
+    assert msg.startswith("f.bin: 6.0 % of the log is damaged or lost (limit 5.0 %): 60 of 1000 bytes could not be")
+    # the first three findings without their file prefix, the jump's own ": " kept
+    assert "time jump(s) +3.6e+03 s at t=12.0 s: the log was split there and 2.0 s (7 samples)" in msg
+    assert "; 3 duplicated sample(s) dropped. Repair or re-download the log, or pass --force to use what is left" \
+        in msg
+    assert "gap(s)" not in msg and msg.count("f.bin") == 1
+    with pytest.raises(LogError, match=r"\(limit 2\.0 %\)"):
+        check_quality(_damaged(50), max_damage=0.02)
+
+
+def test_missing_signal_error_reads_plainly() -> None:
+    assert str(MissingSignalError("f.bin: no airspeed_m_s")) == "f.bin: no airspeed_m_s"  # not KeyError's quotes

@@ -140,3 +140,24 @@ def test_a_run_with_nothing_scored_is_not_a_pass() -> None:
     out, doc = _summary(res)
     assert res.status == out.status == doc["status"] == "unscored"
     assert "NOT SCORED" in out.lines()[0] and exit_status([out.status]) == EXIT_TIE
+
+
+def test_block_starts_by_hand() -> None:
+    from identification.metrics import block_starts
+
+    assert block_starts(1, 1).tolist() == [0]
+    assert block_starts(7, 1).tolist() == list(range(7))
+    assert block_starts(10, 4).tolist() == [0, 4, 8] and block_starts(10, 4).dtype.kind == "i"
+    for bad in ((0, 1), (5, 0)):
+        with pytest.raises(MetricsError, match=rf"n_samples >= 1 and block_len >= 1, got {bad[0]}, {bad[1]}"):
+            block_starts(*bad)
+
+
+def test_option_problems_are_named_as_command_line_options() -> None:
+    from identification.validation import ValidationInputError, check_options
+
+    assert check_options(rate_hz=25.0).rate_hz == 25.0
+    with pytest.raises(ValidationInputError) as err:
+        check_options(rate_hz=-1.0, window_s=1e9)
+    lines = str(err.value).split("; ")
+    assert len(lines) == 2 and lines[0].startswith("--rate-hz") and lines[1].startswith("--window-s"), lines
