@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import signal
 import struct
 from collections import Counter
@@ -29,7 +30,11 @@ from identification.flightlog import JUMP_S, FlightLog, LogError
 from identification.readers import read_log
 
 #: examples per family (1900 in all; each read takes a few ms: about 40 s on 2 cores)
-EXAMPLES = {"dataflash_bin": 500, "dataflash_text": 300, "tlog": 400, "ulog": 300, "csv": 400}
+#: ``UAVFMU_FUZZ_SCALE`` (0..1, default 1) shrinks the example counts for `make mutation` only, where the suite
+#: runs once per mutant; CI and `make test` run the full counts
+FUZZ_SCALE = min(1.0, max(0.01, float(os.environ.get("UAVFMU_FUZZ_SCALE", "1"))))
+EXAMPLES = {k: max(5, round(n * FUZZ_SCALE))
+            for k, n in {"dataflash_bin": 500, "dataflash_text": 300, "tlog": 400, "ulog": 300, "csv": 400}.items()}
 HANG_S = 10.0  #: a single read longer than this is a hang
 DURATION_S = 5.0  #: length of the synthetic flights
 T0_S = 10.0  #: their first time stamp

@@ -7,6 +7,7 @@ interface; the counts are printed."""
 from __future__ import annotations
 
 import math
+import os
 import struct
 from collections import Counter
 from collections.abc import Callable
@@ -25,7 +26,8 @@ from hil_adapter.packets import SERVO16, SERVO16_MAGIC, SERVO32, SERVO32_MAGIC
 from hil_adapter.px4 import Px4Server
 from hil_adapter.sensors import SensorConfig, SensorSuite
 
-EXAMPLES = 1000
+#: ``UAVFMU_FUZZ_SCALE`` (0..1, default 1) shrinks the example count for `make mutation` only
+EXAMPLES = max(10, round(1000 * min(1.0, max(0.01, float(os.environ.get("UAVFMU_FUZZ_SCALE", "1"))))))
 COUNTS: Counter[str] = Counter()
 FUZZ = settings(max_examples=EXAMPLES, deadline=None, database=None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
