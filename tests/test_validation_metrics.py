@@ -161,3 +161,32 @@ def test_option_problems_are_named_as_command_line_options() -> None:
         check_options(rate_hz=-1.0, window_s=1e9)
     lines = str(err.value).split("; ")
     assert len(lines) == 2 and lines[0].startswith("--rate-hz") and lines[1].startswith("--window-s"), lines
+
+
+def test_one_step_force_check_verdicts() -> None:
+    """The FMU's specific force at each restart against the logged accelerometer, beside the log's mean:
+    pass with a margin, tie inside the noise, FAIL when the mean does better; fewer than 2 restarts: none."""
+    from identification.flightlog import FlightLog, Signal
+    from identification.validation import _one_step
+
+    rng = np.random.default_rng(5)
+    t = np.arange(200) * 0.5
+    az = -9.8 + np.sin(t / 3.0) + 0.05 * rng.normal(size=t.size)
+    log = FlightLog("f.bin", "csv", {"accel_body_z_m_s2": Signal("accel_body_z_m_s2", t, az, "m/s2")}, {})
+    good = (az + 0.1 * rng.normal(size=t.size))[:, None]
+    out = _one_step(log, t, good, ["accel_body_z_m_s2"])["accel_body_z_m_s2"]
+    assert out.verdict == "pass" and out.interval.lo > 0 and not out.gated
+    assert out.rmse_mean == pytest.approx(np.std(az), rel=1e-9) and out.fit.n == t.size
+    assert "beats the log's mean specific force" in out.reason and "over 200 restarts" in out.reason
+    mean = np.full((t.size, 1), np.mean(az))
+    d = az - np.mean(az)
+    c2 = rng.uniform(0.0, 1.9, t.size)
+    c2 *= 0.98 * np.sum(d**2) / np.sum(c2 * d**2)  # pooled skill 1 - sqrt(0.98) = +0.01, widely spread
+    tie = _one_step(log, t, (az - np.sqrt(c2) * d)[:, None], ["accel_body_z_m_s2"])["accel_body_z_m_s2"]
+    assert tie.interval.skill == pytest.approx(1 - math.sqrt(0.98)) and tie.interval.lo < 0 < tie.interval.hi
+    assert tie.verdict == "tie" and "no better with confidence" in tie.reason
+    bad = _one_step(log, t, mean - (az[:, None] - np.mean(az)), ["accel_body_z_m_s2"])["accel_body_z_m_s2"]
+    assert bad.verdict == "FAIL" and "loses to" in bad.reason
+    few = np.full((t.size, 1), np.nan)
+    few[0] = -9.8
+    assert _one_step(log, t, few, ["accel_body_z_m_s2"]) == {}
