@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import argparse
 import ast
+import importlib
 import inspect
 import json
 import sys
 import textwrap
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -31,92 +31,51 @@ class Page:
 
     slug: str
     title: str
-    schema: Callable[[], type[BaseModel]]
+    schema: str  # module:Class of the schema (or of a parameter dataclass)
     used_by: str
     example: str = ""
 
 
-def _output_map() -> type[BaseModel]:
-    from identification.output_map import OutputMapFile
-
-    return OutputMapFile
-
-
-def _pwm_mapping() -> type[BaseModel]:
-    from fmu_models.signals.pwm_mapping import MappingConfig
-
-    return MappingConfig
-
-
-def _channel_map() -> type[BaseModel]:
-    from identification.channel_map import ChannelMapFile
-
-    return ChannelMapFile
-
-
-def _manifest() -> type[BaseModel]:
-    from identification.validation_workflow import Manifest
-
-    return Manifest
-
-
-def _hil() -> type[BaseModel]:
-    from hil_adapter.config import HilConfig
-
-    return HilConfig
-
-
-def _sensors() -> type[BaseModel]:
-    from hil_adapter.sensors import SensorConfig
-
-    return SensorConfig
-
-
-def _quadrotor_params() -> type[BaseModel]:
+def load_schema(spec: str) -> type[BaseModel]:
+    """The schema class named ``module:Class``; a parameter dataclass gives its file schema (``params_schema``)."""
+    module, name = spec.split(":")
+    obj = getattr(importlib.import_module(module), name)
+    if isinstance(obj, type) and issubclass(obj, BaseModel):
+        return obj
     from fmu_models.common.params import params_schema
-    from fmu_models.quadrotor.params import QuadrotorParams
 
-    return params_schema(QuadrotorParams)
-
-
-def _fixed_wing_params() -> type[BaseModel]:
-    from fmu_models.common.params import params_schema
-    from fmu_models.fixed_wing.params import FixedWingParams
-
-    return params_schema(FixedWingParams)
-
-
-def _anfis_map() -> type[BaseModel]:
-    from fmu_models.quadrotor.anfis import AnfisMapFile
-
-    return AnfisMapFile
+    return params_schema(obj)
 
 
 PAGES = (
-    Page("output-map", "Output map (`uavfmu validate --map FILE.toml`)", _output_map,
+    Page("output-map", "Output map (`uavfmu validate --map FILE.toml`)", "identification.output_map:OutputMapFile",
          "`uavfmu validate`: which FMU output is scored against which logged signal, with its pass rules. "
          "Verdicts: [validation](../validation.md).",
          '[thresholds]\nmax_theil = 0.3\n\n[signals_extra.airspeed_m_s]\nlog = "airspeed_m_s"\nmax_rmse = 0.5\n'),
-    Page("pwm-mapping", "PWM mapping (`--mapping FILE.toml`)", _pwm_mapping,
+    Page("pwm-mapping", "PWM mapping (`--mapping FILE.toml`)", "fmu_models.signals.pwm_mapping:MappingConfig",
          "`uavfmu identify aero`, `uavfmu validate` and `uavfmu hil`: autopilot servo/motor PWM to FMU inputs "
          "(without it, the log's ArduPilot `SERVOn_*` parameters or the vehicle default)."),
-    Page("channel-map", "Channel map (`--channel-map FILE.toml`)", _channel_map,
+    Page("channel-map", "Channel map (`--channel-map FILE.toml`)", "identification.channel_map:ChannelMapFile",
          "Every log reader: overrides the motor/servo outputs found in the log."),
-    Page("validation-manifest", "Validation batch manifest (`uavfmu validate --batch FILE.toml`)", _manifest,
+    Page("validation-manifest", "Validation batch manifest (`uavfmu validate --batch FILE.toml`)",
+         "identification.validation_workflow:Manifest",
          "`uavfmu validate --batch`: many FMU x log runs; paths are relative to the manifest.",
          '[defaults]\nwindow_s = 2.0\n\n[[job]]\nfmu = "dist/quadrotor.fmu"\nlog = ["flight1.bin", "flight2.bin"]\n'),
-    Page("hil-config", "HIL bench config (`uavfmu hil --config FILE.toml`)", _hil,
+    Page("hil-config", "HIL bench config (`uavfmu hil --config FILE.toml`)", "hil_adapter.config:HilConfig",
          "`uavfmu hil`: network, timing, watchdog, recording and protocol settings; `[sensors]` is the "
          "[sensor config](sensors.md), `[mapping]` a [PWM mapping](pwm-mapping.md)."),
-    Page("sensors", "Sensor models (`[sensors]` of the HIL config)", _sensors,
+    Page("sensors", "Sensor models (`[sensors]` of the HIL config)", "hil_adapter.sensors:SensorConfig",
          "`uavfmu hil`: the seeded sensor models that turn FMU outputs into autopilot sensor messages."),
     Page("quadrotor-params", "Quadrotor parameter file (`uavfmu build --params FILE.json`, `quadrotor` section)",
-         _quadrotor_params, "`uavfmu build --params`; written by `uavfmu identify thrust`. Every parameter is "
-         "also a tunable FMU parameter of the same name."),
+         "fmu_models.quadrotor.params:QuadrotorParams",
+         "`uavfmu build --params`; written by `uavfmu identify thrust`. Every parameter is also a tunable FMU "
+         "parameter of the same name."),
     Page("fixed-wing-params", "Fixed-wing parameter file (`uavfmu build --params FILE.json`, `fixed_wing` section)",
-         _fixed_wing_params, "`uavfmu build --params`; written by `uavfmu identify aero`. Every parameter is "
-         "also a tunable FMU parameter of the same name."),
-    Page("anfis-map", "ANFIS thrust map (`thrust_map` of a quadrotor parameter file)", _anfis_map,
+         "fmu_models.fixed_wing.params:FixedWingParams",
+         "`uavfmu build --params`; written by `uavfmu identify aero`. Every parameter is also a tunable FMU "
+         "parameter of the same name."),
+    Page("anfis-map", "ANFIS thrust map (`thrust_map` of a quadrotor parameter file)",
+         "fmu_models.quadrotor.anfis:AnfisMapFile",
          "The quadrotor FMU's thrust map; written by `uavfmu identify thrust`."),
 )
 
@@ -245,7 +204,7 @@ def _classes(annotation: Any) -> list[type[BaseModel]]:
 
 def render(page: Page) -> str:
     """The Markdown of one reference page."""
-    model = page.schema()
+    model = load_schema(page.schema)
     schema = model.model_json_schema()
     defs = schema.get("$defs", {})
     classes = _models(model)
