@@ -25,6 +25,7 @@ from typing import Any, Protocol
 from pymavlink.dialects.v20 import common as mavlink2
 
 from fmu_models.common.atmosphere import G0_M_S2
+from fmu_models.quadrotor.constants import N_MOTORS
 from hil_adapter.core import BUSY_POLL_S, Pacer, Plant, Recorder, SocketSpinner, Stats, Watchdog
 from hil_adapter.mavlink_fast import FastMavlink
 
@@ -51,7 +52,7 @@ def controls_to_pwm(controls: Sequence[float], vehicle: str, armed: bool,
 
     if vehicle == "quadrotor":
         if not armed:
-            return dict.fromkeys(range(1, 5), 1000.0)
+            return dict.fromkeys(range(1, N_MOTORS + 1), 1000.0)
         c1, c2, c3, c4 = controls[:4]
         return {1: 1000.0 + 1000.0 * clip(c1, 0.0, 1.0), 2: 1000.0 + 1000.0 * clip(c2, 0.0, 1.0),
                 3: 1000.0 + 1000.0 * clip(c3, 0.0, 1.0), 4: 1000.0 + 1000.0 * clip(c4, 0.0, 1.0)}
