@@ -249,5 +249,8 @@ def skill_interval(measured: np.ndarray, model: np.ndarray, baseline: np.ndarray
     with np.errstate(divide="ignore", invalid="ignore"):
         boot = np.where(den > 0, 1.0 - np.sqrt(num / np.where(den > 0, den, 1.0)), -np.inf)
     tail = 100.0 * (1.0 - level) / 2.0
-    lo, hi = np.percentile(boot, [tail, 100.0 - tail])
+    # order statistics, not interpolation: the interval is never narrower than the resamples say, and a
+    # resample without any baseline error (-inf) gives lo = -inf instead of NaN (-inf - -inf)
+    lo = np.percentile(boot, tail, method="lower")
+    hi = np.percentile(boot, 100.0 - tail, method="higher")
     return SkillInterval(point, float(lo), float(hi), level, n_blocks)

@@ -190,3 +190,124 @@ def test_one_step_force_check_verdicts() -> None:
     few = np.full((t.size, 1), np.nan)
     few[0] = -9.8
     assert _one_step(log, t, few, ["accel_body_z_m_s2"]) == {}
+
+
+# --------------------------------------------------------------------------- edge cases by hand
+def test_fit_metrics_degenerate_series() -> None:
+    one = fit_metrics(np.array([2.0]), np.array([1.5]))  # one sample: no spread to normalise by
+    assert (one.rmse, one.n, one.nrmse, one.r2, one.fit_percent) == (0.5, 1, math.inf, -math.inf, -math.inf)
+    flat = fit_metrics(np.full(4, 3.0), np.array([3.0, 3.0, 3.0, 4.0]))
+    assert flat.nrmse == math.inf and flat.r2 == -math.inf and flat.theil_u == pytest.approx(0.5 / (3 + 3.2787),
+                                                                                               rel=1e-4)
+    zero = fit_metrics(np.zeros(3), np.zeros(3))
+    assert zero.theil_u == 0.0 and zero.rmse == 0.0
+    ints = fit_metrics([1, 2, 3], [1, 2, 4])  # plain lists of integers
+    assert ints.rmse == pytest.approx(math.sqrt(1 / 3)) and ints.r2 == pytest.approx(0.5)
+    with pytest.raises(MetricsError, match=r"^no sample where both measured and model values are finite$"):
+        fit_metrics(np.array([np.nan, 1.0]), np.array([1.0, np.nan]))
+
+
+def test_skill_and_rmse_edges() -> None:
+    import warnings
+
+    from identification.metrics import rmse, skill
+
+    assert skill(0.5, 0.5) == 0.0 and skill(0.25, 1.0) == 0.75 and skill(2.0, 1.0) == -1.0
+    for model, base in ((1.0, 0.0), (math.inf, 1.0), (1.0, math.inf), (math.nan, 1.0), (0.0, -1.0)):
+        assert math.isnan(skill(model, base)), (model, base)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # an all-NaN error is NaN, quietly
+        assert math.isnan(rmse(np.array([np.nan, 1.0]), np.array([1.0, np.inf])))
+    assert rmse([1, 2], [1, 4]) == pytest.approx(math.sqrt(2.0))
+
+
+def test_window_baselines_and_segment_rmse_by_hand() -> None:
+    from identification.metrics import segment_rmse, window_baselines
+
+    y = np.array([1.0, 3.0, np.nan, 4.0, np.nan, 7.0, np.nan, np.nan])
+    starts = np.array([0, 3, 5, 6])  # segments [1, 3, nan], [4, nan], [7], [nan, nan]
+    pers, mean = window_baselines(y, starts, np.array([0.5, 4.5, 6.0, 1.0]))
+    assert pers.tolist() == [0.5, 0.5, 0.5, 4.5, 4.5, 6.0, 1.0, 1.0]
+    assert mean[:6].tolist() == [2.0, 2.0, 2.0, 4.0, 4.0, 7.0] and np.isnan(mean[6:]).all()
+    m = np.array([2.0, 3.0, 0.0, np.nan, 5.0, 4.0, 1.0, 1.0])
+    got = segment_rmse(y, m, starts)  # over samples finite in both only
+    assert got[0] == pytest.approx(math.sqrt(0.5)) and got[2] == pytest.approx(3.0)
+    assert np.isnan(got[1]) and np.isnan(got[3])
+    assert segment_rmse([1, 2], [2, 4], np.array([0, 1])).tolist() == [1.0, 2.0]
+
+
+def test_segment_metrics_checks_and_near_constant_segments() -> None:
+    from identification.metrics import segment_metrics
+
+    with pytest.raises(MetricsError, match=r"^measured has 3 samples, model 2: they must match$"):
+        segment_metrics(np.zeros(3), np.zeros(2), np.array([0]))
+    for starts in ([0, 0, 2], [0, 3]):  # repeated start, start beyond the series
+        with pytest.raises(MetricsError, match=r"^segment starts must increase strictly and lie inside the series$"):
+            segment_metrics(np.zeros(3), np.zeros(3), np.array(starts))
+    segment_metrics(np.zeros(3), np.zeros(3), np.array([0, 1, 2]))  # one-sample segments are fine
+    # a segment that moves by 1e-4 around 1e6: its spread is below the rounding of the sums -> no R^2
+    y = np.array([1e6, 1e6 + 1e-4, 0.0, 1.0, 5.0, 5.0, 0.0, 0.0])
+    m = y + np.array([0.0, 0.0, 0.5, 0.0, 1.0, 0.0, 0.0, 0.0])
+    near, ok, flat, zero = segment_metrics(y, m, np.array([0, 2, 4, 6]))
+    assert near.r2 == -math.inf and near.fit_percent == -math.inf
+    assert ok.r2 == pytest.approx(1 - 0.25 / 0.5) and ok.nrmse == pytest.approx(math.sqrt(0.125))
+    assert flat.nrmse == math.inf and flat.r2 == -math.inf and zero.theil_u == 0.0
+    y[3] = np.nan  # a segment with a NaN takes the exact route
+    assert segment_metrics(y, m, np.array([0, 2, 4, 6]))[1] == fit_metrics(y[2:4], m[2:4])
+
+
+def test_skill_interval_arguments_and_edges() -> None:
+    from identification.metrics import skill_interval
+
+    rng = np.random.default_rng(2)
+    y = rng.normal(size=60)
+    m, b, s = y + 0.5 * rng.normal(size=60), y + rng.normal(size=60), np.arange(0, 60, 10)
+    for level in (0.5, 0.99):
+        assert skill_interval(y, m, b, s, level=level).level == level
+    for level in (0.49, 1.0):
+        with pytest.raises(MetricsError, match=rf"^level must lie in \[0.5, 1\), got {level}$"):
+            skill_interval(y, m, b, s, level=level)
+    for n_boot in (10, 100_000):
+        assert math.isfinite(skill_interval(y, m, b, s, n_boot=n_boot).lo)
+    for n_boot in (9, 100_001):
+        with pytest.raises(MetricsError, match=rf"^n_boot must lie in \[10, 100000\], got {n_boot}$"):
+            skill_interval(y, m, b, s, n_boot=n_boot)
+    with pytest.raises(MetricsError, match=r"^measured, model and baseline have 60, 60, 59 samples: they must match$"):
+        skill_interval(y, m, b[:-1], s)
+    for bad in ([], [1, 10], [0, 10, 10], [0, 60], [0, 30, 20]):
+        with pytest.raises(MetricsError, match=r"^block starts must begin at 0, increase strictly and lie inside"):
+            skill_interval(y, m, b, np.array(bad, dtype=int))
+    default = skill_interval(y, m, b, s)
+    assert default == skill_interval(y, m, b, s, n_boot=2000, seed=0) != skill_interval(y, m, b, s, seed=1)
+    assert default.n_blocks == 6 and default.lo < default.skill < default.hi
+
+
+def test_skill_interval_blocks_left_out_and_degenerate_baselines() -> None:
+    from identification.metrics import skill_interval
+
+    y = np.arange(40.0)
+    m, b = y + 0.1, y + 1.0
+    b_nan = b.copy()
+    b_nan[10:20] = np.nan  # a block without a finite baseline is dropped, not counted
+    res = skill_interval(y, m, b_nan, np.arange(0, 40, 10))
+    assert res.n_blocks == 3 and res.skill == pytest.approx(0.9)
+    assert res.lo == pytest.approx(0.9) and res.hi == pytest.approx(0.9) and res.outcome == "win"
+    one = skill_interval(y, m, b, np.array([0]))
+    assert one.skill == pytest.approx(0.9) and math.isnan(one.lo) and math.isnan(one.hi)
+    assert (one.level, one.n_blocks, one.outcome) == (0.9, 1, "tie")
+    two = skill_interval(y, m, b, np.array([0, 20]))
+    assert two.n_blocks == 2 and two.lo == pytest.approx(0.9) and two.outcome == "win"
+    exact = skill_interval(y, m, y.copy(), np.arange(0, 40, 10))  # the baseline is exact: nothing to beat
+    assert math.isnan(exact.skill) and math.isnan(exact.lo) and math.isnan(exact.hi)
+    assert (exact.level, exact.n_blocks) == (0.9, 4)
+    empty = skill_interval(y, np.full(40, np.nan), b, np.arange(0, 40, 10))
+    assert empty.n_blocks == 0 and math.isnan(empty.skill)
+    # baseline error in one block of three: resamples without it have no skill (-inf), and a 90 % interval
+    # reaches them (each resample misses it with probability (2/3)^3 = 0.30)
+    b_one = y.copy()
+    b_one[:10] += 1.0
+    sparse = skill_interval(y[:30], m[:30], b_one[:30], np.array([0, 10, 20]))
+    assert sparse.lo == -math.inf and sparse.hi == pytest.approx(1 - math.sqrt(0.015), rel=1e-6)  # drawn twice
+    first = b.copy()
+    first[10:] = y[10:]  # only the first block has a baseline error: every resample must be able to draw it
+    assert skill_interval(y, m, first, np.arange(0, 40, 10), level=0.5).hi > -math.inf
