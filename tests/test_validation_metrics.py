@@ -55,7 +55,8 @@ def test_segment_metrics_equal_fit_metrics_per_segment() -> None:
 WINDOWS, WINDOW_LEN = 60, 50
 
 
-def _replay(skill_target: float, spread: float, seed: int = 3):
+def _replay(skill_target: float, spread: float, seed: int = 3, included: list[bool] | None = None,
+            gate: bool = True, rate_hz: float = 50.0, windows: int = WINDOWS, score_it: bool = True):
     """A scored replay of one signal over 60 windows whose pooled skill against persistence is exactly
     ``skill_target`` and whose per-window error ratio (model / persistence, squared) spreads uniformly by
     +-``spread``: the bootstrap interval of the skill is about +-0.85 ``spread`` / sqrt(60) wide."""
@@ -63,10 +64,10 @@ def _replay(skill_target: float, spread: float, seed: int = 3):
     from identification.validation import ReplayResult, score
 
     rng = np.random.default_rng(seed)
-    n = WINDOWS * WINDOW_LEN
-    init = 10.0 + np.cumsum(rng.normal(size=WINDOWS))
+    n = windows * WINDOW_LEN
+    init = 10.0 + np.cumsum(rng.normal(size=windows))
     e_pers = rng.normal(size=n)  # measured minus persistence
-    ratio2 = rng.uniform(-spread, spread, WINDOWS)
+    ratio2 = rng.uniform(-spread, spread, windows)
     sse = np.add.reduceat(e_pers**2, np.arange(0, n, WINDOW_LEN))
     ratio2 += (1.0 - skill_target) ** 2 - np.sum(ratio2 * sse) / np.sum(sse)  # pooled skill exactly on target
     y = np.repeat(init, WINDOW_LEN) + e_pers
@@ -75,9 +76,10 @@ def _replay(skill_target: float, spread: float, seed: int = 3):
     res = ReplayResult({"path": "m.fmu"}, {"path": "f.bin", "warnings": []}, np.arange(n) * 0.02,
                        {"altitude_m": model}, {"altitude_m": y},
                        [(float(a), float(b)) for a, b in itertools.pairwise(edges)], [], {},
-                       (SignalMap("altitude_m", "altitude_m"),), included=[True] * WINDOWS,
-                       options={"rate_hz": 50.0})
-    score(res, edges, {"altitude_m": init})
+                       (SignalMap("altitude_m", "altitude_m", gate=gate),),
+                       included=[True] * windows if included is None else included, options={"rate_hz": rate_hz})
+    if score_it:
+        score(res, edges, {"altitude_m": init})
     return res
 
 
@@ -311,3 +313,69 @@ def test_skill_interval_blocks_left_out_and_degenerate_baselines() -> None:
     first = b.copy()
     first[10:] = y[10:]  # only the first block has a baseline error: every resample must be able to draw it
     assert skill_interval(y, m, first, np.arange(0, 40, 10), level=0.5).hi > -math.inf
+
+
+def _close(a, b) -> bool:
+    return all(x == pytest.approx(y, rel=1e-9) for x, y in zip(a.as_dict().values(), b.as_dict().values(),
+                                                                 strict=True))
+
+
+def test_score_leaves_excluded_windows_out_and_counts_window_verdicts() -> None:
+    included = [k % 7 != 3 for k in range(WINDOWS)]  # every 7th window from the 4th excluded
+    res = _replay(0.30, 0.40, included=included, gate=False)
+    y, model = res.measured["altitude_m"], res.model["altitude_m"]
+    for k, inc in enumerate(included):
+        sl = slice(k * WINDOW_LEN, (k + 1) * WINDOW_LEN)
+        assert np.isnan(res.persistence["altitude_m"][sl]).all() != inc
+        if not inc:
+            assert res.window_metrics[k] == {} and res.window_scores[k] == {}
+            continue
+        w = res.window_scores[k]["altitude_m"]
+        pers = res.persistence["altitude_m"][sl]
+        assert _close(w.fit, fit_metrics(y[sl], model[sl])) and w.gated is False
+        assert w.rmse_persistence == pytest.approx(math.sqrt(np.mean((y[sl] - pers) ** 2)))
+        assert w.rmse_mean == pytest.approx(np.std(y[sl]))
+        assert res.window_metrics[k]["altitude_m"] == w.fit
+    verdicts = [w["altitude_m"].verdict for w in res.window_scores if w]
+    assert res.window_counts("altitude_m") == {v: verdicts.count(v) for v in ("pass", "FAIL", "tie", "n/a")}
+    assert sum(res.window_counts("altitude_m").values()) == sum(included) and res.window_counts("x")["pass"] == 0
+    keep = np.repeat(included, WINDOW_LEN)
+    s = res.scores["altitude_m"]
+    assert res.overall["altitude_m"] == s.fit and _close(s.fit, fit_metrics(y[keep], model[keep])) and not s.gated
+    assert s.interval.n_blocks == sum(included)
+    assert s.rmse_mean == pytest.approx(math.sqrt(np.mean(
+        np.concatenate([(y[k * 50:(k + 1) * 50] - y[k * 50:(k + 1) * 50].mean()) ** 2
+                        for k in range(WINDOWS) if included[k]]))))
+    assert res.status == "unscored"  # its only signal is not gated
+
+
+def test_single_window_is_cut_into_time_blocks_for_the_interval() -> None:
+    from identification.validation import score
+
+    for rate_hz, blocks in ((50.0, 30), (25.0, 60)):  # 2 s blocks: 100 or 50 samples of 3000
+        res = _replay(0.30, 0.40, rate_hz=rate_hz, score_it=False)
+        n = WINDOWS * WINDOW_LEN
+        res.windows, res.included = [(0.0, n * 0.02)], [True]
+        score(res, np.array([0, n]), {"altitude_m": res.measured["altitude_m"][:1]})
+        assert res.scores["altitude_m"].interval.n_blocks == blocks
+
+
+def test_a_model_without_finite_values_is_named() -> None:
+    from identification.validation import ValidationInputError, score
+
+    res = _replay(0.30, 0.40, score_it=False)
+    res.model["altitude_m"][:] = np.nan
+    with pytest.raises(ValidationInputError, match=r"^altitude_m: .*\(no finite FMU value in the scored windows\)$"):
+        score(res, np.arange(0, WINDOWS * WINDOW_LEN + 1, WINDOW_LEN), {"altitude_m": np.zeros(WINDOWS)})
+
+
+def test_bad_options_name_their_source() -> None:
+    from fmu_models.config import ConfigError
+    from identification.validation import options
+
+    with pytest.raises(ConfigError, match=r"^validate options: 1 problem"):
+        options(rate_hz=-1.0)
+    with pytest.raises(ConfigError, match=r"^job 3: 1 problem"):
+        options("job 3", window_s=-1.0)
+    assert options(rate_hz=None, window_s=4.0).rate_hz == 50.0  # None: the default
+
