@@ -208,3 +208,54 @@ def test_from_ardupilot_fields_by_hand() -> None:
     assert ardupilot_servo_reversed(Channel("pwm_1_us", 1, reversed=True)) is True
     with pytest.raises(MappingError, match=r"no SERVOn_FUNCTION for aileron \(4\), elevator \(19\), rudder \(21\)"):
         PwmMapping.from_ardupilot({"SERVO1_FUNCTION": 33, "SERVO33_FUNCTION": 4})
+
+
+def test_to_input_edges_by_hand() -> None:
+    ail = Channel("aileron_rad", 1, 1100.0, 1500.0, 1900.0, -0.35, 0.35, deadband_us=20.0)
+    assert ail.to_input(500.0) == -0.35 and ail.to_input(2500.0) == 0.35  # plausible extremes, clipped
+    for bad in (499.9, 2500.1, math.nan):
+        with pytest.raises(MappingError, match=r"^channel 1 \(aileron_rad\): PWM .* us outside \[500.0, 2500.0\] us$"):
+            ail.to_input(bad)
+    assert ail.to_input(1480.0) == 0.0 and ail.to_input(1520.0) == 0.0  # exactly at the deadband's edge
+    assert ail.to_input(1521.0) == pytest.approx(0.35 * 21 / 400)
+    thr = Channel("throttle", 3, 1000.0, 1500.0, 2000.0, 0.0, 1.0)  # out_min 0: one-sided whatever the trim
+    assert thr.to_input(1500.0) == 0.5 and thr.to_input(1000.0) == 0.0
+    low_trim = Channel("pwm_1_us", 1, 1000.0, 1000.0, 2000.0, -1.0, 1.0)  # trim at min: one-sided too
+    assert low_trim.to_input(1000.0) == -1.0 and low_trim.to_input(1500.0) == 0.0
+    top_trim = Channel("elevator_rad", 2, 1000.0, 2000.0, 2000.0, -1.0, 1.0)  # no travel above trim
+    assert top_trim.to_input(2000.0) == 0.0 and top_trim.to_input(1500.0) == -0.5
+
+
+def test_apply_failsafe_and_missing_channels() -> None:
+    m = PwmMapping((Channel("throttle", 3, 1000.0, 1000.0, 2000.0, 0.0, 1.0, failsafe=0.0),
+                    Channel("aileron_rad", 1, failsafe=0.1)))
+    assert m.apply({3: 1500, 1: 1500}) == {"throttle": 0.5, "aileron_rad": 0.0}
+    assert m.apply({}, failsafe=True) == {"throttle": 0.0, "aileron_rad": 0.1}
+    with pytest.raises(MappingError, match=r"^channel 1 \(aileron_rad\) is not in the received outputs$"):
+        m.apply({3: 1500})
+
+
+def test_mapping_defaults_by_hand() -> None:
+    from fmu_models.signals.pwm_mapping import MappingConfigError, ardupilot_servo_reversed, default_mapping
+
+    quad = default_mapping("quadrotor").channels
+    assert quad == tuple(Channel(f"pwm_{k}_us", k, 1000.0, 1000.0, 2000.0, 1000.0, 2000.0, failsafe=1000.0)
+                         for k in range(1, 5))
+    wing = {c.target: c for c in default_mapping("fixed_wing").channels}
+    assert wing["aileron_rad"] == Channel("aileron_rad", 1, 1100.0, 1500.0, 1900.0, -0.35, 0.35)
+    assert wing["elevator_rad"] == Channel("elevator_rad", 2, 1100.0, 1500.0, 1900.0, -0.35, 0.35, reversed=True)
+    assert wing["throttle"] == Channel("throttle", 3, 1000.0, 1000.0, 2000.0, 0.0, 1.0)
+    assert wing["rudder_rad"] == Channel("rudder_rad", 4, 1100.0, 1500.0, 1900.0, -0.35, 0.35, reversed=True)
+    assert ardupilot_servo_reversed(Channel("pwm_1_us", 1)) is False  # not a surface: no convention to undo
+    assert PwmMapping.from_ardupilot({"SERVO0_FUNCTION": 21, "SERVO1_FUNCTION": 4}).channels == (
+        Channel("aileron_rad", 1, 1100.0, 1500.0, 1900.0, -0.35, 0.35),)  # no SERVO0; default limit 0.35 rad
+    with pytest.raises(MappingError, match=r"^no SERVOn_FUNCTION for aileron \(4\), elevator \(19\), rudder \(21\) "
+                                           r"or throttle \(70\)$"):
+        PwmMapping.from_ardupilot({})
+    with pytest.raises(MappingConfigError, match=r"^mapping: "):  # the default source name
+        PwmMapping.from_dict({"channels": {"a": {"source": 99}}})
+    edge = PwmMapping.from_dict({"a": {"source": 1, "trim_us": 2000.0}})  # trim at max is allowed
+    assert edge.channels[0].trim_us == 2000.0
+    with pytest.raises(MappingConfigError) as err:  # out_min left at its default -1
+        PwmMapping.from_dict({"a": {"source": 1, "out_max": -1.5}})
+    assert err.value.problems == ["field channels.a: out_min -1.0 must be below out_max -1.5"]
