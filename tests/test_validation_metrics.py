@@ -379,3 +379,27 @@ def test_bad_options_name_their_source() -> None:
         options("job 3", window_s=-1.0)
     assert options(rate_hz=None, window_s=4.0).rate_hz == 50.0  # None: the default
 
+
+
+def test_json_rows_carry_their_names() -> None:
+    from identification.validation import HorizonRow, _one_step
+
+    res = _replay(0.30, 0.40)
+    row = res.scores["altitude_m"].as_dict()
+    assert {"rmse_persistence", "rmse_mean", "skill_persistence", "skill_mean", "verdict", "reason", "gated",
+            "skill_persistence_lo", "skill_persistence_hi", "skill_level", "skill_blocks", "skill_outcome",
+            "rmse", "theil_u", "r2", "n"} <= set(row)
+    assert (row["skill_level"], row["skill_blocks"]) == (0.9, WINDOWS)
+    assert row["rmse_mean"] == res.scores["altitude_m"].rmse_mean
+    h = HorizonRow(0.5, 1.0, 2.0, 7)
+    assert h.as_dict() == {"horizon_s": 0.5, "rmse": 1.0, "rmse_persistence": 2.0, "skill_persistence": 0.5, "n": 7}
+    from identification.flightlog import FlightLog, Signal
+
+    t = np.arange(4.0)
+    log = FlightLog("f.bin", "csv", {"a": Signal("a", t, np.array([0.0, 1.0, 0.0, 1.0]), "m/s2")}, {})
+    two = np.array([[0.1], [0.9], [np.nan], [np.nan]])  # two restarts: enough for a score
+    out = _one_step(log, t, two, ["a"])["a"]
+    assert out.fit.n == 2 and math.isnan(out.rmse_persistence) and out.gated is False
+    worse = _one_step(log, t, np.array([[1.0], [0.0], [1.0], [0.0]]), ["a"])["a"]
+    assert worse.verdict == "FAIL" and "force model loses to the log's mean specific force (skill -1.00, 90 % " \
+        "interval" in worse.reason
