@@ -26,7 +26,7 @@ GROUPS: dict[str, tuple[list[str], list[str], list[str]]] = {
     "config": (["fmu_models/config.py"], ["tests/robustness/test_config_schemas.py", "tests/test_params_schema.py"],
                ["-k", "not wrong_values"]),
     "codecs": (["hil_adapter/packets.py", "hil_adapter/mavlink_fast.py"],
-               ["tests/test_hil_mavlink_fast.py", "tests/test_hil_ardupilot_json.py",
+               ["tests/test_packet_codecs.py", "tests/test_hil_mavlink_fast.py", "tests/test_hil_ardupilot_json.py",
                 "tests/robustness/test_hil_packets.py"], []),
     "pwm": (["fmu_models/signals/pwm_mapping.py"], ["tests/test_hil_pwm_mapping.py"], []),
     "sanitiser": (["identification/flightlog.py"],
