@@ -175,3 +175,21 @@ def test_sequence_wraps_and_only_zero_bytes_are_trimmed() -> None:
     fast = FastMavlink(ours).pack(mavlink2.MAVLink_hil_sensor_message, *args)
     assert fast == _reference(ref, mavlink2.MAVLink_hil_sensor_message(*args))
     assert ours.seq == 0 and fast[-3] == 0x58  # ... then the two CRC bytes
+
+
+def test_actuator_fast_path_checks_all_three_message_id_bytes() -> None:
+    """A frame whose 24-bit message id only shares its low byte with HIL_ACTUATOR_CONTROLS (93) is not taken,
+    even with a checksum made for it; nor is a buffer too short for a header."""
+    from hil_adapter.mavlink_fast import CRC, HEADER_LEN, _crc16
+
+    fast = FastMavlink(mavlink2.MAVLink(None, 1, 51))
+    frame = _actuator_frame([0.5] * 4 + [0.0] * 12, 128, 1)
+    extra = bytes((mavlink2.MAVLink_hil_actuator_controls_message.crc_extra,))
+    assert fast.actuator_controls(frame) is not None
+    for at in (8, 9):  # id bytes 2 and 3
+        other = bytearray(frame)
+        other[at] = 1
+        other[-2:] = CRC.pack(_crc16(bytes(other[1:-2]) + extra))
+        assert len(other) > HEADER_LEN + 2 and fast.actuator_controls(bytes(other)) is None, at
+    for short in (b"", b"\xfd", frame[:HEADER_LEN + 1]):
+        assert fast.actuator_controls(short) is None
