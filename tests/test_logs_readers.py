@@ -364,3 +364,47 @@ def test_check_quality_refuses_above_the_limit_and_says_what_was_lost() -> None:
 
 def test_missing_signal_error_reads_plainly() -> None:
     assert str(MissingSignalError("f.bin: no airspeed_m_s")) == "f.bin: no airspeed_m_s"  # not KeyError's quotes
+
+
+def test_quality_report_lines_and_json_by_hand() -> None:
+    """Every finding in words with its numbers, and the JSON summary a metrics file carries."""
+    q = DataQuality("f.bin", bytes_total=1000, bytes_skipped=60, messages_total=100, messages_skipped=2,
+                    damaged_regions=[(40, 50), (900, 10)], samples_total=500, jumps=[(12.0, 3600.0)],
+                    samples_beyond_jumps=7, dropped_segments=[(2.0, 7)], backward_steps=2, samples_reordered=3,
+                    samples_backward_dropped=1, time_outliers=4, duplicate_samples=3, non_finite_times=1,
+                    gap_count=2, gaps=[(5.0, 0.8), (9.0, 1.2)], gap_total_s=2.0, non_finite_samples=5,
+                    canonical_samples=1000, clipped_samples=6, time_total_s=20.0, time_kept_s=18.0)
+    # lost shares: bytes 0.06, messages 0.02, samples (7 + 1 + 4 + 1) / 500, values 0.005, time 1 - 18/20
+    assert q.samples_dropped == 13 and q.damage_fraction == pytest.approx(0.1) and not q.ok
+    lines = [
+        "f.bin: 60 of 1000 bytes could not be decoded and were skipped (2 damaged message(s) in 2 region(s); "
+        "first at byte 40)",
+        "f.bin: time jump(s) +3.6e+03 s at t=12.0 s: the log was split there and 2.0 s (7 samples) beyond the "
+        "jump(s) dropped",
+        "f.bin: 5 sample(s) with implausible or non-finite time stamps dropped",
+        "f.bin: time went backwards 2 time(s): 3 sample(s) put back in order, 1 dropped (beyond the tolerance)",
+        "f.bin: 3 duplicated sample(s) dropped",
+        "f.bin: 2 gap(s) without data, 2.00 s in all (longest 1.20 s at t=9.0 s)",
+        "f.bin: 5 non-finite (NaN/inf) value(s) removed from canonical signals",
+        "f.bin: 6 clipped sensor sample(s) (at full scale)",
+        "f.bin: kept 18.0 of 20.0 s of log; damage 10.0 %",
+    ]
+    assert q.lines() == lines
+    assert q.to_dict() == {
+        "source": "f.bin", "ok": False, "damage_fraction": pytest.approx(0.1), "bytes_total": 1000,
+        "bytes_skipped": 60, "damaged_regions": [[40, 50], [900, 10]], "messages_total": 100, "messages_skipped": 2,
+        "samples_total": 500, "samples_dropped": 13, "gap_count": 2, "gap_total_s": 2.0,
+        "gaps": [[5.0, 0.8], [9.0, 1.2]], "jumps": [[12.0, 3600.0]], "dropped_segments": [[2.0, 7]],
+        "samples_beyond_jumps": 7, "backward_steps": 2, "samples_reordered": 3, "samples_backward_dropped": 1,
+        "time_outliers": 4, "duplicate_samples": 3, "non_finite_times": 1, "non_finite_samples": 5,
+        "clipped_samples": 6, "time_total_s": 20.0, "time_kept_s": 18.0, "lines": lines}
+    only_messages = DataQuality("g.bin", messages_total=10, messages_skipped=1)
+    assert only_messages.lines() == ["g.bin: 1 of 10 message(s) damaged and skipped",
+                                     "g.bin: kept 0.0 of 0.0 s of log; damage 10.0 %"]
+    clean = DataQuality("h.bin")
+    assert clean.ok and clean.lines() == [] and clean.damage_fraction == 0.0
+    many = DataQuality("m.bin", bytes_total=10**6)
+    for k in range(25):
+        many.add_damage(100 * k, 10)
+    assert many.bytes_skipped == 250 and many.messages_skipped == 25 and len(many.damaged_regions) == 20
+    assert "25 damaged message(s) in 20+ region(s); first at byte 0" in many.lines()[0]
