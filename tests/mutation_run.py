@@ -1,5 +1,6 @@
 """``make mutation``: mutmut on the modules whose mistakes cost users most, each group against the tests that
-guard it: ``python tests/mutation_run.py [GROUP ...]`` (default: all), then ``tests/mutation_report.py``.
+guard it: ``python tests/mutation_run.py [GROUP ...]`` (default: all), then ``tests/mutation_report.py``;
+``--survivors GROUP ...`` runs again only what survived, after tests were added.
 
 Each group runs in its own copy of the repository (``.mutation/<group>``, git-ignored) with its own
 ``[tool.mutmut]`` table, so a mutant only runs the tests of its group (mutmut then picks, per mutant, those that
@@ -72,7 +73,31 @@ def run(group: str) -> int:
                               stderr=subprocess.STDOUT).returncode
 
 
+def rerun_survivors(group: str) -> int:
+    """Run again, with the current tests, only the mutants of ``group`` that survived or had no test (tests only
+    added since: what was killed stays killed)."""
+    import json
+
+    root = WORK / group
+    for f in subprocess.run(["git", "ls-files", "tests"], cwd=REPO, capture_output=True, text=True,
+                            check=True).stdout.split():
+        (root / f).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(REPO / f, root / f)
+    names = [k for mod in GROUPS[group][0]
+             for k, code in json.loads((root / "mutants" / f"{mod}.meta").read_text())["exit_code_by_key"].items()
+             if code in (0, 5, 33)]
+    print(f"mutation: {group}, {len(names)} survivors again", flush=True)
+    env = {**os.environ, "UAVFMU_FUZZ_SCALE": "0.05"}
+    with open(root / "mutmut-rerun.log", "w") as log:
+        return subprocess.run([str(Path(sys.executable).with_name("mutmut")), "run", "--max-children", "2", *names],
+                              cwd=root, env=env, stdout=log, stderr=subprocess.STDOUT).returncode
+
+
 def main(argv: list[str]) -> int:
+    if argv[:1] == ["--survivors"]:
+        for group in argv[1:]:
+            rerun_survivors(group)
+        return 0
     for group in argv or list(GROUPS):
         run(group)
     return 0
