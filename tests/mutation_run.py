@@ -39,9 +39,20 @@ def _toml_list(items: list[str]) -> str:
     return "[" + ", ".join(f'"{i}"' for i in items) + "]"
 
 
+def _write_table(root: Path, group: str) -> None:
+    """The repository's pyproject.toml with the group's ``[tool.mutmut]`` table, in the copy ``root``."""
+    modules, tests, args = GROUPS[group]
+    table = "\n".join([
+        "[tool.mutmut]", 'source_paths = ["fmu_models", "identification", "hil_adapter", "uavfmu"]',
+        f"only_mutate = {_toml_list(modules)}", 'also_copy = ["build_fmus.py", "autopilot"]',
+        f"pytest_add_cli_args_test_selection = {_toml_list(tests)}",
+        f"pytest_add_cli_args = {_toml_list(['-q', '-p', 'no:cacheprovider', *args])}", ""])
+    text = re.sub(r"\n\[tool\.mutmut\]\n.*", "", (REPO / "pyproject.toml").read_text(), flags=re.S)
+    (root / "pyproject.toml").write_text(text.rstrip("\n") + "\n\n" + table)
+
+
 def prepare(group: str) -> Path:
     """A fresh copy of the tracked files with the group's ``[tool.mutmut]``; ``../shared`` linked beside it."""
-    modules, tests, args = GROUPS[group]
     root = WORK / group
     shutil.rmtree(root, ignore_errors=True)
     files = subprocess.run(["git", "ls-files"], cwd=REPO, capture_output=True, text=True, check=True).stdout.split()
@@ -49,14 +60,7 @@ def prepare(group: str) -> Path:
         if (REPO / f).is_file():
             (root / f).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(REPO / f, root / f)
-    table = "\n".join([
-        "[tool.mutmut]", 'source_paths = ["fmu_models", "identification", "hil_adapter", "uavfmu"]',
-        f"only_mutate = {_toml_list(modules)}", 'also_copy = ["build_fmus.py", "autopilot"]',
-        f"pytest_add_cli_args_test_selection = {_toml_list(tests)}",
-        f"pytest_add_cli_args = {_toml_list(['-q', '-p', 'no:cacheprovider', *args])}", ""])
-    text = (root / "pyproject.toml").read_text()
-    text = re.sub(r"\n\[tool\.mutmut\]\n.*?(?=\n\[)", "", text, flags=re.S)
-    (root / "pyproject.toml").write_text(text + "\n" + table)
+    _write_table(root, group)
     shared = REPO.parent / "shared"
     if shared.is_dir():  # tests find ../shared/data beside the copy that mutmut runs (root/mutants)
         (root / "shared").symlink_to(shared)
@@ -83,6 +87,7 @@ def rerun_survivors(group: str) -> int:
                             check=True).stdout.split():
         (root / f).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(REPO / f, root / f)
+    _write_table(root, group)
     names = [k for mod in GROUPS[group][0]
              for k, code in json.loads((root / "mutants" / f"{mod}.meta").read_text())["exit_code_by_key"].items()
              if code in (0, 5, 33)]
