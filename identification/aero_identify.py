@@ -26,14 +26,30 @@ import numpy as np
 from fmu_models.fixed_wing.model import FixedWingModel
 from fmu_models.fixed_wing.params import FixedWingParams
 from fmu_models.signals.pwm_mapping import PwmMapping
-from identification import aero
+from identification import aero, aero_segments
 from identification.flightlog import DEFAULT_MAX_DAMAGE, FlightLog, check_quality
-from identification.identifiability import Identifiability, select_free
-from identification.metrics import FitMetrics
-from identification.oem import Estimate, EstimationError, Manoeuvre, OutputErrorEstimator
+from identification.identifiability import Identifiability
+from identification.metrics import FitMetrics, skill_interval
+from identification.oem import (
+    FREE_IMPACT,
+    Consider,
+    Estimate,
+    EstimationError,
+    HorizonDivergedError,
+    Manoeuvre,
+    OutputErrorEstimator,
+    consider_covariance,
+    fixed_worth_freeing,
+)
+from identification.priors import CONSIDERED, Prior, fixed_sd, geometry_priors
 
 #: sign constraints that keep the identified model stable (paper 001 rejects diverging models)
 STABILITY_SIGNS = {"C_ell_p": -1, "C_m_q": -1, "C_n_r": -1, "C_m_alpha": -1, "C_n_beta": +1}
+#: the primary derivatives (issue 23), the start of ``free="auto"``
+PRIMARY = ("C_ell_p", "C_ell_beta", "C_ell_r", "C_ell_delta_a", "C_n_beta", "C_n_r", "C_n_delta_r", "C_Y_beta",
+           "C_m_alpha", "C_m_q", "C_m_delta_e")
+#: held-out outputs scored against persistence with a block-bootstrap interval over blocks of this length [s]
+SKILL_BLOCK_S = 2.0
 #: per-segment nuisance candidates of ``nuisance="auto"``
 AUTO_STATES = ("rate_body_x_rad_s", "rate_body_y_rad_s", "rate_body_z_rad_s")
 AUTO_BIASES = ("rate_body_x_rad_s", "rate_body_y_rad_s", "rate_body_z_rad_s", "accel_body_x_m_s2",
@@ -63,6 +79,11 @@ class AeroOptions:
     progress: bool = False
     force: bool = False  #: use a log whose damage exceeds ``max_damage`` (its damage is still reported)
     max_damage: float = DEFAULT_MAX_DAMAGE  #: largest damaged or lost share of the log accepted (0..1)
+    priors: str = "geometry"  #: "geometry": built-in estimates of six derivatives as a MAP term; "none"
+    prior_values: dict[str, Prior] = field(default_factory=dict)  #: user priors (override the geometry ones)
+    consider: bool = True  #: fixed aerodynamic coefficients enter the bounds with their prior std
+    timeline: Path | None = None  #: timeline file of the (single) log; else ``NAME.timeline.json`` beside it
+    equation_error: bool = True  #: equation-error estimate as the output-error start and as a rival
 
 
 @dataclass
@@ -95,15 +116,28 @@ class AeroResult:
     notes: list[str] = field(default_factory=list)
     baselines: dict[str, dict[str, Any]] = field(default_factory=dict)
     quality: dict[str, Any] | None = None  #: the log's data-quality summary (``DataQuality.to_dict``)
+    pool: Pool | None = None  #: the logs and their segments
+    rival: Any = None  #: the equation-error estimate (``identification.equation_error.EquationErrorResult``)
+    consider: Consider | None = None  #: the fixed parameters and their effect on the bounds
 
     @property
     def losing_outputs(self) -> list[str]:
-        """Held-out outputs where a rival (persistence, segment mean) has a lower RMSE than the model."""
+        """Held-out outputs where the model does not beat a rival (persistence, segment mean): its skill's
+        block-bootstrap interval (``identification.metrics.skill_interval``) is not wholly above zero."""
         return [n for n, b in self.baselines.items() if b["loses_to"]]
 
     @property
     def estimate(self) -> Estimate:
         return self.fit.estimate
+
+    def _main_fixed(self, names: list[str]) -> str:
+        """The fixed parameters that move ``names`` most (largest |influence| x std)."""
+        con = self.consider
+        if con is None or not con.names:
+            return "-"
+        rows = [self.estimate.names.index(n) for n in names]
+        share = (np.abs(con.influence[rows]) * con.sd[None, :]).max(axis=0)
+        return ", ".join(con.names[j] for j in np.argsort(-share)[:3])
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -117,6 +151,10 @@ class AeroResult:
             "failures": self.failures, "notes": self.notes,
             "baselines_validation": self.baselines, "losing_outputs": self.losing_outputs,
             "quality": self.quality,
+            "prior_dominated": self.estimate.prior_dominated(),
+            "not_data_dominated": self.estimate.not_data_dominated(),
+            "considered_fixed": self.estimate.considered,
+            "equation_error": self.rival.as_dict() if self.rival is not None else None,
         }
 
     def summary(self) -> str:
@@ -130,9 +168,27 @@ class AeroResult:
             lines.append(f"{'output':<22} " + " ".join(f"{'Theil U ' + k:>20}" for k in self.scores))
             for name in next(iter(self.scores.values())):
                 lines.append(f"{name:<22} " + " ".join(f"{self.scores[k][name].theil_u:>20.3f}" for k in self.scores))
-        for n in self.losing_outputs:
-            lines.append(f"LOSES on held-out {n}: {', '.join(self.baselines[n]['loses_to'])} has a lower RMSE "
-                         f"({self.baselines[n]['rmse']})")
+        for n, b in self.baselines.items():
+            verdicts = ", ".join(f"{k} {v['outcome']} (skill {v['skill']:+.2f} [{v['skill_lo']:+.2f}, "
+                                 f"{v['skill_hi']:+.2f}])" for k, v in b["skill"].items())
+            lines.append(f"held-out {n}: {'LOSES' if b['loses_to'] else 'beats'} - against {verdicts}")
+        if self.rival is not None:
+            lines += ["", *self.rival.beside(self.estimate)]
+        dominated, joint = self.estimate.prior_dominated(), self.estimate.not_data_dominated()
+        if dominated:
+            lines.append(f"only the prior determines {', '.join(dominated)}: the data do not (posterior std without "
+                         "the consider share above 0.8 of the prior's); add manoeuvres that excite them")
+        fixed = [n for n, d in zip(self.estimate.names, self.estimate.dominance(), strict=False) if d == "fixed"]
+        if fixed:
+            lines.append(f"the values held fixed determine {', '.join(fixed)} more than the data do (consider share "
+                         f"above the data's std; mainly {self._main_fixed(fixed)}): free those or give priors")
+        joint = [n for n in joint if n not in dominated and n not in fixed]
+        if joint:
+            lines.append(f"the prior co-determines {', '.join(joint)} (posterior std 0.5-0.8 of the prior's): "
+                         "not the data's alone")
+        if self.estimate.considered:
+            lines.append(f"bounds include the consider covariance of {len(self.estimate.considered)} fixed "
+                         "coefficients (each at its prior std): " + ", ".join(self.estimate.considered))
         lines += [f"note: {n}" for n in self.notes]
         lines += [f"warning: {w}" for w in est.warnings] + [f"FAILED after the solve: {f}" for f in self.failures]
         return "\n".join(lines)
@@ -166,14 +222,74 @@ def _weight(sigma: dict[str, float] | None, outputs: list[str]) -> np.ndarray | 
     return np.diag([1.0 / sigma[n] ** 2 for n in outputs])
 
 
-def _segments(log: FlightLog, opt: AeroOptions) -> tuple[list[aero.Segment], list[aero.Segment]]:
-    if opt.segments:
-        return list(opt.segments), list(opt.validate_segments or [])
-    auto = aero.airborne_segments(log, opt.window_s)
-    if len(auto) < 2:
-        raise aero.SegmentError(f"{log.source}: fewer than two airborne windows of {opt.window_s:g} s; "
-                                "give segments")
-    return auto[0::2], list(opt.validate_segments or auto[1::2])
+@dataclass
+class AeroSource:
+    """One log with its PWM mapping and, optionally, its timeline file or hand-given segments."""
+
+    log: FlightLog
+    mapping: PwmMapping
+    timeline: Path | None = None
+    segments: Sequence[aero.Segment] | None = None
+    validate_segments: Sequence[aero.Segment] | None = None
+
+
+@dataclass
+class Pool:
+    """The segments of every log: ``fit`` and ``val`` as (log index, segment), grouped by log."""
+
+    sources: list[AeroSource]
+    fit: list[tuple[int, aero.Segment]]
+    val: list[tuple[int, aero.Segment]]
+
+    def label(self, k: int, seg: aero.Segment) -> str:
+        return str(seg) if len(self.sources) == 1 else f"log{k + 1}@{seg}"
+
+    def manoeuvres(self, model: FixedWingModel, p: np.ndarray, items: list[tuple[int, aero.Segment]],
+                   outputs: Sequence[str], rate_hz: float, delay_s: float = 0.0) -> list[Manoeuvre]:
+        out = []
+        for k, src in enumerate(self.sources):
+            segs = [s for i, s in items if i == k]
+            if segs:
+                out += aero.manoeuvres(model, p, src.log, src.mapping, segs, outputs, rate_hz, delay_s)
+        return out
+
+
+def _source_segments(src: AeroSource, model: FixedWingModel, opt: AeroOptions, notes: list[str]
+                     ) -> tuple[list[aero.Segment], list[aero.Segment]]:
+    """Fit and held-out segments of one log: given, from its timeline, from input activity, else windows."""
+    log = src.log
+    if src.segments:
+        return list(src.segments), list(src.validate_segments or [])
+    timeline = src.timeline or aero_segments.timeline_beside(Path(log.source))
+    if timeline is not None:
+        tl = aero_segments.load_timeline_blocks(timeline)
+        fit, val, extra = aero_segments.timeline_segments(tl, log.duration_s)
+        notes += [*extra, f"{Path(log.source).name}: {len(fit)} fit and {len(val)} held-out segments from the "
+                  f"timeline {timeline.name}"]
+        return fit, list(src.validate_segments or val)
+    t = np.arange(0.0, log.duration_s, 0.04)
+    surfaces = [n for n in model.inputs.index if n != "throttle"]
+    u = aero.log_inputs(model, log, src.mapping, t)[:, [list(model.inputs.index).index(n) for n in surfaces]]
+    alt, vas = log.signal("altitude_m").resample(t), log.signal("airspeed_m_s").resample(t)
+    airborne = (alt - np.nanmin(alt) > 10.0) & (vas > 12.0)
+    active = aero_segments.active_segments(t, u, airborne)
+    if len(active) >= 2:
+        notes.append(f"{Path(log.source).name}: {len(active)} segments where a control surface moves (no "
+                     "timeline); every third held out")
+        return [s for i, s in enumerate(active) if i % 3 != 1], list(src.validate_segments or active[1::3])
+    fit, val = aero_segments.fallback_windows(log, opt.window_s)
+    notes.append(f"{Path(log.source).name}: no manoeuvre found in the inputs; alternating {opt.window_s:g} s "
+                 "airborne windows")
+    return fit, list(src.validate_segments or val)
+
+
+def _pool(sources: list[AeroSource], model: FixedWingModel, opt: AeroOptions, notes: list[str]) -> Pool:
+    fit, val = [], []
+    for k, src in enumerate(sources):
+        f, v = _source_segments(src, model, opt, notes)
+        fit += [(k, s) for s in f]
+        val += [(k, s) for s in v]
+    return Pool(sources, fit, val)
 
 
 def _estimator(model: FixedWingModel, p: np.ndarray, free: list[str], opt: AeroOptions, states: Sequence[str],
@@ -184,7 +300,32 @@ def _estimator(model: FixedWingModel, p: np.ndarray, free: list[str], opt: AeroO
             if name in free:
                 constraints.append(lambda th, n=name, s=sign: s * th[n] > 0)
     return OutputErrorEstimator(model, p, free, list(opt.outputs), bounds=opt.bounds, constraints=constraints,
-                                estimate_states=list(states), estimate_biases=list(biases))
+                                estimate_states=list(states), estimate_biases=list(biases),
+                                prior={n: (v.value, v.sd) for n, v in _priors(model, free, opt).items()})
+
+
+def _priors(model: FixedWingModel, free: Sequence[str], opt: AeroOptions) -> dict[str, Prior]:
+    """Priors of the free parameters: the user's, else the geometry estimate (``opt.priors == "geometry"``),
+    else, with ``free="auto"``, the start value with the spread a fixed parameter gets."""
+    start = dict(zip(model.params.index, model.params.starts(), strict=True))
+    known = dict(geometry_priors(start)) if opt.priors == "geometry" else {}
+    known.update(opt.prior_values)
+    out = {n: known[n] for n in free if n in known}
+    if opt.free == "auto":
+        out.update({n: Prior(float(start[n]), fixed_sd(n, float(start[n])), "start value")
+                    for n in free if n not in out})
+    return out
+
+
+def _considered(model: FixedWingModel, free: Sequence[str], opt: AeroOptions) -> dict[str, float]:
+    """The fixed aerodynamic coefficients and the std each is given (its prior's, else :func:`fixed_sd`)."""
+    if not opt.consider:
+        return {}
+    start = dict(zip(model.params.index, model.params.starts(), strict=True))
+    known = dict(geometry_priors(start)) if opt.priors == "geometry" else {}
+    known.update(opt.prior_values)
+    return {n: known[n].sd if n in known else fixed_sd(n, float(start[n])) for n in CONSIDERED
+            if n not in free and n in start}
 
 
 def _aic(est: Estimate, data: list[Manoeuvre]) -> float:
@@ -201,15 +342,9 @@ def _fit(oe: OutputErrorEstimator, data: list[Manoeuvre], opt: AeroOptions, weig
 
 
 def _choose_free(model: FixedWingModel, p: np.ndarray, data: list[Manoeuvre], opt: AeroOptions) -> list[str]:
-    """``free="auto"``: the well-conditioned subset of the candidates at the start values."""
-    from identification.identifiability import AUTO_CANDIDATES
-
-    probe = OutputErrorEstimator(model, p, list(AUTO_CANDIDATES), list(opt.outputs))
-    M, names = probe.information(data)
-    chosen = select_free(M, names, theta=p[probe.i_free])
-    if not chosen:
-        raise EstimationError("free=auto: no candidate derivative is identifiable from these records")
-    return chosen
+    """``free="auto"``: every primary derivative (the priors keep the ones the data leave open in place, and
+    the summary names them); the fixed parameters that matter are freed after the first fit."""
+    return [n for n in PRIMARY if n in model.params.index]
 
 
 def _nuisance_fits(model: FixedWingModel, p: np.ndarray, free: list[str], data: list[Manoeuvre],
@@ -240,9 +375,8 @@ def _nuisance_fits(model: FixedWingModel, p: np.ndarray, free: list[str], data: 
         notes
 
 
-def _delay(model: FixedWingModel, p: np.ndarray, log: FlightLog, mapping: PwmMapping,
-           segs: list[aero.Segment], fit: Fit, opt: AeroOptions, weight: np.ndarray | None,
-           notes: list[str]) -> Fit:
+def _delay(model: FixedWingModel, p: np.ndarray, pool: Pool, fit: Fit, opt: AeroOptions,
+           weight: np.ndarray | None, notes: list[str]) -> Fit:
     """Scan command -> surface delays of whole samples (a short refit from the estimate at each). The data
     support a delay when the Akaike criterion has an interior minimum below the no-delay fit by more than 2
     (one more parameter) and the refit makes no derivatives inseparable; a criterion still falling at
@@ -253,7 +387,7 @@ def _delay(model: FixedWingModel, p: np.ndarray, log: FlightLog, mapping: PwmMap
     oe, theta = fit.oe, fit.estimate.values
     trials: list[Fit | None] = [fit]
     for d in range(1, steps + 1):
-        data = aero.manoeuvres(model, p, log, mapping, segs, opt.outputs, opt.rate_hz, d / opt.rate_hz)
+        data = pool.manoeuvres(model, p, pool.fit, opt.outputs, opt.rate_hz, d / opt.rate_hz)
         try:  # a short refit from the estimate: the no-delay estimate has absorbed part of the lag
             est = oe.estimate(data, theta0=theta, weight=weight, max_iter=6)
             trials.append(Fit(oe, data, est, _aic(est, data), d / opt.rate_hz))
@@ -284,46 +418,125 @@ def _new_pairs(before: Estimate, after: Estimate) -> list[tuple[str, str]]:
     return sorted(pairs(after) - pairs(before))
 
 
-def identify_aero(log: FlightLog, mapping: PwmMapping, init: FixedWingParams, opt: AeroOptions) -> AeroResult:
-    """Estimate the derivatives; raises ``ValueError`` subclasses (bad segments, names, ...) and
-    ``EstimationError`` before a solve exists; failures after it are kept in ``AeroResult.failures``."""
-    check_quality(log, opt.force, opt.max_damage)  # a badly damaged log is refused unless forced
+def identify_aero(log: FlightLog | Sequence[AeroSource], mapping: PwmMapping | None, init: FixedWingParams,
+                 opt: AeroOptions) -> AeroResult:
+    """Estimate the derivatives from one log (``log``, ``mapping``) or several (``log`` a list of
+    :class:`AeroSource`, ``mapping`` None: segments pooled, nuisance parameters per segment); raises
+    ``ValueError`` subclasses (bad segments, names, ...) and ``EstimationError`` before a solve exists; failures
+    after it are kept in ``AeroResult.failures``."""
+    if isinstance(log, FlightLog):
+        if mapping is None:
+            raise AeroInputError("a single log needs its PWM mapping")
+        sources = [AeroSource(log, mapping, opt.timeline, opt.segments, opt.validate_segments)]
+    else:
+        sources = list(log)
+    if not sources:
+        raise AeroInputError("no log given")
+    for src in sources:
+        check_quality(src.log, opt.force, opt.max_damage)  # a badly damaged log is refused unless forced
     model = FixedWingModel(init)
     _check_names(model, opt)
     p = np.array(model.params.starts(), dtype=float)
     outputs = list(opt.outputs)
     weight = _weight(opt.sigma, outputs)
-    fit_segs, val_segs = _segments(log, opt)
-    data = aero.manoeuvres(model, p, log, mapping, fit_segs, outputs, opt.rate_hz)
+    notes: list[str] = []
+    pool = _pool(sources, model, opt, notes)
+    data = pool.manoeuvres(model, p, pool.fit, outputs, opt.rate_hz)
     free = _choose_free(model, p, data, opt) if opt.free == "auto" else list(opt.free)
+    rival = _equation_error_start(model, p, pool, free, opt, notes)
     probe = _estimator(model, p, free, opt, (), ())
     before = probe.identifiability(data, weight=weight)
     start = {n: float(p[i]) for n, i in zip(free, probe.i_free, strict=True)}
-    fit, choice, notes = _nuisance_fits(model, p, free, data, opt, weight)
-    quality = log.quality.to_dict() if getattr(log, "quality", None) is not None else None
-    result = AeroResult(free, outputs, fit_segs, val_segs, start, before, fit, {}, choice, notes=notes,
-                        quality=quality)
+    try:
+        fit, choice, more = _nuisance_fits(model, p, free, data, opt, weight)
+    except HorizonDivergedError as err:
+        length = max(err.last_ok_s, 2.0)
+        pool.fit = [(k, s) for k, seg in pool.fit for s in aero_segments.split_segments([seg], length)]
+        notes.append(f"{err}: fell back to fit segments of {length:g} s, each from the log's state at its start")
+        data = pool.manoeuvres(model, p, pool.fit, outputs, opt.rate_hz)
+        fit, choice, more = _nuisance_fits(model, p, free, data, opt, weight)
+    notes += more
+    quality = [src.log.quality.to_dict() for src in sources if getattr(src.log, "quality", None) is not None]
+    result = AeroResult(free, outputs, [s for _, s in pool.fit], [s for _, s in pool.val], start, before, fit, {},
+                        choice, notes=notes, quality=quality[0] if len(quality) == 1 else
+                        {"logs": quality, "lines": [x for q in quality for x in q.get("lines", [])]})
+    result.pool, result.rival = pool, rival
     result.identified = {**init.to_dict(), **fit.estimate.derivatives()}
     if opt.free == "auto":
-        notes.append(f"free=auto chose {', '.join(free)}")
-    try:
-        result.fit = fit = _delay(model, p, log, mapping, fit_segs, fit, opt, weight, notes)
-        result.identified = {**init.to_dict(), **fit.estimate.derivatives()}
-    except (ValueError, EstimationError) as err:
-        result.failures.append(f"delay scan: {err}")
-    _score(result, model, p, log, mapping, opt)
+        notes.append(f"free=auto started from the primary derivatives {', '.join(free)}")
+    _after_fit(result, model, p, init, opt, weight)
     return result
 
 
-def _score(result: AeroResult, model: FixedWingModel, p: np.ndarray, log: FlightLog, mapping: PwmMapping,
-           opt: AeroOptions) -> None:
-    """Fit metrics on the fitted segments (with their nuisance parameters) and held-out ones (without)."""
+def _after_fit(result: AeroResult, model: FixedWingModel, p: np.ndarray, init: FixedWingParams,
+               opt: AeroOptions, weight: np.ndarray | None) -> None:
+    """Consider covariance (and, with ``free="auto"``, freeing the fixed parameters that matter), the delay
+    scan and the scores; a failure here is recorded, the estimate kept."""
+    try:
+        _consider(result, model, p, opt, weight)
+        if opt.free == "auto":
+            _free_fixed(result, model, p, opt, weight)
+        result.identified = {**init.to_dict(), **result.fit.estimate.derivatives()}
+    except (ValueError, EstimationError, np.linalg.LinAlgError) as err:
+        result.failures.append(f"consider covariance: {err}")
+    try:
+        fit = _delay(model, p, result.pool, result.fit, opt, weight, result.notes)
+        if fit is not result.fit:
+            fit.estimate.consider_cov, fit.estimate.considered = result.fit.estimate.consider_cov, \
+                result.fit.estimate.considered
+            result.fit = fit
+            result.identified = {**init.to_dict(), **fit.estimate.derivatives()}
+    except (ValueError, EstimationError) as err:
+        result.failures.append(f"delay scan: {err}")
+    _score(result, model, p, opt)
+
+
+def _consider(result: AeroResult, model: FixedWingModel, p: np.ndarray, opt: AeroOptions,
+              weight: np.ndarray | None) -> Consider | None:
+    """Put the consider covariance of the fixed coefficients into the estimate's bounds."""
+    sd = _considered(model, result.free, opt)
+    if not sd:
+        return None
     fit = result.fit
+    con = consider_covariance(fit.oe, fit.estimate, fit.data, sd, weight)
+    fit.estimate.consider_cov = con.cov
+    fit.estimate.considered = dict(zip(con.names, con.sd.tolist(), strict=True))
+    result.consider = con
+    return con
+
+
+def _free_fixed(result: AeroResult, model: FixedWingModel, p: np.ndarray, opt: AeroOptions,
+                weight: np.ndarray | None) -> None:
+    """One round of ``free="auto"``: free the fixed parameters that matter and that the data inform, refit
+    from the estimate with the same nuisance set, and recompute the consider covariance."""
+    con: Consider | None = getattr(result, "consider", None)
+    est = result.fit.estimate
+    if con is None or not con.names:
+        return
+    n = est.n_global
+    chosen = fixed_worth_freeing(est, con)
+    if not chosen:
+        result.notes.append("free=auto: no fixed coefficient both matters and is informed by the data")
+        return
+    free = result.free + chosen
+    p2 = p.copy()
+    p2[result.fit.oe.i_free] = est.values[:n]
+    oe = _estimator(model, p2, free, opt, result.fit.oe.states_est, result.fit.oe.biases)
+    new = _fit(oe, result.fit.data, opt, weight, result.fit.delay_s)
+    result.fit, result.free = new, free
+    result.start.update({c: float(p[model.params.index[c]]) for c in chosen})
+    result.notes.append(f"free=auto freed {', '.join(chosen)}: held fixed, each shifted a free derivative by more "
+                        f"than {FREE_IMPACT:g} std of its data bound and the data inform it")
+    _consider(result, model, p, opt, weight)
+
+
+def _score(result: AeroResult, model: FixedWingModel, p: np.ndarray, opt: AeroOptions) -> None:
+    """Fit metrics on the fitted segments (with their nuisance parameters) and held-out ones (without)."""
+    fit, pool = result.fit, result.pool
     try:
         result.replay["fit"] = _replay(fit.oe, fit.estimate.values, fit.data, result.fit_segments, opt.rate_hz)
-        if result.validation_segments:
-            val = aero.manoeuvres(model, p, log, mapping, result.validation_segments, result.outputs, opt.rate_hz,
-                                  fit.delay_s)
+        if pool.val:
+            val = pool.manoeuvres(model, p, pool.val, result.outputs, opt.rate_hz, fit.delay_s)
             theta = fit.estimate.values[:fit.estimate.n_global]
             result.replay["validation"] = _replay(fit.oe, theta, val, result.validation_segments, opt.rate_hz)
         for k, (y, m, _t) in result.replay.items():
@@ -336,19 +549,26 @@ def _score(result: AeroResult, model: FixedWingModel, p: np.ndarray, log: Flight
 
 def _baselines(replay: tuple[np.ndarray, np.ndarray, np.ndarray], data: list[Manoeuvre], outputs: list[str]
                ) -> dict[str, dict[str, Any]]:
-    """RMSE per held-out output of the model and of the simplest rivals: persistence (each segment's first
-    measurement held) and each segment's mean; ``loses_to`` names a rival with a lower RMSE."""
+    """Per held-out output: RMSE of the model and of the simplest rivals, persistence (each segment's first
+    measurement held) and each segment's mean, and the model's skill against each with a block-bootstrap
+    interval over blocks of :data:`SKILL_BLOCK_S`; ``loses_to`` names a rival the model does not beat (a tie
+    is not a win)."""
     y, m, _ = replay
-    cuts = np.cumsum([d.y.shape[0] for d in data])[:-1]
+    lengths = [d.y.shape[0] for d in data]
+    cuts = np.cumsum(lengths)[:-1]
     hold = np.vstack([np.repeat(seg[:1], len(seg), axis=0) for seg in np.split(y, cuts)])
     mean = np.vstack([np.repeat(seg.mean(axis=0, keepdims=True), len(seg), axis=0) for seg in np.split(y, cuts)])
+    block = max(round(SKILL_BLOCK_S / data[0].dt_s), 1)
+    starts = np.unique(np.concatenate([o + np.arange(0, n, block) for o, n in zip(np.r_[0, cuts], lengths,
+                                                                                    strict=True)])).astype(int)
     out = {}
     for i, n in enumerate(outputs):
         rm = {"model": float(np.sqrt(np.mean((y[:, i] - m[:, i]) ** 2))),
               "persistence": float(np.sqrt(np.mean((y[:, i] - hold[:, i]) ** 2))),
               "segment_mean": float(np.sqrt(np.mean((y[:, i] - mean[:, i]) ** 2)))}
-        rivals = [k for k in ("persistence", "segment_mean") if rm[k] < rm["model"]]
-        out[n] = {"rmse": rm, "loses_to": rivals}
+        skill = {k: skill_interval(y[:, i], m[:, i], b[:, i], starts).as_dict()
+                 for k, b in (("persistence", hold), ("segment_mean", mean))}
+        out[n] = {"rmse": rm, "skill": skill, "loses_to": [k for k, v in skill.items() if v["outcome"] != "win"]}
     return out
 
 
@@ -370,10 +590,15 @@ def write_results(result: AeroResult, out: Path, metrics: Path, log_name: str, r
     from identification.jsonio import write_json
 
     est = result.estimate
+    n = est.n_global
     write_json(out, {"fixed_wing": result.identified, "_identification": {
         "method": "output error (identification.oem)", "log": log_name, "free": result.free,
-        "bound_method": est.bound_method,
-        "std": {n: float(s) for n, s in zip(result.free, est.std[:est.n_global], strict=True)}}})
+        "bound_method": est.bound_method + (" + consider covariance of the fixed coefficients"
+                                            if est.considered else ""),
+        "std": {n: float(s) for n, s in zip(result.free, est.std[:n], strict=True)},
+        "prior_dominated": est.prior_dominated()},
+        "uncertainty": {"names": list(est.names[:n]), "mean": [float(v) for v in est.values[:n]],
+                        "covariance": est.covariance_printed().tolist()}})
     write_json(metrics, {"log": log_name, "rate_hz": rate_hz, **result.as_dict()})
     if plots_dir is None:
         return
@@ -382,6 +607,34 @@ def write_results(result: AeroResult, out: Path, metrics: Path, log_name: str, r
     except (OSError, ValueError, RuntimeError) as err:
         result.failures.append(f"plots: {err}")
         write_json(metrics, {"log": log_name, "rate_hz": rate_hz, **result.as_dict()})
+
+
+def _equation_error_start(model: FixedWingModel, p: np.ndarray, pool: Pool, free: Sequence[str],
+                          opt: AeroOptions, notes: list[str]) -> Any:
+    """The equation-error estimate (the rival); its values of free derivatives replace the start values in
+    ``p`` where they keep the stability signs (``identification.equation_error``)."""
+    if not opt.equation_error:
+        return None
+    from identification.equation_error import EquationErrorError, equation_error
+
+    try:
+        ee = equation_error(model, p, pool.sources, pool.fit, opt.rate_hz)
+    except (EquationErrorError, ValueError) as err:
+        notes.append(f"equation-error start skipped: {err}")
+        return None
+    used = []
+    for n in free:
+        v = ee.values.get(n)
+        start = float(p[model.params.index[n]])
+        if v is None or not math.isfinite(v) or (opt.stability_constraints and n in STABILITY_SIGNS
+                                                 and STABILITY_SIGNS[n] * v <= 0):
+            continue
+        if ee.std[n] > 0.5 * abs(v) or (start != 0.0 and not 0.2 < v / start < 5.0):
+            continue  # poorly determined, or far from the start: the start value is the safer guess
+        p[model.params.index[n]] = v
+        used.append(n)
+    notes.append(f"output-error start from the equation-error estimate for {', '.join(used) or 'none'}")
+    return ee
 
 
 def _plots(result: AeroResult, folder: Path, rate_hz: float) -> None:

@@ -27,8 +27,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from tqdm import tqdm
 
+from fmu_models.common.mathns import NP
 from fmu_models.config import bounded, range_problems
-from fmu_models.quadrotor.anfis import MF_TYPES, AnfisMap
+from fmu_models.quadrotor.anfis import MF_TYPES, AnfisMap, feature_values
 
 MIN_SIGMA_SCALED = 1e-3  #: floor of an MF width in scaled input units (width 2 = whole training range)
 MIN_BELL_SLOPE = 0.5  #: floor of the generalised-bell exponent b (keeps dmu/dm finite at the centre)
@@ -535,84 +536,9 @@ def polynomial_baselines(
     return out
 
 
-# --------------------------------------------------------------------------- per-motor training
-def _motor_design(wbar: list[np.ndarray], z: list[np.ndarray], order: int) -> np.ndarray:
-    """Design of ``yhat = mean_i F(z_i)`` over the motors: the mean of the per-motor designs."""
-    return sum(_design(w, zi[:, None], order) for w, zi in zip(wbar, z, strict=True)) / len(z)
-
-
-def _motor_forward(z: list[np.ndarray], prem: _Premise, cons: np.ndarray, rules: np.ndarray, order: int):
-    """Per motor: (wbar, f, F(z_i), u) of the one-input map; ``yhat = n_motors * mean_i F / n``."""
-    out = []
-    for zi in z:
-        logmu, u = _log_memberships(zi[:, None], prem)
-        wbar = _normalised_firing(logmu, rules)
-        f = _rule_outputs(cons, zi[:, None], order)
-        out.append((wbar, f, np.einsum("nr,nr->n", wbar, f), u[:, 0, :]))
-    return out
-
-
-def train_anfis_motors(
-    x_motor_us: np.ndarray,
-    y: np.ndarray,
-    config: AnfisTrainConfig | None = None,
-    check: tuple[np.ndarray, np.ndarray] | None = None,
-    source: str = "",
-) -> TrainResult:
-    """Hybrid-train a one-input Gaussian ANFIS ``F`` of summed PWM so that ``y ~ sum_i F(n x_i) / n``.
-
-    ``x_motor_us`` (N, n): per-motor (effective) PWM [us]; the map's input is ``n`` times a motor's PWM,
-    the convention of the quadrotor FMU (``T_i = F(n pwm_i)/n``), so a measured total thrust ``y`` [N]
-    trains it even when the motors differ. Per epoch: least squares for the consequents over the motor
-    sum, then one Jang gradient step on the MF centres and widths. ``check``: (x, y) for early stopping.
-    """
-    cfg = config or AnfisTrainConfig(n_mfs=2, order=1)
-    if cfg.mf_type != "gaussian":
-        raise AnfisTrainingError(f"mf_type = {cfg.mf_type!r}; per-motor training supports 'gaussian' only")
-    x = np.asarray(x_motor_us, float)
-    y = np.asarray(y, float)
-    if x.ndim != 2 or y.shape != (x.shape[0],) or not (np.isfinite(x).all() and np.isfinite(y).all()):
-        raise AnfisTrainingError(f"training data: x must be finite (N, n_motors), y (N,); got {x.shape}, {y.shape}")
-    n = x.shape[1]
-    xs = n * x
-    lo, hi = float(xs.min()), float(xs.max())
-    if not hi > lo:
-        raise AnfisTrainingError(f"motor PWM is constant ({lo / n} us); an ANFIS needs a spread of values")
-    centre, half = (hi + lo) / 2.0, (hi - lo) / 2.0
-    z = [(xs[:, i] - centre) / half for i in range(n)]
-    zc = None if check is None else [(n * np.asarray(check[0], float)[:, i] - centre) / half for i in range(n)]
-    rules = _rule_index(1, cfg.n_mfs)
-    prem = _grid_init(1, cfg)
-    step = _StepSize(cfg)
-    hist_t: list[float] = []
-    hist_c: list[float] = []
-    best = (math.inf, -1, prem.copy(), np.zeros((cfg.n_mfs, 1)))
-    for epoch in range(cfg.epochs):
-        fw = _motor_forward(z, prem, np.zeros((cfg.n_mfs, 1 + cfg.order)), rules, cfg.order)
-        cons = _lstsq(_motor_design([w for w, *_ in fw], z, cfg.order), y, cfg.n_mfs)
-        fw = _motor_forward(z, prem, cons, rules, cfg.order)
-        err = y - sum(F for *_, F, _u in fw) / n
-        sse = float(err @ err)
-        hist_t.append(math.sqrt(sse / y.size))
-        score = hist_t[-1]
-        if zc is not None:
-            fc = _motor_forward(zc, prem, cons, rules, cfg.order)
-            score = _rmse(sum(F for *_, F, _u in fc) / n, np.asarray(check[1], float))  # type: ignore[index]
-            hist_c.append(score)
-        if score < best[0]:
-            best = (score, epoch, prem.copy(), cons.copy())
-        step.update(sse)
-        _motor_premise_step(prem, fw, err / n, step.kappa)
-    if best[1] < 0:
-        raise AnfisTrainingError(f"no epoch gave a finite error (last training RMSE {hist_t[-1:]})")
-    _, ep, bp, bc = best
-    amap = _to_map(bp, bc, np.array([centre]), np.array([half]), cfg, ("pwm_sum_us",),
-                   (np.array([lo]), np.array([hi])), "thrust_N", source)
-    return TrainResult(amap, tuple(hist_t), tuple(hist_c) if zc is not None else None, int(ep))
-
-
+# --------------------------------------------------------------------------- per-motor feature ANFIS
 def _motor_premise_step(prem: _Premise, fw: list, err_scaled: np.ndarray, kappa: float) -> None:
-    """One Jang step on the Gaussian centres/widths for ``yhat = mean_i F(z_i)``; ``err_scaled = err / n``.
+    """One Jang step on the Gaussian centres/widths for ``yhat = sum_i F(z_i)`` (``err_scaled`` = error).
 
     dE/dlog w_r summed over the motors (each motor's firing enters its own F), then as in
     :func:`_premise_gradient` (one input: one rule per MF).
@@ -631,8 +557,138 @@ def _motor_premise_step(prem: _Premise, fw: list, err_scaled: np.ndarray, kappa:
     prem.sigma = np.maximum(prem.sigma - eta * g_s[None], MIN_SIGMA_SCALED)
 
 
-def is_monotone(amap: AnfisMap, n_points: int = 400) -> bool:
-    """True when the one-input map does not decrease anywhere on its trained band (dense grid)."""
+def feature_design(x: np.ndarray, r: np.ndarray, wbar: list[np.ndarray] | None,
+                   features: tuple[str, ...]) -> np.ndarray:
+    """Least-squares design of ``y ~ sum_i sum_r wbar_r(x_i) sum_k c_rk phi_k(x_i, r)``: columns rule-major
+    (rule r, then feature k). ``wbar=None``: one rule (the polynomial ``sum_i phi_k(x_i, r)``)."""
+    rr = np.asarray(r, float)[:, None]
+    phi = feature_values(features, x, rr)  # each (N, n_motors)
+    if wbar is None:
+        return np.stack([p.sum(axis=1) for p in phi], axis=1)
+    cols = [sum(w[:, j] * p[:, i] for i, w in enumerate(wbar)) for j in range(wbar[0].shape[1]) for p in phi]
+    return np.stack(cols, axis=1)
+
+
+def _feature_forward(z: list[np.ndarray], x: np.ndarray, r: np.ndarray, prem: _Premise, cons: np.ndarray,
+                     features: tuple[str, ...], rules: np.ndarray) -> list:
+    """Per motor (wbar, f, F, u): normalised firing, rule outputs, motor thrust and scaled distance."""
+    out = []
+    for i, zi in enumerate(z):
+        logmu, u = _log_memberships(zi[:, None], prem)
+        wbar = _normalised_firing(logmu, rules)
+        phi = np.stack(feature_values(features, x[:, i], r), axis=1)  # (N, K)
+        f = phi @ cons.T  # (N, R)
+        out.append((wbar, f, np.einsum("nr,nr->n", wbar, f), u[:, 0, :]))
+    return out
+
+
+def train_feature_anfis(
+    x: np.ndarray,
+    r: np.ndarray | None,
+    y: np.ndarray,
+    features: tuple[str, ...],
+    n_rules: int,
+    epochs: int = 30,
+    check: tuple[np.ndarray, np.ndarray | None, np.ndarray] | None = None,
+    input_name: str = "u",
+    source: str = "",
+) -> TrainResult:
+    """Hybrid-train ``G`` so that ``y ~ sum_i G(x_i, r)``: one Gaussian MF per rule on the per-motor input.
+
+    ``x`` (N, n_motors): per-motor input (normalised command, > 0 in the air); ``r`` (N,) battery ratio
+    V/V_nom (None: 1). Consequents are first order over ``features`` (:data:`FEATURES`, no constant, so
+    ``G(0) = 0``). One rule: the normalised firing is 1 and the single least-squares step IS the polynomial
+    ``sum_k c_k sum_i phi_k(x_i)`` (``np.linalg.lstsq``, no gradient step). More rules: per epoch least squares
+    for the consequents, then one Jang step on the MF centres and widths; ``check`` = (x, r, y) for early
+    stopping (the epoch with the lowest checking RMSE is kept).
+    """
+    x = np.asarray(x, float)
+    y = np.asarray(y, float)
+    r = np.ones(len(y)) if r is None else np.asarray(r, float)
+    if x.ndim != 2 or y.shape != (x.shape[0],) or r.shape != y.shape or not (
+            np.isfinite(x).all() and np.isfinite(y).all() and np.isfinite(r).all()):
+        raise AnfisTrainingError(f"training data: x must be finite (N, n_motors), r and y (N,); got {x.shape}, "
+                                 f"{r.shape}, {y.shape}")
+    lo, hi = float(x.min()), float(x.max())
+    if not (hi > lo > 0.0):
+        raise AnfisTrainingError(f"per-motor input spans [{lo}, {hi}]; it must lie above idle (> 0) and vary")
+    if y.size < n_rules * len(features):
+        raise AnfisTrainingError(f"{y.size} samples for {n_rules * len(features)} consequent parameters")
+    cfg = AnfisTrainConfig(n_mfs=n_rules, order=1, epochs=epochs)
+    centre, half = (hi + lo) / 2.0, (hi - lo) / 2.0
+    prem = _grid_init(1, cfg)
+    if n_rules == 1:
+        cons = np.linalg.lstsq(feature_design(x, r, None, features), y, rcond=None)[0][None, :]
+        res = math.sqrt(float(np.mean((feature_design(x, r, None, features) @ cons[0] - y) ** 2)))
+        return TrainResult(_feature_map(prem, cons, centre, half, (lo, hi), features, input_name, source),
+                           (res,), None, 0)
+    hist = _feature_epochs(x, r, y, features, prem, centre, half, cfg, check)
+    _, ep, bp, bc, ht, hc = hist
+    return TrainResult(_feature_map(bp, bc, centre, half, (lo, hi), features, input_name, source), tuple(ht),
+                       tuple(hc) if check is not None else None, int(ep))
+
+
+def _feature_epochs(x, r, y, features, prem, centre, half, cfg, check) -> tuple:
+    """Hybrid epochs of :func:`train_feature_anfis` (scaled premises); the best epoch and the histories."""
+    rules = _rule_index(1, cfg.n_mfs)
+    step = _StepSize(cfg)
+    z = [(x[:, i] - centre) / half for i in range(x.shape[1])]
+    zc = None
+    if check is not None:
+        xc = np.asarray(check[0], float)
+        rc = np.ones(len(check[2])) if check[1] is None else np.asarray(check[1], float)
+        zc = [(xc[:, i] - centre) / half for i in range(xc.shape[1])]
+    best: tuple = (math.inf, -1, prem.copy(), np.zeros((cfg.n_mfs, len(features))))
+    hist_t: list[float] = []
+    hist_c: list[float] = []
+    for epoch in range(cfg.epochs):
+        wb = [_normalised_firing(_log_memberships(zi[:, None], prem)[0], rules) for zi in z]
+        theta = _lstsq(feature_design(x, r, wb, features), y, 1).ravel()  # Gram route: 5-50x faster than SVD
+        cons = theta.reshape(cfg.n_mfs, len(features))
+        fw = _feature_forward(z, x, r, prem, cons, features, rules)
+        err = y - sum(F for _w, _f, F, _u in fw)
+        sse = float(err @ err)
+        hist_t.append(math.sqrt(sse / y.size))
+        score = hist_t[-1]
+        if zc is not None:
+            fc = _feature_forward(zc, xc, rc, prem, cons, features, rules)
+            score = _rmse(sum(F for _w, _f, F, _u in fc), np.asarray(check[2], float))
+            hist_c.append(score)
+        if score < best[0]:
+            best = (score, epoch, prem.copy(), cons.copy())
+        step.update(sse)
+        _motor_premise_step(prem, fw, err, step.kappa)
+    if best[1] < 0:
+        raise AnfisTrainingError(f"no epoch gave a finite error (last training RMSE {hist_t[-1:]})")
+    return (*best, hist_t, hist_c)
+
+
+def _feature_map(prem: _Premise, cons: np.ndarray, centre: float, half: float, band: tuple[float, float],
+                 features: tuple[str, ...], input_name: str, source: str) -> AnfisMap:
+    """Raw-unit map: MF centres/widths unscaled; consequents are already in raw feature units."""
+    return AnfisMap(
+        inputs=(input_name,), mf_type="gaussian",
+        mf_mean=(tuple(float(centre + half * m) for m in prem.mean[0]),),
+        mf_sigma=(tuple(float(half * s) for s in prem.sigma[0]),),
+        mf_slope=None, order=1, consequents=tuple(tuple(float(v) for v in row) for row in cons),
+        input_range=((band[0], band[1]),), output="thrust_N", source=source, features=tuple(features),
+    )
+
+
+def feature_map_monotone(amap: AnfisMap, r_values: tuple[float, ...] = (1.0,), n_points: int = 400) -> bool:
+    """True when the per-motor map ``G(x, r)`` does not decrease on its band for every ``r`` given."""
     lo, hi = amap.input_range[0]
-    y = predict(amap, np.linspace(lo, hi, n_points))
-    return bool(np.all(np.diff(y) >= -1e-9 * max(1.0, float(np.abs(y).max()))))
+    xs = np.linspace(lo, hi, n_points)
+    for rv in r_values:
+        g = np.asarray(amap.evaluate([xs], NP, rv), float)
+        if not np.all(np.diff(g) >= -1e-9 * max(1.0, float(np.abs(g).max()))):
+            return False
+    return True
+
+
+def firing_of(amap: AnfisMap, x: np.ndarray) -> list[np.ndarray]:
+    """Per motor, the normalised firing (N, R) of a one-input Gaussian map at raw inputs ``x`` (N, n_motors)."""
+    prem = _Premise(np.array(amap.mf_mean), np.array(amap.mf_sigma), None)
+    rules = _rule_index(1, amap.n_mfs[0])
+    return [_normalised_firing(_log_memberships(np.asarray(x, float)[:, [i]], prem)[0], rules)
+            for i in range(np.shape(x)[1])]

@@ -9,7 +9,8 @@ From the information matrix ``M = Σ Jᵀ W J`` of the weighted output sensitivi
 - the excitation of each input axis over the records (std of the input about each record's mean);
 - what would fix each problem: fix one of a correlated pair, or add a manoeuvre exciting its axis.
 
-:func:`select_free` picks a well-conditioned free set greedily (``--free auto``).
+:func:`select_free` picks a well-conditioned free set greedily (a library helper; ``identify aero --free auto``
+starts from the primary derivatives with priors instead, see ``identification/readme_aero.md``).
 """
 
 from __future__ import annotations

@@ -207,6 +207,10 @@ class SkillInterval:
             return "lose"
         return "tie"
 
+    def as_dict(self) -> dict[str, Any]:
+        return {"skill": self.skill, "skill_lo": self.lo, "skill_hi": self.hi, "level": self.level,
+                "n_blocks": self.n_blocks, "outcome": self.outcome}
+
 
 def block_starts(n_samples: int, block_len: int) -> np.ndarray:
     """Starts of consecutive blocks of ``block_len`` samples covering ``n_samples`` (the last may be shorter)."""

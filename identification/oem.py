@@ -10,6 +10,12 @@ eq. 9). Cramér-Rao bounds carry Morelli & Klein's correction for coloured resid
 
 Parameter vector: the free model parameters, then per manoeuvre the estimated initial states and output
 biases (``m<j>.x0.<state>``, ``m<j>.bias.<output>``).
+
+A-priori values with standard deviations turn the fit into a maximum-a-posteriori estimate: the prior enters
+the cost as ``1/2 Σ ((θ - θ_p)/σ_p)²`` (a priori information as in Klein & Morelli 2006 and Jategaonkar 2015),
+and the bounds include it (its information enters the sandwich beside the coloured-residual term).
+Parameters kept fixed at uncertain values enter the bounds as a consider covariance
+(:func:`consider_covariance`).
 """
 
 from __future__ import annotations
@@ -37,6 +43,14 @@ RELATIVE_STD_WARN = 0.5
 
 class EstimationError(ValueError):
     """The problem is ill-posed (unknown names, mismatched shapes, a diverging start)."""
+
+
+class HorizonDivergedError(EstimationError):
+    """A continuation step to a longer record diverged; ``last_ok_s`` is the longest span fitted without."""
+
+    def __init__(self, message: str, last_ok_s: float) -> None:
+        super().__init__(message)
+        self.last_ok_s = last_ok_s
 
 
 @dataclass(frozen=True)
@@ -82,20 +96,77 @@ class Estimate:
     bootstrap_std: np.ndarray | None = None
     bound_method: str = "cramer-rao-coloured"
     identifiability: Identifiability | None = None
+    prior_sd: np.ndarray | None = None  #: a-priori std of each model parameter (inf: no prior)
+    consider_cov: np.ndarray | None = None  #: covariance from parameters held fixed (consider covariance)
+    considered: dict[str, float] = field(default_factory=dict)  #: fixed parameter -> the std it was given
+    covariance: np.ndarray | None = None  #: covariance of the model parameters behind the printed bound
+    n_segments: int = 0  #: manoeuvres the bootstrap resampled (its small-sample factor)
 
     def __post_init__(self) -> None:
         if self.n_global < 0:
             self.n_global = len(self.names)
 
     @property
+    def consider_std(self) -> np.ndarray | None:
+        return None if self.consider_cov is None else np.sqrt(np.maximum(np.diag(self.consider_cov), 0.0))
+
+    @property
     def std(self) -> np.ndarray:
         """The printed 1-sigma bound: the larger of the coloured-residual Cramér-Rao bound and the block
-        bootstrap over manoeuvres (derivatives; nuisance parameters keep the Cramér-Rao bound)."""
-        if self.bound_method == "max(cramer-rao-coloured, segment-bootstrap)" and self.bootstrap_std is not None:
-            out = self.crb_std.copy()
-            out[:self.n_global] = np.maximum(out[:self.n_global], self.bootstrap_std)
-            return out
-        return self.crb_std
+        bootstrap over manoeuvres scaled by :func:`small_sample_factor` (derivatives; nuisance parameters keep
+        the Cramér-Rao bound), with the consider share of the parameters held fixed added in quadrature."""
+        out = self.crb_std.copy()
+        out[:self.n_global] = self.data_std
+        if self.consider_std is not None:
+            out[:self.n_global] = np.hypot(out[:self.n_global], self.consider_std)
+        return out
+
+    @property
+    def data_std(self) -> np.ndarray:
+        """The posterior std from the data and the prior (coloured Cramér-Rao or bootstrap), without the
+        consider share of the parameters held fixed."""
+        out = self.crb_std[:self.n_global].copy()
+        if self.bootstrap_std is not None and self.bound_method.startswith("max("):
+            out = np.maximum(out, self.bootstrap_std * small_sample_factor(self.n_segments))
+        return out
+
+    def dominance(self) -> list[str]:
+        """Per model parameter: "fixed" when the consider share of the parameters held fixed exceeds the data's
+        std; else "data" when the posterior std (data and prior, without the consider share) is below half the
+        prior's, "prior" when above 0.8 of it, "data+prior" between, "data (no prior)" without a prior."""
+        out = []
+        std, cons = self.data_std, self.consider_std
+        for i in range(self.n_global):
+            sp = np.inf if self.prior_sd is None else self.prior_sd[i]
+            if cons is not None and cons[i] > std[i]:
+                out.append("fixed")  # the values held fixed move it more than the data pin it down
+            elif not np.isfinite(sp):
+                out.append("data (no prior)")
+            else:
+                ratio = std[i] / sp
+                out.append("data" if ratio < 0.5 else "prior" if ratio > 0.8 else "data+prior")
+        return out
+
+    def prior_dominated(self) -> list[str]:
+        """Model parameters that only the prior determines (posterior std above 0.8 of the prior's)."""
+        return [n for n, d in zip(self.names, self.dominance(), strict=False) if d == "prior"]
+
+    def not_data_dominated(self) -> list[str]:
+        """Model parameters the prior determines alone or with the data (posterior std above half the
+        prior's: the data carry at most three times the prior's information), or that the values held fixed
+        (their priors) move more than the data pin them down."""
+        return [n for n, d in zip(self.names, self.dominance(), strict=False)
+                if d in ("prior", "data+prior", "fixed")]
+
+    def covariance_printed(self) -> np.ndarray:
+        """Covariance of the model parameters whose diagonal is the printed bound squared: the data's
+        (coloured Cramér-Rao correlations, scaled up where the bootstrap is wider) plus the consider term."""
+        data_std = self.data_std
+        cov = np.diag(data_std ** 2) if self.covariance is None else self.covariance
+        d = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+        scale = data_std / d
+        out = cov * np.outer(scale, scale)
+        return out + self.consider_cov if self.consider_cov is not None else out
 
     def derivatives(self) -> dict[str, float]:
         return {n: float(v) for n, v in zip(self.names[:self.n_global], self.values[:self.n_global], strict=True)}
@@ -108,15 +179,20 @@ class Estimate:
     def table(self) -> str:
         """The derivatives: value, printed bound, its method, the other bounds, correlation warnings."""
         boot = self.bootstrap_std if self.bootstrap_std is not None else np.full(self.n_global, np.nan)
-        rows = [f"{'parameter':<16} {'estimate':>11} {'bound(1s)':>10} {'CR col':>9} {'CR white':>9} "
-                f"{'bootstrap':>9} {'%':>7}  correlated with (|r| > 0.9)"]
-        std = self.std
+        cons = self.consider_std if self.consider_std is not None else np.zeros(self.n_global)
+        prior = self.prior_sd if self.prior_sd is not None else np.full(self.n_global, np.inf)
+        rows = [f"{'parameter':<16} {'estimate':>11} {'95% interval':>23} {'bound(1s)':>9} {'CR col':>9} "
+                f"{'CR white':>9} {'bootstrap':>9} {'consider':>9} {'prior sd':>9} {'%':>6}  {'determined by':<15} "
+                "correlated with (|r| > 0.9)"]
+        std, dom = self.std, self.dominance()
         for i in range(self.n_global):
             n, v = self.names[i], self.values[i]
             corr = [f"{self.names[k]} {self.correlation[i, k]:+.2f}" for k in range(len(self.names))
                     if k != i and abs(self.correlation[i, k]) > 0.9]
-            rows.append(f"{n:<16} {v:11.5g} {std[i]:10.3g} {self.crb_std[i]:9.3g} {self.crb_std_white[i]:9.3g} "
-                        f"{boot[i]:9.3g} {100 * std[i] / max(abs(v), 1e-12):7.1f}  {', '.join(corr) or '-'}")
+            ci = f"[{v - 1.96 * std[i]:.4g}, {v + 1.96 * std[i]:.4g}]"
+            rows.append(f"{n:<16} {v:11.5g} {ci:>23} {std[i]:9.3g} {self.crb_std[i]:9.3g} "
+                        f"{self.crb_std_white[i]:9.3g} {boot[i]:9.3g} {cons[i]:9.3g} {prior[i]:9.3g} "
+                        f"{100 * std[i] / max(abs(v), 1e-12):6.1f}  {dom[i]:<15} {', '.join(corr) or '-'}")
         rows.append(f"bound: {self.bound_method}")
         if len(self.names) > self.n_global:
             rows.append(f"{len(self.names) - self.n_global} nuisance parameters (initial states, biases) estimated "
@@ -131,6 +207,10 @@ class Estimate:
             params[n] = {"value": float(self.values[i]), "std": float(std[i]), "bound_method": self.bound_method,
                          "crb_std": float(self.crb_std[i]), "crb_std_white": float(self.crb_std_white[i]),
                          "bootstrap_std": None if boot is None or not np.isfinite(boot[i]) else float(boot[i]),
+                         "consider_std": None if self.consider_std is None else float(self.consider_std[i]),
+                         "prior_sd": None if self.prior_sd is None or not np.isfinite(self.prior_sd[i])
+                         else float(self.prior_sd[i]),
+                         "determined_by": self.dominance()[i],
                          "ci95": [float(self.values[i] - 1.96 * std[i]), float(self.values[i] + 1.96 * std[i])]}
         return {
             "parameters": params,
@@ -142,11 +222,22 @@ class Estimate:
             "iterations": [vars(h) for h in self.history],
             "converged": self.converged,
             "warnings": self.warnings,
+            "prior_dominated": self.prior_dominated(),
+            "not_data_dominated": self.not_data_dominated(),
         }
 
 
 #: how the printed bound is made (``Estimate.bound_method``)
-BOUND_METHODS = ("cramer-rao-coloured", "max(cramer-rao-coloured, segment-bootstrap)")
+BOUND_METHODS = ("cramer-rao-coloured", "max(cramer-rao-coloured, segment-bootstrap x t(m-1)/z)")
+
+
+def small_sample_factor(m: int) -> float:
+    """``t_{0.975, m-1} / z_{0.975}``: a std estimated from ``m`` resampled segments carries about ``m - 1``
+    degrees of freedom, so its 95 % interval is Student's, not the normal one (2.36 / 1.96 = 1.21 for 8
+    segments, 1.04 for 40)."""
+    from scipy.stats import norm, t
+
+    return float(t.ppf(0.975, max(m - 1, 1)) / norm.ppf(0.975))
 #: fewest manoeuvres for which the block bootstrap over manoeuvres is computed
 BOOTSTRAP_MIN_SEGMENTS = 6
 
@@ -203,7 +294,7 @@ class OutputErrorEstimator:
                  outputs: Sequence[str], bounds: dict[str, tuple[float, float]] | None = None,
                  constraints: Sequence[Callable[[dict[str, float]], bool]] = (),
                  estimate_states: Sequence[str] = (), estimate_biases: Sequence[str] = (),
-                 compile: bool = True) -> None:
+                 compile: bool = True, prior: dict[str, tuple[float, float]] | None = None) -> None:
         unknown = [f"parameter {n!r}" for n in free if n not in model.params.index]
         unknown += [f"output {n!r}" for n in outputs if n not in model.outputs.index]
         unknown += [f"state {n!r}" for n in estimate_states if n not in model.states.index]
@@ -232,6 +323,12 @@ class OutputErrorEstimator:
         if np.any(self.lower > self.upper):
             raise EstimationError("a lower bound exceeds its upper bound")
         self.constraints = list(constraints)
+        bad_prior = [n for n, (_, sd) in (prior or {}).items() if n not in free or not sd > 0]
+        if bad_prior:
+            raise EstimationError(f"priors need a free parameter and a positive std: {', '.join(bad_prior)}")
+        pr = prior or {}
+        self.prior_mean = np.array([pr.get(n, (0.0, np.inf))[0] for n in free], dtype=float)
+        self.prior_sd = np.array([pr.get(n, (0.0, np.inf))[1] for n in free], dtype=float)
         self.state_limits = np.asarray(model.state_limits, dtype=float)
         plain = self._plain_step()
         sens = self._sensitivity_step()
@@ -245,6 +342,23 @@ class OutputErrorEstimator:
     def n_local(self) -> int:
         """Per-manoeuvre parameters: estimated initial states, then output biases."""
         return len(self.i_x0) + len(self.i_bias)
+
+    def prior_information(self, n_total: int) -> np.ndarray:
+        """Diagonal a-priori information ``1/σ_p²`` over the full parameter vector (0 where no prior)."""
+        out = np.zeros(n_total)
+        out[:len(self.free)] = 1.0 / self.prior_sd ** 2
+        return out
+
+    def prior_cost(self, theta: np.ndarray) -> float:
+        """``1/2 Σ ((θ - θ_p)/σ_p)²`` over the parameters that have a prior."""
+        return 0.5 * float(np.sum(((theta[:len(self.free)] - self.prior_mean) / self.prior_sd) ** 2))
+
+    def _add_prior(self, M: np.ndarray, g: np.ndarray, theta: np.ndarray) -> None:
+        """Add the prior's information and gradient in place (Gauss-Newton normal equations)."""
+        n = len(self.free)
+        info = self.prior_information(len(theta))
+        M[np.diag_indices_from(M)] += info
+        g[:n] += info[:n] * (self.prior_mean - theta[:n])
 
     def _plain_step(self) -> ca.Function:
         step = step_function(self.model)
@@ -411,14 +525,30 @@ class OutputErrorEstimator:
                 horizons.append(n_h)
                 n_h *= 2
         bar = tqdm(desc="output error", unit="it", disable=not progress, leave=False)
+        last_ok = 0
         for n_h in horizons:
             short = [Manoeuvre(m.x0, m.u[:n_h], m.y[:n_h], m.dt_s, m.name) for m in data]
             bar.set_description(f"output error, first {n_h * data[0].dt_s:g} s")
-            theta, *_ = self._solve(short, theta, weight, max_iter, 1e-4, history, bar)
+            theta = self._horizon_step(short, theta, weight, max_iter, 1e-4, history, bar, last_ok, data[0].dt_s)[0]
+            last_ok = n_h
         bar.set_description("output error")
-        theta, res, jacs, W, converged = self._solve(data, theta, weight, max_iter, tol, history, bar)
+        theta, res, jacs, W, converged = self._horizon_step(data, theta, weight, max_iter, tol, history, bar, last_ok,
+                                                            data[0].dt_s)
         bar.close()
         return self._statistics(data, names, theta, res, jacs, W, history, converged)
+
+    def _horizon_step(self, data: list[Manoeuvre], theta: np.ndarray, weight: np.ndarray | None, max_iter: int,
+                      tol: float, history: list[Iteration], bar: tqdm, last_ok: int, dt_s: float,
+                      ) -> tuple[np.ndarray, list[np.ndarray], list[Any], np.ndarray, bool]:
+        """One continuation step; a divergence after a shorter span was fitted raises :class:`HorizonDivergedError`."""
+        try:
+            return self._solve(data, theta, weight, max_iter, tol, history, bar)
+        except EstimationError as err:
+            if last_ok == 0:
+                raise
+            n = max(m.u.shape[0] for m in data)
+            raise HorizonDivergedError(f"the model fitted over the first {last_ok * dt_s:g} s diverges over "
+                                  f"{n * dt_s:g} s ({err})", last_ok * dt_s) from None
 
     def _solve(self, data: list[Manoeuvre], theta: np.ndarray, weight: np.ndarray | None, max_iter: int,
                tol: float, history: list[Iteration], bar: tqdm) -> tuple[np.ndarray, list[np.ndarray],
@@ -428,6 +558,7 @@ class OutputErrorEstimator:
         if any(s[2] for s in sims):
             raise EstimationError("the model diverges at the start values: start closer or fix more parameters")
         res, jacs, W, cost = _linearised(data, sims, weight)
+        cost += self.prior_cost(theta)
         lam = 1e-3
         converged = False
         n_extra = len(theta) - len(self.free)
@@ -435,6 +566,7 @@ class OutputErrorEstimator:
                   np.concatenate([self.upper, np.full(n_extra, np.inf)]))
         for _ in range(max_iter):
             M, g = self._normal_equations(res, jacs, W, len(theta))
+            self._add_prior(M, g, theta)
             trial, cost_t, lam = self._damped_step(data, theta, M, g, W, cost, lam, bounds)
             if trial is None:
                 converged = True  # no descent direction left at machine precision: a minimum
@@ -445,6 +577,7 @@ class OutputErrorEstimator:
             sims = [self.simulate(theta, m, j) for j, m in enumerate(data)]
             # with ML weighting the new cost is N*ny/2 by construction: report the fitted cost
             res, jacs, W, cost = _linearised(data, sims, weight)
+            cost += self.prior_cost(theta)
             history.append(Iteration(cost_t, step_norm, lam))
             log.info("iteration %d: cost %.6g, relative step %.3g, damping %.1e", len(history), cost_t, step_norm, lam)
             bar.update(1)
@@ -469,7 +602,8 @@ class OutputErrorEstimator:
             if all(c(named) for c in self.constraints):
                 plain = [self.simulate(trial, m, j, sensitivities=False) for j, m in enumerate(data)]
                 if not any(s[2] for s in plain):
-                    cost_t = _cost([m.y - s[0] for m, s in zip(data, plain, strict=True)], W)
+                    cost_t = _cost([m.y - s[0] for m, s in zip(data, plain, strict=True)], W) + \
+                        self.prior_cost(trial)
                     if cost_t <= cost:
                         return trial, cost_t, lam
             lam *= 10.0
@@ -535,7 +669,7 @@ class OutputErrorEstimator:
         return out
 
     def segment_bootstrap_std(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray, repeats: int = 400,
-                              seed: int = 0) -> np.ndarray | None:
+                              seed: int = 0, theta: np.ndarray | None = None) -> np.ndarray | None:
         """Block bootstrap over manoeuvres (one linearised Gauss-Newton step per resample from the estimate,
         Hu & Kalbfleisch's estimating-function bootstrap): std of the model parameters, or None with fewer than
         :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres (too few distinct resamples). Whole manoeuvres are
@@ -547,12 +681,15 @@ class OutputErrorEstimator:
         terms = self._segment_terms(res, jacs, W)
         A = np.stack([t[0] for t in terms])
         g = np.stack([t[1] for t in terms])
+        ng = len(self.free)
+        P = np.diag(self.prior_information(ng))  # the prior is not resampled: it is not data
+        gp = P @ (self.prior_mean - theta[:ng]) if theta is not None else np.zeros(ng)
         rng = np.random.default_rng(seed)
         reps = []
         for _ in range(repeats):
             w = np.bincount(rng.integers(0, m, m), minlength=m).astype(float)
-            Ab = np.einsum("j,jab->ab", w, A)
-            reps.append(np.linalg.lstsq(Ab, w @ g, rcond=None)[0])
+            Ab = np.einsum("j,jab->ab", w, A) + P
+            reps.append(np.linalg.lstsq(Ab, w @ g + gp, rcond=None)[0])
         # robust spread (IQR / 1.349): a resample that leaves a parameter unexcited gives a wild step, which
         # would dominate a plain std
         q75, q25 = np.percentile(np.array(reps), [75, 25], axis=0)
@@ -585,9 +722,10 @@ class OutputErrorEstimator:
         """Cramér-Rao bounds (white and coloured-residual), block bootstrap, correlations, identifiability."""
         n_total = len(theta)
         M, _ = self._normal_equations(res, jacs, W, n_total)
-        M_inv = np.linalg.pinv(M)
+        prior_info = self.prior_information(n_total)
+        M_inv = np.linalg.pinv(M + np.diag(prior_info))
         std_white = np.sqrt(np.maximum(np.diag(M_inv), 0.0))
-        middle = np.zeros_like(M)
+        middle = np.diag(prior_info)  # sandwich: the prior's information beside the data's coloured term
         for j, (r, J) in enumerate(zip(res, jacs, strict=True)):
             idx = self._local_index(j)
             G = np.einsum("ij,kia->kja", W, J)
@@ -595,13 +733,13 @@ class OutputErrorEstimator:
         cov = M_inv @ middle @ M_inv
         std = np.sqrt(np.maximum(np.diag(cov), 0.0))
         corr = correlation(cov)  # zero-variance entries give 0 correlation, never NaN
-        boot = self.segment_bootstrap_std(res, jacs, W)
+        boot = self.segment_bootstrap_std(res, jacs, W, theta=theta)
         method = BOUND_METHODS[1] if boot is not None else BOUND_METHODS[0]
         exc = input_excitation([m.u for m in data], list(self.model.inputs.index))
-        ident = analyse(M, names, len(self.free), exc, cov=cov)
+        ident = analyse(M + np.diag(prior_info), names, len(self.free), exc, cov=cov)
         printed = std.copy()
         if boot is not None:
-            printed[:len(self.free)] = np.maximum(printed[:len(self.free)], boot)
+            printed[:len(self.free)] = np.maximum(printed[:len(self.free)], boot * small_sample_factor(len(data)))
         warnings = []
         for i, n in enumerate(names[:len(self.free)]):
             if printed[i] > RELATIVE_STD_WARN * abs(theta[i]):
@@ -615,8 +753,10 @@ class OutputErrorEstimator:
         for w in warnings:
             log.info(w)  # the caller prints Estimate.warnings once (several fits run per identify call)
         resid_cov = np.cov(np.vstack(res).T, bias=True).reshape(len(self.outputs), len(self.outputs))
+        ng = len(self.free)
         return Estimate(names, theta, std, std_white, corr, resid_cov, history, warnings, converged,
-                        n_global=len(self.free), bootstrap_std=boot, bound_method=method, identifiability=ident)
+                        n_global=ng, bootstrap_std=boot, bound_method=method, identifiability=ident,
+                        prior_sd=self.prior_sd.copy(), covariance=cov[:ng, :ng].copy(), n_segments=len(data))
 
 
 def _cost(res: list[np.ndarray], W: np.ndarray) -> float:
@@ -633,3 +773,70 @@ def _linearised(data: list[Manoeuvre], sims: list[Any], weight: np.ndarray | Non
     else:
         W = np.diag(1.0 / np.maximum(np.mean(np.vstack(res) ** 2, axis=0), 1e-300))
     return res, [s[1] for s in sims], W, _cost(res, W)
+
+
+@dataclass
+class Consider:
+    """Parameters held fixed and what their uncertainty does to the estimate (see :func:`consider_covariance`)."""
+
+    names: list[str]
+    sd: np.ndarray  #: the std each fixed parameter was given
+    cov: np.ndarray  #: consider covariance of the model parameters (n_global x n_global)
+    influence: np.ndarray  #: ``A``: shift of each model parameter per unit error of each fixed one
+    informed: np.ndarray  #: posterior std / given std of each fixed parameter were it freed (1: data silent)
+
+
+def consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Sequence[Manoeuvre],
+                        consider: dict[str, float], weight: np.ndarray | None = None, compile: bool = False
+                        ) -> Consider:
+    """Consider covariance of the model parameters from parameters held fixed at values known to ``consider``
+    (name -> std) only (Tapley, Schutz & Born 2004, sec. 6.3; Bierman 1977): with ``A = M_θθ⁻¹ M_θc``, the
+    linearised shift of the estimate per unit error of the fixed parameters, the covariance is
+    ``A diag(σ_c²) Aᵀ``. ``informed`` is each fixed parameter's std, were all of them freed with their std as
+    a prior, over that std (white-residual information): below ~0.5 the data could estimate it. ``compile``:
+    compile the sensitivity step to C (worth it when the same sets recur, as in a Monte Carlo study)."""
+    names = [n for n in consider if n not in oe.free]
+    ng = len(oe.free)
+    if not names:
+        return Consider([], np.zeros(0), np.zeros((ng, ng)), np.zeros((ng, 0)), np.zeros(0))
+    p = oe.p_nominal.copy()
+    p[oe.i_free] = est.values[:ng]
+    # one pass with sensitivities: by default CasADi's virtual machine, not a C compile of a function used once
+    big = OutputErrorEstimator(oe.model, p, oe.free + names, oe.outputs, estimate_states=oe.states_est,
+                               estimate_biases=oe.biases, compile=compile)
+    nc = len(names)
+    theta = np.concatenate([est.values[:ng], p[big.i_free[ng:]], est.values[ng:]])
+    sims = [big.simulate(theta, m, j) for j, m in enumerate(data)]
+    if any(s[2] for s in sims):
+        raise EstimationError("consider covariance: the model diverges at the estimate")
+    res, jacs, W, _ = _linearised(list(data), sims, weight)
+    M, _ = big._normal_equations(res, jacs, W, len(theta))
+    keep = np.r_[np.arange(ng), ng + nc + np.arange(len(theta) - ng - nc)].astype(int)
+    cons = ng + np.arange(nc)
+    Mtt = M[np.ix_(keep, keep)] + np.diag(oe.prior_information(len(keep)))
+    A = np.linalg.lstsq(Mtt, M[np.ix_(keep, cons)], rcond=None)[0][:ng]
+    sd = np.array([consider[n] for n in names])
+    info = np.zeros(len(theta))
+    info[keep] = oe.prior_information(len(keep))
+    info[cons] = 1.0 / sd ** 2
+    aug = np.linalg.pinv(M + np.diag(info))
+    informed = np.sqrt(np.maximum(np.diag(aug)[cons], 0.0)) / sd
+    return Consider(names, sd, (A * sd ** 2) @ A.T, A, informed)
+
+
+#: a fixed parameter is worth freeing when its consider share shifts a free one by more than this many of
+#: its data-only std ...
+FREE_IMPACT = 1.0
+#: ... and the data would pin it down (its std, were it freed, below this fraction of the std it was given)
+FREE_INFORMED = 0.5
+
+
+def fixed_worth_freeing(est: Estimate, con: Consider) -> list[str]:
+    """The fixed parameters of ``con`` that matter (shift a free estimate by more than :data:`FREE_IMPACT`
+    data-only std) and that the data inform (``informed`` below :data:`FREE_INFORMED`), as ``--free auto``
+    frees them."""
+    if not con.names:
+        return []
+    data_std = est.data_std
+    impact = np.abs(con.influence) * con.sd[None, :] / np.maximum(data_std[:, None], 1e-300)
+    return [c for j, c in enumerate(con.names) if impact[:, j].max() > FREE_IMPACT and con.informed[j] < FREE_INFORMED]

@@ -65,6 +65,9 @@ def _signal_figures(res: ReplayResult) -> list[str]:
     strip = axes[-1, 0]
     for row, (ax, m) in enumerate(zip(axes[:-1, 0], res.maps, strict=True)):
         meas, mod = res.measured[m.fmu], res.model[m.fmu]
+        if res.bands is not None and m.fmu in res.bands.lo:
+            ax.fill_between(t, res.bands.lo[m.fmu][::k], res.bands.hi[m.fmu][::k], color="tab:red", alpha=0.2, lw=0,
+                            label=f"FMU 5-95 % ({res.bands.info['draws']} draws)")
         ax.plot(t, meas[::k], color="0.25", lw=0.9, label="log")
         ax.plot(t, mod[::k], color="tab:red", lw=0.9, label="FMU")
         if m.fmu in res.persistence:
@@ -74,7 +77,8 @@ def _signal_figures(res: ReplayResult) -> list[str]:
         sc = res.scores[m.fmu]
         _label(ax, f"FMU {m.fmu} against log {m.log}{' (wrapped angle, shown unwrapped)' if m.wrap else ''}: "
                    f"{sc.verdict}, skill vs persistence {sc.skill_persistence:+.2f}, Theil U {sc.fit.theil_u:.3f}, "
-                   f"RMSE {sc.fit.rmse:.3g}")
+                   f"RMSE {sc.fit.rmse:.3g}"
+                   + (f", band coverage {res.bands.coverage[m.fmu]:.0%}" if res.bands is not None else ""))
         ax.set_xlim(t[0], t[-1])
         if row == 0:
             ax.legend(loc="upper right", fontsize=7)
@@ -118,11 +122,38 @@ def _verdict_table(res: ReplayResult) -> str:
     rows = []
     for m in res.maps:
         s, w = res.scores[m.fmu], res.window_counts(m.fmu)
-        band = "" if s.interval is None else f" ({_fmt(s.interval.lo, '+.2f')}..{_fmt(s.interval.hi, '+.2f')})"
-        rows.append([m.fmu, _verdict_cell(s.verdict, m.gate), _fmt(s.skill_persistence, "+.2f") + band,
-                     _fmt(s.skill_mean, "+.2f"), f"{w['pass']} / {w['FAIL']} / {w['n/a']}", html.escape(s.reason)])
+        band = []
+        if res.bands is not None:
+            bv = res.bands.verdict(m.fmu)[0]
+            band = [f"<span class='{'fail' if bv == 'not explained' else ''}'>"
+                    f"{_fmt(100 * res.bands.coverage[m.fmu], '.0f')} % ({html.escape(bv)})</span>"]
+        margin = "" if s.interval is None else f" ({_fmt(s.interval.lo, '+.2f')}..{_fmt(s.interval.hi, '+.2f')})"
+        rows.append([m.fmu, _verdict_cell(s.verdict, m.gate), _fmt(s.skill_persistence, "+.2f") + margin,
+                     _fmt(s.skill_mean, "+.2f"), *band, f"{w['pass']} / {w['FAIL']} / {w['n/a']}",
+                     html.escape(s.reason)])
     return _table(["signal", "verdict", "skill vs persistence (90 % interval)", "skill vs window mean",
-                   "windows pass / FAIL / n/a", "reason"], rows, raw=True)
+                   *(["5-95 % band coverage"] if res.bands is not None else []), "windows pass / FAIL / n/a",
+                   "reason"], rows, raw=True) + _band_note(res)
+
+
+def _band_note(res: ReplayResult) -> str:
+    """What the Monte Carlo bands are, and which signals they say the model does not explain."""
+    if res.bands is None:
+        return ""
+    info = res.bands.info
+    bad = [f"{m.fmu}: {res.bands.verdict(m.fmu)[1]}" for m in res.maps if res.bands.verdict(m.fmu)[0] ==
+           "not explained"]
+    text = (f"Bands: {info['draws_run']} of {info['draws']} Monte Carlo replays (seed {info['seed']}) with "
+            f"{', '.join(info['parameters'])} drawn from the identified covariance, each window's restart state and "
+            "each compared sample with the sensor noise estimated from the log. Coverage is the share of logged "
+            "samples inside the 5-95 % band: about 90 % when the model and its stated uncertainty explain the log.")
+    out = f"<p>{html.escape(text)}</p>"
+    if bad:
+        out += "".join(f"<p class='fail'>Not explained by the model and its uncertainty: {html.escape(b)}</p>"
+                       for b in bad)
+    if info["failed"]:
+        out += f"<p class='fail'>{len(info['failed'])} draws failed: {html.escape('; '.join(info['failed'][:5]))}</p>"
+    return out
 
 
 def _metrics_table(res: ReplayResult) -> str:

@@ -57,6 +57,9 @@ class ThrustDatasetConfig:
     ``lag_s``: accelerometer delay behind the PWM command [s]; ``None`` estimates it within
     ``+-max_lag_s``. ``lowpass_hz``: cut-off of a zero-phase Butterworth filter applied to every aligned
     series per segment (``None``: no filter). ``extra_inputs``: more candidate inputs, used when logged.
+    ``edge_guard_s``: samples this close to the start or end of an airborne segment are dropped: at
+    take-off and touch-down the landing gear touches the ground while the motors still run (a barometric
+    altitude lags), and the accelerometer then measures contact forces, not thrust.
     """
 
     mass_kg: float = bounded(MISSING, 0.05, 50.0, "kg")
@@ -69,6 +72,7 @@ class ThrustDatasetConfig:
     lowpass_hz: float | None = bounded(None, 1e-3, 1000.0, "Hz (None: no filter)", optional=True)
     extra_inputs: tuple[str, ...] = EXTRA_INPUTS
     pwm_idle_us: float = bounded(PWM_IDLE_US, 800.0, 1500.0, "us")
+    edge_guard_s: float = bounded(1.0, 0.0, 60.0, "s")  #: dropped at both ends of every airborne segment
     airborne_on_mean_pwm: bool = False  #: airborne test on the mean motor PWM instead of every motor
 
     def __post_init__(self) -> None:
@@ -257,7 +261,8 @@ def build_thrust_dataset(log: Any, config: ThrustDatasetConfig, source: str = ""
     pwm_sum = grid.pwm_us.sum(axis=1)
     lag = _fit_lag(config, float(np.median(np.diff(acc[0]))), fz_of_lag, pwm_sum, mask)
     fz = fz_of_lag(lag.lag_s)
-    mask, seg = _drop_short_segments(mask & np.isfinite(fz), grid, config.min_segment_s, notes)
+    mask = _trim_edges(mask & np.isfinite(fz), grid, config.edge_guard_s, notes)
+    mask, seg = _drop_short_segments(mask, grid, config.min_segment_s, notes)
     if mask.sum() < 10:
         raise ThrustDataError(
             f"{src}: only {int(mask.sum())} airborne samples (armed, "
@@ -358,6 +363,30 @@ def _fit_lag(
     return _LagFit(lag_s, True, (tuple(float(v) for v in lags), tuple(float(v) for v in rs)))
 
 
+def _trim_edges(mask: np.ndarray, grid: _PwmGrid, guard_s: float, notes: list[str]) -> np.ndarray:
+    """``mask`` without the samples within ``guard_s`` of a take-off or touch-down: the start (end) of an
+    airborne segment that follows (precedes) at least ``guard_s`` on the ground or the log's start (end).
+    Short dips in between (an aggressive descent at low PWM) are not ground contacts and keep their edges."""
+    if guard_s <= 0.0 or not mask.any():
+        return mask
+    seg = _segments(mask, grid.gap)
+    ids = seg[mask]
+    t, t_hi = grid.t_s[mask], grid.hi_s[mask]
+    n = ids.max() + 1
+    first, last = np.full(n, np.inf), np.full(n, -np.inf)
+    np.minimum.at(first, ids, t)
+    np.maximum.at(last, ids, t_hi)
+    ground_before = np.concatenate([[np.inf], first[1:] - last[:-1]]) >= guard_s
+    ground_after = np.concatenate([first[1:] - last[:-1], [np.inf]]) >= guard_s
+    drop = (ground_before[ids] & (t < first[ids] + guard_s)) | (ground_after[ids] & (t_hi > last[ids] - guard_s))
+    out = mask.copy()
+    out[np.flatnonzero(mask)[drop]] = False
+    if drop.any():
+        notes.append(f"dropped {int(drop.sum())} samples within {guard_s} s of take-off or touch-down "
+                     "(ground contact)")
+    return out
+
+
 def _drop_short_segments(
     mask: np.ndarray, grid: _PwmGrid, min_segment_s: float, notes: list[str]
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -428,6 +457,23 @@ def _fz_aligner(
     return fz
 
 
+# --------------------------------------------------------------------------- damaged logs
+def damage_gate(log: Any, accept: bool) -> tuple[str, ...]:
+    """Refuse (``LogError``) a log damaged beyond the limit, naming ``--accept-damaged-log``; with ``accept``,
+    return the sentence saying what was overridden."""
+    from identification.flightlog import LogError, check_quality
+
+    try:
+        check_quality(log)
+    except LogError as err:
+        message = str(err).replace("pass --force", "pass --accept-damaged-log")
+        if not accept:
+            raise LogError(message) from None
+        return (f"--accept-damaged-log: using {message.split(': ', 1)[0]} although "
+                f"{message.split(': ', 1)[-1].split('. Repair')[0]}",)
+    return ()
+
+
 # --------------------------------------------------------------------------- the paper's gate
 def check_gate(
     correlations: dict[str, float],
@@ -438,7 +484,8 @@ def check_gate(
 ) -> list[str]:
     """Refuse (``CorrelationGateError``) when a training input's Pearson r with F_z is below ``threshold``.
 
-    With ``force`` the refusal becomes a returned warning (and a ``UserWarning``). Returns the warnings.
+    With ``force`` (``--skip-pearson-gate``) the refusal becomes a returned warning (and a ``UserWarning``).
+    Returns the warnings.
     """
     weak = {n: correlations.get(n, float("nan")) for n in inputs}
     weak = {n: r for n, r in weak.items() if not (r >= threshold)}
@@ -456,7 +503,7 @@ def check_gate(
         "data would mostly fit noise. Usual causes on real logs: vibration on the accelerometer (try "
         "--lowpass-hz 1), ground samples (check altitude_m is logged), battery sag with no voltage logged "
         "(the PWM needed for a given thrust drifts during the flight), and a hover-only flight with little "
-        f"thrust variation.{hint} Pass --force to train anyway (the metrics file records the override)."
+        f"thrust variation.{hint} Pass --skip-pearson-gate to train anyway (the metrics file records the override)."
     )
     if not force:
         raise CorrelationGateError(message, correlations)
@@ -521,13 +568,13 @@ def k_thrust_from_curve(amap: AnfisMap, pwm_sum_us: np.ndarray, motor: MotorSpee
     if np.any(excess <= 0.0):
         raise ThrustDataError(
             f"pwm_idle_us = {motor.pwm_idle_us} is not below every per-motor PWM of the data "
-            f"(min {s.min() / 4.0:.0f} us); k cannot be derived"
+            f"(min {s.min() / N_MOTORS:.0f} us); k cannot be derived"
         )
     K = motor.omega_per_us
     g = 2.0 * K * K * excess
     k = float(np.sum(slope * g) / np.sum(g * g))
     h = (K * excess) ** 2
-    level = np.asarray(amap.evaluate([s])) / 4.0
+    level = np.asarray(amap.evaluate([s])) / N_MOTORS
     k_level = float(np.sum(level * h) / np.sum(h * h))
     if not k > 0.0:
         raise ThrustDataError(

@@ -34,8 +34,8 @@ from identification.anfis_train import (
     rmse,
     train_anfis,
 )
-from identification.flightlog import check_quality
 from identification.jsonio import write_json
+from identification.metrics import block_starts, skill_interval
 from identification.thrust_dataset import (
     MOTOR_SIGNAL,
     PAPER_MIN_PEARSON,
@@ -47,6 +47,7 @@ from identification.thrust_dataset import (
     ThrustDatasetConfig,
     build_thrust_dataset,
     check_gate,
+    damage_gate,
     interleaved_blocks,
     k_thrust_from_curve,
     pearson,
@@ -85,8 +86,12 @@ class PaperThrustConfig:
     """first fraction of the airborne samples to train on, without ``validate`` (0, 1)"""
     min_pearson: float = PAPER_MIN_PEARSON
     """Pearson gate on r(summed PWM, F_z) [-1, 1]"""
-    force: bool = False
-    """train even when the gate fails (recorded as ``gate_forced``)"""
+    skip_gate: bool = False
+    """train even when the Pearson gate fails (``--skip-pearson-gate``; recorded as ``gate_forced``)"""
+    accept_damaged_log: bool = False
+    """use a log whose damaged share exceeds the limit (``--accept-damaged-log``; the damage is reported)"""
+    write_losing_model: bool = False
+    """write the parameter file even when a baseline beats the model (``--write-losing-model``)"""
     check_block_s: float = 5.0
     """checking data: every 5th block of this length [s] of the training data"""
     kv_rpm_per_V: float = 920.0
@@ -123,6 +128,7 @@ class PaperData:
     val: ThrustDataset
     val_name: str
     correlations: dict[str, float]
+    overrides: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -142,6 +148,14 @@ class PaperThrustResult:
     model_beats_baselines: bool = True
     warnings: tuple[str, ...] = ()
     notes: tuple[str, ...] = ()
+    outcome: str = "win"  #: win / tie / lose against the baselines (skill intervals)
+    overrides: tuple[str, ...] = ()  #: what an option overrode (damaged log, gate, losing model written)
+    written: bool = True  #: the parameter file was written
+
+    @property
+    def exit_code(self) -> int:
+        """0 when no baseline beats the model on validation data, 3 when one does."""
+        return 3 if self.outcome == "lose" else 0
 
 
 def _read(path: Path, channel_map: Path | None = None) -> Any:
@@ -157,19 +171,19 @@ def load_paper_data(cfg: PaperThrustConfig) -> PaperData:
         if path is not None and not path.is_file():
             raise FileNotFoundError(f"{path}: log file not found")
     log = _read(cfg.log, cfg.channel_map)
-    check_quality(log, cfg.force)  # a log damaged beyond DEFAULT_MAX_DAMAGE is refused unless forced
+    overrides = list(damage_gate(log, cfg.accept_damaged_log))
     full = build_thrust_dataset(log, cfg.dataset, source=str(cfg.log))
     if cfg.validate is not None:
         train = full
         vcfg = dataclasses.replace(cfg.dataset, lag_s=full.lag_s)
         vlog = _read(cfg.validate, cfg.channel_map)
-        check_quality(vlog, cfg.force)
+        overrides += damage_gate(vlog, cfg.accept_damaged_log)
         val = build_thrust_dataset(vlog, vcfg, source=str(cfg.validate))
         val_name = str(cfg.validate)
     else:
         train, val = full.split(cfg.train_fraction)
         val_name = f"last {1.0 - cfg.train_fraction:.0%} of {cfg.log.name}"
-    return PaperData(full, train, val, val_name, full.correlations())
+    return PaperData(full, train, val, val_name, full.correlations(), tuple(overrides))
 
 
 def identify_thrust_paper(
@@ -201,9 +215,17 @@ def identify_thrust_paper(
     for w in k_warnings:
         warn(w)
     section = _params_section(cfg, amap, k_value, k_source)
-    metrics.update(_fit_metrics(train_result, data, polys, fmu_thrust(section), cfg.dataset.mass_kg))
+    metrics.update(_fit_metrics(train_result, data, polys, fmu_thrust(section), cfg.dataset.mass_kg,
+                                cfg.check_block_s))
     metrics.update(_k_metrics(k_value, kc))
-    write_json(cfg.out, {"quadrotor": section, "_identification": {"metrics": str(cfg.metrics_path)}})
+    overrides = list(data.overrides) + [w for w in gate_warnings[:1]]
+    written = metrics["outcome"] != "lose" or cfg.write_losing_model
+    if written:
+        write_json(cfg.out, {"quadrotor": section, "_identification": {"metrics": str(cfg.metrics_path)}})
+        if metrics["outcome"] == "lose":
+            overrides.append(f"--write-losing-model: wrote {cfg.out} although a baseline beats the model")
+    metrics["overrides"] = overrides
+    metrics["parameters_written"] = str(cfg.out) if written else None
     write_json(cfg.metrics_path, metrics)
     if cfg.plots:
         _fit_plots(cfg.plots, data, train_result, min(polys, key=lambda p: p.test_rmse), fmu_thrust(section),
@@ -216,6 +238,9 @@ def identify_thrust_paper(
         k_thrust_N_s2=k_value,
         gate_forced=bool(gate_warnings),
         model_beats_baselines=bool(metrics["model_beats_baselines"]),
+        outcome=metrics["outcome"],
+        overrides=tuple(overrides),
+        written=written,
         warnings=tuple(gate_warnings + k_warnings),
         notes=tuple(data.full.notes),
     )
@@ -245,14 +270,14 @@ def _gate(cfg: PaperThrustConfig, data: PaperData, metrics: dict[str, Any]) -> l
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)  # returned as a warning instead
             gate_warnings = check_gate(
-                data.correlations, ("pwm_sum_us",), cfg.min_pearson, cfg.force, source=str(cfg.log)
+                data.correlations, ("pwm_sum_us",), cfg.min_pearson, cfg.skip_gate, source=str(cfg.log)
             )
     except CorrelationGateError:
         metrics["refused"] = True
         write_json(cfg.metrics_path, metrics)
         raise
     metrics["gate_forced"] = bool(gate_warnings)
-    return [f"--force given; training despite the gate: {w}" for w in gate_warnings[:1]]
+    return [f"--skip-pearson-gate: training despite the gate: {w}" for w in gate_warnings[:1]]
 
 
 def _train(cfg: PaperThrustConfig, train: ThrustDataset) -> TrainResult:
@@ -321,7 +346,7 @@ def fmu_thrust(section: dict[str, Any]) -> Callable[[ThrustDataset], np.ndarray]
     """Total thrust [N] of a data set's per-motor PWM as the FMU built from ``section`` evaluates it (band
     extension, idle, nominal voltage): every figure is scored with it, never with the raw map."""
     from fmu_models.quadrotor.params import QuadrotorParams
-    from identification.thrust_workflow import fmu_total_thrust
+    from identification.thrust_model import fmu_total_thrust
 
     params = QuadrotorParams.from_dict(section)
 
@@ -333,20 +358,27 @@ def fmu_thrust(section: dict[str, Any]) -> Callable[[ThrustDataset], np.ndarray]
 
 
 def _fit_metrics(res: TrainResult, data: PaperData, polys: list[PolynomialFit],
-                 thrust: Callable[[ThrustDataset], np.ndarray], mass_kg: float) -> dict[str, Any]:
+                 thrust: Callable[[ThrustDataset], np.ndarray], mass_kg: float, check_block_s: float) -> dict[str, Any]:
     """Training history and the scores on training and validation data (RMSE [N], R^2, Pearson r) of the
     thrust the FMU evaluates, beside the constant (m g) and the least-squares polynomials of summed PWM."""
     train, val = data.train, data.val
     y_val, y_train = thrust(val), thrust(train)
     constant = rmse(np.full(val.n_samples, mass_kg * G0_M_S2), val.fz_N)
-    best = min([constant, *(p.test_rmse for p in polys)])
-    beats = rmse(y_val, val.fz_N) < best
+    rivals = {"constant m g": np.full(val.n_samples, mass_kg * G0_M_S2),
+              **{f"polynomial degree {p.degree}": p(val.pwm_sum_us) for p in polys}}
+    starts = block_starts(val.n_samples, max(1, round(check_block_s / val.sample_period_s)))
+    skill = {k: skill_interval(val.fz_N, y_val, b, starts).as_dict() for k, b in rivals.items()}
+    outcomes = [v["outcome"] for v in skill.values()]
+    verdict = "lose" if "lose" in outcomes else ("win" if all(o == "win" for o in outcomes) else "tie")
     return {
         "scored_with": "fmu_models.quadrotor.thrust.motor_thrust per motor (the FMU's function)",
         "constant_validation_rmse_N": constant,
-        "model_beats_baselines": beats,
-        "verdict": "model beats every baseline on validation data" if beats
-        else "MODEL LOSES to a baseline on validation data",
+        "skill_vs_baselines": skill,
+        "model_beats_baselines": verdict == "win",
+        "outcome": verdict,
+        "verdict": {"win": "model beats every baseline on validation data",
+                    "tie": "TIE: no baseline beats the model on validation data, but not every one beyond noise",
+                    "lose": "MODEL LOSES to a baseline on validation data"}[verdict],
         "epochs": res.epochs_run,
         "best_epoch": res.best_epoch + 1,
         "train_rmse_N": rmse(y_train, train.fz_N),

@@ -1,19 +1,19 @@
-"""Thrust identification from many flights of one vehicle, scored as the FMU evaluates it (issue 13).
+"""Thrust identification from many flights of one vehicle, scored as the FMU evaluates it (issues 13, 22).
 
 ``identify_thrust(config) -> ThrustResult``. Each flight (log + mass) gives airborne samples of per-motor
-PWM, battery voltage (when logged) and measured thrust ``-m a_z``. The model is the quadrotor FMU's: per
-motor ``T_i = s F(n pwm_eff_i) / n`` with the voltage-compensated command
-``pwm_eff = idle + (pwm - idle) V / V_nom`` (:func:`fmu_models.quadrotor.thrust.motor_thrust`), ``F`` a
-one-input ANFIS trained by hybrid learning on the motor sum, kept monotone, zero at idle and extended
-physically outside its band. Every figure is computed with that same function (clamps, extrapolation,
-voltage, idle, calibration scale ``s``), never from the raw map.
+PWM, battery voltage (when logged) and measured thrust ``-m a_z``. The model (:mod:`identification.thrust_model`)
+is a per-motor ANFIS with first-order Sugeno consequents over physical features of the command, so that one
+rule is exactly the least-squares polynomial; with no voltage log a battery state estimated from the flight's
+own hover condition (:mod:`identification.thrust_battery`) reaches the FMU as an equivalent battery voltage.
+Every figure is computed with the FMU's function (:func:`fmu_models.quadrotor.thrust.motor_thrust`).
 
-Held-out scoring: leave-one-flight-out with two or more flights, time-blocked folds with one. Beside the
-model, on the same held-out samples: the constant ``m g`` and least-squares polynomials in
-``u = (pwm - idle)/(pwm_max - idle)`` per motor (``sum u^2, sum u``; with voltage also ``sum u^2 V``).
-Logs without voltage can take a per-flight calibration: one scale per flight so that the model's mean
-thrust over that flight's hover samples equals ``m g`` (mass and PWM only, no accelerometer); polynomial
-baselines get the same calibration so the comparison stays fair.
+Held-out scoring: leave-one-flight-out with two or more flights, time-blocked folds with one; the map's
+feature set, rule count and battery-state time constant are chosen by an inner cross-validation on the
+training flights of each fold (nested CV). Beside the model, on the same held-out samples: the constant
+``m g`` and least-squares polynomials in ``u`` per motor, raw and with a per-flight hover calibration (one
+scale per flight making the mean over its hover samples ``m g``; mass and PWM only). The verdict compares
+the model with every baseline by :func:`identification.metrics.skill_interval` (block bootstrap): ``win``
+only when the whole interval is above zero, ``tie`` when it straddles zero, ``lose`` below.
 """
 
 from __future__ import annotations
@@ -30,22 +30,38 @@ from fmu_models.common.atmosphere import G0_M_S2 as G0
 from fmu_models.config import bounded, range_problems
 from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.params import QuadrotorParams
-from fmu_models.quadrotor.thrust import effective_pwm, motor_thrust
-from identification.anfis_train import AnfisTrainConfig, is_monotone, r_squared, rmse, train_anfis_motors
-from identification.flightlog import check_quality
+from fmu_models.quadrotor.thrust import consequent_parameters
+from identification.anfis_train import r_squared, rmse
 from identification.jsonio import write_json
+from identification.metrics import SkillInterval, block_starts, skill_interval
 from identification.thrust_dataset import (
     MOTOR_SIGNAL,
     ThrustDataError,
     ThrustDataset,
     ThrustDatasetConfig,
     build_thrust_dataset,
-    interleaved_blocks,
+    damage_gate,
     interval_means,
 )
+from identification.thrust_model import (
+    FlightData,
+    ModelSpec,
+    baseline_predictions,
+    battery_input_V,
+    covariance,
+    fit_physical,
+    fmu_total_thrust,
+    hover_scale,
+    inner_folds,
+    predict,
+    select_spec,
+)
 
-HOVER_CLIMB_M_S = 0.3  #: |climb rate| below this is hover (calibration, summaries)
+HOVER_CLIMB_M_S = 0.3  #: |climb rate| below this is hover (calibration, battery state, summaries)
+#: the hover condition: the rotors' vertical thrust T cos(roll) cos(pitch) carries the weight m g
 CALIBRATIONS = ("auto", "on", "off")
+CONSTANT = "constant m g"
+OUTCOMES = ("win", "tie", "lose")
 
 
 @dataclass(frozen=True)
@@ -64,10 +80,13 @@ class FlightSpec:
 class ThrustConfig:
     """Options of :func:`identify_thrust` (checked by :func:`check_config`).
 
-    ``calibrate``: ``auto`` (per-flight calibration when the flights log no voltage), ``on`` or ``off``.
-    ``use_voltage``: use the logged battery voltage when every flight has it. ``n_mfs``: most MFs tried (the
-count is chosen by an inner CV on the training flights). ``n_folds_single``: time
-    blocks when only one flight is given. ``out``/``metrics``: files to write (None: write nothing).
+    ``calibrate``: also score with a per-flight hover calibration (``auto``: when no voltage is logged).
+    ``use_voltage``: use the logged battery voltage when every flight has it. ``battery_state``: without a
+    voltage log, carry the hover-condition battery state (its time constant chosen by inner CV). ``n_mfs``:
+    most rules tried (the count is chosen by inner CV). ``fmu_mass_kg``: the FMU's ``mass_kg`` (required
+    when the flights' masses differ). ``accept_damaged_log``: use logs whose damaged share exceeds the limit.
+    ``write_losing_model``: write the parameter file even when a baseline beats the model (the verdict and
+    exit status still say it loses). ``out``/``metrics``: files to write (None: write nothing).
     """
 
     flights: tuple[FlightSpec, ...]
@@ -76,8 +95,9 @@ count is chosen by an inner CV on the training flights). ``n_folds_single``: tim
     pwm_idle_us: float = bounded(1000.0, 800.0, 1500.0, "us")
     pwm_max_us: float = bounded(2000.0, 1000.0, 2500.0, "us")
     use_voltage: bool = True
+    battery_state: bool = True
     calibrate: str = "auto"
-    n_mfs: int = bounded(2, 1, 8)
+    n_mfs: int = bounded(3, 1, 6)
     epochs: int = bounded(30, 1, 2000)
     n_folds_single: int = bounded(3, 2, 20)
     motor_min_pwm_us: float = bounded(1150.0, 800.0, 2200.0, "us")
@@ -85,7 +105,9 @@ count is chosen by an inner CV on the training flights). ``n_folds_single``: tim
     lowpass_hz: float | None = bounded(None, 1e-3, 1000.0, "Hz (None: no filter)", optional=True)
     check_block_s: float = bounded(5.0, 0.1, 600.0, "s")
     channel_map: Path | None = None
-    force: bool = False
+    fmu_mass_kg: float | None = bounded(None, 0.05, 50.0, "kg (None: the flights' common mass)", optional=True)
+    accept_damaged_log: bool = False
+    write_losing_model: bool = False
 
 
 @dataclass
@@ -100,15 +122,17 @@ class Flight:
     yaw_rate: np.ndarray | None = None
     reader_warnings: tuple[str, ...] = ()
     quality: dict[str, Any] | None = None  #: the log's data-quality summary (``DataQuality.to_dict``)
+    overrides: tuple[str, ...] = ()  #: what an option overrode for this flight (printed and in the metrics)
+    tilt_cos: np.ndarray | None = None  #: cos(roll) cos(pitch) per sample (None: attitude not logged)
 
     @property
     def weight_N(self) -> float:
         return self.spec.mass_kg * G0
 
-    def take(self, idx: np.ndarray) -> Flight:
-        v = None if self.volt_V is None else self.volt_V[idx]
-        r = None if self.yaw_rate is None else self.yaw_rate[idx]
-        return Flight(self.spec, self.data.subset(idx), self.pwm_us[idx], v, self.hover[idx], r)
+    def model_data(self, use_voltage: bool) -> FlightData:
+        """The arrays the thrust model needs."""
+        return FlightData(self.spec.name, self.pwm_us, self.volt_V if use_voltage else None, self.hover,
+                          self.data.time_s, self.data.fz_N, self.weight_N, self.data.sample_period_s, self.tilt_cos)
 
 
 @dataclass(frozen=True)
@@ -121,14 +145,17 @@ class Score:
 
 @dataclass(frozen=True)
 class FoldResult:
-    """Scores on one held-out flight (or time block): the model and every baseline by name."""
+    """Scores on one held-out flight (or time block): the model (with and without its battery state, raw and
+    calibrated) and every baseline by name; ``series`` holds the held-out predictions for the intervals."""
 
     held_out: str
     n_samples: int
     model: Score
     baselines: dict[str, Score]
     calibration_scale: float
-    n_mfs: int = 0
+    spec: ModelSpec
+    period_s: float = 0.1
+    series: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     @property
     def best_baseline(self) -> str:
@@ -140,23 +167,37 @@ class ThrustResult:
     """Outcome of :func:`identify_thrust`: parameters, held-out table, verdict, per-flight summaries."""
 
     params: QuadrotorParams
+    spec: ModelSpec
     folds: tuple[FoldResult, ...]
-    pooled_model_rmse_N: float
-    pooled_baseline_rmse_N: dict[str, float]
-    model_beats_baselines: bool
+    pooled: dict[str, float]
+    comparisons: dict[str, dict[str, Any]]
+    verdict: str
     flights: tuple[dict[str, Any], ...]
     calibration: dict[str, float]
+    uncertainty: dict[str, Any]
     metrics: dict[str, Any] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
+    overrides: tuple[str, ...] = ()
+    written: Path | None = None
+
+    @property
+    def model_beats_baselines(self) -> bool:
+        return self.verdict == "win"
+
+    @property
+    def pooled_model_rmse_N(self) -> float:
+        return self.pooled["model"]
 
     def params_for(self, flight: str) -> QuadrotorParams:
-        """The parameters to replay ``flight`` with: its calibration scale as ``thrust_scale`` (else 1)."""
+        """The parameters to replay ``flight`` with when the replay cannot drive the battery state: its
+        calibration scale as ``thrust_scale`` (else 1). A replay that drives ``battery_voltage_V`` with
+        :func:`identification.thrust_model.battery_input_V` needs no scale."""
         return dataclasses.replace(self.params, thrust_scale=self.calibration.get(flight, 1.0))
 
     @property
     def exit_code(self) -> int:
-        """0 when the model beats every baseline on held-out data (or ``force``), else 3."""
-        return 0 if self.model_beats_baselines or self.metrics.get("forced") else 3
+        """0 when no baseline beats the model on held-out data (``win`` or ``tie``), 3 when one does."""
+        return 3 if self.verdict == "lose" else 0
 
 
 # --------------------------------------------------------------------------- input
@@ -174,8 +215,18 @@ def check_config(cfg: ThrustConfig) -> None:
         probs.append(f"pwm_idle_us = {cfg.pwm_idle_us}, pwm_max_us = {cfg.pwm_max_us}; need idle < max")
     if cfg.calibrate not in CALIBRATIONS:
         probs.append(f"calibrate = {cfg.calibrate!r}; allowed: {', '.join(CALIBRATIONS)}")
+    masses = sorted({f.mass_kg for f in cfg.flights})
+    if not probs and len(masses) > 1 and cfg.fmu_mass_kg is None:
+        listing = ", ".join(f"{f.name} {f.mass_kg} kg" for f in cfg.flights)
+        probs.append(f"the flights have different masses ({listing}): name the FMU's mass_kg with --fmu-mass-kg "
+                     "(ThrustConfig.fmu_mass_kg)")
     if probs:
         raise ThrustDataError("identify thrust: " + "; ".join(probs))
+
+
+def fmu_mass(cfg: ThrustConfig) -> float:
+    """The FMU's mass [kg]: the one the user named, else the flights' common mass."""
+    return float(cfg.fmu_mass_kg if cfg.fmu_mass_kg is not None else cfg.flights[0].mass_kg)
 
 
 def load_flight(spec: FlightSpec, cfg: ThrustConfig) -> Flight:
@@ -183,7 +234,7 @@ def load_flight(spec: FlightSpec, cfg: ThrustConfig) -> Flight:
     from identification.readers import read_log
 
     log = read_log(spec.path, channel_map=cfg.channel_map)
-    check_quality(log, cfg.force)  # a log damaged beyond DEFAULT_MAX_DAMAGE is refused unless forced
+    overrides = damage_gate(log, cfg.accept_damaged_log)
     ds_cfg = ThrustDatasetConfig(
         mass_kg=spec.mass_kg,
         motor_min_pwm_us=cfg.motor_min_pwm_us,
@@ -201,7 +252,19 @@ def load_flight(spec: FlightSpec, cfg: ThrustConfig) -> Flight:
         hover = np.ones(data.n_samples, bool)
     quality = log.quality.to_dict() if getattr(log, "quality", None) is not None else None
     return Flight(spec, data, pwm, volt, hover, _yaw_rate(log, data), tuple(getattr(log, "warnings", ()) or ()),
-                  quality)
+                  quality, overrides, _tilt_cos(log, data))
+
+
+def _tilt_cos(log: Any, data: ThrustDataset) -> np.ndarray | None:
+    """``cos(roll) cos(pitch)`` at the middle of each PWM sample interval, or None when not logged."""
+    from identification.thrust_dataset import _series
+
+    angles = [_series(log, name) for name in ("roll_rad", "pitch_rad")]
+    if any(a is None or a[0].size < 2 for a in angles):
+        return None
+    mid = data.time_s + data.sample_period_s / 2.0
+    roll, pitch = (np.interp(mid, *a) for a in angles)  # type: ignore[misc]
+    return np.cos(roll) * np.cos(pitch)
 
 
 def _yaw_rate(log: Any, data: ThrustDataset) -> np.ndarray | None:
@@ -223,7 +286,7 @@ def _yaw_rate(log: Any, data: ThrustDataset) -> np.ndarray | None:
 def flight_summary(f: Flight) -> dict[str, Any]:
     """Samples kept, PWM band, voltage range, hover PWM of one flight (printed and in the metrics)."""
     s = f.pwm_us.sum(axis=1)
-    out: dict[str, Any] = {
+    return {
         "flight": f.spec.name,
         "path": str(f.spec.path),
         "mass_kg": f.spec.mass_kg,
@@ -232,218 +295,187 @@ def flight_summary(f: Flight) -> dict[str, Any]:
         "hover_pwm_mean_us": float(f.pwm_us[f.hover].mean()),
         "hover_samples": int(f.hover.sum()),
         "mean_thrust_N": float(f.data.fz_N.mean()),
+        "attitude_logged": f.tilt_cos is not None,
         "weight_N": f.weight_N,
         "lag_s": f.data.lag_s,
         "voltage_range_V": None if f.volt_V is None else [float(f.volt_V.min()), float(f.volt_V.max())],
         "notes": list(f.data.notes),
         "reader_warnings": list(f.reader_warnings),
         "quality": f.quality,
+        "overrides": list(f.overrides),
     }
-    return out
 
 
-# --------------------------------------------------------------------------- model
-@dataclass(frozen=True)
-class ModelSpec:
-    """How the commands are compensated: nominal voltage and exponent (0 without voltage)."""
-
-    idle_us: float
-    nominal_V: float
-    exponent: float
-
-
-def _volt(f: Flight, spec: ModelSpec) -> np.ndarray:
-    return f.volt_V if (f.volt_V is not None and spec.exponent > 0.0) else np.full(len(f.pwm_us), spec.nominal_V)
-
-
-def fit_model(train: list[Flight], spec: ModelSpec, cfg: ThrustConfig, source: str,
-              n_mfs: int | None = None) -> QuadrotorParams:
-    """Train the per-motor ANFIS on ``train`` (checking blocks for early stopping) with ``n_mfs`` MFs
-    (default ``cfg.n_mfs``); if the map is not monotone on its band, fewer MFs."""
-    x = np.concatenate([effective_pwm(f.pwm_us, _volt(f, spec)[:, None], spec.idle_us, spec.nominal_V,
-                                      spec.exponent) for f in train])
-    y = np.concatenate([f.data.fz_N for f in train])
-    period = float(np.median([f.data.sample_period_s for f in train]))
-    chk = interleaved_blocks(len(y), max(1, round(cfg.check_block_s / period)), 5)
-    amap = None
-    for n in range(n_mfs or cfg.n_mfs, 0, -1):
-        tc = AnfisTrainConfig(n_mfs=n, order=1, epochs=cfg.epochs)
-        res = train_anfis_motors(x[~chk], y[~chk], tc, (x[chk], y[chk]), source=source)
-        amap = res.amap
-        if is_monotone(amap) and amap.input_range[0][0] > N_MOTORS * spec.idle_us:
-            break
-    assert amap is not None
-    if not is_monotone(amap):
-        raise ThrustDataError(f"{source}: even a one-rule map falls with PWM; the data do not show thrust rising")
-    return QuadrotorParams.from_dict(
-        {
-            "mass_kg": float(np.mean([f.spec.mass_kg for f in train])),
-            "pwm_idle_us": spec.idle_us,
-            "battery_nominal_V": spec.nominal_V,
-            "thrust_voltage_exponent": spec.exponent,
-            "thrust_map": amap.to_dict(),
-        },
-        source=source,
-    )
-
-
-def fmu_total_thrust(p: QuadrotorParams, pwm_us: np.ndarray, volt_V: np.ndarray, scale: float = 1.0) -> np.ndarray:
-    """Total thrust [N] the quadrotor FMU gives for per-motor PWM (N, 4) and voltage (N,): same function."""
-    lo, hi = p.thrust_map.input_range[0]
-    t = motor_thrust(p.thrust_map, np.asarray(pwm_us, float), np.asarray(volt_V, float)[:, None],
-                     p.pwm_idle_us, lo, hi, p.battery_nominal_V, p.thrust_voltage_exponent,
-                     scale * p.thrust_scale, N_MOTORS)
-    return np.asarray(t).sum(axis=1)
-
-
-def hover_scale(pred_N: np.ndarray, f: Flight) -> float:
-    """Calibration: the scale making the mean predicted thrust over the flight's hover samples m g."""
-    m = float(np.mean(pred_N[f.hover]))
-    return f.weight_N / m if m > 0.0 else 1.0
-
-
-# --------------------------------------------------------------------------- baselines
-def _features(f: Flight, cfg: ThrustConfig, with_voltage: bool) -> np.ndarray:
-    """Polynomial regressors per sample: sum u^2, sum u (and sum u^2 V) with u = (pwm - idle)/range."""
-    u = (f.pwm_us - cfg.pwm_idle_us) / (cfg.pwm_max_us - cfg.pwm_idle_us)
-    cols = [(u * u).sum(axis=1), u.sum(axis=1)]
-    if with_voltage:
-        cols.append((u * u).sum(axis=1) * f.volt_V)
-    return np.stack(cols, axis=1)
-
-
-def baseline_predictions(train: list[Flight], test: Flight, cfg: ThrustConfig, voltage: bool) -> dict[str, np.ndarray]:
-    """Held-out predictions [N] of the constant m g and the least-squares polynomials fitted on ``train``."""
-    out = {"constant m g": np.full(test.data.n_samples, test.weight_N)}
-    variants = [("poly sum u^2, sum u", False)]
-    if voltage:
-        variants.append(("poly sum u^2, sum u, sum u^2 V", True))
-    y = np.concatenate([f.data.fz_N for f in train])
-    for name, with_v in variants:
-        a = np.concatenate([_features(f, cfg, with_v) for f in train])
-        coef = np.linalg.lstsq(a, y, rcond=None)[0]
-        out[name] = _features(test, cfg, with_v) @ coef
-    return out
-
-
-# --------------------------------------------------------------------------- cross-validation
-def folds(flights: list[Flight], n_blocks: int) -> list[tuple[str, list[Flight], Flight]]:
-    """(name, training flights, held-out set): leave-one-flight-out, or time blocks of a single flight."""
-    if len(flights) >= 2:
-        return [(f.spec.name, [g for g in flights if g is not f], f) for f in flights]
-    f = flights[0]
-    block = np.minimum(np.arange(f.data.n_samples) * n_blocks // f.data.n_samples, n_blocks - 1)
-    return [(f"{f.spec.name} block {b + 1}/{n_blocks}", [f.take(block != b)], f.take(block == b))
-            for b in range(n_blocks)]
-
-
-def score_fold(name: str, train: list[Flight], test: Flight, spec: ModelSpec, cfg: ThrustConfig,
-               calibrate: bool) -> FoldResult:
-    """Train on ``train`` (MF count chosen by inner CV on ``train`` only), score the FMU's thrust and the
-    baselines on ``test`` (calibrated if asked)."""
-    n_mfs = select_mfs(train, spec, cfg, calibrate)
-    p = fit_model(train, spec, cfg, source=f"fold without {name}", n_mfs=n_mfs)
-    pred = fmu_total_thrust(p, test.pwm_us, _volt(test, spec))
-    scale = hover_scale(pred, test) if calibrate else 1.0
-    y = test.data.fz_N
-    base = baseline_predictions(train, test, cfg, spec.exponent > 0.0)
-    scores = {}
-    for bname, b in base.items():
-        scores[bname] = Score(rmse(b, y), r_squared(b, y))
-        if calibrate and bname != "constant m g":
-            bc = b * hover_scale(b, test)
-            scores[bname + " (calibrated)"] = Score(rmse(bc, y), r_squared(bc, y))
-    model = Score(rmse(pred * scale, y), r_squared(pred * scale, y))
-    return FoldResult(name, int(y.size), model, scores, scale, p.thrust_map.n_mfs[0])
-
-
-def select_mfs(train: list[Flight], spec: ModelSpec, cfg: ThrustConfig, calibrate: bool) -> int:
-    """MF count in 1..``cfg.n_mfs`` with the lowest pooled RMSE of an inner CV on ``train`` alone
-    (leave-one-flight-out, or time blocks of a single flight); ties go to fewer MFs."""
-    if cfg.n_mfs == 1:
-        return 1
-    inner = folds(train, cfg.n_folds_single)
-    best = (math.inf, 1)
-    for n in range(1, cfg.n_mfs + 1):
-        sse, count = 0.0, 0
-        for _, tr, te in inner:
-            pred = fmu_total_thrust(fit_model(tr, spec, cfg, "inner CV", n_mfs=n), te.pwm_us, _volt(te, spec))
-            if calibrate:
-                pred = pred * hover_scale(pred, te)
-            sse += float(np.sum((pred - te.data.fz_N) ** 2))
-            count += te.data.n_samples
-        score = math.sqrt(sse / count)
-        if score < best[0] * (1.0 - 1e-3):
-            best = (score, n)
-    return best[1]
-
-
-def _pooled(results: list[FoldResult], get: Any) -> float:
-    n = sum(r.n_samples for r in results)
-    return math.sqrt(sum(get(r) ** 2 * r.n_samples for r in results) / n)
-
-
-# --------------------------------------------------------------------------- the workflow
-def model_spec(flights: list[Flight], cfg: ThrustConfig) -> tuple[ModelSpec, list[str]]:
-    """Voltage compensation when every flight logs the voltage (and it is wanted); notes why not."""
+# --------------------------------------------------------------------------- folds and scores
+def base_spec(flights: list[Flight], cfg: ThrustConfig) -> tuple[ModelSpec, list[str]]:
+    """Voltage use (every flight logs it and it is wanted), nominal voltage; notes why not."""
     notes = []
     have = [f.volt_V is not None for f in flights]
     use = cfg.use_voltage and all(have)
     if cfg.use_voltage and any(have) and not all(have):
         missing = ", ".join(f.spec.name for f in flights if f.volt_V is None)
         notes.append(f"battery voltage missing in {missing}: the model ignores voltage for every flight")
-    if not use:
-        return ModelSpec(cfg.pwm_idle_us, QuadrotorParams().battery_nominal_V, 0.0), notes
-    v_nom = float(np.median(np.concatenate([f.volt_V for f in flights])))  # type: ignore[misc]
-    return ModelSpec(cfg.pwm_idle_us, round(v_nom, 3), 1.0), notes
+    v_nom = QuadrotorParams().battery_nominal_V
+    if use:
+        v_nom = round(float(np.median(np.concatenate([f.volt_V for f in flights]))), 3)  # type: ignore[misc]
+    return ModelSpec(cfg.pwm_idle_us, cfg.pwm_max_us, v_nom, use), notes
 
 
+def _select(train: list[FlightData], base: ModelSpec, cfg: ThrustConfig, calibrate: bool) -> ModelSpec:
+    spec, _ = select_spec(train, base, cfg.n_mfs, cfg.epochs, cfg.check_block_s, cfg.n_folds_single, calibrate,
+                          states=cfg.battery_state)
+    return spec
+
+
+def score_fold(name: str, train: list[FlightData], test: FlightData, base: ModelSpec, cfg: ThrustConfig,
+               calibrate: bool) -> FoldResult:
+    """Select the structure on ``train`` (inner CV), fit on ``train``, score it and the baselines on ``test``."""
+    fitted, spec = fit_physical(train, _select(train, base, cfg, calibrate), cfg.epochs, cfg.check_block_s,
+                                source=f"fold without {name}")
+    p = fitted.params
+    y = test.thrust_N
+    pred = predict(p, spec, test)
+    series = {"measured": y, "model": pred, "model without battery state": predict(p, spec, test, state=False)}
+    series.update(baseline_predictions(train, test, spec))
+    scale = hover_scale(pred, test)
+    if calibrate:
+        for key in [k for k in series if k not in ("measured", CONSTANT)]:
+            own = key == "model" and spec.tau_s is not None  # its hover battery state is its calibration
+            series[f"{key} (calibrated)"] = series[key] * (1.0 if own else hover_scale(series[key], test))
+    scores = {k: Score(rmse(v, y), r_squared(v, y)) for k, v in series.items() if k not in ("measured", "model")}
+    return FoldResult(name, int(y.size), Score(rmse(pred, y), r_squared(pred, y)), scores, scale, spec,
+                      test.period_s, series)
+
+
+def outer_folds(flights: list[FlightData], n_blocks: int) -> list[tuple[str, list[FlightData], FlightData]]:
+    """Leave-one-flight-out, or time blocks of a single flight."""
+    return inner_folds(flights, n_blocks)
+
+
+def comparisons(folds: list[FoldResult], calibrate: bool, block_s: float) -> dict[str, dict[str, Any]]:
+    """Model vs each baseline, pooled over the held-out sets and per held-out set, as skill intervals.
+
+    Raw: the model (with its battery state) against the raw baselines. Calibrated (when ``calibrate``): the
+    calibrated model against the calibrated polynomials and the constant m g. A model with a hover battery
+    state is calibrated by that state (time-varying, from the same mass, PWM and hover samples), not by a
+    second constant scale on top; without a state it gets the baselines' constant per-flight scale."""
+    pairs = [("model", b) for b in folds[0].series if _is_baseline(b) and "(calibrated)" not in b]
+    if calibrate:
+        pairs += [("model (calibrated)", b) for b in folds[0].series if b == CONSTANT or
+                  (_is_baseline(b) and b.endswith("(calibrated)"))]
+    out = {}
+    for model, base in pairs:
+        pooled = _interval(folds, model, base, block_s)
+        per = {f.held_out: _interval([f], model, base, block_s).as_dict() for f in folds}
+        out[f"{model} vs {base}"] = {"model": model, "baseline": base, "pooled": pooled.as_dict(),
+                                     "per_held_out": per, "rmse_ratio": _ratio(folds, model, base)}
+    return out
+
+
+def _is_baseline(key: str) -> bool:
+    return key == CONSTANT or key.startswith("poly")
+
+
+def _interval(folds: list[FoldResult], model: str, base: str, block_s: float) -> SkillInterval:
+    ys, ms, bs, starts, offset = [], [], [], [], 0
+    for f in folds:
+        n = f.n_samples
+        block = max(1, round(block_s / f.period_s))
+        starts.append(block_starts(n, block) + offset)
+        ys.append(f.series["measured"])
+        ms.append(f.series[model])
+        bs.append(f.series[base])
+        offset += n
+    return skill_interval(np.concatenate(ys), np.concatenate(ms), np.concatenate(bs), np.concatenate(starts))
+
+
+def _ratio(folds: list[FoldResult], model: str, base: str) -> float:
+    return _pooled_rmse(folds, model) / _pooled_rmse(folds, base)
+
+
+def _pooled_rmse(folds: list[FoldResult], key: str) -> float:
+    sse = sum(float(np.sum((f.series[key] - f.series["measured"]) ** 2)) for f in folds)
+    return math.sqrt(sse / sum(f.n_samples for f in folds))
+
+
+def verdict_of(comp: dict[str, dict[str, Any]]) -> str:
+    """``lose`` if a baseline beats the model pooled or on any held-out set; ``win`` if the model beats every
+    baseline pooled (intervals above zero); else ``tie``."""
+    outcomes = [c["pooled"]["outcome"] for c in comp.values()]
+    per = [o["outcome"] for c in comp.values() for o in c["per_held_out"].values()]
+    if "lose" in outcomes or "lose" in per:
+        return "lose"
+    return "win" if all(o == "win" for o in outcomes) else "tie"
+
+
+# --------------------------------------------------------------------------- the workflow
 def identify_thrust(cfg: ThrustConfig) -> ThrustResult:
-    """Read, align, cross-validate against baselines, fit on all flights, write params and metrics."""
+    """Read, nested-cross-validate against baselines, fit on all flights, write params and metrics."""
     check_config(cfg)
     flights = [load_flight(s, cfg) for s in cfg.flights]
-    spec, notes = model_spec(flights, cfg)
-    calibrate = cfg.calibrate == "on" or (cfg.calibrate == "auto" and spec.exponent == 0.0)
-    results = [score_fold(n, tr, te, spec, cfg, calibrate) for n, tr, te in folds(flights, cfg.n_folds_single)]
-    names = list(results[0].baselines)
-    pooled_b = {b: _pooled(results, lambda r, b=b: r.baselines[b].rmse_N) for b in names}
-    pooled_m = _pooled(results, lambda r: r.model.rmse_N)
-    wins = pooled_m < min(pooled_b.values())
-    final = fit_model(flights, spec, cfg, source=f"identify thrust ({len(flights)} flights)",
-                      n_mfs=select_mfs(flights, spec, cfg, calibrate))
-    final = dataclasses.replace(final, mass_kg=flights[0].spec.mass_kg)
-    cal = {}
-    if calibrate:
-        cal = {f.spec.name: hover_scale(fmu_total_thrust(final, f.pwm_us, _volt(f, spec)), f) for f in flights}
-    yaw, yaw_note = _yaw(flights, final, spec, cal)
+    base, notes = base_spec(flights, cfg)
+    calibrate = cfg.calibrate == "on" or (cfg.calibrate == "auto" and not base.voltage)
+    data = [f.model_data(base.voltage) for f in flights]
+    results = [score_fold(n, tr, te, base, cfg, calibrate) for n, tr, te in outer_folds(data, cfg.n_folds_single)]
+    comp = comparisons(results, calibrate, cfg.check_block_s)
+    verdict = verdict_of(comp)
+    chosen = _select(data, base, cfg, calibrate)
+    fitted, spec = fit_physical(data, chosen, cfg.epochs, cfg.check_block_s,
+                                source=f"identify thrust ({len(flights)} flights)", mass_kg=fmu_mass(cfg))
+    final = fitted.params
+    if spec != chosen:
+        notes.append(f"the selected map ({chosen.describe()}) falls with the command on its band; written: "
+                     f"{spec.describe()}")
+    # thrust_scale for replays that cannot drive the battery state: the model without it, calibrated per flight
+    cal = {d.name: hover_scale(predict(final, spec, d, state=False), d) for d in data} if calibrate else {}
+    yaw, yaw_note = _yaw(flights, data, final, spec, cal)
     if yaw is not None:
         final = dataclasses.replace(final, b_drag_N_m_s2=yaw.b_drag_N_m_s2)
-    summaries = tuple(flight_summary(f) for f in flights)
+    pooled = {k: _pooled_rmse(results, k) for k in results[0].series if k != "measured"}
     warnings = list(notes) + ([yaw_note] if yaw_note else [])
-    if not wins:
-        best = min(pooled_b, key=pooled_b.get)  # type: ignore[arg-type]
-        warnings.append(
-            f"the identified model LOSES on held-out data: RMSE {pooled_m:.3f} N vs {pooled_b[best]:.3f} N of "
-            f"the baseline '{best}'"
-        )
-    result = ThrustResult(final, tuple(results), pooled_m, pooled_b, wins, summaries, cal,
-                          warnings=tuple(warnings))
-    result.metrics.update(_metrics(result, cfg, spec, calibrate))
+    if verdict == "lose":
+        warnings.append("the identified model LOSES to a baseline on held-out data: " + _losers(comp))
+    overrides = [o for f in flights for o in f.overrides]
+    result = ThrustResult(final, spec, tuple(results), pooled, comp, verdict,
+                          tuple(flight_summary(f) for f in flights), cal, _uncertainty(fitted),
+                          warnings=tuple(warnings), overrides=tuple(overrides))
+    result.metrics.update(_metrics(result, cfg, calibrate))
     result.metrics["yaw"] = yaw.as_dict() if yaw is not None else {"skipped": yaw_note}
-    _write(result, cfg)
-    return result
+    return _write(result, cfg)
 
 
-def _yaw(flights: list[Flight], p: QuadrotorParams, spec: ModelSpec, cal: dict[str, float]) -> tuple[Any, str]:
+def _losers(comp: dict[str, dict[str, Any]]) -> str:
+    items = []
+    for key, c in comp.items():
+        where = [h for h, o in c["per_held_out"].items() if o["outcome"] == "lose"]
+        if c["pooled"]["outcome"] == "lose" or where:
+            items.append(f"{key} (RMSE ratio {c['rmse_ratio']:.3f}{'; loses on ' + ', '.join(where) if where else ''})")
+    return "; ".join(items)
+
+
+def _uncertainty(fitted: Any) -> dict[str, Any]:
+    """The ``uncertainty`` key of the parameter file: FMU names of the consequents, mean and covariance."""
+    names = [n for n, _, _ in consequent_parameters(fitted.params.thrust_map)]
+    mean = [float(v) for row in fitted.params.thrust_map.consequents for v in row]
+    cov = covariance(fitted)
+    return {"names": names, "mean": mean, "covariance": [[float(v) for v in row] for row in cov],
+            "note": "consequent coefficients of the thrust map at the fitted membership functions; least-squares "
+                    "covariance inflated for the residuals' lag-1 autocorrelation"}
+
+
+def _yaw(flights: list[Flight], data: list[FlightData], p: QuadrotorParams, spec: ModelSpec,
+         cal: dict[str, float]) -> tuple[Any, str]:
     """Yaw torque per thrust from the flights' yaw response (None and a note when it cannot be done)."""
     from identification.yaw_torque import identify_yaw_torque, spin_thrust, windows
 
     if any(f.yaw_rate is None for f in flights):
         return None, "yaw torque not identified: a flight has no gyro_body_z_rad_s"
     ms = []
-    for f in flights:
-        per_motor = np.stack([fmu_total_thrust(p, f.pwm_us[:, [i] * N_MOTORS], _volt(f, spec)) / N_MOTORS
-                              for i in range(N_MOTORS)], axis=1) * cal.get(f.spec.name, 1.0)
+    for f, d in zip(flights, data, strict=True):
+        volt = battery_input_V(p, spec, d)  # with the battery state when the model has one, else calibrated
+        scale = 1.0 if spec.tau_s is not None else cal.get(f.spec.name, 1.0)
+        per_motor = np.stack([fmu_total_thrust(p, f.pwm_us[:, [i] * N_MOTORS], volt) / N_MOTORS
+                              for i in range(N_MOTORS)], axis=1) * scale
         ok = np.isfinite(f.yaw_rate)  # type: ignore[arg-type]
         seg = np.where(ok, f.data.segment, -1)
         ms += windows(f.data.time_s, seg, spin_thrust(per_motor), np.nan_to_num(f.yaw_rate),  # type: ignore[arg-type]
@@ -455,45 +487,77 @@ def _yaw(flights: list[Flight], p: QuadrotorParams, spec: ModelSpec, cal: dict[s
         return None, f"yaw torque not identified: {err}"
 
 
-def _metrics(r: ThrustResult, cfg: ThrustConfig, spec: ModelSpec, calibrate: bool) -> dict[str, Any]:
+VERDICT_TEXT = {"win": "model beats every baseline on held-out data",
+                "tie": "TIE: no baseline beats the model, but it does not beat every one beyond noise",
+                "lose": "MODEL LOSES to a baseline on held-out data"}
+
+
+def _metrics(r: ThrustResult, cfg: ThrustConfig, calibrate: bool) -> dict[str, Any]:
     return {
         "flights": list(r.flights),
+        "fmu_mass_kg": r.params.mass_kg,
         "cross_validation": "leave-one-flight-out" if len(cfg.flights) >= 2 else f"{cfg.n_folds_single} time blocks",
-        "voltage_compensation": spec.exponent > 0.0,
-        "battery_nominal_V": spec.nominal_V,
+        "model_selection": "nested: feature set, rules and battery-state time constant by inner CV on the "
+                           "training flights of each fold",
+        "model": r.spec.describe(),
+        "voltage_compensation": r.spec.voltage,
+        "battery_state": _battery_state(r.spec),
+        "battery_nominal_V": r.spec.nominal_V,
         "per_flight_calibration": calibrate,
         "calibration_scale": r.calibration,
         "folds": [
             {"held_out": f.held_out, "samples": f.n_samples, "calibration_scale": f.calibration_scale,
-             "n_mfs": f.n_mfs,
+             "model_structure": f.spec.describe(), "n_rules": f.spec.n_rules,
              "model": dataclasses.asdict(f.model),
              "baselines": {k: dataclasses.asdict(v) for k, v in f.baselines.items()},
-             "best_baseline": f.best_baseline,
-             "model_beats_best_baseline": f.model.rmse_N < f.baselines[f.best_baseline].rmse_N}
+             "best_baseline": f.best_baseline}
             for f in r.folds
         ],
-        "pooled_model_rmse_N": r.pooled_model_rmse_N,
-        "pooled_baseline_rmse_N": r.pooled_baseline_rmse_N,
-        "model_beats_baselines": r.model_beats_baselines,
-        "verdict": "model beats every baseline on held-out data" if r.model_beats_baselines
-        else "MODEL LOSES to a baseline on held-out data",
-        "forced": bool(cfg.force and not r.model_beats_baselines),
+        "pooled_rmse_N": r.pooled,
+        "comparisons": r.comparisons,
+        "verdict": r.verdict,
+        "verdict_text": VERDICT_TEXT[r.verdict],
+        "overrides": list(r.overrides),
         "warnings": list(r.warnings),
-        "thrust_map_mfs": r.params.thrust_map.n_mfs[0],
-        "band_us": list(r.params.thrust_map.input_range[0]),
+        "thrust_map_rules": r.params.thrust_map.n_rules,
+        "band": list(r.params.thrust_map.input_range[0]),
         "scored_with": "fmu_models.quadrotor.thrust.motor_thrust (the FMU's function)",
     }
 
 
-def _write(r: ThrustResult, cfg: ThrustConfig) -> None:
+def _battery_state(spec: ModelSpec) -> dict[str, Any]:
+    if spec.voltage:
+        return {"method": "logged battery voltage", "fmu_input": "battery_voltage_V"}
+    if spec.tau_s is None:
+        return {"method": "none (--no-battery-state)"}
+    return {"method": "hover condition (identification.thrust_battery.hover_thrust_scale)", "tau_s": spec.tau_s,
+            "hover_climb_m_s": HOVER_CLIMB_M_S, "fmu_input": "battery_voltage_V",
+            "equivalent_voltage": "battery_nominal_V * s(t); thrust_voltage_exponent = 1"}
+
+
+def _write(r: ThrustResult, cfg: ThrustConfig) -> ThrustResult:
     metrics_path = cfg.metrics or (cfg.out.with_suffix(".metrics.json") if cfg.out else None)
-    if cfg.out is not None:
+    written = None
+    if cfg.out is not None and (r.verdict != "lose" or cfg.write_losing_model):
         section = r.params.to_dict()
         section["k_thrust_source"] = "default (not identified from thrust data)"
         QuadrotorParams.from_dict(section, source=f"{cfg.out} (about to be written)")
         cfg.out.parent.mkdir(parents=True, exist_ok=True)
-        write_json(cfg.out, {"quadrotor": section, "_identification": {
-            "metrics": str(metrics_path), "flight_calibration_thrust_scale": r.calibration}})
+        write_json(cfg.out, {"quadrotor": section, "uncertainty": r.uncertainty, "_identification": {
+            "metrics": str(metrics_path), "verdict": r.verdict,
+            "flights": [{"flight": f["flight"], "mass_kg": f["mass_kg"]} for f in r.flights],
+            "fmu_mass_kg": r.params.mass_kg, "battery_state": _battery_state(r.spec),
+            "flight_calibration_thrust_scale": r.calibration}})
+        written = cfg.out
+        if r.verdict == "lose":
+            r = dataclasses.replace(r, overrides=(*r.overrides, f"--write-losing-model: wrote {cfg.out} although "
+                                                  "a baseline beats the model on held-out data"))
+    elif cfg.out is not None:
+        r = dataclasses.replace(r, warnings=(*r.warnings, f"{cfg.out} not written: the model loses "
+                                             "(--write-losing-model writes it anyway)"))
+    r.metrics["overrides"] = list(r.overrides)
+    r.metrics["parameters_written"] = str(written) if written else None
     if metrics_path is not None:
         metrics_path.parent.mkdir(parents=True, exist_ok=True)
         write_json(metrics_path, r.metrics)
+    return dataclasses.replace(r, written=written)

@@ -144,6 +144,8 @@ class ReplayResult:
     horizons: dict[str, list[HorizonRow]] = field(default_factory=dict)
     one_step: dict[str, Score] = field(default_factory=dict)
     options: dict[str, Any] = field(default_factory=dict)
+    #: Monte Carlo bands and their coverage per signal (``identification.mc_bands.Bands``; ``validate --mc``)
+    bands: Any = None
 
     @property
     def failed(self) -> list[str]:
@@ -383,15 +385,32 @@ def _windows_to_score(log: FlightLog, log_path: Path, vehicle: str, maps: Sequen
     return included, ground, gaps, on_ground
 
 
-def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalMap], rate_hz: float = 50.0,
-           window_s: float | None = 2.0, start_values: Mapping[str, float] | None = None,
-           mapping: PwmMapping | None = None, t_range: tuple[float, float] | None = None,
-           progress: Callable[[int, int], None] | None = None, *, include_ground: bool = False,
-           horizons_s: Sequence[float] = DEFAULT_HORIZONS_S, max_memory_mb: float = 2048.0) -> ReplayResult:
-    """Replay ``log`` through the FMU of ``host`` on a ``rate_hz`` grid and score the signals of ``maps``."""
-    opts = options(rate_hz=rate_hz, window_s=window_s or 0.0, include_ground=include_ground,
-                   horizons_s=list(horizons_s), max_memory_mb=max_memory_mb)
-    overrides = dict(start_values or {})
+@dataclass
+class ReplaySetup:
+    """Everything a replay simulates from: the grid [s], FMU inputs on it, the log's compared signals in FMU
+    units, window edges (grid indices), which windows are scored and why not, each window's logged start
+    state, the FMU's parameters (overrides applied), and notes on inputs held at their start value."""
+
+    vehicle: str
+    t: np.ndarray
+    inputs: dict[str, np.ndarray]
+    measured: dict[str, np.ndarray]
+    edges: list[int]
+    included: list[bool]
+    ground: dict[str, int]
+    gaps: dict[str, int]
+    on_ground: np.ndarray | None
+    starts: list[dict[str, float]]
+    extra: list[str]
+    params: dict[str, float]
+    notes: list[str]
+    opts: ValidationOptions
+
+
+def replay_setup(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalMap], opts: ValidationOptions,
+                 overrides: Mapping[str, float], mapping: PwmMapping | None = None,
+                 t_range: tuple[float, float] | None = None) -> ReplaySetup:
+    """Check the inputs and build the grid, inputs, windows and start states of a replay (nothing simulated)."""
     vehicle = _check_inputs(host, log, log_path, maps, overrides)
     t = replay_grid(log, log_path, vehicle, opts, len(maps), t_range)
     try:
@@ -411,19 +430,45 @@ def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalM
     starts = [{**s, **overrides} for s in initial_values_at(log, t[edges[:-1]],
                                                             forward_from_airspeed=vehicle == "fixed_wing")]
     extra = [a for a in ACCEL if a in host.variables and log.has(a)]
-    model, first = _simulate_windows(host, t, inputs, maps, measured, starts, edges, included, extra, progress)
-    if on_ground is not None:
+    return ReplaySetup(vehicle, t, inputs, measured, edges, included, ground, gaps, on_ground, starts, extra, params,
+                       notes, opts)
+
+
+def simulate_setup(host: FmuHost, setup: ReplaySetup, maps: Sequence[SignalMap],
+                   starts: list[dict[str, float]] | None = None,
+                   progress: Callable[[int, int], None] | None = None) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """Model outputs on the grid of ``setup`` (NaN where not scored) from its, or the given, window starts, and
+    the ``extra`` outputs at each window start."""
+    s = setup
+    model, first = _simulate_windows(host, s.t, s.inputs, maps, s.measured, starts or s.starts, s.edges, s.included,
+                                     s.extra, progress)
+    if s.on_ground is not None:
         for v in model.values():
-            v[on_ground] = np.nan
+            v[s.on_ground] = np.nan
+    return model, first
+
+
+def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalMap], rate_hz: float = 50.0,
+           window_s: float | None = 2.0, start_values: Mapping[str, float] | None = None,
+           mapping: PwmMapping | None = None, t_range: tuple[float, float] | None = None,
+           progress: Callable[[int, int], None] | None = None, *, include_ground: bool = False,
+           horizons_s: Sequence[float] = DEFAULT_HORIZONS_S, max_memory_mb: float = 2048.0) -> ReplayResult:
+    """Replay ``log`` through the FMU of ``host`` on a ``rate_hz`` grid and score the signals of ``maps``."""
+    opts = options(rate_hz=rate_hz, window_s=window_s or 0.0, include_ground=include_ground,
+                   horizons_s=list(horizons_s), max_memory_mb=max_memory_mb)
+    overrides = dict(start_values or {})
+    s = replay_setup(host, log, log_path, maps, opts, overrides, mapping, t_range)
+    t, edges, measured = s.t, s.edges, s.measured
+    model, first = simulate_setup(host, s, maps, progress=progress)
     res = ReplayResult(fmu_identity(host, overrides), log_identity(log, log_path), t[1:],
                        {k: v[1:] for k, v in model.items()}, {k: v[1:] for k, v in measured.items()},
                        [(float(t[a]), float(t[b])) for a, b in itertools.pairwise(edges)],
-                       [], {}, tuple(maps), overrides, included=list(included), ground=ground, gaps=gaps,
+                       [], {}, tuple(maps), overrides, included=list(s.included), ground=s.ground, gaps=s.gaps,
                        options=opts.model_dump())
-    res.log["warnings"] += notes
+    res.log["warnings"] += s.notes
     score(res, np.asarray(edges), {m.fmu: measured[m.fmu][edges[:-1]] for m in maps})
-    res.horizons = _horizons(maps, measured, model, edges, included, opts)
-    res.one_step = _one_step(log, t[edges[:-1]], first, extra)
+    res.horizons = _horizons(maps, measured, model, edges, s.included, opts)
+    res.one_step = _one_step(log, t[edges[:-1]], first, s.extra)
     return res
 
 

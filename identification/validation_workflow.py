@@ -1,6 +1,6 @@
-"""The validation workflow as library functions: one FMU against one log (:func:`validate`), a job that never
-raises (:func:`validate_job`, for batches), a batch of FMU x log jobs in worker processes
-(:func:`validate_batch`) and the batch manifest (:func:`load_manifest`). Each returns
+"""The validation workflow as library functions: one FMU against one log (:func:`validate`), with Monte Carlo
+bands (:func:`validate_mc`), a job that never raises (:func:`validate_job`), a batch of FMU x log jobs on the
+workers of ``fmu_models.parallel`` (:func:`validate_batch`) and the batch manifest (:func:`load_manifest`). Each returns
 :class:`ValidationResult` objects; ``uavfmu validate`` only parses arguments and prints their ``lines()``.
 
 Batch manifest (TOML; paths relative to it; ``fmu`` and ``log`` may be lists: every pair runs)::
@@ -16,13 +16,14 @@ Batch manifest (TOML; paths relative to it; ``fmu`` and ``log`` may be lists: ev
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pydantic import Field
 
+from fmu_models.common.params import Uncertainty
 from fmu_models.config import (
     ConfigError,
     FiniteFloat,
@@ -32,7 +33,10 @@ from fmu_models.config import (
     validate_config,
 )
 from fmu_models.fmi.host import FmuRunError
-from identification.validation import Horizon, ReplayResult, ValidationOptions, options
+from identification.validation import Horizon, ReplayResult, ValidationInputError, ValidationOptions, options
+
+if TYPE_CHECKING:
+    from fmu_models.parallel import Executor
 
 MAX_JOBS = 10_000
 
@@ -76,6 +80,8 @@ class ValidationJob:
     start_values: Mapping[str, float] = field(default_factory=dict)
     max_theil: float | None = None
     report_dir: Path | None = None
+    #: with ``report_dir``: also ``report.html`` (plots: about a second a run), else ``metrics.json`` alone
+    report_html: bool = True
 
 
 @dataclass
@@ -99,11 +105,12 @@ class ValidationResult:
     horizons: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
     report: str | None = None
     replay: ReplayResult | None = None
+    retried: str = ""
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready summary (no arrays)."""
         keys = ("fmu", "log", "status", "error", "signals", "failed", "windows", "excluded", "ground", "gaps",
-                "warnings", "one_step", "horizons", "report")
+                "warnings", "one_step", "horizons", "report", "retried")
         return {k: getattr(self, k) for k in keys}
 
     def lines(self) -> list[str]:
@@ -153,6 +160,10 @@ def result_of(res: ReplayResult, job: ValidationJob) -> ValidationResult:
         signals[m.fmu] = {**s.as_dict(), "log_signal": m.log, "max_theil": m.max_theil, "max_rmse": m.max_rmse,
                           "min_skill_persistence": m.min_skill_persistence, "min_skill_mean": m.min_skill_mean,
                           "windows": res.window_counts(m.fmu)}
+        if res.bands is not None:
+            verdict, why = res.bands.verdict(m.fmu)
+            signals[m.fmu] |= {"band_coverage": res.bands.coverage[m.fmu], "band_verdict": verdict,
+                               "band_reason": why}
     warnings = list(dict.fromkeys([*res.log["warnings"], *res.log.get("quality_lines", [])]))  # once each
     return ValidationResult(str(job.fmu), str(job.log), res.status, "", signals,
                             res.failed, len(res.windows), res.excluded, dict(res.ground), dict(res.gaps), warnings,
@@ -175,46 +186,124 @@ def metrics_document(res: ReplayResult, out: ValidationResult) -> dict[str, Any]
         "horizons": {k: [r.as_dict() for r in rows] for k, rows in res.horizons.items()},
         "one_step": out.one_step,
         "quality": res.log.get("quality"),
+        **({"monte_carlo": res.bands.info} if res.bands is not None else {}),
     }
 
 
 def write_report(res: ReplayResult, out: ValidationResult, rdir: Path) -> None:
     from identification import report
-    from identification.jsonio import write_json
 
-    rdir.mkdir(parents=True, exist_ok=True)
-    (rdir / "report.html").write_text(report.validation_page(res))
-    write_json(rdir / "metrics.json", metrics_document(res, out))
+    _write_files(rdir, metrics_document(res, out), report.validation_page(res))
     out.report = str(rdir / "report.html")
+
+
+def validate_mc(job: ValidationJob, uncertainty: Uncertainty, draws: int, seed: int = 0, *,
+                workers: int | None = None, scheduler: str | None = None, progress: Any = False) -> ValidationResult:
+    """:func:`validate` with Monte Carlo bands: the nominal replay with the uncertainty's mean as parameters,
+    then ``draws`` replays with parameters and restart states drawn (``identification.mc_bands``) on
+    ``fmu_models.parallel``; each signal's band coverage beside its skill, in the summary, ``metrics.json`` and
+    the report. Raises like :func:`validate`."""
+    from fmu_models.fmi.host import FmuHost
+    from fmu_models.parallel import Executor
+    from identification import mc_bands
+    from identification.readers import read_log
+
+    clash = sorted(set(job.start_values) & set(uncertainty.names))
+    if clash:
+        raise ValidationInputError(f"--set {', '.join(clash)}: drawn from the uncertainty in --mc runs; leave it out")
+    mc_bands.check_draws(draws, 3, 1, job.options.max_memory_mb)  # the count, before anything runs
+    with FmuHost(job.fmu) as host:
+        real = {n for n, v in host.variables.items() if v.causality == "parameter" and v.type == "Real"}
+        unknown = [n for n in uncertainty.names if n not in real]
+        if unknown:
+            raise ValidationInputError(f"uncertainty: {', '.join(unknown)} not real parameters of {job.fmu.name}")
+        units = {n: host.unit(n) for n in host.variables}
+    job = replace(job, start_values={**dict(zip(uncertainty.names, uncertainty.mean, strict=True)),
+                                     **job.start_values})
+    nominal = validate(replace(job, report_dir=None))
+    res = nominal.replay
+    assert res is not None
+    mc_bands.check_draws(draws, len(res.t_s) + 1, len(res.maps), job.options.max_memory_mb)  # before the cluster
+    log = read_log(job.log, channel_map=job.channel_map)
+    with Executor(scheduler, workers) as ex:
+        res.bands = mc_bands.monte_carlo(job, uncertainty, res, log, draws, seed, ex, units, progress)
+    out = result_of(res, job)
+    if job.report_dir is not None:
+        write_report(res, out, Path(job.report_dir))
+    return out
+
+
+def _attempt(job: ValidationJob) -> ValidationResult:
+    """:func:`validate`, with bad input or a failing FMU as an ``error`` result instead of an exception."""
+    try:
+        return validate(job)
+    except (FmuRunError, OSError, ValueError, KeyError) as err:  # LogError, ConfigError, ... are ValueErrors
+        return ValidationResult(str(job.fmu), str(job.log), "error", error=str(err).strip("'\""))
 
 
 def validate_job(job: ValidationJob) -> ValidationResult:
     """:func:`validate` that never raises for bad input or a failing FMU (a batch must go on); the arrays
     are dropped (results cross process boundaries)."""
-    try:
-        out = validate(job)
-    except (FmuRunError, OSError, ValueError, KeyError) as err:  # LogError, ConfigError, ... are ValueErrors
-        return ValidationResult(str(job.fmu), str(job.log), "error", error=str(err).strip("'\""))
+    out = _attempt(job)
     out.replay = None
     return out
 
 
-def validate_batch(jobs: Sequence[ValidationJob], workers: int = 2,
-                   progress: Callable[[int, int], None] | None = None) -> list[ValidationResult]:
-    """Every job in its own worker process (an FMU is native code: one that crashes must not take the batch
-    down); results in the order of ``jobs``."""
-    results: list[ValidationResult] = [ValidationResult(str(j.fmu), str(j.log)) for j in jobs]
-    with ProcessPoolExecutor(max_workers=max(1, min(workers, 64))) as pool:
-        futures = {pool.submit(validate_job, job): k for k, job in enumerate(jobs)}
-        for done, fut in enumerate(as_completed(futures), 1):
-            k = futures[fut]
-            try:
-                results[k] = fut.result()
-            except Exception as err:  # a worker that died (segfault in an FMU) raises BrokenProcessPool here
-                results[k].error = f"worker process failed: {type(err).__name__}: {err}"
-            if progress:
-                progress(done, len(jobs))
+def job_files(job: ValidationJob) -> list[Path]:
+    """The files a job reads (shipped to the worker that runs it)."""
+    return [p for p in (job.fmu, job.log, job.output_map, job.mapping, job.channel_map) if p is not None]
+
+
+def batch_task(job: ValidationJob) -> dict[str, Any]:
+    """One batch run on a worker: the job on the worker's copies of its files; the summary, and with a report
+    folder ``metrics.json`` and ``report.html`` as data (the client writes them: a worker may be another
+    machine). Paths come back as the client's (``fmu_models.parallel``)."""
+    from fmu_models.parallel import local_path
+    from identification import report
+
+    files = {k: local_path(getattr(job, k)) for k in ("fmu", "log", "output_map", "mapping", "channel_map")
+             if getattr(job, k) is not None}
+    out = _attempt(replace(job, report_dir=None, **files))
+    doc: dict[str, Any] = {"result": out.as_dict()}
+    if job.report_dir is not None and out.replay is not None:
+        doc |= {"metrics": metrics_document(out.replay, out),
+                "html": report.validation_page(out.replay) if job.report_html else None}
+    return doc
+
+
+def validate_batch(jobs: Sequence[ValidationJob], workers: int | None = 2,
+                   progress: Callable[[int, int], None] | bool = False, *, scheduler: str | None = None,
+                   executor: Executor | None = None) -> list[ValidationResult]:
+    """Every job as a task of ``fmu_models.parallel`` (worker processes: an FMU is native code, and one that
+    crashes costs its task one retry, not the batch); results in the order of ``jobs``, reports written
+    here as each run's result is read back. A run that failed twice is an ``error`` result naming why; a
+    retried run says so in ``retried``."""
+    from fmu_models.parallel import Executor
+
+    with nullcontext(executor) if executor is not None else Executor(scheduler, workers) as ex:  # theirs: kept open
+        run = ex.map_tasks(batch_task, list(jobs), files=job_files, progress=progress, desc="validate")
+        results = []
+        for (i, got), job in zip(run.results(), jobs, strict=True):
+            if got is None:
+                results.append(ValidationResult(str(job.fmu), str(job.log), "error",
+                                                error=f"worker failed twice: {run.failures.get(i, '?')}"))
+                continue
+            out = ValidationResult(**got["result"])
+            if "metrics" in got and job.report_dir is not None:
+                _write_files(Path(job.report_dir), got["metrics"], got["html"])
+                out.report = str(Path(job.report_dir) / ("report.html" if got["html"] else "metrics.json"))
+            out.retried = run.retried.get(i, "")
+            results.append(out)
     return results
+
+
+def _write_files(rdir: Path, metrics: dict[str, Any], page: str | None) -> None:
+    from identification.jsonio import write_json
+
+    rdir.mkdir(parents=True, exist_ok=True)
+    if page is not None:
+        (rdir / "report.html").write_text(page)
+    write_json(rdir / "metrics.json", metrics)
 
 
 def load_manifest(path: Path, base_options: Mapping[str, Any] | None = None,
@@ -278,6 +367,8 @@ def summary_lines(r: ValidationResult) -> list[str]:
                "tie": f"TIE ({', '.join(ties)} not better than persistence with confidence; nothing fails)",
                "unscored": "NOT SCORED (no gated signal has a verdict: nothing was shown)"}[r.status]
     out = [head + verdict]
+    if r.retried:
+        out.append(f"  run twice: the first attempt failed ({r.retried})")
     scored = r.windows - r.excluded
     why = ", ".join(f"{k}: {n}" for k, n in {**r.ground, **r.gaps}.items())
     out.append(f"  {scored} of {r.windows} replay windows scored"
@@ -287,15 +378,18 @@ def summary_lines(r: ValidationResult) -> list[str]:
     if r.ground:
         out.append("  ground windows/samples are left out by default; --include-ground scores them")
     out += [f"  log warning: {w}" for w in r.warnings]
+    bands = any("band_coverage" in v for v in r.signals.values())
     out.append(f"  {'signal':<18} {'verdict':<7} {'skill/pers':>10} {'skill/mean':>10} {'RMSE':>9} {'Theil U':>7} "
-               f"{'R^2':>7} {'windows pass/FAIL/n/a':>21}  reason")
+               f"{'R^2':>7}{' band cover' if bands else ''} {'windows pass/FAIL/n/a':>21}  reason")
     # per-window verdicts are point verdicts (one window has no interval); the pooled verdict has the margin
     for s, v in r.signals.items():
         w = v["windows"]
         tag = v["verdict"] + ("" if v["gated"] or v["verdict"] != "FAIL" else "*")
+        cover = f" {_fmt(100 * v['band_coverage'], '9.0f')} %" if bands else ""
         out.append(f"  {s:<18} {tag:<7} {_fmt(v['skill_persistence'], '+10.2f')} {_fmt(v['skill_mean'], '+10.2f')} "
-                   f"{_fmt(v['rmse'], '9.3g')} {_fmt(v['theil_u'], '7.3f')} {_fmt(v['r2'], '7.2f')} "
+                   f"{_fmt(v['rmse'], '9.3g')} {_fmt(v['theil_u'], '7.3f')} {_fmt(v['r2'], '7.2f')}{cover} "
                    f"{w['pass']:>9}/{w['FAIL']}/{w['n/a']:<6}  {v['reason']}")
+    out += _band_lines(r) if bands else []
     if ungated:
         out.append(f"  * not gated (reported only): {', '.join(ungated)}")
     if na:
@@ -305,9 +399,24 @@ def summary_lines(r: ValidationResult) -> list[str]:
     return out
 
 
+def _band_lines(r: ValidationResult) -> list[str]:
+    """What the Monte Carlo bands say: signals the model and its stated uncertainty do not explain."""
+    bad = {s: v for s, v in r.signals.items() if v.get("band_verdict") == "not explained"}
+    wide = [s for s, v in r.signals.items() if v.get("band_verdict") == "wide"]
+    out = ["  band cover: share of logged samples inside the 5-95 % Monte Carlo band (parameters drawn from the "
+           "identified covariance, restart states and sensor noise from the log); about 90 % when the model and its "
+           "uncertainty explain the log"]
+    out += [f"  NOT EXPLAINED {s}: {v['band_reason']}" for s, v in bad.items()]
+    if wide:
+        out.append(f"  wide bands (uncertainty overstated, or a noise-free log signal): {', '.join(wide)}")
+    return out
+
+
 def batch_summary(results: Sequence[ValidationResult]) -> str:
     n = {k: sum(r.status == k for r in results) for k in ("pass", "fail", "tie", "unscored", "error")}
-    return f"{len(results)} runs: " + ", ".join(f"{v} {k}" for k, v in n.items() if v or k in ("pass", "fail"))
+    n_retry = sum(bool(r.retried) for r in results)
+    return (f"{len(results)} runs: " + ", ".join(f"{v} {k}" for k, v in n.items() if v or k in ("pass", "fail"))
+            + (f"; {n_retry} retried after a failed first attempt" if n_retry else ""))
 
 
 def write_batch_report(results: Sequence[ValidationResult], root: Path) -> Path:

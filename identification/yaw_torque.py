@@ -87,14 +87,18 @@ def windows(t_s: np.ndarray, segment: np.ndarray, spin_thrust_N: np.ndarray, rat
     return out
 
 
+def replay(ms: list[Any], c_m: float, jzz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Replayed and logged yaw rate [rad/s] over all windows (exact discrete solution of the linear model,
+    held inputs), and the index where each window starts (blocks for a skill interval)."""
+    pred = [m.x0[0] - np.cumsum(c_m * m.u[:, 0] / jzz) * m.dt_s for m in ms]
+    starts = np.cumsum([0] + [len(p) for p in pred[:-1]])
+    return np.concatenate(pred), np.concatenate([m.y[:, 0] for m in ms]), starts
+
+
 def replay_rmse(ms: list[Any], c_m: float, jzz: float) -> float:
-    """RMSE of the replayed yaw rate (exact discrete solution of the linear model, held inputs)."""
-    err = []
-    for m in ms:
-        r = m.x0[0] - np.cumsum(c_m * m.u[:, 0] / jzz) * m.dt_s
-        err.append(r - m.y[:, 0])
-    e = np.concatenate(err)
-    return float(np.sqrt(np.mean(e * e)))
+    """RMSE of the replayed yaw rate [rad/s] (see :func:`replay`)."""
+    pred, logged = replay(ms, c_m, jzz)[:2]
+    return float(np.sqrt(np.mean((pred - logged) ** 2)))
 
 
 def identify_yaw_torque(ms: list[Any], params: QuadrotorParams) -> YawResult:

@@ -52,6 +52,8 @@ def test_noise_free_log_gives_back_the_truth(synthetic_log, capsys) -> None:
     assert rc == EXIT_OK, capsys.readouterr().err
     identified = FixedWingParams.load(out)  # the file loads as the FMU build loads it
     assert set(split_params(json.loads(out.read_text()))) == {"fixed_wing"}
+    unc = json.loads(out.read_text())["uncertainty"]  # what the Monte Carlo replays read
+    assert unc["names"] == FREE and len(unc["covariance"]) == len(FREE) == len(unc["mean"])
     truth = FixedWingParams()
     for n in FREE:
         assert getattr(identified, n) == pytest.approx(getattr(truth, n), rel=1e-4), n
@@ -79,6 +81,12 @@ def test_bad_input_is_named(synthetic_log, capsys) -> None:
     assert run_cli(*base, "--free", "C_ell_p", "--segments", "0:5", "--outputs", "roll_rad",
                    "--sigma", "pitch_rad=0.1") == EXIT_BAD_INPUT
     assert "--sigma needs" in capsys.readouterr().err
+    assert run_cli(*base, "--free", "C_ell_p", "--segments", "0:5", "--prior", "C_ell_pp=-0.5:0.1") == EXIT_BAD_INPUT
+    assert "C_ell_pp" in capsys.readouterr().err
+    assert run_cli(*base, "--free", "C_ell_p", "--segments", "0:5", "--prior", "C_ell_p=-0.5:-1") == EXIT_BAD_INPUT
+    assert "sd > 0" in capsys.readouterr().err
+    assert run_cli(synthetic_log["log"], *base, "--free", "C_ell_p", "--segments", "0:5") == EXIT_BAD_INPUT
+    assert "one log" in capsys.readouterr().err
     assert run_cli(d / "missing.bin", "--free", "C_ell_p", "--out", d / "x.json") == EXIT_BAD_INPUT
     assert not (d / "x.json").exists()
 

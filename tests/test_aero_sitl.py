@@ -11,6 +11,7 @@ import pytest
 from fmu_models.fixed_wing.params import FixedWingParams
 from fmu_models.signals.pwm_mapping import PwmMapping
 from identification.aero_identify import AeroOptions, AeroResult, identify_aero
+from identification.oem import BOUND_METHODS
 from tests.conftest import shared_data
 
 SITL_INIT = Path(__file__).resolve().parents[1] / "fmu_models" / "fixed_wing" / "arduplane_sitl_plane.json"
@@ -27,7 +28,7 @@ def sitl():  # type: ignore[no-untyped-def]
     return log, PwmMapping.from_ardupilot(log.params)
 
 
-def run(sitl, free: tuple[str, ...], outputs=LATERAL_OUT, init: FixedWingParams | None = None,
+def run(sitl, free: tuple[str, ...] | str, outputs=LATERAL_OUT, init: FixedWingParams | None = None,
         **kw) -> AeroResult:  # type: ignore[no-untyped-def]
     log, mapping = sitl
     init = init or FixedWingParams.load(SITL_INIT)
@@ -50,20 +51,41 @@ def test_full_lateral_model_signs_magnitudes_and_side_force_fit(sitl) -> None:  
     d = res.estimate.derivatives()
     assert d["C_ell_p"] < 0 and d["C_ell_delta_a"] > 0 and d["C_n_beta"] > 0 and d["C_n_r"] < 0
     assert d["C_n_delta_r"] < 0 and d["C_Y_beta"] < 0 and d["C_Y_delta_r"] > 0, res.summary()
-    assert -1.3 < d["C_ell_p"] < -0.7 and -1.4 < d["C_n_r"] < -0.6 and -1.3 < d["C_Y_beta"] < -0.6, res.summary()
+    # SIM_Plane is not our model class and the log is closed loop: the printed 95 % intervals (which include
+    # the consider share of the Aerosonde values held fixed) must cover its coefficients
+    est = res.estimate
+    for name, truth in (("C_ell_p", -1.0), ("C_n_r", -1.0), ("C_Y_beta", -0.98)):
+        i = est.names.index(name)
+        assert abs(est.values[i] - truth) <= 1.96 * est.std[i], (name, est.values[i], est.std[i])
     assert res.scores["validation"]["accel_body_y_m_s2"].theil_u < 0.5
-    assert res.estimate.bound_method.startswith("max(")
-    assert all(np.isfinite(res.estimate.std[:res.estimate.n_global]))
+    assert est.bound_method in BOUND_METHODS and est.considered and est.consider_std is not None
+    assert all(np.isfinite(est.std[:est.n_global]))
 
 
-def test_roll_damping_is_stable_across_free_sets_or_flagged(sitl) -> None:  # type: ignore[no-untyped-def]
-    """Issue 18: C_ell_p from roll only, roll and yaw, full lateral agree within 15 % of their median, or the
-    tool names the set as not identifiable (a correlated pair or an ill-conditioned set) and says why."""
+def test_roll_damping_is_stable_across_free_sets_or_named_as_prior_determined(sitl) -> None:  # type: ignore[no-untyped-def]
+    """Issue 23 on the closed-loop log (aileron follows the roll rate): across the free sets a user would try,
+    every C_ell_p that the tool reports as determined by the data agrees within 15 % with the others, and a
+    set whose C_ell_p departs from them names C_ell_p as determined by a prior (its own, alone or jointly, or
+    those of the coefficients held fixed). At least one set must give a data-determined C_ell_p."""
     sets = {"roll": ("C_ell_p", "C_ell_delta_a"),
-            "roll+yaw": ("C_ell_p", "C_ell_delta_a", "C_n_r", "C_n_delta_r", "C_n_beta"), "full": FULL_LATERAL}
+            "roll+yaw": ("C_ell_p", "C_ell_delta_a", "C_n_r", "C_n_delta_r", "C_n_beta"), "full": FULL_LATERAL,
+            "auto": "auto"}
     found = {k: run(sitl, v, max_delay_s=0.0) for k, v in sets.items()}
-    clp = {k: r.estimate.derivatives()["C_ell_p"] for k, r in found.items()}
-    med = float(np.median(list(clp.values())))
+    clp, named = {}, {}
     for k, r in found.items():
-        flagged = not r.before.ok or any(w for w in r.estimate.warnings if "C_ell_p" in w)
-        assert abs(clp[k] - med) < 0.15 * abs(med) or (flagged and r.before.advice), (k, clp)
+        est = r.estimate
+        i = est.names.index("C_ell_p")
+        clp[k] = est.values[i]
+        named[k] = "C_ell_p" in est.not_data_dominated()
+        ratio = est.data_std[i] / est.prior_sd[i]
+        # named exactly when the data hardly shrink its prior, or the values held fixed move it more than the
+        # data pin it down, and then the summary says so
+        assert named[k] == (ratio > 0.5 or est.consider_std[i] > est.data_std[i]), (k, ratio)
+        if named[k]:
+            assert any("C_ell_p" in line and ("prior" in line or "held fixed" in line)
+                       for line in r.summary().splitlines() if not line.startswith(("C_", "warning"))), k
+    data_sets = [k for k in found if not named[k]]
+    assert data_sets, (clp, named)
+    ref = float(np.median([clp[k] for k in data_sets]))
+    for k in data_sets:
+        assert abs(clp[k] - ref) < 0.15 * abs(ref), (clp, named)

@@ -222,20 +222,53 @@ def test_bad_data_is_named() -> None:
 
 
 def test_per_motor_training_recovers_a_known_motor_curve() -> None:
-    """Total thrust of four different motors trains one map F with T_i = F(4 pwm_i)/4."""
-    from identification.anfis_train import is_monotone, train_anfis_motors
+    """Total thrust of four motors at different commands trains one per-motor map G with y = sum_i G(u_i)."""
+    rng = np.random.default_rng(3)
+    u = rng.uniform(0.2, 0.9, (3000, 4))
+
+    def motor(x: np.ndarray) -> np.ndarray:
+        return 8.0 * x**2 * (1.0 - 0.3 * x)  # N per motor, flattening at the top
+
+    y = motor(u).sum(axis=1) + 0.05 * rng.standard_normal(3000)
+    res = at.train_feature_anfis(u[:2400], None, y[:2400], ("x2", "x"), 2, epochs=40,
+                                 check=(u[2400:], None, y[2400:]))
+    grid = np.linspace(0.25, 0.85, 50)
+    np.testing.assert_allclose(predict(res.amap, grid), motor(grid), atol=0.05)
+    assert at.feature_map_monotone(res.amap) and res.amap.input_range[0] == pytest.approx((0.2, 0.9), abs=1e-3)
+    assert res.check_rmse is not None and min(res.check_rmse) < 0.07
+
+
+def test_single_rule_feature_anfis_is_the_least_squares_polynomial_to_1e_9() -> None:
+    """Issue 22: one rule with first-order consequents over (u^2, u) per motor IS the least-squares
+    polynomial a sum u^2 + b sum u; also through the FMU's thrust function and the workflow's baseline."""
+    from fmu_models.quadrotor.params import QuadrotorParams
+    from identification.thrust_model import FlightData, ModelSpec, baseline_predictions, fit, fmu_total_thrust
 
     rng = np.random.default_rng(3)
-    pwm = rng.uniform(1200.0, 1900.0, (3000, 4))
+    n = 3000
+    pwm = 1000.0 + 1000.0 * np.clip(0.6 + 0.1 * rng.standard_normal((n, 1)) + 0.03 * rng.standard_normal((n, 4)),
+                                    0.3, 0.95)
+    u = (pwm - 1000.0) / 1000.0
+    y = (7.0 * u**2 + 2.5 * u + 0.4 * np.sin(7 * u)).sum(axis=1) + 0.3 * rng.standard_normal(n)
+    res = at.train_feature_anfis(u, None, y, ("x2", "x"), 1)
+    design = np.stack([(u**2).sum(axis=1), u.sum(axis=1)], axis=1)
+    coef = np.linalg.lstsq(design, y, rcond=None)[0]
+    np.testing.assert_allclose(res.amap.consequents[0], coef, rtol=0, atol=1e-9)
+    flight = FlightData("f", pwm, None, np.ones(n, bool), np.arange(n) * 0.1, y, 12.0, 0.1)
+    spec = ModelSpec(1000.0, 2000.0, 11.1, False)
+    p = fit([flight], spec, 30, 5.0, "test").params
+    assert isinstance(p, QuadrotorParams) and p.thrust_map.n_rules == 1
+    fmu = fmu_total_thrust(p, pwm, np.full(n, 11.1))  # the FMU's function, band extension included
+    poly = baseline_predictions([flight], flight, spec)["poly sum u^2, sum u"]
+    np.testing.assert_allclose(fmu, poly, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fmu, design @ coef, rtol=0, atol=1e-9)
 
-    def motor(p: np.ndarray) -> np.ndarray:
-        return 8.0 * ((p - 1000.0) / 1000.0) ** 2  # N per motor
 
-    y = motor(pwm).sum(axis=1) + 0.05 * rng.standard_normal(3000)
-    res = train_anfis_motors(pwm[:2400], y[:2400], AnfisTrainConfig(n_mfs=2, order=1, epochs=20),
-                             (pwm[2400:], y[2400:]))
-    grid = np.linspace(1250.0, 1850.0, 50)
-    got = predict(res.amap, 4 * grid) / 4
-    np.testing.assert_allclose(got, motor(grid), atol=0.05)
-    assert is_monotone(res.amap) and res.amap.input_range[0][0] >= 4 * 1200.0
-    assert res.check_rmse is not None and min(res.check_rmse) < 0.07
+def test_more_feature_rules_fit_a_curved_motor_better_and_stay_zero_at_idle() -> None:
+    rng = np.random.default_rng(4)
+    u = np.clip(0.6 + 0.15 * rng.standard_normal((4000, 1)) + 0.03 * rng.standard_normal((4000, 4)), 0.3, 0.95)
+    y = (10.0 * u**2 * (1.0 - 0.6 * (u - 0.6) ** 2) + 3.0 * np.tanh(8 * (u - 0.6)) + 3.0).sum(axis=1)
+    one = at.train_feature_anfis(u, None, y, ("x2", "x"), 1)
+    three = at.train_feature_anfis(u, None, y, ("x2", "x"), 3, epochs=60)
+    assert min(three.train_rmse) < 0.7 * one.train_rmse[0]
+    assert float(three.amap.evaluate([np.array([0.0])])[0]) == 0.0

@@ -57,11 +57,16 @@ def _variables(*models: object) -> dict[str, set[str]]:
 
 
 def _quadrotor_models() -> tuple[object, ...]:
-    """The default model, and one with a first-order generalised-bell map (slope and p variables)."""
+    """The default model, one with a first-order generalised-bell map (slope and p variables) and one with a
+    per-motor feature map (what identify thrust writes)."""
     d = published_map().to_dict()
     d.update(mf_type="gbell", mf_slope=[[2.0] * len(d["mf_mean"][0])], order=1,
              consequents=[[0.0, *row] for row in d["consequents"]])
-    return QuadrotorModel(), QuadrotorModel(QuadrotorParams.from_dict({"thrust_map": d}))
+    f = {"inputs": ["u"], "mf_mean": [[0.5, 0.7]], "mf_sigma": [[0.2, 0.2]], "order": 1,
+         "features": ["x2", "x", "x2_r"], "consequents": [[9.0, 1.0, 0.1], [9.5, 1.0, 0.1]],
+         "input_range": [[0.4, 0.8]]}
+    return (QuadrotorModel(), QuadrotorModel(QuadrotorParams.from_dict({"thrust_map": d})),
+            QuadrotorModel(QuadrotorParams.from_dict({"thrust_map": f, "pwm_idle_us": 1000.0})))
 
 
 @pytest.fixture(scope="module")

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from fmu_models.quadrotor.constants import N_MOTORS
 from identification.anfis_train import AnfisTrainConfig, train_anfis
 from identification.thrust_dataset import (
     CorrelationGateError,
@@ -100,13 +101,32 @@ def test_interval_means_match_a_direct_loop() -> None:
             assert math.isnan(mean[k])
 
 
+def test_touchdown_guard_keeps_the_edges_of_short_dips_in_the_air() -> None:
+    """Only a take-off/touch-down edge (>= edge_guard_s on the ground, or the log's ends) loses its guard; a
+    0.3 s dip of the motors below the airborne threshold mid-flight keeps its neighbours."""
+    log = SyntheticLog(accel_noise_m_s2=0.3)
+    t, alt = log.signals["altitude_m"]
+    mid = t[alt > 0][len(t[alt > 0]) // 2]
+    for k in range(1, N_MOTORS + 1):
+        tk, pk = log.signals[f"motor_{k}_pwm_us"]
+        log.signals[f"motor_{k}_pwm_us"] = (tk, np.where((tk >= mid) & (tk < mid + 0.3), 1000.0, pk))
+    ds = build_thrust_dataset(log, ThrustDatasetConfig(mass_kg=MASS_KG, lag_s=0.0))
+    assert set(np.unique(ds.segment)) == {0, 1}
+    gap = np.diff(ds.time_s).max()
+    assert gap == pytest.approx(0.4, abs=0.05)  # the 3 dip samples and nothing else went at the dip
+
+
 def test_aligned_force_is_the_thrust_and_lag_is_found() -> None:
     log = SyntheticLog(lag_s=0.1, accel_noise_m_s2=0.3)
     ds = build_thrust_dataset(log, ThrustDatasetConfig(mass_kg=MASS_KG))
     assert ds.lag_estimated and ds.lag_s == pytest.approx(0.1, abs=0.021)
-    # ground run-up (motors spinning, altitude 0) is excluded; a 2-sample edge may go with the lag
-    assert log.n_airborne - 3 <= ds.n_samples <= log.n_airborne
+    # ground run-up (motors spinning, altitude 0) is excluded, and 1 s (10 samples) after take-off and before
+    # touch-down (ground contact); a 2-sample edge may go with the lag
+    assert log.n_airborne - 23 <= ds.n_samples <= log.n_airborne - 20
+    assert any("take-off or touch-down" in n for n in ds.notes)
     assert set(np.unique(ds.segment)) == {0}
+    whole = build_thrust_dataset(log, ThrustDatasetConfig(mass_kg=MASS_KG, edge_guard_s=0.0))
+    assert log.n_airborne - 3 <= whole.n_samples <= log.n_airborne
     resid = ds.fz_N - true_thrust_N(ds.pwm_sum_us)
     # each F_z averages 5 IMU samples: noise m * 0.3 / sqrt(5)
     assert abs(resid.mean()) < 0.02
@@ -179,7 +199,7 @@ def test_gate_refuses_weak_correlation_and_explains() -> None:
     with pytest.raises(CorrelationGateError) as err:
         check_gate(corr, ("pwm_sum_us",), 0.85, source="x.bin")
     msg = str(err.value)
-    for needle in ("x.bin", "r(pwm_sum_us, F_z) = 0.380", "0.85", "--force", "motor_1_pwm_us"):
+    for needle in ("x.bin", "r(pwm_sum_us, F_z) = 0.380", "0.85", "--skip-pearson-gate", "motor_1_pwm_us"):
         assert needle in msg
     assert err.value.correlations == corr
     with pytest.warns(UserWarning, match="0.380"):

@@ -136,8 +136,9 @@ def identify(logs: dict[str, list[Path]], work: Path, keep_going: bool = False) 
 
         out = work / "quadrotor_identified.json"
         flights = tuple(FlightSpec(Path(p), ERLE_MASS_KG) for p in logs["quadrotor"])
-        thrust = identify_thrust(ThrustConfig(flights=flights, out=out, force=keep_going))
-        merged.update(json.loads(out.read_text()))
+        thrust = identify_thrust(ThrustConfig(flights=flights, out=out, write_losing_model=keep_going))
+        if thrust.written is not None:  # a losing model is written only with keep_going (write_losing_model)
+            merged["quadrotor"] = json.loads(out.read_text())["quadrotor"]
         found["thrust"] = thrust.metrics
         found["calibration"] = dict(thrust.calibration)
     if "fixed_wing" in logs:
@@ -202,11 +203,13 @@ def run(args: argparse.Namespace) -> int:
     if "thrust" in found:
         m = found["thrust"]
         print(f"thrust model identified from the quadrotor log(s) (per-motor ANFIS, {m['cross_validation']})")
-        print(f"  {'held-out RMSE [N], model (FMU)':<36} {m['pooled_model_rmse_N']:10.4f}")
-        for name, value in m["pooled_baseline_rmse_N"].items():
-            print(f"  {'  baseline ' + name:<36} {value:10.4f}")
-        print(f"  {'verdict':<36} {m['verdict']}")
-        print(f"  {'trained band [us summed]':<36} {m['band_us'][0]:10.0f} {m['band_us'][1]:8.0f}")
+        for name, value in m["pooled_rmse_N"].items():
+            print(f"  {'held-out RMSE [N] ' + name:<36} {value:10.4f}")
+        print(f"  {'verdict':<36} {m['verdict_text']}")
+        print(f"  {'model':<36} {m['model']}")
+        print(f"  {'trained band [command u]':<36} {m['band'][0]:10.3f} {m['band'][1]:8.3f}")
+        if not m.get("parameters_written"):
+            print("  the thrust model lost: not written; the quadrotor FMU keeps the published map")
         for flight, scale in found.get("calibration", {}).items():
             print(f"  {'calibration scale ' + flight:<36} {scale:10.4f}  (applied when that flight is replayed)")
     if "aero" in found:
@@ -222,6 +225,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"  {'held-out roll angle Theil U':<36} {theil:10.4f}")
         print(f"  {'held-out roll RMSE [rad] model':<36} {rm['model']:10.4f}  (persistence {rm['persistence']:.4f}, "
               f"segment mean {rm['segment_mean']:.4f})")
+        for rival, sk in found["aero"]["baselines_validation"]["roll_rad"]["skill"].items():
+            print(f"  {'held-out roll skill vs ' + rival:<36} {sk['skill']:+10.3f}  [{sk['skill_lo']:+.3f}, "
+                  f"{sk['skill_hi']:+.3f}] {sk['outcome']}")
     failures = print_validation(results, report_dir, held_out=not args.real)
     print(f"total time {time.perf_counter() - t_start:.1f} s")
     return 1 if failures else 0

@@ -31,6 +31,8 @@ MARKER = re.compile(r"<!--\s*docs-check:\s*(run if \.\./shared/data|run|skip:\s*
                     r"\s*(\(exit (?P<code>\d+)[^)]*\))?\s*-->")
 FENCE = re.compile(r"^```(\w*)\s*$")
 TIMEOUT_S = 900.0  #: a single block longer than this is a failure
+#: pages written by other issues whose blocks carry no markers yet: listed as unchecked, never silently passed
+UNMARKED_PAGES = ("docs/importers.md", "docs/hil-sitl.md", "docs/excitation.md", "docs/scale-out.md")
 
 
 class DocsCheckError(ValueError):
@@ -107,11 +109,15 @@ def run_block(block: Block, timeout_s: float = TIMEOUT_S) -> tuple[bool, str]:
 
 def check(files: list[Path], dry_run: bool = False) -> int:
     """Run (or with ``dry_run`` only parse) every marked block; print one line each; 0 when all pass."""
+    unmarked = [f for f in files if f.is_file() and f.is_relative_to(REPO)
+                and str(f.relative_to(REPO)) in UNMARKED_PAGES]
     try:
-        found = [b for f in files if f.is_file() for b in blocks(f)]
+        found = [b for f in files if f.is_file() and f not in unmarked for b in blocks(f)]
     except DocsCheckError as err:
         print(f"docs-check: {err}", file=sys.stderr)
         return 1
+    for f in unmarked:
+        print(f"unchecked  {f.relative_to(REPO)}: its command blocks carry no docs-check markers yet")
     failed = 0
     for b in found:
         if b.action == "skip":

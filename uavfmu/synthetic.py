@@ -102,6 +102,12 @@ def recording_signals(rec: Recording, noise: bool = False, seed: int = 0) -> dic
     return signals
 
 
+def with_noise(signals: dict[str, np.ndarray], seed: int) -> dict[str, np.ndarray]:
+    """``signals`` with seeded white sensor noise of ``NOISE`` on the columns it names (one flight, many logs)."""
+    rng = np.random.default_rng(seed)
+    return {c: v + rng.normal(0.0, NOISE[c], len(v)) if c in NOISE else v for c, v in signals.items()}
+
+
 def write_csv_log(path: str | Path, t_s: np.ndarray, signals: dict[str, np.ndarray]) -> Path:
     """A CSV log (``time_s`` + one column per signal) that ``identification.readers`` reads."""
     p = Path(path)

@@ -13,11 +13,13 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
+import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
-from pydantic import Field, create_model
+import numpy as np
+from pydantic import Field, create_model, model_validator
 from pydantic import ValidationError as PydanticValidationError
 
 from fmu_models.common.errors import ParameterError
@@ -154,3 +156,67 @@ def read_json(path: str | Path) -> dict[str, Any]:
         return read_config_file(path)
     except ConfigError as err:
         raise ParameterError(err.source, err.problems) from None
+
+
+#: most parameters an ``uncertainty`` block may carry (its covariance is this squared)
+MAX_UNCERTAIN_PARAMS = 200
+
+
+class Uncertainty(Schema):
+    """The optional top-level ``"uncertainty"`` key of a parameter file: the identified parameters' estimate
+    and covariance, carried from ``identify`` to ``validate --mc``.
+
+    ``names`` are FMU parameter names; ``mean`` their estimate in the FMU's units; ``covariance`` the
+    symmetric positive semi-definite matrix of their estimation errors (units: products of theirs).
+    """
+
+    names: list[str] = Field(min_length=1, max_length=MAX_UNCERTAIN_PARAMS)
+    mean: list[Annotated[float, Field(allow_inf_nan=False)]] = Field(min_length=1, max_length=MAX_UNCERTAIN_PARAMS)
+    covariance: list[list[Annotated[float, Field(allow_inf_nan=False)]]] = Field(
+        min_length=1, max_length=MAX_UNCERTAIN_PARAMS)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Uncertainty:
+        n = len(self.names)
+        if len(set(self.names)) != n:
+            dup = sorted({x for x in self.names if self.names.count(x) > 1})
+            raise ValueError(f"names repeat {', '.join(dup)} (allowed: each parameter once)")
+        if len(self.mean) != n:
+            raise ValueError(f"mean has {len(self.mean)} values for {n} names (allowed: one per name)")
+        rows = [len(r) for r in self.covariance]
+        if len(rows) != n or any(k != n for k in rows):
+            raise ValueError(f"covariance is {len(rows)} rows of {sorted(set(rows))} values (allowed: {n} x {n}, "
+                             "one row and column per name)")
+        c = np.asarray(self.covariance, dtype=float)
+        scale = max(float(np.max(np.abs(c))), 1e-300)
+        if not np.allclose(c, c.T, rtol=1e-6, atol=1e-9 * scale):
+            raise ValueError("covariance is not symmetric (allowed: C[i][j] == C[j][i])")
+        low = float(np.linalg.eigvalsh(c).min())
+        if low < -1e-8 * scale:
+            raise ValueError(f"covariance has a negative eigenvalue {low:.3g} (allowed: positive semi-definite)")
+        return self
+
+    @property
+    def std(self) -> dict[str, float]:
+        """Standard deviation of each parameter (square root of the covariance diagonal)."""
+        return {n: float(np.sqrt(max(self.covariance[i][i], 0.0))) for i, n in enumerate(self.names)}
+
+
+#: the ``uncertainty`` key as an extra field of :func:`params_schema` (parameter files that carry it)
+UNCERTAINTY_FIELD: ExtraFields = {"uncertainty": (Uncertainty | None, None)}
+
+
+def read_uncertainty(path: str | Path) -> Uncertainty:
+    """The ``uncertainty`` block of a parameter file (JSON, or TOML by suffix); :class:`ParameterError` naming
+    the file and each problem when it is missing or malformed."""
+    from fmu_models.config import validate_config
+
+    data = read_json(path)
+    if "uncertainty" not in data:
+        raise ParameterError(str(path), ['no "uncertainty" key: identify with a covariance, or add '
+                                         '{"uncertainty": {"names": [...], "mean": [...], "covariance": [[...]]}}'])
+    try:
+        return validate_config(data["uncertainty"], Uncertainty, str(path))
+    except ConfigError as err:
+        lines = [re.sub(r"^field \(top level\) = .*: Value error, ", "", p) for p in err.problems]
+        raise ParameterError(err.source, [f"uncertainty: {p}" for p in lines]) from None

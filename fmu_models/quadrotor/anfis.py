@@ -21,11 +21,19 @@ from pathlib import Path
 from typing import Any
 
 from fmu_models.common.errors import ParameterError, ProblemList
-from fmu_models.common.mathns import CA, NP
+from fmu_models.common.mathns import NP
 from fmu_models.common.params import read_json
 from fmu_models.config import ConfigError, FiniteFloat, Schema, validate_config
 
 MF_TYPES = ("gaussian", "gbell")
+#: consequent features of one input x (a per-motor command, 0 at idle) and the battery ratio r = V/V_nom
+FEATURES = ("x2", "x", "x2_r")
+
+
+def feature_values(names: tuple[str, ...], x: Any, r: Any = 1.0) -> list[Any]:
+    """Values of the named :data:`FEATURES` at ``x`` (and ``r``), numpy or CasADi."""
+    table = {"x2": lambda: x * x, "x": lambda: x, "x2_r": lambda: x * x * r}
+    return [table[n]() for n in names]
 
 
 class AnfisMapFile(Schema):
@@ -41,6 +49,7 @@ class AnfisMapFile(Schema):
     order: int = 0
     consequents: list[list[FiniteFloat]] | None = None
     input_range: list[list[FiniteFloat]] | None = None
+    features: list[str] | None = None
     output: str = "thrust_N"
     source: str = ""
 
@@ -53,6 +62,9 @@ class AnfisMap:
     ``mf_slope[i][j]``: bell exponent b (gbell only).
     ``consequents[r]``: ``[r0]`` (order 0) or ``[p_1, ..., p_n, r0]`` (order 1) for rule r.
     ``input_range[i]``: ``(lo, hi)`` band input i was trained on; the map is trusted only inside it.
+    ``features``: first-order consequents over named features of the one input ``x`` instead of the inputs
+    (:data:`FEATURES`: ``x2`` = x^2, ``x`` = x, ``x2_r`` = x^2 r with r = V/V_nom); each row then holds one
+    coefficient per feature and no constant, so every rule, and the map, is zero at x = 0 (idle).
     """
 
     inputs: tuple[str, ...]
@@ -65,6 +77,7 @@ class AnfisMap:
     input_range: tuple[tuple[float, float], ...]
     output: str = "thrust_N"
     source: str = ""
+    features: tuple[str, ...] | None = None
 
     # ----------------------------------------------------------------- structure
     @property
@@ -110,8 +123,17 @@ class AnfisMap:
             out.append(w)
         return out
 
-    def rule_outputs(self, x: list[Any]) -> list[Any]:
-        """Layer 4 consequents ``f_r`` (before weighting)."""
+    def rule_outputs(self, x: list[Any], r: Any = 1.0) -> list[Any]:
+        """Layer 4 consequents ``f_r`` (before weighting); ``r`` = V/V_nom for the ``x2_r`` feature."""
+        if self.features is not None:
+            phi = feature_values(self.features, x[0], r)
+            out = []
+            for row in self.consequents:
+                f = row[0] * phi[0]
+                for c, p in zip(row[1:], phi[1:], strict=True):
+                    f = f + c * p
+                out.append(f)
+            return out
         out = []
         for row in self.consequents:
             f = row[-1]
@@ -121,20 +143,16 @@ class AnfisMap:
             out.append(f)
         return out
 
-    def evaluate(self, x: list[Any], xp: Any = NP) -> Any:
+    def evaluate(self, x: list[Any], xp: Any = NP, r: Any = 1.0) -> Any:
         """Layer 5 (paper 000 eq. 4): ``sum(w_r f_r) / sum(w_r)``, with no band handling."""
         w = self.firing(x, xp)
-        f = self.rule_outputs(x)
+        f = self.rule_outputs(x, r)
         num = w[0] * f[0]
         den = w[0]
         for wr, fr in zip(w[1:], f[1:], strict=True):
             num = num + wr * fr
             den = den + wr
         return num / den
-
-    def evaluate_ca(self, x: list[Any]) -> Any:
-        """CasADi version of :meth:`evaluate` (symbolic or numeric)."""
-        return self.evaluate(x, CA)
 
     # ----------------------------------------------------------------- data
     def to_dict(self) -> dict[str, Any]:
@@ -152,6 +170,8 @@ class AnfisMap:
         }
         if self.mf_slope is not None:
             d["mf_slope"] = [list(r) for r in self.mf_slope]
+        if self.features is not None:
+            d["features"] = list(self.features)
         return d
 
     @classmethod
@@ -177,7 +197,13 @@ class AnfisMap:
         slope = _table(d, "mf_slope", probs) if mf_type == "gbell" else None
         cons = _table(d, "consequents", probs)
         rng_raw = _table(d, "input_range", probs)
-        _check_tables(probs, len(inputs), order, mean, sigma, slope, cons, rng_raw)
+        features = d.get("features")
+        width = None
+        if features is not None:
+            features = tuple(features)
+            width = len(features)
+            _check_features(probs, features, len(inputs), order)
+        _check_tables(probs, len(inputs), order, mean, sigma, slope, cons, rng_raw, width)
         probs.raise_if_any()
         return cls(
             inputs=inputs,
@@ -190,6 +216,7 @@ class AnfisMap:
             input_range=tuple((r[0], r[1]) for r in rng_raw if len(r) == 2),
             output=str(d.get("output", "thrust_N")),
             source=str(d.get("source", "")),
+            features=features,
         )
 
     @classmethod
@@ -217,8 +244,18 @@ def _table(d: dict[str, Any], key: str, probs: ProblemList) -> _Table:
         return ()
 
 
+def _check_features(probs: ProblemList, features: tuple[str, ...], n_inputs: int, order: int) -> None:
+    """Problems of a feature-consequent map: known, distinct features, one input, first order."""
+    bad = [f for f in features if f not in FEATURES]
+    if bad or not features or len(set(features)) != len(features):
+        probs.add(f"features = {list(features)}; allowed: distinct names from {', '.join(FEATURES)}")
+    if n_inputs != 1 or order != 1:
+        probs.add(f"features need one input and order 1, got {n_inputs} input(s) and order {order}")
+
+
 def _check_tables(
-    probs: ProblemList, n: int, order: int, mean: _Table, sigma: _Table, slope: _Table | None, cons: _Table, rng: _Table
+    probs: ProblemList, n: int, order: int, mean: _Table, sigma: _Table, slope: _Table | None, cons: _Table,
+    rng: _Table, width: int | None = None,
 ) -> None:
     """Add a problem for every table whose shape or values do not fit ``n`` inputs and ``order``."""
     for key, tab in (("mf_mean", mean), ("mf_sigma", sigma), ("input_range", rng)):
@@ -236,7 +273,7 @@ def _check_tables(
         if len(r) != 2 or not (math.isfinite(r[0]) and math.isfinite(r[1]) and r[0] < r[1]):
             probs.add(f"input_range[{i}] = {list(r)}; must be [lo, hi] with lo < hi")
     n_rules = math.prod(len(r) for r in mean) if mean else 0
-    width = 1 + (n if order == 1 else 0)
+    width = width if width is not None else 1 + (n if order == 1 else 0)
     if cons and len(cons) != n_rules:
         probs.add(f"consequents has {len(cons)} rows, expected one per rule ({n_rules})")
     for r, row in enumerate(cons):

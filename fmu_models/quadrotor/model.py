@@ -13,7 +13,6 @@ constant ``tau_motor_s`` acts on each motor's thrust.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Any
 
@@ -27,30 +26,16 @@ from fmu_models.common.rigid_body import inertia_matrix
 from fmu_models.quadrotor.anfis import AnfisMap
 from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.params import QuadrotorParams, motor_layout
-from fmu_models.quadrotor.thrust import effective_pwm, motor_thrust, out_of_band
+from fmu_models.quadrotor.thrust import (
+    constants_of,
+    map_from_params,
+    map_param_variables,
+    motor_out_of_band,
+    motor_thrust,
+)
 
 PWM_INPUT_MIN_US = 0.0  #: 0 us = no pulse (motor off); below idle thrust is zero anyway
 PWM_INPUT_MAX_US = 2500.0
-
-
-def anfis_param_variables(amap: AnfisMap) -> tuple[Variable, ...]:
-    """FMU parameters holding the values of a one-input thrust map (structure stays fixed at build)."""
-    out: list[Variable] = []
-    for j, (m, s) in enumerate(zip(amap.mf_mean[0], amap.mf_sigma[0], strict=True), start=1):
-        out.append(Variable(f"anfis_mean_{j}_us", "us", f"thrust map: centre of MF {j}, summed PWM", m))
-        out.append(Variable(f"anfis_sigma_{j}_us", "us", f"thrust map: width of MF {j}", s, 1e-6, None))
-        if amap.mf_type == "gbell":
-            b = amap.mf_slope[0][j - 1]  # type: ignore[index]
-            desc = f"thrust map: bell exponent of MF {j}"
-            out.append(Variable(f"anfis_slope_{j}", "1", desc, b, 1e-3, None))
-    for r, row in enumerate(amap.consequents, start=1):
-        if amap.order == 1:
-            out.append(Variable(f"anfis_cons_{r}_p_N_us", "N/us", f"thrust map: rule {r} slope", row[0]))
-        out.append(Variable(f"anfis_cons_{r}_N", "N", f"thrust map: rule {r} constant", row[-1]))
-    lo, hi = amap.input_range[0]
-    out.append(Variable("anfis_band_lo_us", "us", "thrust map: lower edge of the trained band (summed)", lo))
-    out.append(Variable("anfis_band_hi_us", "us", "thrust map: upper edge of the trained band (summed)", hi))
-    return tuple(out)
 
 
 def _n_inputs(u: Any) -> int:
@@ -87,7 +72,7 @@ class QuadrotorModel(vehicle.BodyVehicleModel):
             states=tuple(Variable(f"thrust_state_{i}_N", "N", f"motor {i} thrust (lag state)")
                          for i in range(1, N_MOTORS + 1)),
             state_limits=(1e4,) * N_MOTORS,
-            params=anfis_param_variables(defaults.thrust_map),
+            params=map_param_variables(defaults.thrust_map),
             outputs=outputs,
         )
         self.gear_points = self._gear_points()
@@ -103,45 +88,23 @@ class QuadrotorModel(vehicle.BodyVehicleModel):
     # ------------------------------------------------------------------ pieces
     def _map(self, pv: Any) -> AnfisMap:
         """The thrust map with its values taken from the parameter vector (symbolic in code generation)."""
-        d = self.defaults.thrust_map
-        n = len(d.mf_mean[0])
-        mean = (tuple(getattr(pv, f"anfis_mean_{j}_us") for j in range(1, n + 1)),)
-        sigma = (tuple(getattr(pv, f"anfis_sigma_{j}_us") for j in range(1, n + 1)),)
-        slope = None
-        if d.mf_type == "gbell":
-            slope = (tuple(getattr(pv, f"anfis_slope_{j}") for j in range(1, n + 1)),)
-        cons = []
-        for r in range(1, d.n_rules + 1):
-            row = (getattr(pv, f"anfis_cons_{r}_N"),)
-            if d.order == 1:
-                row = (getattr(pv, f"anfis_cons_{r}_p_N_us"), *row)
-            cons.append(row)
-        return dataclasses.replace(d, mf_mean=mean, mf_sigma=sigma, mf_slope=slope, consequents=tuple(cons))
+        return map_from_params(self.defaults.thrust_map, pv)
 
     def commanded_thrust(self, u: Any, p: Any) -> list[Any]:
         """Per-motor thrust [N] the map gives for the PWM inputs (before the motor lag)."""
         pv = self.params.view(p)
         amap = self._map(pv)
+        c = constants_of(pv, self.defaults.thrust_map)
         volt = u[N_MOTORS] if _n_inputs(u) > N_MOTORS else pv.battery_nominal_V
-        return [
-            motor_thrust(
-                amap, u[i], volt, pv.pwm_idle_us, pv.anfis_band_lo_us, pv.anfis_band_hi_us,
-                pv.battery_nominal_V, pv.thrust_voltage_exponent, pv.thrust_scale, N_MOTORS, _CA,
-            )
-            for i in range(N_MOTORS)
-        ]
+        return [motor_thrust(amap, u[i], volt, c, N_MOTORS, _CA) for i in range(N_MOTORS)]
 
     def out_of_range(self, u: Any, p: Any) -> Any:
         pv = self.params.view(p)
+        c = constants_of(pv, self.defaults.thrust_map)
+        volt = u[N_MOTORS] if _n_inputs(u) > N_MOTORS else pv.battery_nominal_V
         flag = 0.0
-        for i in range(N_MOTORS):
-            volt = u[N_MOTORS] if _n_inputs(u) > N_MOTORS else pv.battery_nominal_V
-            x = N_MOTORS * effective_pwm(
-                u[i], volt, pv.pwm_idle_us, pv.battery_nominal_V, pv.thrust_voltage_exponent, _CA
-            )
-            # at or below idle the thrust is simply 0 (a disarmed motor at 1000 us): not out of band
-            above_idle = ca.if_else(u[i] > pv.pwm_idle_us, 1.0, 0.0)
-            flag = ca.fmax(flag, above_idle * out_of_band(x, pv.anfis_band_lo_us, pv.anfis_band_hi_us, _CA))
+        for i in range(N_MOTORS):  # at or below idle the thrust is simply 0: not out of band
+            flag = ca.fmax(flag, motor_out_of_band(self.defaults.thrust_map, u[i], volt, c, N_MOTORS, _CA))
         return flag
 
     def motor_thrust(self, x: Any, u: Any, p: Any) -> list[Any]:

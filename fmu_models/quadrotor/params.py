@@ -10,7 +10,8 @@ from typing import Any, Literal
 from fmu_models.common.errors import ParameterError, ProblemList
 from fmu_models.common.params import param, read_json, validate_params
 from fmu_models.quadrotor.anfis import AnfisMap, published_map
-from fmu_models.quadrotor.constants import MASS_KG, N_MOTORS, PWM_IDLE_US
+from fmu_models.quadrotor.constants import MASS_KG, N_MOTORS, PWM_FULL_US, PWM_IDLE_US
+from fmu_models.quadrotor.thrust import FEATURE_INPUTS
 
 FRAMES = ("x", "+")
 #: keys of a parameter file beside the scalar parameters: (type, default) checked by the schema
@@ -45,11 +46,13 @@ class QuadrotorParams:
     kd_z_N_s_m: float = param(0.25, "N.s/m", 0.0, 100.0, "linear drag along body z (eq. 7)")
     tau_motor_s: float = param(0.0, "s", 0.0, 2.0, "first-order motor thrust time constant (0: none)")
     pwm_idle_us: float = param(PWM_IDLE_US, "us", 800.0, 1500.0, "per-motor PWM at and below which thrust is 0")
+    pwm_full_us: float = param(PWM_FULL_US, "us", 1000.0, 2500.0, "per-motor PWM of full command u = 1 (feature maps)")
     battery_nominal_V: float = param(
         11.1, "V", 1.0, 100.0, "battery voltage the thrust map refers to (start of the voltage input)"
     )
     thrust_voltage_exponent: float = param(
-        1.0, "1", 0.0, 3.0, "motor command scales as (V / battery_nominal_V)^this above idle (0: no voltage)"
+        1.0, "1", 0.0, 3.0,
+        "(V / battery_nominal_V)^this scales the thrust (feature maps) or the command above idle (summed maps)"
     )
     thrust_scale: float = param(1.0, "1", 0.2, 5.0, "per-flight thrust calibration factor (1: none)")
     ground_mu: float = param(0.5, "1", 0.0, 2.0, "friction coefficient of the landing gear")
@@ -59,7 +62,7 @@ class QuadrotorParams:
 
     @property
     def n_motors(self) -> int:
-        return 4
+        return N_MOTORS
 
     @classmethod
     def from_dict(cls, values: dict[str, Any], source: str = "quadrotor parameters") -> QuadrotorParams:
@@ -74,16 +77,7 @@ class QuadrotorParams:
                 thrust_map = AnfisMap.from_dict(values["thrust_map"], source=f"{source}: thrust_map")
             except ParameterError as err:
                 probs.items.extend(f"thrust_map: {p}" for p in err.problems)
-        if thrust_map.n_inputs != 1:
-            probs.add(
-                f"thrust_map has inputs {list(thrust_map.inputs)}; the quadrotor model needs exactly one "
-                "input, the summed motor PWM [us]"
-            )
-        if scalars.get("pwm_idle_us", PWM_IDLE_US) * N_MOTORS >= thrust_map.input_range[0][0]:
-            probs.add(
-                f"pwm_idle_us = {scalars.get('pwm_idle_us', PWM_IDLE_US)} x {N_MOTORS} motors must be below the thrust "
-                f"map's band, which starts at {thrust_map.input_range[0][0]} us summed"
-            )
+        _check_map(probs, thrust_map, scalars.get("pwm_idle_us", PWM_IDLE_US), scalars.get("pwm_full_us", PWM_FULL_US))
         probs.raise_if_any()
         return dataclasses.replace(cls(), frame=frame, thrust_map=thrust_map, **scalars)
 
@@ -96,6 +90,25 @@ class QuadrotorParams:
         d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "thrust_map"}
         d["thrust_map"] = self.thrust_map.to_dict()
         return d
+
+
+def _check_map(probs: ProblemList, amap: AnfisMap, idle_us: float, full_us: float) -> None:
+    """Problems of a thrust map against the command range of the parameters."""
+    if amap.n_inputs != 1:
+        probs.add(f"thrust_map has inputs {list(amap.inputs)}; the quadrotor model needs exactly one input, the "
+                  "summed motor PWM [us] or a per-motor command (u, u_eff)")
+        return
+    lo = amap.input_range[0][0] if amap.input_range else 0.0
+    if amap.features is not None:
+        if amap.inputs[0] not in FEATURE_INPUTS:
+            probs.add(f"thrust_map input {amap.inputs[0]!r}; a feature map takes one of {', '.join(FEATURE_INPUTS)}")
+        if not lo > 0.0:
+            probs.add(f"thrust_map band starts at {lo}; a feature map's band must start above 0 (idle)")
+        if not idle_us < full_us:
+            probs.add(f"pwm_idle_us = {idle_us}, pwm_full_us = {full_us}; need idle < full")
+    elif idle_us * N_MOTORS >= lo:
+        probs.add(f"pwm_idle_us = {idle_us} x {N_MOTORS} motors must be below the thrust map's band, which starts "
+                  f"at {lo} us summed")
 
 
 def motor_layout(frame: str) -> tuple[tuple[float, ...], tuple[int, ...]]:

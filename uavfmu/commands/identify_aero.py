@@ -1,22 +1,32 @@
 """``uavfmu identify aero``: fixed-wing stability and control derivatives from a flight log (output error).
 
-``uavfmu identify aero LOG [--init params.json] --free C_ell_p,C_ell_delta_a,...|auto --out identified.json
-[--segments t0:t1,...] [--validate-segments t0:t1,...] [--plots DIR]``
+``uavfmu identify aero LOG [LOG ...] [--init params.json] [--free auto|C_ell_p,...] --out identified.json
+[--timeline FILE] [--segments t0:t1,...] [--validate-segments t0:t1,...] [--prior name=value:sd,...]
+[--priors geometry|none] [--plots DIR]``
 
 Inputs are the log's servo PWM through the HIL adapter's PWM mapping (``--mapping FILE.toml``, else the
 log's ArduPilot ``SERVOn_*`` parameters; pull = nose up and right rudder = nose right map to the FMU's uavbook
-signs). Without ``--segments`` the airborne part of the log is cut into windows of ``--window`` seconds;
-every other window is fitted and the rest held out. Before the solve the identifiability of the free set is
-printed (condition number, correlated pairs, input excitation, advice); ``--free auto`` picks a
-well-conditioned set. Per-segment initial rates and gyro/accelerometer biases are estimated when they lower
-the Akaike criterion (``--nuisance auto``; ``--estimate-initial``/``--biases`` give them by hand), and a
-command -> surface delay is scanned up to ``--max-delay``. The work is ``identification.aero_identify``;
-this module parses and prints.
+signs). Several logs are pooled into one estimate (initial states and biases per segment). Segments follow
+the manoeuvres: the blocks of a timeline file (``--timeline``, or ``LOG.timeline.json`` beside each log; the
+middle of every three blocks of an axis is held out), else the spans where a control surface moves (every
+third held out), else alternating airborne windows of ``--window`` seconds. Before the solve the
+identifiability of the free set is printed (condition number, correlated pairs, input excitation, advice).
+``--free auto`` (default) frees the primary derivatives, then the fixed coefficients that shift them by more
+than their bound and that the data inform. Priors (a MAP term): a built-in estimate from the wing geometry
+for C_ell_p, C_n_r, C_m_q, C_Y_beta, C_n_beta, C_m_alpha (``--priors none`` turns it off) and the user's
+``--prior``/``--prior-file``; each estimate is reported as determined by the data or by the prior. Fixed
+coefficients enter the bounds with their prior std (consider covariance; ``--no-consider`` turns it off). An
+equation-error estimate (smoothed states, stepwise regression of the measured accelerations) starts the
+output-error fit and is printed beside it. Per-segment initial rates and gyro/accelerometer biases are
+estimated when they lower the Akaike criterion (``--nuisance auto``; ``--estimate-initial``/``--biases``
+give them by hand), and a command -> surface delay is scanned up to ``--max-delay``. The work is
+``identification.aero_identify``; this module parses and prints.
 
 Exit status: 0 done, 2 bad input (unreadable log, a log damaged beyond ``--max-damage`` without ``--force``,
 unknown parameter or output, bad segment or mapping),
-3 the estimation failed (diverging start, no descent), 4 done but a rival (persistence, segment mean) beats
-the model on a held-out output, 5 estimates written but a late step (scoring, plots) failed.
+3 the estimation failed (diverging start, no descent), 4 done but the model does not beat a rival
+(persistence, segment mean) on a held-out output (its skill interval is not wholly above zero: a tie is
+not a win), 5 estimates written but a late step (scoring, plots) failed.
 """
 
 from __future__ import annotations
@@ -50,13 +60,23 @@ def _bounded(lo: float, hi: float, kind: type = float):  # type: ignore[no-untyp
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.description = __doc__.split("\n\n")[0]
-    p.add_argument("log", type=Path, help="flight log (.bin/.log DataFlash, .tlog, .ulg, .csv)")
-    p.add_argument("--free", required=True, help="comma-separated parameters to estimate, or 'auto'")
+    p.add_argument("log", type=Path, nargs="+", help="flight logs (.bin/.log DataFlash, .tlog, .ulg, .csv): pooled")
+    p.add_argument("--free", default="auto", help="comma-separated parameters to estimate, or 'auto' (default)")
+    p.add_argument("--timeline", type=Path, help="timeline file of the manoeuvres (one log; default: "
+                   "LOG.timeline.json beside each log when present)")
+    p.add_argument("--priors", choices=("geometry", "none"), default="geometry",
+                   help="built-in prior from the wing geometry for six damping/stability derivatives (geometry)")
+    p.add_argument("--prior", help="a-priori values name=value:sd,... (override the geometry ones)")
+    p.add_argument("--prior-file", type=Path, help="JSON {name: {value, sd}} of a-priori values")
+    p.add_argument("--no-consider", action="store_true",
+                   help="leave the uncertainty of the fixed coefficients out of the bounds")
+    p.add_argument("--no-equation-error", action="store_true",
+                   help="skip the equation-error start and rival")
     p.add_argument("--out", type=Path, required=True, help="identified parameter file (JSON) to write")
     p.add_argument("--init", type=Path, help="start parameters (JSON; default: built-in Aerosonde)")
     p.add_argument("--outputs", help="comma-separated model outputs to fit (default: attitude, body rates, "
                    "accelerations incl. lateral, airspeed)")
-    p.add_argument("--segments", help="fit segments t0:t1,... in seconds from log start")
+    p.add_argument("--segments", help="fit segments t0:t1,... in seconds from log start (one log)")
     p.add_argument("--validate-segments", help="held-out segments t0:t1,... scored with the identified model")
     p.add_argument("--window", type=_bounded(0.2, 600.0), default=2.0, help="automatic segment length [s] (2)")
     p.add_argument("--rate", type=_bounded(1.0, 1000.0), default=50.0, help="resampling rate [Hz] (50)")
@@ -125,6 +145,15 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
                          f"got {args.sigma!r}")
     given = bool(args.estimate_initial or args.biases)
     free = "auto" if args.free.strip() == "auto" else _names(args.free)
+    if len(args.log) > 1 and (args.segments or args.validate_segments or args.timeline):
+        raise ValueError("--segments, --validate-segments and --timeline take one log; with several logs "
+                         "put LOG.timeline.json beside each log")
+    from fmu_models.fixed_wing.params import FixedWingParams
+    from identification.priors import load_priors, parse_priors
+
+    known = set(FixedWingParams().to_dict())
+    priors = load_priors(args.prior_file, known) if args.prior_file else {}
+    priors.update(parse_priors(args.prior, known) if args.prior else {})
     return AeroOptions(
         free=free, outputs=tuple(outputs),
         segments=aero.parse_segments(args.segments) if args.segments else None,
@@ -133,7 +162,9 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         window_s=args.window, rate_hz=args.rate, nuisance="given" if given else args.nuisance,
         estimate_initial=_names(args.estimate_initial), biases=_names(args.biases), bounds=bounds, sigma=sigma,
         stability_constraints=not args.no_stability_constraints, max_iter=args.max_iter, horizon_s=args.horizon,
-        max_delay_s=args.max_delay, progress=not args.quiet, force=args.force, max_damage=args.max_damage)
+        max_delay_s=args.max_delay, progress=not args.quiet, force=args.force, max_damage=args.max_damage,
+        priors=args.priors, prior_values=priors, consider=not args.no_consider, timeline=args.timeline,
+        equation_error=not args.no_equation_error)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -141,7 +172,7 @@ def run(args: argparse.Namespace) -> int:
     from fmu_models.common.errors import ParameterError
     from fmu_models.fixed_wing.params import FixedWingParams
     from fmu_models.signals.pwm_mapping import PwmMapping
-    from identification.aero_identify import AeroInputError, identify_aero, write_results
+    from identification.aero_identify import AeroInputError, AeroSource, identify_aero, write_results
     from identification.oem import EstimationError
     from identification.readers import read_log
 
@@ -150,18 +181,22 @@ def run(args: argparse.Namespace) -> int:
     try:
         opt = _options(args)
         init = FixedWingParams.load(args.init) if args.init else FixedWingParams()
-        log = read_log(args.log, channel_map=args.channel_map)
-        mapping = PwmMapping.load(args.mapping) if args.mapping else PwmMapping.from_ardupilot(log.params)
-        result = identify_aero(log, mapping, init, opt)
+        sources = []
+        for path in args.log:
+            log = read_log(path, channel_map=args.channel_map)
+            mapping = PwmMapping.load(args.mapping) if args.mapping else PwmMapping.from_ardupilot(log.params)
+            sources.append(AeroSource(log, mapping, opt.timeline, opt.segments, opt.validate_segments))
+        result = identify_aero(sources, None, init, opt)
     except AeroInputError as err:
         return _error(str(err))
     except EstimationError as err:
+        print(f"estimation failed, nothing written: {err}")
         print(f"uavfmu identify aero: estimation failed: {err}", file=sys.stderr)
         return EXIT_FAILED
     except (OSError, ValueError, KeyError, ParameterError) as err:  # LogError, MappingError, ConfigError, ...
         return _error(str(err).strip("'\""))
     metrics = args.metrics or args.out.with_suffix(".metrics.json")
-    write_results(result, args.out, metrics, str(args.log), args.rate, args.plots)
+    write_results(result, args.out, metrics, ", ".join(map(str, args.log)), args.rate, args.plots)
     print(result.summary())
     print(f"parameters: {args.out}\nmetrics: {metrics}")
     if result.failures:

@@ -1,11 +1,12 @@
 """``uavfmu identify thrust LOG[=MASS_KG] ...``: parse, call :func:`identification.thrust_workflow.identify_thrust`,
 print the per-flight summaries and the held-out table.
 
-Exit status: 0 the model beats every baseline on held-out data (or ``--force``), 2 bad input, 3 the model
-loses to a baseline (the parameter file is still written). ``--method paper`` runs paper 000's single-log
-workflow instead (Pearson gate, ANFIS of summed PWM; :func:`identification.thrust_paper.identify_thrust_paper`),
-exit 3 there = gate refused, or the model (scored as the FMU evaluates it) loses to the constant or a polynomial
-on the validation data (``--force``: exit 0, the warning stays).
+Exit status: 0 no baseline beats the model on held-out data (the verdict says win or tie), 2 bad input, 3 a
+baseline beats the model (the parameter file is then written only with ``--write-losing-model``; the exit
+status stays 3). ``--method paper`` runs paper 000's single-log workflow instead (Pearson gate, ANFIS of summed
+PWM; :func:`identification.thrust_paper.identify_thrust_paper`), exit 3 there = gate refused (unless
+``--skip-pearson-gate``), or a baseline beats the model on the validation data. ``--accept-damaged-log`` uses
+a log damaged beyond the limit. Every override is printed (``override: ...``) and listed in the metrics.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ EXIT_LOSES = 3
 EXIT_GATE_REFUSED = 3  #: --method paper: the Pearson gate refused the data
 #: options whose default differs between the two methods: (voltage workflow, paper workflow)
 METHOD_DEFAULTS = {
-    "mfs": (2, 3),
+    "mfs": (3, 3),
     "order": (1, 1),
     "epochs": (30, 100),
     "pwm_idle_us": (1000.0, PWM_IDLE_US),
@@ -47,21 +48,26 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", choices=("voltage", "paper"), default="voltage",
                    help="voltage: per-motor voltage-aware model with cross-validation (default); paper: paper "
                    "000's single-log ANFIS of summed PWM with the Pearson gate")
-    p.add_argument("--force", action="store_true",
-                   help="exit 0 even when a baseline beats the model (the warning stays); paper: skip the gate; "
-                   "both: use a log whose damaged or lost share exceeds 5 %% (the damage is still reported)")
+    p.add_argument("--accept-damaged-log", action="store_true",
+                   help="use a log whose damaged or lost share exceeds 5 %% (the damage is still reported)")
+    p.add_argument("--write-losing-model", action="store_true",
+                   help="write the parameter file even when a baseline beats the model (exit status stays 3)")
     p.add_argument("--channel-map", type=Path, help="TOML/JSON [channels] overriding the log's motor mapping")
     v = p.add_argument_group("voltage method")
     v.add_argument("--calibrate", choices=("auto", "on", "off"), default="auto",
                    help="per-flight hover calibration scale (auto: when no battery voltage is logged)")
     v.add_argument("--no-voltage", action="store_true", help="ignore logged battery voltage")
+    v.add_argument("--no-battery-state", action="store_true",
+                   help="without voltage: no hover-condition battery state (equivalent battery_voltage_V)")
+    v.add_argument("--fmu-mass-kg", type=float,
+                   help="the FMU's mass_kg [kg]; required when the flights' masses differ")
     v.add_argument("--folds", type=int, default=3, help="time blocks when a single flight is given (3)")
     g = p.add_argument_group("data set and ANFIS (both methods)")
     g.add_argument("--lowpass-hz", type=float, help="zero-phase low-pass cut-off [Hz] (default: none)")
     g.add_argument("--max-lag-s", type=float, default=0.3, help="accelerometer lag search range +- [s] (0.3)")
     g.add_argument("--motor-min-pwm-us", type=float, default=1150.0,
                    help="airborne only with motor PWM above this [us] (voltage: the mean; paper: every motor)")
-    g.add_argument("--mfs", type=int, help="ANFIS MFs (voltage: most tried, picked by inner CV, 2; paper 3)")
+    g.add_argument("--mfs", type=int, help="ANFIS MFs (voltage: most rules tried, picked by inner CV, 3; paper 3)")
     g.add_argument("--epochs", type=int, help="hybrid-learning epochs (voltage 30, paper 100)")
     g.add_argument("--check-block-s", type=float, help="checking data: every 5th block of this length [s] (5)")
     g.add_argument("--pwm-idle-us", type=float, help="per-motor PWM of zero thrust [us] (voltage 1000, paper 1100)")
@@ -79,6 +85,8 @@ def _paper_arguments(a: Any) -> None:
     a.add_argument("--min-altitude-m", type=float, default=0.5, help="airborne only above this altitude [m]")
     a.add_argument("--extra-inputs", default="climb_rate_m_s,battery_voltage_V", help="extra candidate inputs")
     a.add_argument("--min-pearson", type=float, default=PAPER_MIN_PEARSON, help="Pearson gate (0.85)")
+    a.add_argument("--skip-pearson-gate", action="store_true",
+                   help="train even when r(summed PWM, F_z) is below the gate (recorded in the metrics)")
     a.add_argument("--mf-type", choices=("gaussian", "gbell"), default="gaussian")
     a.add_argument("--order", type=int, choices=(0, 1), help="Takagi-Sugeno order (1; paper 000 used 0)")
     a.add_argument("--step-size", type=float, default=0.01, help="initial gradient step kappa (0.01)")
@@ -156,11 +164,16 @@ def _run_paper(args: argparse.Namespace, flights: list[tuple[Path, float]]) -> i
     except (ThrustDataError, AnfisTrainingError, ParameterError, FileNotFoundError, LogError) as err:
         return _error(str(err))
     print(paper_summary(result))
-    if not result.model_beats_baselines:
-        tail = " (--force: exit 0)" if args.force else " (exit 3; --force to exit 0)"
-        print(f"uavfmu identify thrust: MODEL LOSES to a baseline on validation data{tail}", file=sys.stderr)
-        return EXIT_OK if args.force else EXIT_LOSES
-    return EXIT_OK
+    _print_overrides(result.overrides)
+    if result.outcome == "lose":
+        tail = "" if result.written else f"; {args.out} not written (--write-losing-model writes it)"
+        print(f"uavfmu identify thrust: MODEL LOSES to a baseline on validation data (exit 3{tail})", file=sys.stderr)
+    return result.exit_code
+
+
+def _print_overrides(overrides: Any) -> None:
+    for o in overrides:
+        print(f"override: {o}", file=sys.stderr)
 
 
 def paper_config(args: argparse.Namespace, log: Path, mass_kg: float) -> PaperThrustConfig:
@@ -180,7 +193,8 @@ def paper_config(args: argparse.Namespace, log: Path, mass_kg: float) -> PaperTh
     return PaperThrustConfig(
         log=log, out=args.out, dataset=dataset, anfis=anfis, validate=args.validate, plots=args.plots,
         channel_map=args.channel_map, metrics=args.metrics, train_fraction=args.train_fraction,
-        min_pearson=args.min_pearson, force=args.force, check_block_s=args.check_block_s,
+        min_pearson=args.min_pearson, skip_gate=args.skip_pearson_gate, accept_damaged_log=args.accept_damaged_log,
+        write_losing_model=args.write_losing_model, check_block_s=args.check_block_s,
         kv_rpm_per_V=args.kv_rpm_per_V, battery_V=args.battery_V, pwm_max_us=args.pwm_max_us,
         k_thrust_N_s2=args.k_thrust_N_s2,
     )
@@ -232,7 +246,9 @@ def _run_voltage(args: argparse.Namespace, flights: list[tuple[Path, float]]) ->
         pwm_idle_us=args.pwm_idle_us, pwm_max_us=args.pwm_max_us, use_voltage=not args.no_voltage,
         calibrate=args.calibrate, n_mfs=args.mfs, epochs=args.epochs, n_folds_single=args.folds,
         motor_min_pwm_us=args.motor_min_pwm_us, max_lag_s=args.max_lag_s, lowpass_hz=args.lowpass_hz,
-        check_block_s=args.check_block_s, channel_map=args.channel_map, force=args.force,
+        check_block_s=args.check_block_s, channel_map=args.channel_map, fmu_mass_kg=args.fmu_mass_kg,
+        battery_state=not args.no_battery_state, accept_damaged_log=args.accept_damaged_log,
+        write_losing_model=args.write_losing_model,
     )
     try:
         result = identify_thrust(cfg)
@@ -244,14 +260,14 @@ def _run_voltage(args: argparse.Namespace, flights: list[tuple[Path, float]]) ->
             print(f"note: flight {f['flight']}: {note}", file=sys.stderr)
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
-    if not result.model_beats_baselines:
-        tail = " (--force: exit 0)" if args.force else " (exit 3; --force to exit 0)"
-        print(f"uavfmu identify thrust: MODEL LOSES to a baseline on held-out data{tail}", file=sys.stderr)
+    _print_overrides(result.overrides)
+    if result.verdict == "lose":
+        print("uavfmu identify thrust: MODEL LOSES to a baseline on held-out data (exit 3)", file=sys.stderr)
     return result.exit_code
 
 
 def format_report(r: Any) -> str:
-    """Per-flight summaries, one held-out table (RMSE [N] / R^2 per predictor) and the verdict."""
+    """Per-flight summaries, the held-out table (RMSE [N] / R^2 per predictor), the comparisons, the verdict."""
     lines = ["flights:"]
     for f in r.flights:
         v = f["voltage_range_V"]
@@ -261,16 +277,29 @@ def format_report(r: Any) -> str:
             f"{f['pwm_sum_band_us'][0]:.0f}..{f['pwm_sum_band_us'][1]:.0f} us, {volt}, hover PWM "
             f"{f['hover_pwm_mean_us']:.0f} us, mean -m a_z {f['mean_thrust_N']:.2f} N (m g {f['weight_N']:.2f})"
         )
-    names = list(r.folds[0].baselines)
-    head = ["held-out", "n", "model (FMU)", *names]
-    rows = [[f.held_out, str(f.n_samples), f"{f.model.rmse_N:.3f} / {f.model.r2:.2f}",
-             *(f"{f.baselines[b].rmse_N:.3f} / {f.baselines[b].r2:.2f}" for b in names)] for f in r.folds]
-    rows.append(["pooled RMSE", str(sum(f.n_samples for f in r.folds)), f"{r.pooled_model_rmse_N:.3f}",
-                 *(f"{r.pooled_baseline_rmse_N[b]:.3f}" for b in names)])
-    widths = [max(len(x[i]) for x in [head, *rows]) for i in range(len(head))]
-    lines.append(f"held-out thrust RMSE [N] / R^2 ({r.metrics.get('cross_validation')}):")
-    lines += ["  " + "  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)) for row in [head, *rows]]
+    names = list(r.pooled)
+    head = ["held-out", "n", *names]
+    rows = []
+    for f in r.folds:
+        scores = {"model": f.model, **f.baselines}
+        rows.append([f.held_out, str(f.n_samples), *(f"{scores[k].rmse_N:.3f} / {scores[k].r2:.2f}" for k in names)])
+    rows.append(["pooled RMSE", str(sum(f.n_samples for f in r.folds)), *(f"{r.pooled[k]:.3f}" for k in names)])
+    lines.append(f"held-out thrust RMSE [N] / R^2 ({r.metrics.get('cross_validation')}; model = the FMU's thrust "
+                 "with its battery state):")
+    for i in range(0, len(names), 4):  # at most four predictors per block keeps the lines readable
+        cols = [0, 1, *range(2 + i, min(2 + i + 4, len(head)))]
+        block = [[row[c] for c in cols] for row in [head, *rows]]
+        widths = [max(len(x[k]) for x in block) for k in range(len(cols))]
+        lines += ["  " + "  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)) for row in block]
+    lines.append("skill = 1 - RMSE_model / RMSE_baseline, 90 % block-bootstrap interval (pooled; per held-out):")
+    for key, c in r.comparisons.items():
+        p = c["pooled"]
+        per = ", ".join(f"{h} {o['outcome']}" for h, o in c["per_held_out"].items())
+        lines.append(f"  {key}: RMSE ratio {c['rmse_ratio']:.3f}, skill {p['skill']:+.3f} "
+                     f"[{p['skill_lo']:+.3f}, {p['skill_hi']:+.3f}] {p['outcome'].upper()} ({per})")
+    lines.append(f"model: {r.spec.describe()}")
     if r.calibration:
-        lines.append("per-flight calibration scale: " + ", ".join(f"{k} {v:.4f}" for k, v in r.calibration.items()))
-    lines.append(f"verdict: {r.metrics.get('verdict')}")
+        lines.append("per-flight calibration scale (thrust_scale for replays that do not drive the battery state): "
+                     + ", ".join(f"{k} {v:.4f}" for k, v in r.calibration.items()))
+    lines.append(f"verdict: {r.metrics.get('verdict_text')}")
     return "\n".join(lines)

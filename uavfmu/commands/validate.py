@@ -10,6 +10,11 @@ of ``--window-s`` seconds are each re-initialised from the logged state (0: one 
 windows with the vehicle on the ground are left out unless ``--include-ground``. The work is done by
 ``identification.validation_workflow``; this module parses and prints.
 
+Runs go through ``fmu_models.parallel`` (dask.distributed): local worker processes (``--jobs``), or a running
+cluster (``--scheduler tcp://HOST:PORT`` or ``UAVFMU_SCHEDULER``; docs/scale-out.md). ``--mc N --uncertainty
+PARAMS`` adds Monte Carlo bands: N replays with parameters drawn from the parameter file's ``uncertainty``
+block, restart states and sensor noise from the log; each signal's band coverage is printed beside its skill.
+
 Exit status: 0 every gated signal of every run passes, 1 a signal fails (or a batch run errors), 2 bad input,
 3 nothing fails but a signal ties with persistence (its skill interval reaches zero) or nothing was scored.
 """
@@ -42,8 +47,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-theil", type=float, help="pass threshold on Theil's U for every signal")
     parser.add_argument("--report", type=Path, help="folder for report.html and metrics.json")
     parser.add_argument("--channel-map", type=Path, help="TOML/JSON [channels] for the log's outputs")
-    parser.add_argument("--jobs", type=int, default=min(4, os.cpu_count() or 1), help="batch worker processes")
+    parser.add_argument("--jobs", type=int, default=min(4, os.cpu_count() or 1),
+                        help="local worker processes (batch and --mc; ignored with --scheduler)")
+    parser.add_argument("--scheduler", default=os.environ.get("UAVFMU_SCHEDULER"),
+                        help="dask scheduler of a running cluster, tcp://HOST:PORT (default: $UAVFMU_SCHEDULER, "
+                             "else local workers); see docs/scale-out.md")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--mc", type=int, metavar="N", help="Monte Carlo bands: N replays with parameters drawn from "
+                                                            "--uncertainty (20..10000)")
+    parser.add_argument("--uncertainty", type=Path, metavar="PARAMS",
+                        help="parameter file (JSON/TOML) whose 'uncertainty' key gives names, mean, covariance")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the Monte Carlo draws (default 0)")
 
 
 def _parse_set(items: list[str]) -> dict[str, float]:
@@ -87,19 +101,45 @@ def run(args: argparse.Namespace) -> int:
         else:
             jobs = [ValidationJob(args.fmu, args.log, opts, args.map, args.mapping, args.channel_map,
                                   _parse_set(args.set), args.max_theil, args.report)]
+        uncertainty = _uncertainty(args)
     except (ValueError, ConfigError) as err:
         print(f"uavfmu validate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    return _run_batch(jobs, args) if args.batch else _run_one(jobs[0], args)
+    return _run_batch(jobs, args) if args.batch else _run_one(jobs[0], args, uncertainty)
 
 
-def _run_one(job: object, args: argparse.Namespace) -> int:
+def _uncertainty(args: argparse.Namespace) -> object:
+    """The parameter file's uncertainty block for ``--mc`` (None without ``--mc``)."""
+    from fmu_models.common.params import read_uncertainty
+    from identification.mc_bands import MAX_DRAWS, MIN_DRAWS
+
+    if args.mc is None:
+        if args.uncertainty is not None:
+            raise ValueError("--uncertainty is read by --mc N; give both")
+        return None
+    if not MIN_DRAWS <= args.mc <= MAX_DRAWS:
+        raise ValueError(f"--mc = {args.mc}: allowed {MIN_DRAWS}..{MAX_DRAWS}")
+    if args.batch:
+        raise ValueError("--mc runs one FMU against one log, not --batch")
+    if args.uncertainty is None:
+        raise ValueError("--mc needs --uncertainty PARAMS (a parameter file with an 'uncertainty' key)")
+    if not 0 <= args.seed < 2**63:
+        raise ValueError(f"--seed = {args.seed}: allowed 0..2**63-1")
+    return read_uncertainty(args.uncertainty)
+
+
+def _run_one(job: object, args: argparse.Namespace, uncertainty: object = None) -> int:
     from fmu_models.fmi.host import FmuRunError
-    from identification.validation_workflow import validate
+    from fmu_models.parallel import ParallelError
+    from identification.validation_workflow import validate, validate_mc
 
     try:
-        res = validate(job)  # type: ignore[arg-type]
-    except (FmuRunError, OSError, ValueError, KeyError) as err:
+        if uncertainty is None:
+            res = validate(job)  # type: ignore[arg-type]
+        else:
+            res = validate_mc(job, uncertainty, args.mc, args.seed, workers=args.jobs,  # type: ignore[arg-type]
+                              scheduler=args.scheduler, progress=not args.quiet)
+    except (FmuRunError, OSError, ValueError, KeyError, ParallelError) as err:
         print(f"uavfmu validate: error: {str(err).strip(chr(39) + chr(34))}", file=sys.stderr)
         return EXIT_BAD_INPUT
     print("\n".join(res.lines()))
@@ -109,12 +149,14 @@ def _run_one(job: object, args: argparse.Namespace) -> int:
 
 
 def _run_batch(jobs: list, args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
+    from fmu_models.parallel import ParallelError
     from identification.validation_workflow import batch_summary, validate_batch, write_batch_report
 
-    with tqdm(total=len(jobs), desc="validate", disable=args.quiet) as bar:
-        results = validate_batch(jobs, args.jobs, progress=lambda done, total: bar.update(1))
+    try:
+        results = validate_batch(jobs, args.jobs, progress=not args.quiet, scheduler=args.scheduler)
+    except ParallelError as err:
+        print(f"uavfmu validate: error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     for r in results:
         print("\n".join(r.lines()))
     print(batch_summary(results))

@@ -1,0 +1,174 @@
+"""Fit and held-out segments that follow the manoeuvres: from a timeline file, else from the input activity.
+
+A timeline (``uavfmu excite`` writes one; ``*.timeline.json`` beside a log is found by name) lists blocks of
+``axis, start_s, excitation_start_s, end_s`` in seconds since autopilot boot; ``log_first_sample_s`` in the
+file (or the first entry of ``log_span_s``) maps them onto the log's own time axis, which starts at its first
+sample. Each block becomes one segment from ``start_s`` (the mode switch, trim held) to ``end_s`` plus
+``tail_s`` of the recovery. Per axis, every third block (the middle one of three repetitions) is held out for
+scoring; an axis flown once is fitted only.
+
+Without a timeline, segments are the spans where a control surface moves faster than its slow trend (a
+3-2-1-1, a doublet, a pilot's stick input), padded and merged; when none is found the airborne part is cut
+into windows as before, and the caller says so.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from identification.aero import Segment, SegmentError, airborne_segments
+from identification.flightlog import FlightLog
+
+#: recovery time kept after a block's end [s]: the response to the last pulse is still informative
+TAIL_S = 2.0
+#: longest segment cut from detected input activity [s]; longer spans are split into equal pieces, each fitted
+#: from the log's state at its start (closed-loop flight moves the surfaces all the time: without a split
+#: the whole flight would be one record, and drift, not the manoeuvres, would dominate the fit)
+MAX_SEGMENT_S = 4.0
+
+
+@dataclass(frozen=True)
+class Block:
+    """One excitation block of a timeline, times in seconds since boot."""
+
+    axis: str
+    start_s: float
+    excitation_start_s: float
+    end_s: float
+
+
+@dataclass(frozen=True)
+class TimelineFile:
+    """The blocks of a timeline file and the boot time of the log's first sample."""
+
+    path: Path
+    blocks: list[Block]
+    log_start_s: float | None
+
+
+def load_timeline_blocks(path: Path) -> TimelineFile:
+    """Read a timeline file (the shared schema of ``identification.timeline`` when that module exists)."""
+    try:
+        raw = json.loads(Path(path).read_text())
+    except (OSError, json.JSONDecodeError) as err:
+        raise SegmentError(f"timeline {path}: {err}") from None
+    try:
+        from identification.timeline import load_timeline  # type: ignore[import-not-found]
+    except ImportError:
+        blocks = _blocks(raw, path)
+    else:
+        blocks = [Block(str(b.axis), float(b.start_s), float(b.excitation_start_s), float(b.end_s))
+                  for b in load_timeline(path).blocks]
+    start = raw.get("log_first_sample_s") if isinstance(raw, dict) else None
+    if start is None and isinstance(raw, dict) and isinstance(raw.get("log_span_s"), list) and raw["log_span_s"]:
+        start = raw["log_span_s"][0]
+    return TimelineFile(Path(path), blocks, None if start is None else float(start))
+
+
+def _blocks(raw: Any, path: Path) -> list[Block]:
+    if not isinstance(raw, dict) or not isinstance(raw.get("blocks"), list):
+        raise SegmentError(f"timeline {path}: needs a list 'blocks'")
+    out = []
+    for i, b in enumerate(raw["blocks"]):
+        try:
+            blk = Block(str(b["axis"]), float(b["start_s"]), float(b["excitation_start_s"]), float(b["end_s"]))
+        except (KeyError, TypeError, ValueError) as err:
+            raise SegmentError(f"timeline {path}: block {i}: needs axis, start_s, excitation_start_s, end_s "
+                               f"({err})") from None
+        if not (math.isfinite(blk.start_s) and blk.start_s <= blk.excitation_start_s < blk.end_s):
+            raise SegmentError(f"timeline {path}: block {i}: needs start_s <= excitation_start_s < end_s")
+        out.append(blk)
+    return out
+
+
+def timeline_beside(log_path: Path) -> Path | None:
+    """``NAME.timeline.json`` next to ``NAME.BIN`` (or ``NAME.bin``, ...), if it exists."""
+    cand = Path(log_path).with_suffix(".timeline.json")
+    return cand if cand.exists() else None
+
+
+def timeline_segments(tl: TimelineFile, duration_s: float, tail_s: float = TAIL_S
+                      ) -> tuple[list[Segment], list[Segment], list[str]]:
+    """Fit and held-out segments on the log's time axis from a timeline; notes say what was dropped."""
+    notes = []
+    offset = tl.log_start_s if tl.log_start_s is not None else 0.0
+    if tl.log_start_s is None:
+        notes.append(f"timeline {tl.path.name}: no log_first_sample_s; block times taken as log times")
+    by_axis: dict[str, list[Segment]] = {}
+    for b in tl.blocks:
+        seg = Segment(round(max(b.start_s - offset, 0.0), 3), round(min(b.end_s + tail_s - offset, duration_s), 3))
+        if seg.t1_s - seg.t0_s < 1.0:
+            notes.append(f"timeline block {b.axis} at {b.start_s:g} s lies outside the log; skipped")
+            continue
+        by_axis.setdefault(b.axis, []).append(seg)
+    fit, val = [], []
+    for segs in by_axis.values():
+        held = len(segs) // 2 if len(segs) >= 2 else -1
+        for i, s in enumerate(segs):
+            (val if i == held else fit).append(s)
+    if not fit:
+        raise SegmentError(f"timeline {tl.path}: no block lies inside the log")
+    return sorted(fit, key=lambda s: s.t0_s), sorted(val, key=lambda s: s.t0_s), notes
+
+
+def active_segments(t_s: np.ndarray, u: np.ndarray, airborne: np.ndarray, pad_s: float = 1.0, tail_s: float = 3.0,
+                    min_s: float = 3.0, max_s: float = MAX_SEGMENT_S) -> list[Segment]:
+    """Spans where an input (columns of ``u`` at ``t_s``) departs from its 4 s running median by more than
+    three robust std of its fast part (and at least 0.01 rad), padded by ``pad_s`` before and ``tail_s``
+    after, merged, kept inside ``airborne`` samples, split at ``max_s``."""
+    dt = float(np.median(np.diff(t_s)))
+    half = max(int(2.0 / dt), 1)
+    active = np.zeros(len(t_s), dtype=bool)
+    for col in u.T:
+        trend = np.array([np.median(col[max(0, k - half):k + half + 1]) for k in range(len(col))])
+        dev = np.abs(col - trend)
+        mad = float(np.median(np.abs(dev - np.median(dev)))) * 1.4826
+        active |= dev > max(3.0 * mad, 0.01)
+    grow = np.zeros_like(active)
+    for k in np.flatnonzero(active):
+        grow[max(0, k - int(pad_s / dt)):k + int(tail_s / dt) + 1] = True
+    grow &= airborne
+    out: list[Segment] = []
+    k = 0
+    while k < len(grow):
+        if not grow[k]:
+            k += 1
+            continue
+        j = k
+        while j + 1 < len(grow) and grow[j + 1]:
+            j += 1
+        t0, t1 = float(t_s[k]), float(t_s[j])
+        n = max(1, math.ceil((t1 - t0) / max_s))
+        if t1 - t0 >= min_s:
+            step = (t1 - t0) / n
+            out += [Segment(round(t0 + i * step, 3), round(t0 + (i + 1) * step, 3)) for i in range(n)]
+        k = j + 1
+    return out
+
+
+def split_segments(segs: Sequence[Segment], length_s: float) -> list[Segment]:
+    """Each segment cut into consecutive pieces of at most ``length_s`` (a shorter last piece kept if >= 1 s)."""
+    out = []
+    for s in segs:
+        t = s.t0_s
+        while t < s.t1_s - 1e-9:
+            t1 = min(t + length_s, s.t1_s)
+            if t1 - t >= 1.0:
+                out.append(Segment(round(t, 3), round(t1, 3)))
+            t = t1
+    return out
+
+
+def fallback_windows(log: FlightLog, window_s: float) -> tuple[list[Segment], list[Segment]]:
+    """Alternating airborne windows (fit, held out): the old default when no manoeuvre is found."""
+    auto = airborne_segments(log, window_s)
+    if len(auto) < 2:
+        raise SegmentError(f"{log.source}: fewer than two airborne windows of {window_s:g} s; give segments")
+    return auto[0::2], auto[1::2]

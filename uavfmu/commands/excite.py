@@ -1,0 +1,91 @@
+"""``uavfmu excite``: plan identification manoeuvres for a fixed wing from its own modes.
+
+``uavfmu excite --out flights/exc [--params plane.json] [--airspeed 25] [--inputs 3211,doublet,multisine]
+[--check]`` trims and linearises the model, prints its modes and the planned blocks, and writes
+``exc.lua`` (ArduPilot script: switch-triggered, attitude/airspeed/height limits abort to the recovery mode),
+``exc.rc_override.json``/``.csv`` (RC-override steps for a ground-station script, ArduPilot or PX4),
+``exc.timeline.json`` (blocks for ``identify aero``) and ``exc.plan.json``. ``--check`` flies the plan in closed
+loop on the model (PD attitude hold, plan on top) and prints the condition number and largest correlation
+of the lateral and longitudinal derivative sets. The work is ``identification.excite_workflow``.
+
+Exit status: 0 done, 2 bad input, 3 ``--check`` found a set not well conditioned (files still written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+EXIT_OK, EXIT_BAD_INPUT, EXIT_ILL_CONDITIONED = 0, 2, 3
+
+
+def _names(text: str) -> tuple[str, ...]:
+    return tuple(s.strip() for s in text.split(",") if s.strip())
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.description = __doc__.split("\n\n")[0]
+    p.add_argument("--out", type=Path, required=True, help="output prefix: writes PREFIX.lua, .timeline.json, ...")
+    p.add_argument("--params", type=Path, help="fixed-wing parameter file (JSON; default: built-in Aerosonde)")
+    p.add_argument("--airspeed", type=float, default=25.0, help="trim airspeed [m/s] (25)")
+    p.add_argument("--inputs", default="3211,doublet,multisine", help="3211, doublet, multisine (all)")
+    p.add_argument("--surfaces", default="aileron,elevator,rudder", help="surfaces to excite (all three)")
+    p.add_argument("--roll-limit", type=float, default=45.0, help="abort roll [deg] (45); plan peaks at half")
+    p.add_argument("--pitch-limit", type=float, default=20.0, help="abort pitch change from trim [deg] (20)")
+    p.add_argument("--surface-limit", type=float, default=20.0, help="surface range [deg] (20)")
+    p.add_argument("--rate", type=float, default=50.0, help="plan sample rate [Hz] (50)")
+    p.add_argument("--settle", type=float, default=2.0, help="trim hold before each input [s] (2)")
+    p.add_argument("--tail", type=float, default=3.0, help="free response after each input [s] (3)")
+    p.add_argument("--recovery", type=float, default=10.0, help="recovery between blocks [s] (10)")
+    p.add_argument("--multisine-period", type=float, default=10.0, help="multisine period T [s] (10)")
+    p.add_argument("--max-frequency", type=float, default=3.0, help="highest planned frequency [Hz] (3)")
+    p.add_argument("--mode", default="MANUAL", help="ArduPlane mode the inputs are flown in (MANUAL)")
+    p.add_argument("--recovery-mode", default="FBWA", help="ArduPlane mode between blocks and on abort (FBWA)")
+    p.add_argument("--trigger-channel", type=int, default=8, help="RC channel whose switch starts the script (8)")
+    p.add_argument("--min-height", type=float, default=40.0, help="abort below this height above home [m] (40)")
+    p.add_argument("--rc-rate", type=float, default=20.0, help="RC-override row rate [Hz] (20)")
+    p.add_argument("--mapping", type=Path, help="PWM mapping TOML (default: ArduPlane SERVO1-4, +/-0.35 rad)")
+    p.add_argument("--check", action="store_true", help="fly the plan in closed loop and check identifiability")
+    p.add_argument("--plots", type=Path, help="folder for PNG figures (inputs, spectra, check flight)")
+
+
+def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
+    from identification.excite import ExciteOptions
+    from identification.excite_writers import OutputOptions
+
+    opt = ExciteOptions(airspeed_m_s=args.airspeed, inputs=_names(args.inputs), surfaces=_names(args.surfaces),
+                        roll_limit_deg=args.roll_limit, pitch_limit_deg=args.pitch_limit,
+                        surface_limit_deg=args.surface_limit, rate_hz=args.rate, settle_s=args.settle,
+                        tail_s=args.tail, recovery_s=args.recovery, multisine_period_s=args.multisine_period,
+                        max_frequency_hz=args.max_frequency)
+    out = OutputOptions(excite_mode=args.mode, recovery_mode=args.recovery_mode,
+                        trigger_channel=args.trigger_channel, min_height_m=args.min_height, rc_rate_hz=args.rc_rate)
+    return opt, out
+
+
+def run(args: argparse.Namespace) -> int:
+    """Plan, check, write, print; see the module docstring."""
+    import dataclasses
+
+    from fmu_models.common.errors import ParameterError
+    from fmu_models.fixed_wing.params import FixedWingParams
+    from fmu_models.signals.pwm_mapping import PwmMapping
+    from identification.excite_workflow import excite, write_files, write_plots
+
+    try:
+        opt, out = _options(args)
+        if args.mapping:
+            out = dataclasses.replace(out, mapping=PwmMapping.load(args.mapping))
+        params = FixedWingParams.load(args.params) if args.params else None
+        command = "uavfmu excite " + " ".join(sys.argv[2:])
+        result = excite(params, opt, out, check=args.check, command=command)
+    except (OSError, ValueError, ParameterError) as err:  # ExciteError, ConfigError, MappingError, ...
+        print(f"uavfmu excite: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    paths = write_files(result, args.out)
+    if args.plots:
+        paths += write_plots(result, args.plots, command)
+    print(result.summary())
+    print("wrote " + ", ".join(str(p) for p in paths))
+    return EXIT_ILL_CONDITIONED if result.well_conditioned is False else EXIT_OK
