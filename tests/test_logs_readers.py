@@ -408,3 +408,51 @@ def test_quality_report_lines_and_json_by_hand() -> None:
         many.add_damage(100 * k, 10)
     assert many.bytes_skipped == 250 and many.messages_skipped == 25 and len(many.damaged_regions) == 20
     assert "25 damaged message(s) in 20+ region(s); first at byte 0" in many.lines()[0]
+
+
+def test_add_battery_keeps_only_what_was_measured() -> None:
+    from identification.flightlog import BATTERY_CURRENT, BATTERY_VOLTAGE, BATTERY_VOLTAGE_LEGACY, add_battery
+
+    t = np.array([0.0, 1.0, 2.0, np.nan, 4.0])
+    sig: dict = {}
+    add_battery(sig, t, np.array([12.0, 0.0, np.nan, 11.0, 11.5]), np.array([1.0, np.inf, 0.0, 2.0, 3.0]), "BAT")
+    v, a = sig[BATTERY_VOLTAGE], sig[BATTERY_CURRENT]
+    assert v.t_s.tolist() == [0.0, 4.0] and v.values.tolist() == [12.0, 11.5] and v.unit == "V"
+    assert v.description == "battery voltage from BAT" and a.description == "battery current from BAT"
+    assert sig[BATTERY_VOLTAGE_LEGACY].values.tolist() == [12.0, 11.5]
+    assert sig[BATTERY_VOLTAGE_LEGACY].description == f"alias of {BATTERY_VOLTAGE}"
+    assert a.t_s.tolist() == [0.0, 2.0, 4.0] and a.values.tolist() == [1.0, 0.0, 3.0] and a.unit == "A"
+    earlier = {BATTERY_VOLTAGE: v}
+    add_battery(earlier, t, np.full(5, 20.0), None, "other")  # an earlier, better source is kept
+    assert earlier[BATTERY_VOLTAGE] is v and BATTERY_VOLTAGE_LEGACY not in earlier
+    none: dict = {}
+    add_battery(none, t, np.zeros(5), np.zeros(5), "BAT")  # no sensor: ArduPilot logs zeros
+    assert none == {}
+    current_only: dict = {}
+    add_battery(current_only, t, None, np.array([0.0, 0.5, 0.0, 0.0, 0.0]), "BAT")  # not all zero: measured
+    assert current_only[BATTERY_CURRENT].values.tolist() == [0.0, 0.5, 0.0, 0.0]
+
+
+def test_sanitiser_counts_non_finite_and_clipped_canonical_samples() -> None:
+    from identification.flightlog import CLIP_LIMITS, Signal, sanitize_log
+
+    t = np.arange(10) * 0.1
+    az = np.full(10, -9.8)
+    az[[2, 3]] = [np.nan, np.inf]
+    az[7] = -CLIP_LIMITS["accel_body_"]  # at full scale
+    gx = np.zeros(10)
+    gx[5] = 1.01 * CLIP_LIMITS["gyro_body_"]
+    log = FlightLog("c.bin", "csv", {
+        "accel_body_z_m_s2": Signal("accel_body_z_m_s2", t, az, "m/s2"),
+        "gyro_body_x_rad_s": Signal("gyro_body_x_rad_s", t, gx, "rad/s"),
+        "IMU.AccZ": Signal("IMU.AccZ", t, az.copy(), "m/s2"),  # raw fields are not checked
+        "VIBE.Clip0": Signal("VIBE.Clip0", t, np.arange(10.0), "1"),  # the IMU's own running clip count
+        "mode": Signal("mode", t, np.array(["a"] * 10), ""),
+    }, {})
+    out = sanitize_log(log)
+    q = out.quality
+    assert q.non_finite_samples == 2 and q.canonical_samples == 20  # accel and gyro: raw fields and text skipped
+    assert q.clipped_samples == 1 + 1 + 9
+    kept = out.signal("accel_body_z_m_s2").values
+    assert kept.size == 8 and np.isfinite(kept).all()
+    assert out.signal("IMU.AccZ").values.size == 10
