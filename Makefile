@@ -46,7 +46,7 @@ bench: $(BENCH_STAMP)
 	for b in bench/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
 
 # mutation testing of the modules whose mistakes cost users most, each against its tests (tests/mutation_run.py);
-# not in CI: about 30 min on 2 cores. Per-module scores and surviving mutants: reports/mutation.md (exit 1 below 80 %).
+# not in CI: about an hour on 2 shared cores. Per-module scores and surviving mutants: reports/mutation.md (exit 1 below 80 %).
 mutation: $(MUT_STAMP)
 	$(PY) tests/mutation_run.py
 	$(PY) tests/mutation_report.py --out reports/mutation.md
