@@ -22,6 +22,7 @@ $(MUT_STAMP): $(STAMP)
 	$(PY) -m pip install --quiet -e ".[test,mutation]"
 	touch $(MUT_STAMP)
 
+# the demo builds this machine's platform only; `make fmus` builds linux64, win64 and darwin64 in parallel
 demo: $(STAMP)
 	$(PY) -m uavfmu.cli demo
 

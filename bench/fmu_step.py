@@ -35,44 +35,38 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from fmu_models.common.model import Layout, Variable  # noqa: E402
-from fmu_models.fmi import fmuzip, native_build, zigcc  # noqa: E402
-from fmu_models.fmi.fmus import build_fmus  # noqa: E402
+from fmu_models.fmi import native_build, zigcc  # noqa: E402
+from fmu_models.fmi.fmus import BuildOptions, build_fmus  # noqa: E402
+from fmu_models.fmi.native_build import Interface, build_native_fmu  # noqa: E402
 
 CASES = {
     "quadrotor": {f"pwm_{i}_us": 1530.0 for i in range(1, 5)},
     "fixed_wing": {"aileron_rad": 0.0, "elevator_rad": -0.1, "rudder_rad": 0.0, "throttle": 0.6},
 }
-NULL_MODEL_C = """#include "uavfmu_model.h"
-int uavfmu_initialize(const double* u, const double* p, double* x0, double* y0) {
-  (void)p; x0[0] = 0.0; for (int i = 0; i < uavfmu_model.ny; ++i) y0[i] = u[0]; return 0; }
-int uavfmu_advance(const double* x, const double* u, const double* p, const double* h, double* x_out, double* y) {
-  (void)p; (void)h; x_out[0] = x[0]; y[0] = u[0]; return 0; }
-"""
 
 
-def build_null_fmu(n_in: int, n_out: int, out_dir: Path) -> Path:
-    """A native FMU whose step only copies input 0 to output 0 (the FMI layer's own cost)."""
-    model = SimpleNamespace(
+def null_model(n_in: int, n_out: int) -> SimpleNamespace:
+    """A model whose outputs copy input 0 and whose one state stays still (the FMI layer's own cost)."""
+    import casadi as ca
+
+    return SimpleNamespace(
         name="null", description="do-nothing reference for bench/fmu_step.py",
         states=Layout((Variable("x", "1", "unused state"),)),
         inputs=Layout(tuple(Variable(f"u{i}", "1", "input", start=1000.0) for i in range(n_in))),
         params=Layout((Variable("step_internal_s", "s", "internal step", start=0.001, min=1e-6, max=1.0),)),
         outputs=Layout(tuple(Variable(f"y{i}", "1", "output") for i in range(n_out))),
         state_limits=(1e300,),
+        derivatives=lambda t, x, u, p: 0.0 * x,
+        outputs_fn=lambda x, u, p: ca.repmat(u[0], n_out, 1),
+        initial_state=lambda p, u: ca.SX.zeros(1),
+        post_step=lambda x, u, p: x,
     )
-    guid = f"{{null-{n_in}-{n_out}}}"
-    src = out_dir / "null_src"
-    src.mkdir(parents=True, exist_ok=True)
-    (src / "null_model.c").write_text(NULL_MODEL_C)
-    (src / "null_description.c").write_text(native_build.description_c(model, guid, {}))
-    for h in (*native_build.FMI_HEADERS, "uavfmu_model.h", "fmi2_cs.c"):
-        base = native_build.FMI_INCLUDE if h in native_build.FMI_HEADERS else native_build.NATIVE
-        (src / h).write_bytes((base / h).read_bytes())
-    lib = zigcc.compile_shared([src / "fmi2_cs.c", src / "null_model.c", src / "null_description.c"], [src],
-                               zigcc.PLATFORMS[0], out_dir / "null.so")
-    files = {"modelDescription.xml": native_build.model_description(model, guid, fmuzip.iso_date(0)),
-             "binaries/linux64/null.so": lib.read_bytes()}
-    return fmuzip.write_fmu(out_dir / "null.fmu", files, 0)
+
+
+def build_null_fmu(n_in: int, n_out: int, out_dir: Path) -> Path:
+    """A native FMU (the same FMI layer and code generation) whose step only copies input 0 to the outputs."""
+    return build_native_fmu(null_model(n_in, n_out), out_dir, platforms=(zigcc.host_platform(),),
+                            interface=Interface(2, ("cs",)))
 
 
 def open_slave(fmu: Path) -> tuple[FMU2Slave, dict[str, int]]:
@@ -155,7 +149,7 @@ def time_c_host(fmu: Path, inputs: dict[str, float], outputs: list[str], steps: 
     exe = work / "native_host"
     if not exe.exists():
         cmd = [*zigcc.zig_cc(), "-target", "x86_64-linux-gnu", "-O2", f"-I{native_build.FMI_INCLUDE}",
-               "-o", str(exe), str(REPO / "tests" / "native_host.c"), "-ldl"]
+               f"-I{native_build.FMI3_INCLUDE}", "-o", str(exe), str(REPO / "tests" / "native_host.c"), "-ldl"]
         subprocess.run(cmd, check=True, capture_output=True)
     md = read_model_description(str(fmu))
     vr = {v.name: v.valueReference for v in md.modelVariables}
@@ -244,7 +238,8 @@ def main() -> int:
         parser.error(f"--steps {args.steps} is outside [100, 1000000]")
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
-        native = {p.stem: p for p in build_fmus(None, out / "native").fmus}
+        host = BuildOptions(platforms=(zigcc.host_platform().fmi_name,))
+        native = {p.stem: p for p in build_fmus(None, out / "native", options=host).fmus}
         python = {p.stem: p for p in build_fmus(None, out / "python", backend="python").fmus}
         results = {name: measure(name, native[name], python[name], out, args.steps) for name in CASES}
     return report(results)

@@ -18,7 +18,7 @@ their problems reported the same way: one line per problem with file, field, val
     [px4]        rc_channels = [1500, 1500, 1000, 1500]  # RC_CHANNELS sent with each heartbeat (PWM)
                  wing_controls = {"1" = 0, "2" = 1, "3" = 3, "4" = 2}  # fixed wing: output channel -> control
     [start]      init_pos_down_m = 0.0                    # FMU start values
-    [sensors]    seed = 0  [sensors.gps] pos_gm_tau_s = 60 ...       # hil_adapter.sensors.SensorConfig
+    [sensors]    seed = 0  profile = "px4_gazebo"  [sensors.gps] ...   # hil_adapter.sensors (PROFILES)
     [mapping.channels.aileron_rad] source = 1 ...                    # fmu_models.signals.pwm_mapping
 """
 
@@ -141,6 +141,9 @@ def sensor_suite(cfg: HilConfig) -> Any:
 
     table = dict(cfg.sensors or {})
     seed = table.pop("seed", 0)
+    profile = table.pop("profile", "px4_gazebo")
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63:
         raise ValueError(f"sensors.seed = {seed!r}: needs an integer; allowed 0..2^63-1")
-    return SensorSuite(SensorConfig.from_dict(table, "sensors"), seed=seed)
+    if not isinstance(profile, str):
+        raise ValueError(f"sensors.profile = {profile!r}: needs a string")
+    return SensorSuite(SensorConfig.from_dict(table, "sensors", profile=profile), seed=seed)

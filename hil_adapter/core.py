@@ -212,6 +212,8 @@ class Stats:
     restarts: int = 0
     reconnects: int = 0
     failsafes: int = 0
+    #: lockstep PX4: steps run at the wall-clock pace before the autopilot's first actuator message
+    free_steps: int = 0
     #: steps whose FMU outputs flagged PWM outside the thrust map's trained band
     out_of_band: int = 0
     #: wall time between the first and the last step, pauses left out [s]
@@ -264,7 +266,7 @@ class Stats:
                "overruns": self.overruns, "dropped": self.dropped, "malformed": self.malformed,
                "resends": self.resends, "out_of_order": self.out_of_order, "restarts": self.restarts,
                "reconnects": self.reconnects, "reconnect_max_ms": round(1e3 * max(self.reconnect_s, default=0.0), 3),
-               "failsafes": self.failsafes, "out_of_band_steps": self.out_of_band}
+               "failsafes": self.failsafes, "free_steps": self.free_steps, "out_of_band_steps": self.out_of_band}
         if plant is not None:
             fmu = 1e3 * sum(plant.step_times) / len(plant.step_times) if plant.step_times else math.nan
             out |= {"sim_time_s": round(plant.t_s, 3), "fmu_step_mean_ms": round(fmu, 4),

@@ -37,6 +37,13 @@ def _crc16(data: bytes) -> int:
     return int(mavlink2.x25crc(data).crc)
 
 
+def _crc16_pair(body: bytes, extra: bytes) -> int:
+    """``_crc16(body + extra)`` without building the concatenation (the CRC register chains: no final XOR)."""
+    if _MCRF4XX is not None:
+        return int(_MCRF4XX(extra, _MCRF4XX(body, 0xFFFF)))
+    return int(mavlink2.x25crc(body + extra).crc)
+
+
 @dataclass(frozen=True)
 class _Layout:
     """Wire layout of one message class: per wire field the declared argument index and array length."""
@@ -98,6 +105,25 @@ class FastMavlink:
         mav.seq = (mav.seq + 1) % 256
         return buf
 
+    def pack_wire(self, msg_class: type, *values: Any) -> bytes:
+        """``pack`` for values already flat and in wire order (arrays expanded, every field given): the
+        per-step messages whose layout the caller knows (``HilMessages``); the tests check the bytes against
+        pymavlink."""
+        mav = self.mav
+        lay = self._layouts.get(msg_class)
+        if lay is None:
+            lay = self._layouts[msg_class] = _Layout.of(msg_class)
+        if mav.signing.sign_outgoing:
+            return self.pack(msg_class, *_unflatten(lay, values))
+        payload = lay.payload.pack(*values).rstrip(b"\0") or b"\0"
+        seq = mav.seq
+        body = _HEADER_OUT.pack(len(payload), seq, mav.srcSystem, mav.srcComponent, lay.msg_id & 0xFFFF,
+                                lay.msg_id >> 16) + payload
+        mav.seq = (seq + 1) % 256
+        crc = (_MCRF4XX(lay.crc_extra, _MCRF4XX(body, 0xFFFF)) if _MCRF4XX is not None
+               else _crc16_pair(body, lay.crc_extra))
+        return b"".join((b"\xfd", body, CRC.pack(crc)))
+
     def actuator_controls(self, data: bytes) -> tuple[Sequence[float], int, int, bytes] | None:
         """``(controls[16], mode, flags, rest)`` when ``data`` starts with a whole, unsigned, valid
         HIL_ACTUATOR_CONTROLS frame and pymavlink holds no partial frame; else None (pymavlink parses)."""
@@ -109,7 +135,7 @@ class FastMavlink:
         end = HEADER_LEN + plen + 2
         if plen > lay.payload.size or len(data) < end:
             return None
-        if CRC.unpack_from(data, end - 2)[0] != _crc16(data[1:HEADER_LEN + plen] + lay.crc_extra):
+        if CRC.unpack_from(data, end - 2)[0] != _crc16_pair(data[1:HEADER_LEN + plen], lay.crc_extra):
             return None  # pymavlink counts it as bad data
         if plen == lay.payload.size:
             fields = lay.payload.unpack_from(data, HEADER_LEN)
@@ -117,6 +143,20 @@ class FastMavlink:
             fields = lay.payload.unpack(data[HEADER_LEN:HEADER_LEN + plen] + bytes(lay.payload.size - plen))
         # wire order: time_usec, flags, controls[16], mode
         return fields[2:18], fields[18], fields[1], data[end:]
+
+
+def _unflatten(lay: _Layout, values: Sequence[Any]) -> list[Any]:
+    """Constructor arguments from flat wire-order values (the signed path goes through pymavlink)."""
+    args: list[Any] = list(lay.defaults)
+    pos = 0
+    for index, length in lay.wire:
+        if length:
+            args[index] = list(values[pos:pos + length])
+            pos += length
+        else:
+            args[index] = values[pos]
+            pos += 1
+    return args
 
 
 __all__ = ["FastMavlink"]

@@ -1,7 +1,8 @@
 """PX4 simulator interface: MAVLink 2 over TCP port 4560, PX4 connects as the client.
 
-We send HIL_SENSOR (``fields_updated`` set), HIL_GPS at the GPS rate, HIL_STATE_QUATERNION (ground truth),
-HEARTBEAT at 1 Hz and optionally RC_CHANNELS; PX4 answers with HIL_ACTUATOR_CONTROLS (``controls[16]``:
+We send HIL_SENSOR (``fields_updated``: the IMU every step, magnetometer and barometer at their own rates),
+HIL_GPS at the GPS rate, HIL_STATE_QUATERNION (ground truth), HEARTBEAT at 1 Hz and optionally RC_CHANNELS;
+PX4 answers with HIL_ACTUATOR_CONTROLS (``controls[16]``:
 motors 0..1, surfaces -1..1; ``mode`` carries the armed bit; ``flags`` bit 0 asks for lockstep).
 
 Lockstep: send the sensors of time t, log the step, busy-poll then wait for the actuator reply, step the FMU,
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 import logging
 import math
+import operator
 import socket
 import struct
 import threading
@@ -31,8 +33,6 @@ from hil_adapter.mavlink_fast import FastMavlink
 
 log = logging.getLogger(__name__)
 DEFAULT_PORT = 4560
-#: HIL_SENSOR.fields_updated: accel xyz, gyro xyz, mag xyz, abs pressure, diff pressure, pressure alt, temperature
-FIELDS_ALL = (1 << 13) - 1
 ARMED_FLAG = mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
 LOCKSTEP_FLAG = 1  # HIL_ACTUATOR_CONTROLS.flags bit 0
 #: a used control beyond this magnitude (PX4 sends -1..1, motors 0..1) makes the message malformed
@@ -42,26 +42,39 @@ MG_PER_M_S2 = 1000.0 / G0_M_S2  #: HIL_STATE_QUATERNION accelerations are in mil
 WING_CONTROLS = {1: 0, 2: 1, 3: 3, 4: 2}
 
 
+#: the FMU outputs HIL_STATE_QUATERNION carries, fetched in one call
+_STATE_OUTPUTS = operator.itemgetter(
+    "quat_w", "quat_x", "quat_y", "quat_z", "rate_body_x_rad_s", "rate_body_y_rad_s", "rate_body_z_rad_s",
+    "lat_deg", "lon_deg", "height_m", "vel_north_m_s", "vel_east_m_s", "vel_down_m_s",
+    "accel_body_x_m_s2", "accel_body_y_m_s2", "accel_body_z_m_s2")
+
+
+def _clip(v: float, lo: float, hi: float) -> float:
+    return lo if not math.isfinite(v) else min(max(v, lo), hi)
+
+
+_MOTORS_OFF = dict.fromkeys(range(1, N_MOTORS + 1), 1000.0)
+
+
 def controls_to_pwm(controls: Sequence[float], vehicle: str, armed: bool,
                     wing_controls: Mapping[int, int] | None = None) -> dict[int, float]:
     """PWM by output channel from normalised controls: motors/throttle 0..1 -> 1000..2000 us, surfaces
     -1..1 -> 1000..2000 us around 1500; unarmed: motors and throttle at 1000 us. ``wing_controls`` maps output
     channel -> control index for the fixed wing (default ``WING_CONTROLS``; channel 3 is the throttle)."""
-    def clip(v: float, lo: float, hi: float) -> float:
-        return lo if not math.isfinite(v) else min(max(v, lo), hi)
-
     if vehicle == "quadrotor":
         if not armed:
-            return dict.fromkeys(range(1, N_MOTORS + 1), 1000.0)
-        c1, c2, c3, c4 = controls[:4]
-        return {1: 1000.0 + 1000.0 * clip(c1, 0.0, 1.0), 2: 1000.0 + 1000.0 * clip(c2, 0.0, 1.0),
-                3: 1000.0 + 1000.0 * clip(c3, 0.0, 1.0), 4: 1000.0 + 1000.0 * clip(c4, 0.0, 1.0)}
+            return dict(_MOTORS_OFF)
+        c1, c2, c3, c4 = controls[:4]  # in range is the common case: one chained test each (NaN fails it)
+        return {1: 1000.0 + 1000.0 * (c1 if 0.0 <= c1 <= 1.0 else _clip(c1, 0.0, 1.0)),
+                2: 1000.0 + 1000.0 * (c2 if 0.0 <= c2 <= 1.0 else _clip(c2, 0.0, 1.0)),
+                3: 1000.0 + 1000.0 * (c3 if 0.0 <= c3 <= 1.0 else _clip(c3, 0.0, 1.0)),
+                4: 1000.0 + 1000.0 * (c4 if 0.0 <= c4 <= 1.0 else _clip(c4, 0.0, 1.0))}
     out = {}
     for ch, idx in (wing_controls or WING_CONTROLS).items():
         if ch == 3:
-            out[ch] = 1000.0 + 1000.0 * (clip(controls[idx], 0.0, 1.0) if armed else 0.0)
+            out[ch] = 1000.0 + 1000.0 * (_clip(controls[idx], 0.0, 1.0) if armed else 0.0)
         else:
-            out[ch] = 1500.0 + 500.0 * clip(controls[idx], -1.0, 1.0)
+            out[ch] = 1500.0 + 500.0 * _clip(controls[idx], -1.0, 1.0)
     return out
 
 
@@ -85,11 +98,10 @@ class HilMessages:
         self.mav_type = mavlink2.MAV_TYPE_QUADROTOR if vehicle == "quadrotor" else mavlink2.MAV_TYPE_FIXED_WING
 
     def sensor(self, t_us: int, frame: Any) -> bytes:
-        a, g, m = frame.accel_body_m_s2, frame.gyro_body_rad_s, frame.mag_body_gauss
-        return self.codec.pack(
+        a, g, m, pressure_pa, temp_c, diff_pa, pressure_alt_m, _, updated = frame  # a SensorFrame, in field order
+        return self.codec.pack_wire(  # wire order: time_usec, 13 floats, fields_updated, id
             mavlink2.MAVLink_hil_sensor_message, t_us, a[0], a[1], a[2], g[0], g[1], g[2], m[0], m[1], m[2],
-            frame.abs_pressure_pa / 100.0, frame.diff_pressure_pa / 100.0, frame.pressure_alt_m,
-            frame.temperature_degc, FIELDS_ALL)
+            pressure_pa / 100.0, diff_pa / 100.0, pressure_alt_m, temp_c, updated, 0)
 
     def gps(self, t_us: int, fix: Any) -> bytes:
         vn, ve, vd = fix.vel_ned_m_s
@@ -103,15 +115,17 @@ class HilMessages:
         """Ground truth; velocities [cm/s] and accelerations [mG] saturate at the int16 range (a crash
         landing can exceed 32 g)."""
         mg = MG_PER_M_S2
-        airspeed_cm_s = _uint16(s.get("airspeed_m_s", 0.0) * 100)
-        return self.codec.pack(
-            mavlink2.MAVLink_hil_state_quaternion_message, t_us, (s["quat_w"], s["quat_x"], s["quat_y"],
-                                                                 s["quat_z"]),
-            s["rate_body_x_rad_s"], s["rate_body_y_rad_s"], s["rate_body_z_rad_s"], round(s["lat_deg"] * 1e7),
-            round(s["lon_deg"] * 1e7), round(s["height_m"] * 1e3), _int16(s["vel_north_m_s"] * 100),
-            _int16(s["vel_east_m_s"] * 100), _int16(s["vel_down_m_s"] * 100), airspeed_cm_s, airspeed_cm_s,
-            _int16(s["accel_body_x_m_s2"] * mg), _int16(s["accel_body_y_m_s2"] * mg),
-            _int16(s["accel_body_z_m_s2"] * mg))
+        qw, qx, qy, qz, p, q, r, lat, lon, height, vn, ve, vd, ax, ay, az = _STATE_OUTPUTS(s)
+        air = round(s.get("airspeed_m_s", 0.0) * 100)
+        air = air if 0 <= air <= 65535 else min(max(air, 0), 65535)
+        small = [round(vn * 100), round(ve * 100), round(vd * 100), round(ax * mg), round(ay * mg), round(az * mg)]
+        for k, v in enumerate(small):  # in range is the common case: one chained test each
+            if not -32768 <= v <= 32767:
+                small[k] = min(max(v, -32768), 32767)
+        vx, vy, vz, xacc, yacc, zacc = small
+        return self.codec.pack_wire(  # wire order = declared order, the quaternion expanded
+            mavlink2.MAVLink_hil_state_quaternion_message, t_us, qw, qx, qy, qz, p, q, r, round(lat * 1e7),
+            round(lon * 1e7), round(height * 1e3), vx, vy, vz, air, air, xacc, yacc, zacc)
 
     def heartbeat(self) -> bytes:
         return self.codec.pack(mavlink2.MAVLink_heartbeat_message, self.mav_type, mavlink2.MAV_AUTOPILOT_INVALID,
@@ -165,6 +179,9 @@ class Px4Server:
         self.wing_controls = dict(wing_controls) if wing_controls else None
         if self.wing_controls and not all(1 <= c <= 16 and 0 <= i < 16 for c, i in self.wing_controls.items()):
             raise ValueError(f"wing_controls {self.wing_controls}: channels 1..16 -> control indices 0..15")
+        #: the control indices that drive an output (checked in every actuator message)
+        self._used_controls = (tuple(range(4)) if plant.vehicle == "quadrotor"
+                               else tuple((self.wing_controls or WING_CONTROLS).values()))
         self.server = listener if listener is not None else tcp_listener(host, port)
         self.address = self.server.getsockname()
         self.mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=51)
@@ -188,9 +205,9 @@ class Px4Server:
         frame = self.sensors.sample(t_s, self.plant.state)
         self.last_frame = frame
         try:
-            out = [self.msgs.sensor(t_us, frame), self.msgs.state(t_us, self.plant.state)]
+            data = self.msgs.sensor(t_us, frame) + self.msgs.state(t_us, self.plant.state)
             if frame.gps is not None:
-                out.append(self.msgs.gps(t_us, frame.gps))
+                data += self.msgs.gps(t_us, frame.gps)
         except (struct.error, OverflowError) as err:  # outputs no MAVLink field holds: like an FMU error
             reason = f"t = {t_s:.6g} s: FMU outputs do not fit the HIL messages ({err})"
             if retry:
@@ -200,11 +217,11 @@ class Px4Server:
                 log.error("%s; not sent", reason)
             return
         if t_s - self._last_heartbeat >= 1.0:
-            out.append(self.msgs.heartbeat())
+            data += self.msgs.heartbeat()
             if self.rc_channels:
-                out.append(self.msgs.rc(round(t_s * 1e3), self.rc_channels))
+                data += self.msgs.rc(round(t_s * 1e3), self.rc_channels)
             self._last_heartbeat = t_s
-        conn.sendall(b"".join(out))
+        conn.sendall(data)
         if self._accepted is not None:  # the first state on a new connection: how long the (re)connect took
             self.stats.reconnect_s.append(time.perf_counter() - self._accepted)
             self._accepted = None
@@ -235,10 +252,10 @@ class Px4Server:
     def _actuators(self, controls: Sequence[float], mode: int) -> bool:
         """Take an actuator message; a malformed one (a used control non-finite or beyond +-1) is counted and
         dropped without touching the state. True when taken."""
-        used = range(4) if self.plant.vehicle == "quadrotor" else (self.wing_controls or WING_CONTROLS).values()
-        if not all(-CONTROL_LIMIT <= controls[i] <= CONTROL_LIMIT for i in used):  # also catches NaN
-            self.stats.malformed += 1
-            return False
+        for i in self._used_controls:
+            if not -CONTROL_LIMIT <= controls[i] <= CONTROL_LIMIT:  # also catches NaN
+                self.stats.malformed += 1
+                return False
         self.armed = bool(mode & ARMED_FLAG)
         self.pwm = controls_to_pwm(controls, self.plant.vehicle, self.armed, self.wing_controls)
         return True
@@ -258,17 +275,57 @@ class Px4Server:
         for sink in self.sinks:
             sink(self.plant.t_s, self.plant.state)
 
+    def _free_run(self, conn: socket.socket, pacer: Pacer) -> bool | None:
+        """Before the first actuator message of a connection: take whatever arrived, without waiting for more,
+        then keep the real-time pace (Gazebo's mavlink interface steps on at its real-time rate until PX4's
+        first actuator message, then locks step). True when an actuator message arrived, None when the
+        connection ended."""
+        pacer.wait()
+        conn.setblocking(False)
+        try:
+            return self._drain(conn)
+        finally:
+            conn.settimeout(self.watchdog.timeout_s)
+
+    def _drain(self, conn: socket.socket) -> bool | None:
+        """Take every byte waiting on the non-blocking ``conn``: True when an actuator message was among them,
+        None when the connection ended."""
+        got = False
+        try:
+            while True:
+                data = conn.recv(65536)
+                if not data:
+                    return None
+                got = self._absorb(data) or got
+        except BlockingIOError:
+            return got
+
     def _run_lockstep(self, conn: socket.socket, stop: threading.Event | None, max_steps: int | None) -> bool:
-        """Returns False when the connection ended."""
+        """Returns False when the connection ended. Until the autopilot's first actuator message the steps run
+        at the wall-clock pace without waiting for it (PX4 boots in seconds instead of a watchdog timeout per
+        step), then in lockstep."""
         conn.settimeout(self.watchdog.timeout_s)
         spinner = SocketSpinner(conn, self.busy_poll_s)
         got_input: float | None = None
+        pacer: Pacer | None = Pacer(self.dt_s, Stats())  # its overruns are not the lockstep loop's
         while not (stop is not None and stop.is_set()) and (max_steps is None or self.stats.steps < max_steps):
             t0 = time.perf_counter()
             self._send_step(conn)
             if got_input is not None:
                 self.stats.busy.append(time.perf_counter() - got_input)
             self._after_send()
+            if pacer is not None:
+                started = self._free_run(conn, pacer)
+                if started is None:
+                    return False
+                if not started:
+                    self.stats.free_steps += 1
+                    self._step()
+                    continue
+                pacer = None
+                self.watchdog.fed()
+                self._step()
+                continue
             while True:
                 spinner.wait()
                 try:
@@ -293,15 +350,11 @@ class Px4Server:
         pacer = Pacer(self.dt_s, self.stats)
         while not (stop is not None and stop.is_set()) and (max_steps is None or self.stats.steps < max_steps):
             t0 = time.perf_counter()
-            try:
-                while True:
-                    data = conn.recv(65536)
-                    if not data:
-                        return False
-                    if self._absorb(data):
-                        self.watchdog.fed()
-            except BlockingIOError:
-                pass
+            got = self._drain(conn)
+            if got is None:
+                return False
+            if got:
+                self.watchdog.fed()
             self.watchdog.check(self.plant, self.stats)
             self._step()
             try:

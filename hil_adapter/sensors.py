@@ -4,10 +4,13 @@ Pure Python/numpy, no I/O. Every random number comes from ``numpy.random.Generat
 one seed (one independent stream per sensor, so changing e.g. the GPS settings does not change the IMU
 noise); ``SensorSuite.reset()`` restarts them and a rerun repeats exactly.
 
-Each sensor reads ``truth + bias + drift + noise``: ``bias`` is constant, ``drift`` a random walk whose
-increment over ``dt`` seconds has the std ``drift_std * sqrt(dt)`` (so it grows like ``sqrt(t)``), and
-``noise`` is white with the std ``noise_std`` per sample (a per-sample std, not a density: it does not
-change with the sample rate). A configuration with every std and bias 0 reproduces the FMU outputs exactly.
+Each sensor reads ``truth + bias + drift + noise``: ``bias`` is constant; ``drift`` a random walk whose
+increment over ``dt`` seconds has the std ``drift_std * sqrt(dt)``, for the IMU and magnetometer a first-order
+Gauss-Markov process (``drift_tau_s``) started at a turn-on bias, as in PX4's Gazebo IMU plugin; ``noise`` is
+white, a per-sample std ``noise_std`` and, for the IMU and magnetometer, a density ``noise_density`` (per sample
+``density / sqrt(dt)``). Profiles (``PROFILES``, ``[sensors] profile``): ``px4_gazebo`` (the default: PX4's
+Gazebo plugins, each default citing its source in its field description), ``ublox_m8`` (data sheets: u-blox
+NEO-M8, TDK ICM-20602, MS5611) and ``ideal`` (no errors; reproduces the FMU outputs exactly).
 
 Frames and conventions follow the FMUs: body FRD, NED world, ``quat_w/x/y/z`` rotates body vectors into NED,
 the accelerometer reads specific force (``-9.80665`` on z at rest, level). Configurations are pydantic schemas
@@ -18,9 +21,9 @@ problem with field, value and allowed range.
 from __future__ import annotations
 
 import math
+import operator
 from collections import deque
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Annotated, Any, NamedTuple
 
 import numpy as np
@@ -42,7 +45,10 @@ REQUIRED_OUTPUTS = (
     "vel_north_m_s", "vel_east_m_s", "vel_down_m_s",
 )
 AIRSPEED_OUTPUT = "airspeed_m_s"
+_REQUIRED = operator.itemgetter(*REQUIRED_OUTPUTS)
+_tuple_new = tuple.__new__
 _TIME_EPS_S = 1e-9  #: float slack when comparing sample times with the GPS schedule
+_HISTORY_MAX = 4096  #: GPS history length at which it is trimmed even when no fix is due
 
 
 class SensorConfigError(ConfigError):
@@ -99,30 +105,101 @@ class _Section(Schema):
         return type(self).model_validate({**self.model_dump(), **changes})
 
 
-class AccelConfig(_Section):
-    """Accelerometer [m/s^2]; drift_std in m/s^2 per sqrt(s)."""
+# Where the defaults come from (the source of each is also in the field's description):
+#: PX4's Gazebo models (PX4-SITL_gazebo-classic, models/iris/iris.sdf, gazebo_imu_plugin; the rotors IMU model:
+#: white noise of a density, bias a first-order Gauss-Markov process of a random walk and correlation time,
+#: started at a turn-on bias)
+GAZEBO_IMU = "PX4-SITL_gazebo-classic iris.sdf <gazebo_imu_plugin>"
+#: gazebo_magnetometer_plugin.h kDefaultNoiseDensity / kDefaultRandomWalk / kDefaultBiasCorrelationTime
+GAZEBO_MAG = "PX4-SITL_gazebo-classic gazebo_magnetometer_plugin.h"
+#: gazebo_barometer_plugin.cpp: 1 Pa RMS white noise, baroDriftPaPerSec 0 by default
+GAZEBO_BARO = "PX4-SITL_gazebo-classic gazebo_barometer_plugin.cpp"
+#: gazebo_airspeed_plugin.cpp: diff_pressure_stddev_ 0.01 hPa
+GAZEBO_AIRSPEED = "PX4-SITL_gazebo-classic gazebo_airspeed_plugin.cpp"
+GAZEBO_GPS = "PX4-SITL_gazebo-classic gazebo_gps_plugin.{h,cpp}"
+#: the Gazebo physics step the GPS plugin's per-step update runs at (PX4's worlds: max_step_size 0.004 s)
+GAZEBO_STEP_S = 0.004
 
-    noise_std: float = _num(0.0, 10.0, 0.02)
+
+def gazebo_gps_error(random_walk: float, step_s: float = GAZEBO_STEP_S, correlation: float = 60.0) -> tuple[float,
+                                                                                                           float]:
+    """(stationary std [m], time constant [s]) of the GPS position error PX4's Gazebo plugin really simulates.
+
+    Its update per physics step is ``b += random_walk * sqrt(dt) * n * dt - b / correlation`` (the constant named
+    a correlation time, 60, divides per *step*, not per second): a discrete Gauss-Markov process with the pole
+    ``1 - 1/60`` per step, i.e. a time constant of 60 steps (0.24 s at 4 ms), and a drive of
+    ``random_walk * dt**1.5`` per step: millimetres, not metres."""
+    phi = 1.0 - 1.0 / correlation
+    drive = random_walk * step_s ** 1.5
+    return drive / math.sqrt(1.0 - phi * phi), step_s / (1.0 - phi)
+
+
+_GPS_H_STD_M, GAZEBO_GPS_TAU_S = gazebo_gps_error(2.0)  #: kDefaultGpsXYRandomWalk 2 (m/s)/sqrt(Hz)
+_GPS_V_STD_M, _ = gazebo_gps_error(4.0)  #: kDefaultGpsZRandomWalk 4 (m/s)/sqrt(Hz)
+
+
+def _src(lo: float, hi: float, default: float, source: str) -> Any:
+    """A bounded number whose default cites ``source`` (kept in the schema: ``Model.model_fields[f].description``)."""
+    return Field(default, ge=lo, le=hi, allow_inf_nan=False, description=f"default from {source}")
+
+
+class _Inertial(_Section):
+    """Shared model of the IMU axes and the magnetometer: ``truth + bias + b(t) + white``, the white noise from
+    a per-sample std ``noise_std`` and a density ``noise_density`` [unit/sqrt(Hz)] (per sample
+    ``density / sqrt(dt)``, as an integrating sampler), ``b(t)`` a first-order Gauss-Markov process with the
+    random walk ``drift_std`` [unit/sqrt(s)] and correlation time ``drift_tau_s`` [s] (0: a pure random walk),
+    started at a turn-on bias of std ``turn_on_bias_std`` per axis."""
+
+    def drift_step(self, dt: float) -> tuple[float, float]:
+        """(pole, drive std) of the drift over ``dt`` seconds (exact discretisation, Maybeck 4-114; a negative
+        interval counts as none)."""
+        dt = max(dt, 0.0)
+        if self.drift_tau_s <= 0.0:
+            return 1.0, self.drift_std * math.sqrt(dt)
+        phi = math.exp(-dt / self.drift_tau_s)
+        return phi, self.drift_std * math.sqrt(self.drift_tau_s / 2.0 * (1.0 - phi * phi))
+
+    def white_std(self, dt: float) -> float:
+        """Per-sample white noise std at the sample interval ``dt`` [s] (the density term needs dt > 0)."""
+        density = self.noise_density * self.noise_density / dt if dt > 0.0 else 0.0
+        return math.sqrt(self.noise_std * self.noise_std + density)
+
+
+class AccelConfig(_Inertial):
+    """Accelerometer [m/s^2]."""
+
+    noise_std: float = _src(0.0, 10.0, 0.0, "none: white noise set by its density")
+    noise_density: float = _src(0.0, 1.0, 0.00186, f"{GAZEBO_IMU} accelerometerNoiseDensity [m/s^2/sqrt(Hz)]")
     bias: _vec3(-10.0, 10.0) = (0.0, 0.0, 0.0)  # type: ignore[valid-type]
-    drift_std: float = _num(0.0, 1.0, 0.0006)
+    drift_std: float = _src(0.0, 1.0, 0.006, f"{GAZEBO_IMU} accelerometerRandomWalk [m/s^3/sqrt(Hz)]")
+    drift_tau_s: float = _src(0.0, 1e5, 300.0, f"{GAZEBO_IMU} accelerometerBiasCorrelationTime [s]")
+    turn_on_bias_std: float = _src(0.0, 5.0, 0.196, f"{GAZEBO_IMU} accelerometerTurnOnBiasSigma [m/s^2]")
 
 
-class GyroConfig(_Section):
-    """Gyroscope [rad/s]; drift_std in rad/s per sqrt(s)."""
+class GyroConfig(_Inertial):
+    """Gyroscope [rad/s]."""
 
-    noise_std: float = _num(0.0, 1.0, 0.003)
+    noise_std: float = _src(0.0, 1.0, 0.0, "none: white noise set by its density")
+    noise_density: float = _src(0.0, 0.1, 0.00018665, f"{GAZEBO_IMU} gyroscopeNoiseDensity [rad/s/sqrt(Hz)]")
     bias: _vec3(-1.0, 1.0) = (0.0, 0.0, 0.0)  # type: ignore[valid-type]
-    drift_std: float = _num(0.0, 0.1, 4e-5)
+    drift_std: float = _src(0.0, 0.1, 3.8785e-5, f"{GAZEBO_IMU} gyroscopeRandomWalk [rad/s^2/sqrt(Hz)]")
+    drift_tau_s: float = _src(0.0, 1e5, 1000.0, f"{GAZEBO_IMU} gyroscopeBiasCorrelationTime [s]")
+    turn_on_bias_std: float = _src(0.0, 0.5, 0.0087, f"{GAZEBO_IMU} gyroscopeTurnOnBiasSigma [rad/s]")
 
 
-class MagConfig(_Section):
+class MagConfig(_Inertial):
     """Magnetometer [gauss] and the Earth field it measures: total intensity [gauss] (the Earth's is 0.22..0.67),
     declination (east of true north, positive) and inclination (below the horizon, positive) [deg]; constant
     over the flight."""
 
-    noise_std: float = _num(0.0, 1.0, 0.005)
+    noise_std: float = _src(0.0, 1.0, 0.0, "none: white noise set by its density")
+    noise_density: float = _src(0.0, 0.1, 0.4e-3, f"{GAZEBO_MAG} kDefaultNoiseDensity [gauss/sqrt(Hz)]")
     bias: _vec3(-2.0, 2.0) = (0.0, 0.0, 0.0)  # type: ignore[valid-type]
-    drift_std: float = _num(0.0, 0.1, 0.0)
+    drift_std: float = _src(0.0, 0.1, 6.4e-6, f"{GAZEBO_MAG} kDefaultRandomWalk [gauss*sqrt(Hz)]")
+    drift_tau_s: float = _src(0.0, 1e5, 600.0, f"{GAZEBO_MAG} kDefaultBiasCorrelationTime [s]")
+    turn_on_bias_std: float = _src(0.0, 1.0, 0.0, f"{GAZEBO_MAG} (none)")
+    rate_hz: float = _src(1.0, 1000.0, 100.0, f"{GAZEBO_MAG} kDefaultPubRate (between samples: repeated, not "
+                                              "flagged as updated)")
     intensity_gauss: float = _num(0.1, 1.0, 0.5)
     declination_deg: float = _num(-180.0, 180.0, 0.0)
     inclination_deg: float = _num(-90.0, 90.0, 60.0)
@@ -136,51 +213,81 @@ class MagConfig(_Section):
 
 
 class BaroConfig(_Section):
-    """Barometer static pressure [Pa]; drift_std in Pa per sqrt(s). The temperature is the noise-free ISA one."""
+    """Barometer static pressure [Pa] at ``rate_hz`` (between its samples the last reading is repeated and not
+    flagged as updated); drift_std in Pa per sqrt(s). The temperature is the noise-free ISA one."""
 
-    noise_std: float = _num(0.0, 1000.0, 2.0)
+    rate_hz: float = _src(1.0, 1000.0, 50.0, f"{GAZEBO_BARO} kDefaultPubRate")
+    noise_std: float = _src(0.0, 1000.0, 1.0, f"{GAZEBO_BARO}: 1 Pa RMS")
     bias: float = _num(-5000.0, 5000.0, 0.0)
-    drift_std: float = _num(0.0, 100.0, 0.1)
+    drift_std: float = _src(0.0, 100.0, 0.0, f"{GAZEBO_BARO}: baroDriftPaPerSec 0")
 
 
 class DiffPressureConfig(_Section):
     """Pitot differential pressure [Pa]; drift_std in Pa per sqrt(s). Used only when the FMU has airspeed."""
 
-    noise_std: float = _num(0.0, 100.0, 0.5)
+    noise_std: float = _src(0.0, 100.0, 1.0, f"{GAZEBO_AIRSPEED}: DiffPressureStdev 0.01 hPa")
     bias: float = _num(-100.0, 100.0, 0.0)
-    drift_std: float = _num(0.0, 10.0, 0.0)
+    drift_std: float = _src(0.0, 10.0, 0.0, f"{GAZEBO_AIRSPEED}: white noise only, no drift")
 
 
 class GpsConfig(_Section):
     """GPS receiver: fix rate [Hz], latency [s] (a fix delivered at t describes the state at t - latency),
     the reported accuracies eph/epv [m], fix type (MAVLink GPS_FIX_TYPE: 3 = 3D), satellites.
 
-    Position error = a first-order Gauss-Markov process per axis (what receivers show: errors that wander
-    slowly, from atmosphere and multipath) plus white noise: ``e(t+dt) = exp(-dt/tau) e(t) + std *
-    sqrt(1 - exp(-2 dt/tau)) n``, stationary std ``pos_gm_std_h_m`` (north and east) / ``pos_gm_std_v_m``
-    (down) [m], time constant ``pos_gm_tau_s`` [s], started in its stationary distribution. The defaults
-    follow PX4's Gazebo GPS plugin: correlation time 60 s; its random walk of 2 (horizontal) and 4 (vertical)
-    (m/s)/sqrt(Hz) at 5 Hz settles to a std of about 1 m and 2 m; its white noise (2e-4 m/sqrt(Hz)) is
-    negligible. White position noise (``pos_noise_std_*``) trips PX4's preflight drift check, so it is 0 by
-    default. NED velocity: white noise std [m/s]."""
+    Position error = a first-order Gauss-Markov process per axis plus white noise: ``e(t+dt) = exp(-dt/tau) e(t)
+    + std * sqrt(1 - exp(-2 dt/tau)) n``, stationary std ``pos_gm_std_h_m`` (north and east) / ``pos_gm_std_v_m``
+    (down) [m], time constant ``pos_gm_tau_s`` [s], started in its stationary distribution. The defaults are
+    what PX4's Gazebo GPS plugin really simulates (``gazebo_gps_error``: millimetres, 0.24 s; its random walks of
+    2 and 4 (m/s)/sqrt(Hz) are applied per 4 ms physics step with a pole of 1 - 1/60 per step, not the 1 m / 2 m,
+    60 s its constants suggest). NED velocity: white noise std [m/s], horizontal and down."""
 
-    rate_hz: float = _num(0.1, 100.0, 5.0)
-    latency_s: float = _num(0.0, 1.0, 0.1)
-    eph_m: float = _num(0.0, 600.0, 1.0)
-    epv_m: float = _num(0.0, 600.0, 2.0)
+    rate_hz: float = _src(0.1, 100.0, 5.0, f"{GAZEBO_GPS} kDefaultUpdateRate")
+    latency_s: float = _src(0.0, 1.0, 0.12, f"{GAZEBO_GPS} gps_delay_ 120 ms")
+    eph_m: float = _src(0.0, 600.0, 1.0, f"{GAZEBO_GPS} std_xy 1.0")
+    epv_m: float = _src(0.0, 600.0, 1.0, f"{GAZEBO_GPS} std_z 1.0")
     fix_type: int = Field(3, ge=0, le=8)
     satellites: int = Field(10, ge=0, le=255)
-    pos_gm_std_h_m: float = _num(0.0, 100.0, 1.0)
-    pos_gm_std_v_m: float = _num(0.0, 100.0, 2.0)
-    pos_gm_tau_s: float = _num(0.1, 3600.0, 60.0)
-    pos_noise_std_h_m: float = _num(0.0, 100.0, 0.0)
-    pos_noise_std_v_m: float = _num(0.0, 100.0, 0.0)
-    vel_noise_std_m_s: float = _num(0.0, 10.0, 0.05)
+    pos_gm_std_h_m: float = _src(0.0, 100.0, _GPS_H_STD_M, f"{GAZEBO_GPS} (gazebo_gps_error, 2 (m/s)/sqrt(Hz))")
+    pos_gm_std_v_m: float = _src(0.0, 100.0, _GPS_V_STD_M, f"{GAZEBO_GPS} (gazebo_gps_error, 4 (m/s)/sqrt(Hz))")
+    pos_gm_tau_s: float = _src(0.01, 3600.0, GAZEBO_GPS_TAU_S, f"{GAZEBO_GPS} (60 steps of 4 ms)")
+    pos_noise_std_h_m: float = _src(0.0, 100.0, 2.0e-4 * math.sqrt(GAZEBO_STEP_S),
+                                    f"{GAZEBO_GPS} kDefaultGpsXYNoiseDensity * sqrt(dt)")
+    pos_noise_std_v_m: float = _src(0.0, 100.0, 4.0e-4 * math.sqrt(GAZEBO_STEP_S),
+                                    f"{GAZEBO_GPS} kDefaultGpsZNoiseDensity * sqrt(dt)")
+    vel_noise_std_m_s: float = _src(0.0, 10.0, 0.2 * math.sqrt(GAZEBO_STEP_S),
+                                    f"{GAZEBO_GPS} kDefaultGpsVXYNoiseDensity * sqrt(dt)")
+    vel_noise_std_down_m_s: float = _src(0.0, 10.0, 0.4 * math.sqrt(GAZEBO_STEP_S),
+                                         f"{GAZEBO_GPS} kDefaultGpsVZNoiseDensity * sqrt(dt)")
+
+
+#: u-blox NEO-M8 data sheet (UBX-15031086 R11): 2.5 m CEP horizontal (GPS+GLONASS), velocity 0.05 m/s, up to
+#: 10 Hz concurrent GNSS; CEP = 1.1774 sigma for a circular normal error. The data sheet gives no vertical figure
+#: and no correlation time: vertical = 1.5 x horizontal (a typical VDOP/HDOP) and 60 s are ASSUMPTIONS, said so.
+#: IMU: TDK ICM-20602 data sheet, gyro 0.004 dps/sqrt(Hz), accel 100 ug/sqrt(Hz) (bias processes as Gazebo's).
+#: Baro: TE MS5611-01BA03 data sheet, resolution 0.012 mbar RMS at OSR 4096 (1.2 Pa).
+_M8_SIGMA_H_M = 2.5 / 1.1774
+PROFILES: dict[str, dict[str, dict[str, float]]] = {
+    "px4_gazebo": {},
+    "ublox_m8": {
+        "gps": {"rate_hz": 10.0, "latency_s": 0.1, "eph_m": 2.5, "epv_m": 3.75, "pos_gm_std_h_m": _M8_SIGMA_H_M,
+                "pos_gm_std_v_m": 1.5 * _M8_SIGMA_H_M, "pos_gm_tau_s": 60.0, "pos_noise_std_h_m": 0.0,
+                "pos_noise_std_v_m": 0.0, "vel_noise_std_m_s": 0.05, "vel_noise_std_down_m_s": 0.05},
+        "gyro": {"noise_density": math.radians(0.004)},
+        "accel": {"noise_density": 100e-6 * 9.80665},
+        "baro": {"noise_std": 1.2},
+    },
+    "ideal": {name: {"noise_std": 0.0, "noise_density": 0.0, "drift_std": 0.0, "turn_on_bias_std": 0.0}
+              for name in ("accel", "gyro", "mag")}
+    | {"baro": {"noise_std": 0.0, "drift_std": 0.0}, "diff_pressure": {"noise_std": 0.0, "drift_std": 0.0},
+       "gps": {"pos_gm_std_h_m": 0.0, "pos_gm_std_v_m": 0.0, "pos_noise_std_h_m": 0.0, "pos_noise_std_v_m": 0.0,
+               "vel_noise_std_m_s": 0.0, "vel_noise_std_down_m_s": 0.0}},
+}
 
 
 class SensorConfig(Schema):
-    """All sensors; the defaults are plausible small-MEMS/u-blox values. TOML layout: one table per sensor,
-    ``[accel] [gyro] [mag] [baro] [diff_pressure] [gps]``, each optional, missing keys keep their defaults."""
+    """All sensors; defaults: PX4's Gazebo sensor plugins (each field's description names its source). TOML
+    layout: one table per sensor, ``[accel] [gyro] [mag] [baro] [diff_pressure] [gps]``, each optional, missing
+    keys keep the profile's value (``from_dict(data, profile=...)``, ``PROFILES``)."""
 
     accel: AccelConfig = AccelConfig()
     gyro: GyroConfig = GyroConfig()
@@ -190,9 +297,21 @@ class SensorConfig(Schema):
     gps: GpsConfig = GpsConfig()
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], source: str = "sensor config") -> SensorConfig:
-        """Check every field of every table; ``SensorConfigError`` lists all problems, prefixed by ``source``."""
-        return _validated(cls, data, source)
+    def from_dict(cls, data: Mapping[str, Any], source: str = "sensor config",
+                  profile: str = "px4_gazebo") -> SensorConfig:
+        """Check every field of every table over the ``profile``'s values; ``SensorConfigError`` lists all
+        problems, prefixed by ``source``."""
+        if profile not in PROFILES:
+            raise SensorConfigError(source, [f"profile = {profile!r}: allowed {', '.join(sorted(PROFILES))}"])
+        merged: dict[str, Any] = {k: dict(v) for k, v in PROFILES[profile].items()}
+        for key, table in data.items():
+            merged[key] = {**merged.get(key, {}), **table} if isinstance(table, Mapping) else table
+        return _validated(cls, merged, source)
+
+    @classmethod
+    def profile(cls, name: str) -> SensorConfig:
+        """The named profile (``PROFILES``: ``px4_gazebo`` the default, ``ublox_m8``, ``ideal``)."""
+        return cls.from_dict({}, f"profile {name}", profile=name)
 
     def replace(self, **sections: Any) -> SensorConfig:
         """A copy with whole sections replaced."""
@@ -201,19 +320,14 @@ class SensorConfig(Schema):
     @classmethod
     def noise_free(cls) -> SensorConfig:
         """Every noise, bias and drift 0 (GPS rate, latency and the Earth field keep their defaults)."""
-        zero = {"noise_std": 0.0, "bias": 0.0, "drift_std": 0.0}
-        d = cls()
-        return cls(accel=d.accel.replace(**zero), gyro=d.gyro.replace(**zero), mag=d.mag.replace(**zero),
-                   baro=d.baro.replace(**zero), diff_pressure=d.diff_pressure.replace(**zero),
-                   gps=d.gps.replace(pos_noise_std_h_m=0.0, pos_noise_std_v_m=0.0, vel_noise_std_m_s=0.0,
-                                     pos_gm_std_h_m=0.0, pos_gm_std_v_m=0.0))
+        return cls.profile("ideal")
 
 
 # ------------------------------------------------------------------------------------------ frames
-@dataclass(frozen=True)
-class GpsFix:
+class GpsFix(NamedTuple):
     """One GPS solution. ``time_s`` is the time the fix describes (delivery time minus the latency, no
-    earlier than the first sample); ``alt_msl_m`` is the FMU's ellipsoidal height (see ``SensorSuite``)."""
+    earlier than the first sample); ``alt_msl_m`` is the FMU's ellipsoidal height (see ``SensorSuite``).
+    (A named tuple: immutable like a frozen dataclass, and cheaper to build.)"""
 
     time_s: float
     lat_deg: float
@@ -228,6 +342,14 @@ class GpsFix:
     satellites: int
 
 
+#: bits of ``SensorFrame.updated`` (MAVLink HIL_SENSOR.fields_updated: accel xyz 0-2, gyro xyz 3-5, mag xyz 6-8,
+#: abs pressure 9, diff pressure 10, pressure altitude 11, temperature 12)
+UPDATED_IMU = 0x3F
+UPDATED_MAG = 0x1C0
+UPDATED_BARO = (1 << 9) | (1 << 11) | (1 << 12)
+UPDATED_DIFF_PRESSURE = 1 << 10
+
+
 class SensorFrame(NamedTuple):
     """All sensor readings of one sample; ``gps`` is None unless a new fix is due at this sample (a named
     tuple: built once per lockstep step, it costs a third of a frozen dataclass)."""
@@ -240,6 +362,9 @@ class SensorFrame(NamedTuple):
     diff_pressure_pa: float
     pressure_alt_m: float
     gps: GpsFix | None
+    #: which readings are new at this sample, in the bit layout of MAVLink HIL_SENSOR.fields_updated
+    #: (``UPDATED_*``): the IMU always, the magnetometer and barometer at their own rates
+    updated: int = 0
 
 
 class _GpsState(NamedTuple):
@@ -254,15 +379,29 @@ class _GpsState(NamedTuple):
 def _ned_to_body(q: tuple[float, float, float, float], v: list[float]) -> tuple[float, float, float]:
     """``R_b2nᵀ v`` for the (normalised) quaternion ``q`` in plain floats: the per-sample path of ``sample``."""
     w, x, y, z = q
-    norm = math.sqrt(w * w + x * x + y * y + z * z)
-    if not norm > 0.0:
-        raise ValueError(f"attitude quaternion {q} has no direction")
-    w, x, y, z = w / norm, x / norm, y / norm, z / norm
+    norm2 = w * w + x * x + y * y + z * z
+    if not -1e-12 < norm2 - 1.0 < 1e-12:  # the FMU's quaternion is unit to rounding: normalise only otherwise
+        if not norm2 > 0.0:
+            raise ValueError(f"attitude quaternion {q} has no direction")
+        norm = math.sqrt(norm2)
+        w, x, y, z = w / norm, x / norm, y / norm, z / norm
     r00, r01, r02 = w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)
     r10, r11, r12 = 2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)
     r20, r21, r22 = 2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z
     return (r00 * v[0] + r10 * v[1] + r20 * v[2], r01 * v[0] + r11 * v[1] + r21 * v[2],
             r02 * v[0] + r12 * v[1] + r22 * v[2])
+
+
+def _walk_and_noise(truth: tuple[float, float, float], bias: list[float], drift: list[float],
+                    coef: tuple[float, float, float], z: list[float], i: int = 0) -> tuple[float, float, float]:
+    """One 3-axis reading from the six draws ``z[i:i + 6]``: ``drift`` (updated in place) ``= pole * drift +
+    drive * z[i+3:i+6]``, reading ``= truth + bias + drift + white * z[i:i+3]``, ``coef = (pole, drive, white)``."""
+    phi, walk, sigma = coef
+    d0 = drift[0] = phi * drift[0] + walk * z[i + 3]
+    d1 = drift[1] = phi * drift[1] + walk * z[i + 4]
+    d2 = drift[2] = phi * drift[2] + walk * z[i + 5]
+    return (truth[0] + bias[0] + d0 + sigma * z[i], truth[1] + bias[1] + d1 + sigma * z[i + 1],
+            truth[2] + bias[2] + d2 + sigma * z[i + 2])
 
 
 def pressure_altitude_m(pressure_pa: float) -> float:
@@ -276,7 +415,10 @@ def _wrap_deg(angle_deg: float) -> float:
 
 
 # ------------------------------------------------------------------------------------------ the suite
-_BLOCK = 6 * 256  #: normal draws fetched per numpy call and stream
+_BLOCK = 6 * 256  #: normal draws fetched per numpy call for the GPS and turn-on streams
+_ROWS = 256  #: readings per block drawn ahead, per stream
+#: the streams read by rows and their draws per reading (white noise and drift per axis)
+_ROW_SIZE = {"accel": 6, "gyro": 6, "mag": 6, "baro": 2, "diff_pressure": 2}
 
 
 class SensorSuite:
@@ -293,7 +435,7 @@ class SensorSuite:
     (``airspeed_m_s`` taken as true airspeed); exactly 0 when the FMU has no airspeed (no pitot).
     """
 
-    _STREAMS = ("accel", "gyro", "mag", "baro", "diff_pressure", "gps")
+    _STREAMS = ("accel", "gyro", "mag", "baro", "diff_pressure", "gps", "turn_on")
 
     def __init__(self, config: SensorConfig | None = None, seed: int = 0) -> None:
         if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
@@ -314,6 +456,25 @@ class SensorSuite:
                                        "baro": 0.0, "diff_pressure": 0.0}
         self._bias3 = {name: [float(v) for v in np.broadcast_to(getattr(self.config, name).bias, 3)]
                        for name in ("accel", "gyro", "mag")}
+        for name in ("accel", "gyro", "mag"):  # the Gauss-Markov biases start at their turn-on value
+            on = getattr(self.config, name).turn_on_bias_std
+            self._drift[name] = [on * z for z in self._normals("turn_on", 3)]
+        #: (biases, drifts) of accel, gyro, mag: the same lists as in _bias3 and _drift, looked up once
+        self._imu_state = (tuple(self._bias3[n] for n in ("accel", "gyro", "mag")),
+                           tuple(self._drift[n] for n in ("accel", "gyro", "mag")))
+        #: the sample interval the coefficients were computed for; per inertial sensor (pole, drive, white std)
+        #: and the baro / pitot random-walk steps
+        self._coef_dt = -1.0
+        self._mag_coef: tuple[float, tuple[float, float, float]] | None = None
+        #: the last magnetometer and barometer readings, repeated between their samples
+        self._mag_last: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        self._baro_last: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        self._coef: tuple[Any, ...] = ()
+        self._row = _ROWS  # the IMU's draws (accel and gyro rows of one block index): refilled on first use
+        self._blocks: tuple[list[float], ...] = ()  # flat: sample k's six draws at 6k
+        #: the other row streams, drawn only when read (the magnetometer and barometer below the sample rate,
+        #: the pitot only with an airspeed): per stream [rows, next row]
+        self._rows: dict[str, list[Any]] = {name: [[], 0] for name in ("mag", "baro", "diff_pressure")}
         gps = self.config.gps
         z = self._normals("gps", 3)  # the Gauss-Markov errors start in their stationary distribution
         self._gps_err = [gps.pos_gm_std_h_m * z[0], gps.pos_gm_std_h_m * z[1], gps.pos_gm_std_v_m * z[2]]
@@ -322,9 +483,13 @@ class SensorSuite:
 
     def _restart_clock(self) -> None:
         self._t_prev: float | None = None
-        self._history: deque[_GpsState] = deque()
-        self._gps_t0: float | None = None
-        self._gps_k = 0
+        #: (t_s, lat, lon, height, velocity) per sample since the GPS latency ago: plain tuples (made every
+        #: sample), read as ``_GpsState`` when a fix is due
+        self._history: deque[tuple[Any, ...]] = deque()
+        #: per sensor read below the sample rate: [grid start, next slot index, time of its last reading] and
+        #: the time its next reading is due
+        self._schedule: dict[str, list[Any]] = {name: [None, 0, 0.0] for name in ("mag", "baro", "gps")}
+        self._next = dict.fromkeys(("mag", "baro", "gps"), -math.inf)
 
     # ------------------------------------------------------------------ per sensor
     def _normals(self, name: str, n: int) -> list[float]:
@@ -338,37 +503,84 @@ class SensorSuite:
         state[1] = pos + n
         return buf[pos:pos + n]
 
-    def _vector(self, name: str, truth: tuple[float, float, float], sqrt_dt: float) -> tuple[float, float, float]:
-        cfg = getattr(self.config, name)
-        z = self._normals(name, 6)  # always 6 draws: the stream does not depend on the settings
-        walk = cfg.drift_std * sqrt_dt
-        d = self._drift[name]
-        d[0] += walk * z[3]
-        d[1] += walk * z[4]
-        d[2] += walk * z[5]
-        b = self._bias3[name]
-        sigma = cfg.noise_std
-        return (truth[0] + b[0] + d[0] + sigma * z[0], truth[1] + b[1] + d[1] + sigma * z[1],
-                truth[2] + b[2] + d[2] + sigma * z[2])
+    def _coefficients(self, dt: float) -> tuple[Any, ...]:
+        """Per-interval constants of the every-sample sensors, recomputed only when the sample interval changes
+        (in lockstep it is constant up to float rounding; exp and sqrt per sample would cost microseconds):
+        accel and gyro (drift pole, drift drive std, white std), the pitot random-walk step."""
+        if abs(dt - self._coef_dt) <= 1e-9 * dt:
+            return self._coef
+        cfg = self.config
+        white_dt = dt if dt > 0.0 else GAZEBO_STEP_S  # the first sample: white noise at Gazebo's 4 ms step
+        inertial = tuple((*c.drift_step(dt), c.white_std(white_dt)) for c in (cfg.accel, cfg.gyro))
+        self._coef = (*inertial, cfg.diff_pressure.drift_std * math.sqrt(dt))
+        self._coef_dt = dt
+        return self._coef
 
-    def _scalar(self, name: str, truth: float, sqrt_dt: float) -> float:
-        cfg = getattr(self.config, name)
-        z = self._normals(name, 2)
-        self._drift[name] += cfg.drift_std * sqrt_dt * z[1]
-        return truth + (cfg.bias + self._drift[name] + cfg.noise_std * z[0])
+    def _read(self, name: str, t_s: float, rate_hz: float) -> float:
+        """A reading of ``name`` is taken at ``t_s`` (the caller checked it is due: ``_next[name]``): the
+        interval [s] since its last one (0 for the first); the next is due at the following slot of its fixed
+        grid ``t0 + k / rate`` (missed slots are skipped, one reading per sample at most)."""
+        sched = self._schedule[name]
+        if sched[0] is None:
+            sched[:] = [t_s, 0, t_s]
+        sched[1] = math.floor((t_s - sched[0] + _TIME_EPS_S) * rate_hz) + 1
+        self._next[name] = sched[0] + sched[1] / rate_hz
+        interval, sched[2] = t_s - sched[2], t_s
+        return interval
 
-    def _gps(self, t_s: float, now: _GpsState) -> GpsFix | None:
-        cfg = self.config.gps
-        self._history.append(now)
-        target = t_s - cfg.latency_s
-        while len(self._history) >= 2 and self._history[1].t_s <= target:
-            self._history.popleft()  # keep the one sample at or before the target, and everything after
-        if self._gps_t0 is None:
-            self._gps_t0 = t_s
-        if t_s + _TIME_EPS_S < self._gps_t0 + self._gps_k / cfg.rate_hz:
+    def _mag(self, t_s: float, q: tuple[float, float, float, float]) -> tuple[float, float, float]:
+        """The magnetometer reading due at ``t_s`` (constants cached per interval between readings)."""
+        cfg = self.config.mag
+        dt = self._read("mag", t_s, cfg.rate_hz)
+        cached = self._mag_coef
+        if cached is None or abs(dt - cached[0]) > 1e-9 * dt:
+            cached = self._mag_coef = (dt, (*cfg.drift_step(dt), cfg.white_std(dt if dt > 0.0 else 1.0 / cfg.rate_hz)))
+        return _walk_and_noise(_ned_to_body(q, self._mag_ned_list), self._imu_state[0][2], self._imu_state[1][2],
+                               cached[1], self._take("mag"))
+
+    def _draws(self) -> None:
+        """Draw the IMU's next ``_ROWS`` samples of standard normals ahead (accel and gyro: 6 per sample, white
+        noise and drift per axis), one numpy call per stream and block, kept flat (a list per row costs more)."""
+        self._blocks = tuple(self._rng[name].standard_normal(_ROWS * 6).tolist() for name in ("accel", "gyro"))
+
+    def _block(self, name: str) -> list[list[float]]:
+        n = _ROW_SIZE[name]
+        return self._rng[name].standard_normal(_ROWS * n).reshape(_ROWS, n).tolist()
+
+    def _take(self, name: str) -> list[float]:
+        """The next row of draws of a stream read below the sample rate."""
+        state = self._rows[name]
+        rows, k = state
+        if k >= len(rows):
+            rows, k = self._block(name), 0
+            state[0] = rows
+        state[1] = k + 1
+        return rows[k]
+
+    def _baro(self, dt: float, height_m: float, z: list[float]) -> tuple[float, float, float]:
+        """(pressure [Pa], temperature [degC], pressure altitude [m]) after ``dt`` seconds since the last."""
+        cfg = self.config.baro
+        temp_k, p_pa, _ = isa(height_m)  # plain floats for a float altitude
+        pressure = self._scalar("baro", cfg, p_pa, cfg.drift_std * math.sqrt(dt), z)
+        return pressure, temp_k - KELVIN_OFFSET, pressure_altitude_m(pressure)
+
+    def _scalar(self, name: str, cfg: Any, truth: float, walk: float, z: list[float]) -> float:
+        drift = self._drift[name] + walk * z[1]
+        self._drift[name] = drift
+        return truth + (cfg.bias + drift + cfg.noise_std * z[0])
+
+    def _gps(self, t_s: float, now: tuple[Any, ...]) -> GpsFix | None:
+        hist = self._history
+        hist.append(now)
+        if t_s + _TIME_EPS_S < self._next["gps"] and len(hist) < _HISTORY_MAX:
             return None
-        # next fix on the fixed grid t0 + k / rate (one fix per sample at most, missed slots are skipped)
-        self._gps_k = math.floor((t_s - self._gps_t0 + _TIME_EPS_S) * cfg.rate_hz) + 1
+        cfg = self.config.gps
+        target = t_s - cfg.latency_s
+        while len(hist) >= 2 and hist[1][0] <= target:
+            hist.popleft()  # keep the one sample at or before the target, and everything after
+        if t_s + _TIME_EPS_S < self._next["gps"]:
+            return None  # only trimmed: a slow GPS at a fast sample rate
+        self._read("gps", t_s, cfg.rate_hz)  # the next fix on its grid
         s = self._state_at(target)
         z = self._normals("gps", 9)
         err_n, err_e, err_d = self._gauss_markov(s.t_s, z[6:9])
@@ -380,7 +592,9 @@ class SensorSuite:
         if east == 0.0:
             lon = s.lon_deg  # exact (wrapping may change the last bit)
         alt = s.height_m - err_d + cfg.pos_noise_std_v_m * float(z[2])
-        vn, ve, vd = (v + cfg.vel_noise_std_m_s * float(n) for v, n in zip(s.vel_ned_m_s, z[3:6], strict=True))
+        vn = s.vel_ned_m_s[0] + cfg.vel_noise_std_m_s * z[3]
+        ve = s.vel_ned_m_s[1] + cfg.vel_noise_std_m_s * z[4]
+        vd = s.vel_ned_m_s[2] + cfg.vel_noise_std_down_m_s * z[5]
         speed = math.hypot(vn, ve)
         course = math.degrees(math.atan2(ve, vn)) % 360.0 if speed > 0.0 else 0.0
         if course >= 360.0:  # -tiny % 360 rounds to 360.0
@@ -403,10 +617,10 @@ class SensorSuite:
 
     def _state_at(self, target: float) -> _GpsState:
         """The state at ``target`` from the history, linearly interpolated; the oldest one before it."""
-        first = self._history[0]
+        first = _GpsState(*self._history[0])
         if target <= first.t_s or len(self._history) == 1:
             return first
-        second = self._history[1]
+        second = _GpsState(*self._history[1])
         if target >= second.t_s or second.t_s <= first.t_s:
             return second
         f = (target - first.t_s) / (second.t_s - first.t_s)
@@ -425,9 +639,8 @@ class SensorSuite:
         t_s = float(t_s)
         if not math.isfinite(t_s):
             raise ValueError(f"sample time must be finite, got {t_s}")
-        try:  # one pass, in the order of REQUIRED_OUTPUTS
-            ax, ay, az, p, q, r, qw, qx, qy, qz, lat, lon, height, vn, ve, vd = map(
-                float, map(outputs.__getitem__, REQUIRED_OUTPUTS))
+        try:  # one C call, in the order of REQUIRED_OUTPUTS (numbers as the FMU host gives them: floats)
+            ax, ay, az, p, q, r, qw, qx, qy, qz, lat, lon, height, vn, ve, vd = _REQUIRED(outputs)
         except KeyError:
             missing = [name for name in REQUIRED_OUTPUTS if name not in outputs]
             raise MissingOutputError(f"FMU output{'s' if len(missing) > 1 else ''} {', '.join(missing)} "
@@ -437,25 +650,43 @@ class SensorSuite:
         dt = 0.0 if self._t_prev is None else t_s - self._t_prev
         self._t_prev = t_s
 
-        mag_body = _ned_to_body((qw, qx, qy, qz), self._mag_ned_list)
-        temp_k, p_pa, rho = isa(height)  # plain floats for a float altitude
-        sqrt_dt = math.sqrt(dt)  # the random walks' step
-        abs_pressure = self._scalar("baro", p_pa, sqrt_dt)
+        coef = self._coefficients(dt)
+        row = self._row
+        if row >= _ROWS:
+            self._draws()  # refill
+            row = 0
+        self._row = row + 1
+        blocks = self._blocks
+        (ba, bg, _), (da, dg, _) = self._imu_state
+        accel = _walk_and_noise((ax, ay, az), ba, da, coef[0], blocks[0], 6 * row)
+        gyro = _walk_and_noise((p, q, r), bg, dg, coef[1], blocks[1], 6 * row)
+        updated = UPDATED_IMU
+        due = self._next
+        if t_s + _TIME_EPS_S >= due["mag"]:
+            self._mag_last = self._mag(t_s, (qw, qx, qy, qz))
+            updated |= UPDATED_MAG
+        if t_s + _TIME_EPS_S >= due["baro"]:
+            self._baro_last = self._baro(self._read("baro", t_s, self.config.baro.rate_hz), height,
+                                         self._take("baro"))
+            updated |= UPDATED_BARO
+        pressure, temp_c, pressure_alt = self._baro_last
         airspeed = outputs.get(AIRSPEED_OUTPUT)
         if airspeed is None:
-            self._normals("diff_pressure", 2)  # keep the stream in step either way
             diff_pressure = 0.0
         else:
-            diff_pressure = self._scalar("diff_pressure", 0.5 * rho * float(airspeed) ** 2, sqrt_dt)
-
-        gps = self._gps(t_s, _GpsState(t_s, lat, lon, height, (vn, ve, vd)))
-        return SensorFrame(self._vector("accel", (ax, ay, az), sqrt_dt), self._vector("gyro", (p, q, r), sqrt_dt),
-                           self._vector("mag", mag_body, sqrt_dt), abs_pressure, temp_k - KELVIN_OFFSET,
-                           diff_pressure, pressure_altitude_m(abs_pressure), gps)
+            rho = isa(height)[2]
+            diff_pressure = self._scalar("diff_pressure", self.config.diff_pressure,
+                                         0.5 * rho * float(airspeed) ** 2, coef[2], self._take("diff_pressure"))
+            updated |= UPDATED_DIFF_PRESSURE
+        gps = self._gps(t_s, (t_s, lat, lon, height, (vn, ve, vd)))
+        # tuple.__new__ as namedtuple's own _make does: the generated __new__ is a Python call per frame
+        return _tuple_new(SensorFrame, (accel, gyro, self._mag_last, pressure, temp_c, diff_pressure, pressure_alt,
+                                        gps, updated))
 
 
 __all__ = [
-    "REQUIRED_OUTPUTS", "AccelConfig", "BaroConfig", "DiffPressureConfig", "GpsConfig", "GpsFix", "GyroConfig",
-    "MagConfig", "MissingOutputError", "SensorConfig", "SensorConfigError", "SensorFrame", "SensorSuite",
-    "pressure_altitude_m",
+    "PROFILES", "REQUIRED_OUTPUTS", "UPDATED_BARO", "UPDATED_DIFF_PRESSURE", "UPDATED_IMU", "UPDATED_MAG",
+    "AccelConfig", "BaroConfig", "DiffPressureConfig", "GpsConfig", "GpsFix",
+    "GyroConfig", "MagConfig", "MissingOutputError", "SensorConfig", "SensorConfigError", "SensorFrame", "SensorSuite",
+    "gazebo_gps_error", "pressure_altitude_m",
 ]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 
@@ -44,3 +45,37 @@ def test_bad_params_file_gives_a_clear_error(tmp_path: Path, capsys: pytest.Capt
     f.write_text("{not json")
     assert main(["--params", str(f), "--out", str(tmp_path)]) == 2
     assert "not valid JSON" in capsys.readouterr().err
+
+
+def test_cli_builds_fmi3_model_exchange_for_one_platform_with_a_progress_line_per_compile(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import zipfile
+
+    from fmu_models.fmi import zigcc
+
+    host = zigcc.host_platform()
+    assert main(["--out", str(tmp_path), "--only", "quadrotor", "--fmi", "3", "--kind", "me",
+                 "--platforms", host.fmi_name]) == 0
+    out = capsys.readouterr().out
+    assert f"[1/1] compiled quadrotor for {host.fmi_name}" in out
+    md = read_model_description(str(tmp_path / "quadrotor.fmu"))
+    assert md.fmiVersion == "3.0" and md.modelExchange is not None and md.coSimulation is None
+    with zipfile.ZipFile(tmp_path / "quadrotor.fmu") as z:
+        binaries = [n for n in z.namelist() if n.startswith("binaries/")]
+    assert binaries == [f"binaries/{host.fmi3_name}/quadrotor{host.suffix}"]
+
+
+@pytest.mark.parametrize("args, why", [
+    (["--fmi", "4"], "invalid choice: 4"),
+    (["--kind", "xx"], "invalid choice: 'xx'"),
+    (["--platforms", "amiga"], "platforms = ['amiga']: each must be one of linux64, win64, darwin64"),
+    (["--jobs", "0"], "--jobs 0 is outside 1..64"),
+    (["--backend", "python", "--fmi", "3"], "the python backend builds FMI 2.0 Co-Simulation only"),
+])
+def test_bad_build_options_are_refused_with_a_clear_error(args: list[str], why: str, tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) if "invalid choice" in why else contextlib.nullcontext():  # argparse exits
+        assert main(["--out", str(tmp_path), "--only", "quadrotor", *args]) == 2
+    assert why in capsys.readouterr().err
+    assert not list(tmp_path.glob("*.fmu"))
+

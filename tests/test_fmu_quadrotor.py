@@ -102,12 +102,15 @@ def test_every_variable_has_unit_and_description(quadrotor_fmu: Path) -> None:
     assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
 
 
-def test_every_physical_parameter_is_tunable(quadrotor_fmu: Path) -> None:
+def test_every_physical_parameter_is_tunable_and_the_initial_state_fixed(quadrotor_fmu: Path) -> None:
     md = read_model_description(str(quadrotor_fmu))
     params = {v.name: v for v in md.modelVariables if v.causality == "parameter"}
     for name in ("mass_kg", "Jx_kg_m2", "arm_length_m", "k_thrust_N_s2", "anfis_mean_1_us", "anfis_cons_6_N",
-                 "init_pos_down_m", "home_lat_deg", "step_internal_s"):
+                 "step_internal_s"):
         assert params[name].variability == "tunable"
+    # read only when the initial state is computed: a change while stepping could not take effect
+    for name in ("init_pos_down_m", "init_yaw_rad", "home_lat_deg", "home_height_m"):
+        assert params[name].variability == "fixed"
 
 
 def test_hover_within_1_cm_for_10_s(quadrotor_fmu: Path) -> None:
@@ -238,13 +241,19 @@ def test_reset_restores_initial_state(quadrotor_fmu: Path) -> None:
     fmu.close()
 
 
-def test_tunable_mass_changes_dynamics(quadrotor_fmu: Path) -> None:
-    res = [simulate_fmu(str(quadrotor_fmu), stop_time=1.0, output_interval=0.1,
-                        start_values={"init_pos_down_m": -10.0, "mass_kg": m, "pwm_1_us": 1530.0,
-                                      "pwm_2_us": 1530.0, "pwm_3_us": 1530.0, "pwm_4_us": 1530.0},
-                        output=["accel_body_z_m_s2"]) for m in (1.0, 2.0)]
-    # same thrust, double mass: half the specific force
-    assert res[0]["accel_body_z_m_s2"][0] == pytest.approx(2 * res[1]["accel_body_z_m_s2"][0], rel=1e-9)
+def test_tunable_mass_changed_mid_run_halves_the_specific_force(quadrotor_fmu: Path) -> None:
+    with Instance(quadrotor_fmu, init_pos_down_m=-10.0) as fmu:
+        fmu.set(pwm_1_us=1530.0, pwm_2_us=1530.0, pwm_3_us=1530.0, pwm_4_us=1530.0)
+        fmu.step(0.01, 50)  # flying, thrust lags settled
+        before = fmu.get("accel_body_z_m_s2", "thrust_total_N")
+        mass = fmu.get("mass_kg")[0]
+        fmu.set(mass_kg=2.0 * mass)  # while stepping: the outputs are recomputed at once
+        after = fmu.get("accel_body_z_m_s2", "thrust_total_N")
+        # same thrust, double mass: half the specific force (accelerometer reading)
+        assert after[1] == pytest.approx(before[1], rel=1e-12)
+        assert after[0] == pytest.approx(0.5 * before[0], rel=1e-9)
+        fmu.step(0.01)
+        assert fmu.get("accel_body_z_m_s2")[0] == pytest.approx(0.5 * before[0], rel=1e-2)
 
 
 def test_out_of_band_warns_once_and_sets_flag(quadrotor_fmu: Path) -> None:

@@ -153,14 +153,40 @@ EXIT_ONLY = textwrap.dedent("""
 """)
 
 
+#: libraries of our FMUs: the guarding shim, pythonfmu's export library and the generated model code
+OUR_LIBRARIES = ("quadrotor.so", "quadrotor_pythonfmu.so", "quadrotor_model.so")
+
+
+def errors_in_our_code(xml_file: Path) -> list[str]:
+    """Valgrind memory errors (``--xml=yes``: invalid reads/writes/frees, uninitialised values, overlaps...) with
+    any stack frame, of the error or of its freed/allocated block, in one of ``OUR_LIBRARIES``; CPython's own
+    reports are not ours to fix, and leak records are not errors here (the process exits with an instance
+    deliberately left alive, so everything it holds is still allocated)."""
+    from xml.etree import ElementTree as ET
+
+    found = []
+    for err in ET.parse(xml_file).getroot().iter("error"):
+        if (err.findtext("kind") or "").startswith("Leak_"):
+            continue
+        objs = [Path(o.text or "").name for o in err.iter("obj")]
+        if any(o in OUR_LIBRARIES for o in objs):
+            fns = [f.text or "?" for f in err.iter("fn")]
+            found.append(f"{err.findtext('kind')}: {err.findtext('what') or err.findtext('xwhat/text')} "
+                         f"in {' <- '.join(fns[:6])}")
+    return found
+
+
 @pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind not installed (apt-get install valgrind)")
-def test_exit_with_a_live_pythonfmu_instance_touches_no_freed_memory(python_fmus: dict[str, Path]) -> None:
-    """The exit-time use-after-free in pythonfmu's library (the batch abort's root cause) stays neutralised."""
+def test_exit_with_a_live_pythonfmu_instance_has_no_memory_error_in_our_code(python_fmus: dict[str, Path],
+                                                                            tmp_path: Path) -> None:
+    """The exit-time use-after-free in pythonfmu's library (the batch abort's root cause) stays neutralised, and
+    no other memory error of any kind comes from the shim, pythonfmu's library or the model code."""
     env = {**os.environ, "PYTHONPATH": str(REPO), "PYTHONMALLOC": "malloc"}
-    proc = subprocess.run(["valgrind", "--error-exitcode=0", sys.executable, "-c", EXIT_ONLY,
+    xml = tmp_path / "valgrind.xml"
+    proc = subprocess.run(["valgrind", "--xml=yes", f"--xml-file={xml}", sys.executable, "-c", EXIT_ONLY,
                            str(python_fmus["quadrotor"])], capture_output=True, text=True, timeout=TIMEOUT_S,
                           cwd=REPO, env=env, check=False)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    blocks = proc.stderr.split("\n==")
-    freed = [b for b in blocks if "finalizePythonInterpreter" in b or "onLibraryUnload" in b]
-    assert not freed, "\n".join(freed)[:3000]
+    assert "<valgrindoutput>" in xml.read_text()  # valgrind did run and report
+    found = errors_in_our_code(xml)
+    assert not found, "\n".join(found)[:3000]

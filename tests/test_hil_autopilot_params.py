@@ -4,9 +4,11 @@ ArduPlane minimum airspeed the Aerosonde FMU can trim with its surface range).""
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from fmu_models.signals.pwm_mapping import PwmMapping, default_mapping
@@ -75,3 +77,152 @@ def test_landing_mission_takes_off_first_and_lands_last() -> None:
     assert [int(i[0]) for i in items] == list(range(len(items))) and all(len(i) == 12 for i in items)
     commands = [int(i[3]) for i in items]
     assert commands[1] == 22 and commands[-1] == 21  # MAV_CMD_NAV_TAKEOFF ... MAV_CMD_NAV_LAND
+
+
+# ------------------------------------------------------------------------------------------ generated from the model
+GENERATED = {"arduplane": ("ardupilot/plane-aerosonde.parm", "fixed_wing"),
+             "arducopter": ("ardupilot/copter-f450-x.parm", "quadrotor"),
+             "px4": ("px4/px4-rc.params", "quadrotor")}
+
+
+@pytest.fixture(scope="module")
+def generated(built_fmus: dict[str, Path]) -> dict[str, object]:
+    """Each autopilot's parameter set computed once from the default FMUs (the ArduPlane design takes seconds)."""
+    from hil_adapter.autopilot_params import autopilot_params
+
+    return {name: autopilot_params(built_fmus[model], name) for name, (_, model) in GENERATED.items()}
+
+
+@pytest.mark.parametrize("autopilot", sorted(GENERATED))
+def test_shipped_files_are_generated_from_the_default_fmus(autopilot: str, generated: dict[str, object]) -> None:
+    """autopilot/ holds exactly what `uavfmu autopilot-params` computes from the default FMUs (regenerate with
+    `uavfmu autopilot-params dist/<model>.fmu --autopilot <name> -o autopilot/<file>`)."""
+    path, _ = GENERATED[autopilot]
+    shipped = (AUTOPILOT / path).read_text()
+    assert shipped == generated[autopilot].text(), f"autopilot/{path} is out of date: regenerate it"
+
+
+def test_px4_limits_are_mutually_consistent(generated: dict[str, object]) -> None:
+    """PX4 v1.13 constrains each auto speed by its manual maximum (a CRITICAL at boot otherwise); takeoff and
+    landing speeds within them; the settings that let pxh `commander takeoff` fly without RC or ground station."""
+    v = generated["px4"].values
+    assert v["MPC_Z_V_AUTO_UP"] <= v["MPC_Z_VEL_MAX_UP"] and v["MPC_TKO_SPEED"] <= v["MPC_Z_VEL_MAX_UP"]
+    assert v["MPC_Z_V_AUTO_DN"] <= v["MPC_Z_VEL_MAX_DN"] and v["MPC_LAND_SPEED"] <= v["MPC_Z_VEL_MAX_DN"]
+    assert v["MPC_XY_CRUISE"] <= v["MPC_XY_VEL_MAX"] and v["MPC_VEL_MANUAL"] <= v["MPC_XY_VEL_MAX"]
+    assert (v["NAV_DLL_ACT"], v["NAV_RCL_ACT"], v["COM_RC_IN_MODE"]) == (0, 0, 4)
+    assert v["MPC_THR_MIN"] < v["MPC_THR_HOVER"] < 1.0
+
+
+def test_hover_throttles_hover_the_model(built_fmus: dict[str, Path], generated: dict[str, object]) -> None:
+    """The hover settings are the model's own: at PX4's hover control the model's thrust equals its weight,
+    and ArduCopter's hover thrust fraction times the thrust at spin max is the weight (1 %)."""
+    from hil_adapter.autopilot_copter import SPIN_MAX, thrust_curve
+    from hil_adapter.autopilot_params import _simulator, fmu_parameters
+
+    sim, p = _simulator("quadrotor", fmu_parameters(built_fmus["quadrotor"]))
+    weight = sim.model.params.view(p).mass_kg * 9.80665
+    px4 = generated["px4"].values
+    fac, hover = px4["THR_MDL_FAC"], px4["MPC_THR_HOVER"]
+    c = (-(1 - fac) + np.sqrt((1 - fac) ** 2 + 4 * fac * hover)) / (2 * fac) if fac > 0 else hover
+    assert thrust_curve(sim, p, np.array([1000.0 + 1000.0 * c]))[0] == pytest.approx(weight, rel=0.01)
+    # ArduCopter: thrust demand MOT_THST_HOVER through its curve (AP_MotorsMulticopter, battery scale 1) and
+    # spin range to PWM: the model's thrust there is its weight
+    v = generated["arducopter"].values
+    e, t = v["MOT_THST_EXPO"], v["MOT_THST_HOVER"]
+    a = ((e - 1) + np.sqrt((1 - e) ** 2 + 4 * e * t)) / (2 * e) if e != 0 else t
+    pwm = v["MOT_PWM_MIN"] + (v["MOT_SPIN_MIN"] + (v["MOT_SPIN_MAX"] - v["MOT_SPIN_MIN"]) * a) * (
+        v["MOT_PWM_MAX"] - v["MOT_PWM_MIN"])
+    assert v["MOT_SPIN_MAX"] == SPIN_MAX
+    assert thrust_curve(sim, p, np.array([pwm]))[0] == pytest.approx(weight, rel=0.01)
+
+
+def _rate_step(fmu: Path, params: dict[str, float], axis: str, step_deg_s: float, gain_scale: float = 1.0,
+               servo_tau_s: float = 0.05, dt: float = 0.0025, duration_s: float = 1.2) -> tuple[np.ndarray, np.ndarray]:
+    """ArduPlane's rate loop (AP_FW_Controller: out = FF s r + P s^2 e + I s^2 int e, out in degrees of a
+    45-degree throw, saturating at 45) closed around the FMU at its cruise trim, through a first-order servo
+    and the adapter's PWM mapping. A rate step of ``step_deg_s`` at t = 0.1 s; (time, measured rate [deg/s])."""
+    from fmu_models.fixed_wing.trim import trim
+    from fmu_models.fmi.host import FmuHost
+    from hil_adapter.autopilot_params import _simulator, fmu_parameters
+
+    prefix, rate_out, surface = {"roll": ("RLL", "rate_body_x_rad_s", "aileron_rad"),
+                                 "pitch": ("PTCH", "rate_body_y_rad_s", "elevator_rad")}[axis]
+    sim, p = _simulator("fixed_wing", fmu_parameters(fmu))
+    va = params["AIRSPEED_CRUISE"]
+    t0 = trim(sim.model, p, va)
+    mapping = default_mapping("fixed_wing")
+    channel = next(c for c in mapping.channels if c.target == surface)
+
+    def to_surface(out_deg: float) -> float:  # ArduPilot: +-45 -> SERVO min..max around trim; then our mapping
+        out_deg = min(max(out_deg, -FULL), FULL)
+        half = (channel.max_us - channel.trim_us) if out_deg >= 0 else (channel.trim_us - channel.min_us)
+        return channel.to_input(channel.trim_us + out_deg / FULL * half)
+
+    trims = {"aileron_rad": t0.aileron_rad, "elevator_rad": t0.elevator_rad, "rudder_rad": t0.rudder_rad,
+             "throttle": t0.throttle}
+    # the integrator holds the trim deflection, as in steady flight before the step
+    sign = 1.0 if to_surface(10.0) > to_surface(0.0) else -1.0
+    integ = sign * trims[surface] / channel.out_max * FULL
+    ff, kp, ki = (gain_scale * params[f"{prefix}_RATE_{k}"] for k in ("FF", "P", "I"))
+    imax_deg = 0.666 * DEG
+    host = FmuHost(fmu)
+    host.start({"init_vel_body_x_m_s": va * math.cos(t0.alpha_rad), "init_vel_body_z_m_s": va * math.sin(t0.alpha_rad),
+                "init_pitch_rad": t0.alpha_rad, "init_pos_down_m": -300.0})
+    deflection = trims[surface]
+    times, rates = [], []
+    try:
+        for k in range(round(duration_s / dt)):
+            t = k * dt
+            rate = host.get([rate_out])[rate_out] * DEG
+            demand = step_deg_s if t >= 0.1 else 0.0
+            err = demand - rate
+            integ = min(max(integ + ki * err * dt, -imax_deg), imax_deg)
+            command = to_surface(ff * demand + kp * err + integ)
+            deflection += (command - deflection) * (1.0 - math.exp(-dt / servo_tau_s))
+            host.step(t, dt, {**trims, surface: deflection})
+            times.append(t)
+            rates.append(rate)
+    finally:
+        host.close()
+    return np.array(times), np.array(rates)
+
+
+FULL = 45.0
+DEG = 180.0 / math.pi
+
+
+def _rise_and_overshoot(t: np.ndarray, r: np.ndarray, step: float) -> tuple[float, float]:
+    after = t >= 0.1
+    t, r = t[after], r[after]
+    t10 = t[np.argmax(r >= 0.1 * step)]
+    t90 = t[np.argmax(r >= 0.9 * step)] if np.any(r >= 0.9 * step) else math.inf
+    return t90 - t10, (r.max() - step) / step
+
+
+@pytest.mark.parametrize(("axis", "step_deg_s"), [("roll", 30.0), ("pitch", 10.0)])
+def test_generated_plane_rate_loops_rise_fast_without_overshoot(axis: str, step_deg_s: float,
+                                                                built_fmus: dict[str, Path],
+                                                                generated: dict[str, object]) -> None:
+    """The generated ArduPlane rate gains, closed in ArduPilot's rate-loop structure (FF + PI on the rate error,
+    50 ms servo) around the Aerosonde FMU at its cruise trim: 10-90 % rise under 0.3 s, overshoot under 15 %."""
+    params = generated["arduplane"].values
+    t, r = _rate_step(built_fmus["fixed_wing"], params, axis, step_deg_s)
+    rise, overshoot = _rise_and_overshoot(t, r, step_deg_s)
+    print(f"{axis} rate step {step_deg_s} deg/s: rise {rise:.3f} s, overshoot {100 * overshoot:.1f} %")
+    assert rise < 0.3 and overshoot < 0.15
+    # the bound is not loose: a third of the gains misses it
+    t, r = _rate_step(built_fmus["fixed_wing"], params, axis, step_deg_s, gain_scale=0.3)
+    assert _rise_and_overshoot(t, r, step_deg_s)[0] >= 0.3
+
+
+def test_wrong_vehicle_and_bad_options_are_clear_errors(built_fmus: dict[str, Path], tmp_path: Path) -> None:
+    from hil_adapter.autopilot_params import autopilot_params
+
+    with pytest.raises(ValueError, match="quadrotor model; arduplane flies a fixed_wing"):
+        autopilot_params(built_fmus["quadrotor"], "arduplane")
+    with pytest.raises(ValueError, match="allowed arduplane, arducopter, px4"):
+        autopilot_params(built_fmus["quadrotor"], "inav")
+    with pytest.raises(ValueError, match=r"servo_tau_s = 0.0: allowed 0 < tau <= 0.5 s"):
+        autopilot_params(built_fmus["fixed_wing"], "arduplane", servo_tau_s=0.0)
+    out = autopilot_params(built_fmus["quadrotor"], "px4").write(tmp_path / "p.params")
+    assert out.read_text().startswith("#!/bin/sh\n") and "param set-default MPC_THR_HOVER" in out.read_text()

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import itertools
+import math
 import socket
 import threading
 import time
@@ -17,8 +18,8 @@ from hypothesis import strategies as st
 from pymavlink.dialects.v20 import common as mavlink2
 
 from hil_adapter.core import Plant, Watchdog
-from hil_adapter.px4 import FIELDS_ALL, Px4Server, controls_to_pwm
-from hil_adapter.sensors import SensorConfig, SensorSuite
+from hil_adapter.px4 import HilMessages, Px4Server, controls_to_pwm
+from hil_adapter.sensors import UPDATED_BARO, UPDATED_DIFF_PRESSURE, UPDATED_IMU, UPDATED_MAG, SensorConfig, SensorSuite
 from tests.hil_fakes import controller_inputs, hold_10m_autopilot, serving
 
 DT = 0.004  # PX4's usual 250 Hz
@@ -82,25 +83,34 @@ def test_controls_map_to_pwm() -> None:
 def test_at_rest_sensors_read_gravity_and_home(server) -> None:
     px4 = FakePx4(server.address)
     try:
+        updated, times = [], []
         for k in range(250):  # 1 s on the ground, motors idle
             got = px4.read_step()
             px4.send_controls(k, [1000.0] * 4)
+            updated.append(got["HIL_SENSOR"].fields_updated)
         sensor, state = got["HIL_SENSOR"], got["HIL_STATE_QUATERNION"]
         assert sensor.zacc == pytest.approx(-9.81, abs=0.02) and abs(sensor.xacc) < 1e-3
-        assert sensor.fields_updated == FIELDS_ALL
+        # the IMU every step, the magnetometer at 100 Hz and the barometer at 50 Hz (PX4's Gazebo plugins'
+        # rates), no pitot on a quadrotor
+        assert all(u & UPDATED_IMU == UPDATED_IMU and not u & UPDATED_DIFF_PRESSURE for u in updated)
+        assert sum(u & UPDATED_MAG == UPDATED_MAG for u in updated) == pytest.approx(100, abs=2)
+        assert sum(u & UPDATED_BARO == UPDATED_BARO for u in updated) == pytest.approx(50, abs=2)
         home = server.plant.host.start_value
         isa_hpa = 1013.25 * (1 - 2.25577e-5 * home("home_height_m")) ** 5.25588  # ISA at the home height
         assert sensor.abs_pressure == pytest.approx(isa_hpa, abs=0.5)
         assert state.lat == pytest.approx(home("home_lat_deg") * 1e7, abs=20)
-        gps = None
-        for k in range(50):  # GPS comes at its own rate
+        gps, heartbeats = None, 0
+        for k in range(300):  # GPS comes at its own rate, the heartbeat at 1 Hz
             got = px4.read_step()
             px4.send_controls(250 + k, [1000.0] * 4)
             gps = got.get("HIL_GPS", gps)
+            heartbeats += "HEARTBEAT" in got
+            times.append(got["HIL_SENSOR"].time_usec)
         assert gps is not None and gps.fix_type == 3
         assert gps.lat == pytest.approx(home("home_lat_deg") * 1e7, abs=20)
         assert gps.lon == pytest.approx(home("home_lon_deg") * 1e7, abs=20)
-        assert "HEARTBEAT" in got or server.stats.steps > 250
+        span_s = (times[-1] - times[0]) * 1e-6  # 1.2 s: one heartbeat per second of simulated time
+        assert heartbeats in (math.floor(span_s), math.floor(span_s) + 1) and heartbeats >= 1
     finally:
         px4.close()
 
@@ -199,15 +209,25 @@ def absorb_server(quadrotor_fmu: Path):
 @settings(max_examples=300, deadline=None)
 @given(data=st.binary(max_size=300))
 def test_fuzzed_mavlink_bytes_never_crash(absorb_server, data: bytes) -> None:
-    """Random bytes, and random bytes spliced into a valid actuator message, are counted or parsed, never raised."""
+    """Random bytes, and random bytes spliced into a valid actuator message, never raise: a chunk either
+    delivers an actuator message whose controls are the valid one's (0.5 -> 1500 us) or leaves the PWM as it
+    was; and after the parser is cleared, the valid message alone is taken."""
+    srv = absorb_server
     mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
     good = mav.hil_actuator_controls_encode(1, [0.5] * 16, mavlink2.MAV_MODE_FLAG_SAFETY_ARMED, 1).pack(mav)
     cut = len(data) % (len(good) + 1)
     for chunk in (data, good[:cut] + data + good[cut:]):
-        got = absorb_server._absorb(chunk)
-        assert got in (True, False)
-    if absorb_server.pwm:
-        assert all(1000.0 <= v <= 2000.0 for v in absorb_server.pwm.values())
+        before = dict(srv.pwm)
+        got = srv._absorb(chunk)
+        if got:
+            assert srv.pwm == dict.fromkeys(range(1, 5), 1500.0)
+        else:
+            assert srv.pwm == before
+    srv.mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=51)  # drop any partial frame the fuzz left
+    srv.mav.robust_parsing = True
+    srv.msgs = HilMessages(srv.mav, srv.plant.vehicle)
+    srv.pwm = {}
+    assert srv._absorb(good) is True and srv.pwm == dict.fromkeys(range(1, 5), 1500.0)
 
 
 class PairListener:

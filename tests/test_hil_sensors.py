@@ -48,7 +48,7 @@ def noise_free(**sections) -> SensorConfig:
 def quiet_gps(**settings) -> GpsConfig:
     """A GPS without position and velocity noise."""
     return GpsConfig(**{"pos_noise_std_h_m": 0.0, "pos_noise_std_v_m": 0.0, "vel_noise_std_m_s": 0.0,
-                        "pos_gm_std_h_m": 0.0, "pos_gm_std_v_m": 0.0, **settings})
+                        "vel_noise_std_down_m_s": 0.0, "pos_gm_std_h_m": 0.0, "pos_gm_std_v_m": 0.0, **settings})
 
 
 # ------------------------------------------------------------------------------------------ noise-free physics
@@ -90,8 +90,7 @@ def test_diff_pressure_is_dynamic_pressure_of_airspeed() -> None:
     assert high == pytest.approx(0.5 * 1.1116 * 400.0, rel=1e-4)  # thinner air at 1000 m
 
 
-MAG = MagConfig(noise_std=0.0, bias=0.0, drift_std=0.0, intensity_gauss=0.5, declination_deg=0.0,
-                inclination_deg=60.0)
+MAG = SensorConfig.noise_free().mag.replace(intensity_gauss=0.5, declination_deg=0.0, inclination_deg=60.0)
 
 
 def test_mag_level_heading_north_points_north_and_down() -> None:
@@ -120,7 +119,7 @@ def test_mag_with_unnormalised_quaternion() -> None:
 
 
 def test_constant_bias_is_added() -> None:
-    cfg = noise_free(accel=AccelConfig(noise_std=0.0, bias=(0.1, -0.2, 0.3), drift_std=0.0))
+    cfg = noise_free(accel=SensorConfig.noise_free().accel.replace(bias=(0.1, -0.2, 0.3)))
     suite = SensorSuite(cfg)
     for k in range(10):
         assert suite.sample(k * 0.01, outputs()).accel_body_m_s2 == pytest.approx((0.1, -0.2, -G0 + 0.3))
@@ -179,8 +178,8 @@ def test_gps_latency_between_samples_interpolates() -> None:
 
 def test_gps_fix_fields() -> None:
     cfg = GpsConfig(rate_hz=10.0, latency_s=0.0, eph_m=2.5, epv_m=4.0, fix_type=3, satellites=12,
-                    pos_noise_std_h_m=0.0, pos_noise_std_v_m=0.0, vel_noise_std_m_s=0.0, pos_gm_std_h_m=0.0,
-                    pos_gm_std_v_m=0.0)
+                    pos_noise_std_h_m=0.0, pos_noise_std_v_m=0.0, vel_noise_std_m_s=0.0, vel_noise_std_down_m_s=0.0,
+                    pos_gm_std_h_m=0.0, pos_gm_std_v_m=0.0)
     suite = SensorSuite(noise_free(gps=cfg))
     fix = suite.sample(0.0, outputs(vel_north_m_s=3.0, vel_east_m_s=4.0, height_m=432.1)).gps
     assert fix is not None
@@ -234,12 +233,12 @@ def test_noise_is_noise() -> None:
 def test_white_noise_has_the_configured_std() -> None:
     n = 20000
     cfg = SensorConfig.noise_free().replace(
-        accel=AccelConfig(noise_std=0.08, bias=0.0, drift_std=0.0),
+        accel=SensorConfig.noise_free().accel.replace(noise_std=0.08),
         gyro=SensorConfig.noise_free().gyro.replace(noise_std=0.004),
         baro=SensorConfig.noise_free().baro.replace(noise_std=3.0),
         diff_pressure=SensorConfig.noise_free().diff_pressure.replace(noise_std=0.7),
         gps=GpsConfig(rate_hz=100.0, latency_s=0.0, pos_noise_std_h_m=1.5, pos_noise_std_v_m=2.5,
-                      vel_noise_std_m_s=0.2, pos_gm_std_h_m=0.0, pos_gm_std_v_m=0.0),
+                      vel_noise_std_m_s=0.2, vel_noise_std_down_m_s=0.2, pos_gm_std_h_m=0.0, pos_gm_std_v_m=0.0),
     )
     suite = SensorSuite(cfg, seed=11)
     truth = outputs(airspeed_m_s=0.0)
@@ -395,3 +394,70 @@ def test_gps_position_error_is_gauss_markov_with_the_configured_time_constant() 
         assert -1.0 / rate / math.log(rho1) == pytest.approx(tau, rel=0.1)
     white = np.diff(north)  # not white noise: consecutive fixes differ by far less than the std
     assert np.std(white) < 0.4 * 1.2
+
+
+# ------------------------------------------------------------------------------------------ profiles and sources
+def test_gazebo_gps_error_is_what_the_plugin_update_law_gives() -> None:
+    """PX4's Gazebo GPS plugin updates its bias every 4 ms physics step as b += rw sqrt(dt) n dt - b / 60; run
+    that law directly: its stationary std and its correlation after 0.24 s are what ``gazebo_gps_error`` says
+    (millimetres and e^-1), not 1 m and 60 s."""
+    from scipy.signal import lfilter
+
+    from hil_adapter.sensors import GAZEBO_STEP_S, gazebo_gps_error
+
+    rng = np.random.default_rng(3)
+    n = 400_000
+    drive = 2.0 * math.sqrt(GAZEBO_STEP_S) * GAZEBO_STEP_S * rng.standard_normal(n)
+    b = lfilter([1.0], [1.0, -(1.0 - 1.0 / 60.0)], drive)[1000:]  # b_k = (1 - 1/60) b_{k-1} + drive_k
+    std, tau = gazebo_gps_error(2.0)
+    assert np.std(b) == pytest.approx(std, rel=0.05) and 0.002 < std < 0.004
+    lag = round(tau / GAZEBO_STEP_S)
+    assert np.corrcoef(b[:-lag], b[lag:])[0, 1] == pytest.approx(math.exp(-1.0), abs=0.03)
+    assert tau == pytest.approx(0.24, rel=1e-9)
+    d = GpsConfig()
+    assert (d.pos_gm_std_h_m, d.pos_gm_tau_s, d.latency_s, d.rate_hz) == (std, tau, 0.12, 5.0)
+
+
+@pytest.mark.parametrize("section", ["accel", "gyro", "mag", "baro", "diff_pressure", "gps"])
+def test_every_noise_default_names_its_source(section: str) -> None:
+    cls = type(getattr(SensorConfig(), section))
+    for name in ("noise_std", "noise_density", "drift_std", "drift_tau_s", "turn_on_bias_std", "rate_hz",
+                 "latency_s", "pos_gm_std_h_m", "pos_gm_std_v_m", "pos_gm_tau_s", "vel_noise_std_m_s"):
+        if name in cls.model_fields:
+            text = cls.model_fields[name].description or ""
+            assert text.startswith("default from ") and len(text) > 20, (section, name, text)
+
+
+@pytest.mark.parametrize("dt", [0.004, 0.001])
+def test_imu_white_noise_follows_its_density(dt: float) -> None:
+    """Per-sample std = density / sqrt(dt): a faster loop sees more noise per sample, the same density."""
+    density = 0.01
+    cfg = noise_free(gyro=SensorConfig.noise_free().gyro.replace(noise_density=density))
+    suite = SensorSuite(cfg, seed=5)
+    g = np.array([suite.sample((k + 1) * dt, outputs()).gyro_body_rad_s for k in range(20000)])
+    assert np.std(g[1:]) == pytest.approx(density / math.sqrt(dt), rel=0.05)
+
+
+def test_ublox_profile_horizontal_error_has_the_datasheet_cep() -> None:
+    """u-blox NEO-M8: 2.5 m CEP: half of the fixes (over receivers: independent seeds) within 2.5 m."""
+    r_m, r_n = radii_of_curvature(math.radians(47.3977))
+    cos_lat = math.cos(math.radians(47.3977))
+    radii = []
+    for seed in range(2000):
+        fix = SensorSuite(SensorConfig.profile("ublox_m8"), seed=seed).sample(0.0, outputs()).gps
+        north = math.radians(fix.lat_deg - 47.3977) * float(r_m)
+        east = math.radians(fix.lon_deg - 8.5456) * float(r_n) * cos_lat
+        radii.append(math.hypot(north, east))
+    assert np.median(radii) == pytest.approx(2.5, rel=0.08)
+
+
+def test_profile_from_the_bench_config(tmp_path) -> None:
+    from hil_adapter.config import ConfigError, load_hil_config, sensor_suite
+
+    path = tmp_path / "bench.toml"
+    path.write_text('[sensors]\nprofile = "ublox_m8"\n[sensors.gps]\nrate_hz = 5.0\n')
+    suite = sensor_suite(load_hil_config(path))
+    assert suite.config.gps.rate_hz == 5.0 and suite.config.gps.eph_m == 2.5  # the profile, one value overridden
+    path.write_text('[sensors]\nprofile = "gazebo"\n')
+    with pytest.raises(ConfigError, match="px4_gazebo"):
+        load_hil_config(path)

@@ -18,8 +18,8 @@ from fmpy.validation import validate_fmu
 
 from fmu_models.fmi import zigcc
 from fmu_models.fmi.fmus import build_fmus
-from fmu_models.fmi.native_build import FMI_INCLUDE
 from tests.binexports import IMAGE_FILE_MACHINE_AMD64, macho_exports, pe_exports
+from tests.test_fmu_interfaces import compile_host
 
 HERE = Path(__file__).resolve().parent
 VEHICLES = ("quadrotor", "fixed_wing")
@@ -31,6 +31,11 @@ fmi2GetBoolean fmi2GetString fmi2SetReal fmi2SetInteger fmi2SetBoolean fmi2SetSt
 fmi2SetFMUstate fmi2FreeFMUstate fmi2SerializedFMUstateSize fmi2SerializeFMUstate fmi2DeSerializeFMUstate
 fmi2GetDirectionalDerivative fmi2SetRealInputDerivatives fmi2GetRealOutputDerivatives fmi2DoStep fmi2CancelStep
 fmi2GetStatus fmi2GetRealStatus fmi2GetIntegerStatus fmi2GetBooleanStatus fmi2GetStringStatus""".split())
+#: the Model Exchange functions of FMI 2.0 (the default native FMU is Co-Simulation + Model Exchange)
+FMI2_ME_FUNCTIONS = sorted("""
+fmi2EnterEventMode fmi2NewDiscreteStates fmi2EnterContinuousTimeMode fmi2CompletedIntegratorStep fmi2SetTime
+fmi2SetContinuousStates fmi2GetDerivatives fmi2GetEventIndicators fmi2GetContinuousStates
+fmi2GetNominalsOfContinuousStates""".split())
 #: flying inputs per vehicle by name; any other input (e.g. a battery voltage) keeps its start value
 FLYING = {
     "quadrotor": {"pwm_1_us": 1530.0, "pwm_2_us": 1530.0, "pwm_3_us": 1530.0, "pwm_4_us": 1530.0,
@@ -122,8 +127,16 @@ def test_same_variables_as_the_pythonfmu_backend(name: str, built_fmus: dict[str
                  None if v.start is None else float(v.start), v.min, v.max)
                 for v in read_model_description(str(fmu)).modelVariables]
 
-    assert table(built_fmus[name]) == table(python_fmus[name])
+    native, python = table(built_fmus[name]), table(python_fmus[name])
+    assert native[: len(python)] == python
+    # Model Exchange adds the continuous states and their derivatives after them (calculated locals)
+    extra = native[len(python):]
+    assert len(extra) % 2 == 0 and extra
+    states, derivatives = extra[: len(extra) // 2], extra[len(extra) // 2:]
+    assert all(v[0].startswith("state.") and v[2] == "local" for v in states)
+    assert [v[0] for v in derivatives] == [f"der({v[0]})" for v in states]
     md = read_model_description(str(built_fmus[name]))
+    assert md.modelExchange is not None and len(md.derivatives) == len(states)
     assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
     assert not md.coSimulation.needsExecutionTool
     assert md.version == build_version()
@@ -143,8 +156,8 @@ def test_validator_zero_findings_and_three_platforms_with_sources(name: str, bui
         members = set(z.namelist())
         for plat in zigcc.PLATFORMS:
             assert f"binaries/{plat.fmi_name}/{name}{plat.suffix}" in members
-        for src in ("fmi2_cs.c", f"{name}_model.c", f"{name}_description.c", "uavfmu_model.h", "fmi2Functions.h",
-                    "buildDescription.xml"):
+        for src in ("fmi2Functions.c", "uavfmu_core.h", "uavfmu_states.h", "uavfmu_config.h", f"{name}_model.c",
+                    f"{name}_description.c", "uavfmu_model.h", "fmi2Functions.h", "buildDescription.xml"):
             assert f"sources/{src}" in members
         assert b'<fmiBuildDescription fmiVersion="2.0">' in z.read("sources/buildDescription.xml")
         assert not any(m.startswith("resources/") and m.endswith(".py") for m in members)  # no Python inside
@@ -158,10 +171,10 @@ def test_win64_is_a_pe32plus_dll_and_darwin64_a_macho_dylib_exporting_all_fmi2_f
         dylib = z.read(f"binaries/darwin64/{name}.dylib")
     facts, names = pe_exports(dll)
     assert facts == {"machine": IMAGE_FILE_MACHINE_AMD64, "pe32_plus": True, "dll": True}
-    assert sorted(names) == FMI2_CS_FUNCTIONS  # all of them, and nothing of the model leaks out
+    assert sorted(names) == sorted(FMI2_CS_FUNCTIONS + FMI2_ME_FUNCTIONS)  # all, and nothing of the model
     facts, names = macho_exports(dylib)
     assert facts == {"cputype": 0x01000007, "dylib": True}
-    assert set(FMI2_CS_FUNCTIONS) <= set(names)
+    assert set(FMI2_CS_FUNCTIONS + FMI2_ME_FUNCTIONS) <= set(names)
     assert not {n for n in names if n.startswith(("uavfmu", "casadi"))}
 
 
@@ -173,7 +186,7 @@ def test_sources_compile_for_this_platform_and_run(built_fmus: dict[str, Path], 
     src = tmp_path / "x" / "sources"
     lib = tmp_path / "x" / "binaries" / "linux64" / "quadrotor.so"
     cmd = [*zigcc.zig_cc(), "-target", "x86_64-linux-gnu", "-O2", "-shared", "-fPIC", "-ffp-contract=off",
-           "-DCASADI_SYMBOL_EXPORT=", f"-I{src}", "-o", str(lib), str(src / "fmi2_cs.c"),
+           "-fvisibility=hidden", "-DCASADI_SYMBOL_EXPORT=", f"-I{src}", "-o", str(lib), str(src / "fmi2Functions.c"),
            str(src / "quadrotor_model.c"), str(src / "quadrotor_description.c"), "-lm"]
     subprocess.run(cmd, check=True, capture_output=True)
     shipped = Slave(fmu, **flying(fmu, "quadrotor"))
@@ -198,11 +211,7 @@ def test_sources_compile_for_this_platform_and_run(built_fmus: dict[str, Path], 
 
 @pytest.fixture(scope="module")
 def c_host(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    exe = tmp_path_factory.mktemp("host") / "native_host"
-    cmd = [*zigcc.zig_cc(), "-target", "x86_64-linux-gnu", "-O2", f"-I{FMI_INCLUDE}", "-o", str(exe),
-           str(HERE / "native_host.c"), "-ldl"]
-    subprocess.run(cmd, check=True, capture_output=True)
-    return exe
+    return compile_host(tmp_path_factory.mktemp("host"))
 
 
 @pytest.mark.parametrize("name", VEHICLES)
@@ -212,7 +221,7 @@ def test_c_host_without_python_flies_10_s_like_fmpy(name: str, built_fmus: dict[
     d = Path(extract(str(fmu), unzipdir=str(tmp_path / "fmu")))
     md = read_model_description(str(fmu))
     var = {v.name: v for v in md.modelVariables}
-    start = flying(fmu, name)
+    start = {k: v for k, v in flying(fmu, name).items() if not k.startswith("init_")}  # set before every step
     outputs = [v.valueReference for v in md.modelVariables if v.causality == "output" and v.type == "Real"]
     steps, h = 10_000, 0.001
     csv = tmp_path / "host.csv"

@@ -20,6 +20,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
                "wing: ArduPilot Lua, RC-override steps, timeline"),
     "validate": ("uavfmu.commands.validate", "replay a flight log through an FMU with FMPy and score it"),
     "hil": ("uavfmu.commands.hil", "drive an FMU from an autopilot (PX4, ArduPilot JSON, MAVLink, NMEA)"),
+    "autopilot-params": ("uavfmu.commands.autopilot_params",
+                         "write ArduPlane, ArduCopter or PX4 parameters computed from an FMU's model"),
     "demo": ("uavfmu.demo", "end-to-end demo on simulated data"),
 }
 

@@ -163,13 +163,17 @@ def identify(logs: dict[str, list[Path]], work: Path, keep_going: bool = False) 
 
 
 def run(args: argparse.Namespace) -> int:
-    from build_fmus import build
+    from build_fmus import BuildOptions, build
     from fmu_models.fixed_wing.params import FixedWingParams
+    from fmu_models.fmi.zigcc import host_platform
+
+    # this machine's platform only (`uavfmu build` makes all three): a first demo compiles in seconds
+    host = BuildOptions(platforms=(host_platform().fmi_name,), progress=lambda msg: print(f"  build: {msg}"))
 
     t_start = time.perf_counter()
     out: Path = args.out
     work = out / "demo"
-    paths = {p.stem: p for p in build(None, out)}
+    paths = {p.stem: p for p in build(None, out, options=host)}
     print(f"[{time.perf_counter() - t_start:5.1f} s] built {', '.join(str(p) for p in paths.values())}")
     checks = {"quadrotor hover (published ANFIS map, DJI F450)": hover_check(paths["quadrotor"]),
               "fixed wing trim at 25 m/s (Aerosonde)": trim_check(paths["fixed_wing"])}
@@ -189,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
         held_out = {k: [v] for k, v in record_flights(paths, work / "logs", args.seed, held_out=True).items()}
     print(f"[{time.perf_counter() - t_start:5.1f} s] logs: {', '.join(str(p) for v in logs.values() for p in v)}")
     params, found = identify(logs, work, keep_going=args.real)
-    rebuilt = {p.stem: p for p in build(params, work / "identified_fmus", list(logs))}
+    rebuilt = {p.stem: p for p in build(params, work / "identified_fmus", list(logs), options=host)}
     print(f"[{time.perf_counter() - t_start:5.1f} s] rebuilt with the identified parameters: "
           f"{', '.join(str(p) for p in rebuilt.values())}")
     report_dir = work / "report"

@@ -221,7 +221,3 @@ class BodyVehicleModel:
         """Values of ``NAV_OUTPUTS`` at ``(x, u, p)``, and the intermediate values of ``forces_moments``."""
         force, _, extras = self.forces_moments(x, u, p)
         return nav_outputs(x, force, self.params.view(p).mass_kg, extras["on_ground"]), extras
-
-    def parameter_values(self) -> list[float]:
-        """Default parameter vector (start values of ``params``)."""
-        return self.params.starts()

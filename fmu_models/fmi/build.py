@@ -22,7 +22,9 @@ from pythonfmu.builder import FmuBuilder
 
 from fmu_models.common.model import Variable, VehicleModel
 from fmu_models.fmi import codegen, fmuzip, shim
+from fmu_models.fmi.native_build import tunable_parameters
 from fmu_models.fmi.postprocess import rewrite_fmu
+from fmu_models.fmi.statemachine import MAX_INTERNAL_STEPS
 
 log = logging.getLogger(__name__)
 
@@ -64,31 +66,36 @@ def entry_module(runtime: str, name: str, cls: str) -> str:
 VERSION = fmuzip.package_version()
 
 
-def _var(v: Variable, warning: str = "") -> dict[str, Any]:
+def _var(v: Variable, warning: str = "", tunable: bool | None = None) -> dict[str, Any]:
     d = {
         "name": v.name, "unit": v.unit, "description": v.description, "start": float(v.start),
         "min": v.min, "max": v.max, "boolean": v.boolean,
     }
     if warning:
         d["warning"] = warning
+    if tunable is not None:
+        d["tunable"] = tunable
     return d
 
 
 def model_spec(model: VehicleModel, warnings: dict[str, str] | None = None) -> dict[str, Any]:
     """Everything the generic slave needs to know about ``model`` (JSON-serialisable)."""
     warnings = warnings or {}
+    tunable = tunable_parameters(model)
     return {
         "name": model.name,
         "description": model.description,
         "version": VERSION,
         "states": [_var(v) for v in model.states.variables],
         "inputs": [_var(v) for v in model.inputs.variables],
-        "params": [_var(v) for v in model.params.variables],
+        "params": [_var(v, tunable=v.name in tunable) for v in model.params.variables],
         "outputs": [_var(v, warnings.get(v.name, "")) for v in model.outputs.variables],
         "state_limits": list(model.state_limits),
         "library": f"{model.name}_model.so",
         "casadi_step": f"{model.name}_step.casadi",
         "casadi_init": f"{model.name}_init.casadi",
+        "casadi_outputs": f"{model.name}_outputs.casadi",
+        "max_internal_steps": MAX_INTERNAL_STEPS,
         "default_experiment": {"start": 0.0, "stop": 10.0, "step": 0.01},
     }
 
@@ -110,7 +117,7 @@ def build_fmu(
     with tempfile.TemporaryDirectory(prefix=f"uavfmu_{model.name}_") as tmp:
         work = Path(tmp)
         files = codegen.generate(model, work)
-        project = [files["c"], files["step"], files["init"]]
+        project = [files["c"], files["step"], files["init"], files["outputs"]]
         if compile_c and compiler:
             lib = work / spec["library"]
             codegen.compile_library(files["c"], lib, compiler)

@@ -8,65 +8,94 @@ from pathlib import Path
 
 import casadi as ca
 
-from fmu_models.common.model import VehicleModel, init_function, step_function
+from fmu_models.common.model import VehicleModel, derivative_function, init_function, output_function, step_function
+from fmu_models.fmi.statemachine import MAX_INTERNAL_STEPS
 
 
 class CompileError(RuntimeError):
     """The C compiler failed on generated code."""
 
 
-def _wrapper(model: VehicleModel, step: ca.Function, init: ca.Function, prefix: str) -> str:
-    """C entry points with plain arrays, so ctypes calls them without CasADi's work-vector protocol.
+def entry_names(model_name: str) -> dict[str, str]:
+    """The global C names of a model's plain-array entry points (prefixed: several models link together)."""
+    return {k: f"{model_name}_uavfmu_{k}" for k in ("initialize", "advance", "derivatives", "outputs")}
 
-    ``uavfmu_advance`` sub-steps a communication step ``h[0]`` in equal RK4 steps no larger than ``h[1]``
-    and returns 0, or i+1 when state i leaves its limit or turns NaN, or -(i+1) when output i is not finite.
+
+def _wrapper(model: VehicleModel, funcs: dict[str, ca.Function], prefix: str) -> str:
+    """C entry points with plain arrays, so ctypes and the FMI layer call them without CasADi's work vectors.
+
+    ``<id>_uavfmu_advance`` sub-steps a communication step ``h[0]`` in equal RK4 steps no larger than ``h[1]``
+    (at most ``MAX_INTERNAL_STEPS``; the FMI layer refuses larger steps first) and returns 0, or i+1 when
+    state i leaves its limit or turns NaN, or -(i+1) when output i is not finite; x_out and y are written only
+    on success. ``<id>_uavfmu_derivatives`` and ``<id>_uavfmu_outputs`` serve Model Exchange.
     """
     nx, ny = len(model.states), len(model.outputs)
     limits = ", ".join(repr(float(v)) for v in model.state_limits)
+    names = entry_names(model.name)
 
-    def sz(f: ca.Function) -> tuple[int, int, int, int]:
-        return max(1, f.sz_arg()), max(1, f.sz_res()), max(1, f.sz_iw()), max(1, f.sz_w())
+    def work(key: str) -> str:
+        f = funcs[key]
+        return (f"const casadi_real* arg[{max(1, f.sz_arg())}]; casadi_real* res[{max(1, f.sz_res())}]; "
+                f"casadi_int iw[{max(1, f.sz_iw())}]; casadi_real w[{max(1, f.sz_w())}];")
 
-    sa, sr, si, sw = sz(step)
-    ia, ir, ii, iw = sz(init)
     return f"""
-/* ---- uavfmu entry points (plain arrays) ---- */
+/* ---- uavfmu entry points (plain arrays; see fmu_models/fmi/native/uavfmu_model.h) ---- */
 #include <string.h>
-static const double uavfmu_state_limits[{nx}] = {{{limits}}};
+static const double {prefix}_state_limits[{nx}] = {{{limits}}};
 
-int uavfmu_sizes(int* out) {{
-  out[0] = {nx}; out[1] = {len(model.inputs)}; out[2] = {len(model.params)}; out[3] = {ny};
-  return 0;
-}}
-
-int uavfmu_initialize(const double* u, const double* p, double* x0, double* y0) {{
-  const casadi_real* arg[{ia}]; casadi_real* res[{ir}]; casadi_int iw[{ii}]; casadi_real w[{iw}];
+int {names["initialize"]}(const double* u, const double* p, double* x0, double* y0) {{
+  {work("init")}
   arg[0] = u; arg[1] = p; res[0] = x0; res[1] = y0;
   if ({prefix}_init(arg, res, iw, w, 0)) return -1000000;
   for (int i = 0; i < {nx}; ++i) if (!(x0[i] == x0[i])) return i + 1;
   return 0;
 }}
 
-int uavfmu_advance(const double* x, const double* u, const double* p, const double* h,
+int {names["advance"]}(const double* x, const double* u, const double* p, const double* h,
                    double* x_out, double* y) {{
-  const casadi_real* arg[{sa}]; casadi_real* res[{sr}]; casadi_int iw[{si}]; casadi_real w[{sw}];
-  double xa[{nx}], xb[{nx}], dt;
-  int n = (int)ceil(h[0] / h[1] - 1e-9);
-  if (n < 1) n = 1;
-  dt = h[0] / n;
+  {work("step")}
+  double xa[{nx}], xb[{nx}], yb[{ny}], dt, steps = ceil(h[0] / h[1] - 1e-9);
+  long n;
+  if (!(steps >= 1.0)) steps = 1.0;
+  if (steps > {MAX_INTERNAL_STEPS}.0) return -1000000; /* refused by the FMI layer before; never overflows */
+  n = (long)steps;
+  dt = h[0] / (double)n;
   memcpy(xa, x, sizeof(xa));
-  arg[0] = xa; arg[1] = u; arg[2] = p; arg[3] = &dt; res[0] = xb; res[1] = y;
-  for (int k = 0; k < n; ++k) {{
+  arg[0] = xa; arg[1] = u; arg[2] = p; arg[3] = &dt; res[0] = xb; res[1] = yb;
+  for (long k = 0; k < n; ++k) {{
     if ({prefix}_step(arg, res, iw, w, 0)) return -1000000;
     for (int i = 0; i < {nx}; ++i)
-      if (!(fabs(xb[i]) <= uavfmu_state_limits[i])) return i + 1;
+      if (!(fabs(xb[i]) <= {prefix}_state_limits[i])) return i + 1;
     memcpy(xa, xb, sizeof(xa));
   }}
-  for (int i = 0; i < {ny}; ++i) if (!isfinite(y[i])) return -(i + 1);
+  for (int i = 0; i < {ny}; ++i) if (!isfinite(yb[i])) return -(i + 1);
   memcpy(x_out, xa, sizeof(xa));
+  memcpy(y, yb, sizeof(yb));
+  return 0;
+}}
+
+int {names["derivatives"]}(const double* x, const double* u, const double* p, double* xdot) {{
+  {work("derivatives")}
+  arg[0] = x; arg[1] = u; arg[2] = p; res[0] = xdot;
+  if ({prefix}_derivatives(arg, res, iw, w, 0)) return -1000000;
+  for (int i = 0; i < {nx}; ++i) if (!isfinite(xdot[i])) return i + 1;
+  return 0;
+}}
+
+int {names["outputs"]}(const double* x, const double* u, const double* p, double* y) {{
+  {work("outputs")}
+  arg[0] = x; arg[1] = u; arg[2] = p; res[0] = y;
+  if ({prefix}_outputs(arg, res, iw, w, 0)) return -1000000;
+  for (int i = 0; i < {ny}; ++i) if (!isfinite(y[i])) return -(i + 1);
   return 0;
 }}
 """
+
+
+def _renamed(f: ca.Function, name: str) -> ca.Function:
+    """``f`` (SX inputs x, u, p) under a model-prefixed C name, common subexpressions eliminated."""
+    args = [ca.SX.sym(f.name_in(i), f.size1_in(i)) for i in range(f.n_in())]
+    return ca.Function(name, args, [ca.cse(r) for r in f.call(args)], f.name_in(), f.name_out())
 
 
 def generate(model: VehicleModel, out_dir: Path) -> dict[str, Path]:
@@ -74,20 +103,22 @@ def generate(model: VehicleModel, out_dir: Path) -> dict[str, Path]:
     prefix = f"uavfmu_{model.name}"
     step = step_function(model, f"{prefix}_step")
     init = init_function(model, f"{prefix}_init")
+    funcs = {"step": step, "init": init, "derivatives": _renamed(derivative_function(model), f"{prefix}_derivatives"),
+             "outputs": _renamed(output_function(model), f"{prefix}_outputs")}
     out_dir.mkdir(parents=True, exist_ok=True)
     c_name = f"{model.name}_model.c"
     gen = ca.CodeGenerator(c_name, {"with_header": False, "casadi_real": "double", "casadi_int": "long long int"})
-    gen.add(step)
-    gen.add(init)
+    for f in funcs.values():
+        gen.add(f)
     gen.generate(str(out_dir) + "/")
     c_file = out_dir / c_name
     with c_file.open("a") as fh:
-        fh.write(_wrapper(model, step, init, prefix))
-    step_file = out_dir / f"{model.name}_step.casadi"
-    init_file = out_dir / f"{model.name}_init.casadi"
-    step.save(str(step_file))
-    init.save(str(init_file))
-    return {"c": c_file, "step": step_file, "init": init_file}
+        fh.write(_wrapper(model, funcs, prefix))
+    saved = {}
+    for key in ("step", "init", "outputs"):
+        saved[key] = out_dir / f"{model.name}_{key}.casadi"
+        funcs[key].save(str(saved[key]))
+    return {"c": c_file, **saved}
 
 
 def find_compiler() -> str | None:

@@ -1,14 +1,19 @@
 """The build workflow: a parameter file in, ``quadrotor.fmu`` and ``fixed_wing.fmu`` out, native or pythonfmu.
 
 Both backends are built from the same equations (the models' CasADi functions) and the same parameter
-file: ``native`` (default) compiles the generated C with the shared FMI layer for linux64, win64 and
-darwin64 (no Python needed by the importer); ``python`` packages the pythonfmu slave.
+file: ``native`` (default) compiles the generated C with the shared FMI layer (FMI 2.0 or 3.0, Co-Simulation
+and/or Model Exchange) for linux64, win64 and darwin64 (no Python needed by the importer), every
+(model, platform) compile in parallel with a progress line each; ``python`` packages the pythonfmu slave
+(FMI 2.0 Co-Simulation only).
 """
 
 from __future__ import annotations
 
+import os
+import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -17,6 +22,8 @@ MODELS = ("quadrotor", "fixed_wing")
 BACKENDS = ("native", "python")
 Backend = Literal["native", "python"]
 HERE = Path(__file__).resolve().parents[1]
+#: parallel compiles at most (each zig process is single-threaded)
+MAX_JOBS = 8
 
 WARNINGS = {
     "quadrotor": {
@@ -33,6 +40,18 @@ class BuildResult:
     fmus: tuple[Path, ...]
     backend: str
     seconds: float
+
+
+@dataclass(frozen=True)
+class BuildOptions:
+    """Native build choices: FMI version (2 or 3), kinds (``cs``, ``me``), platforms (FMI 2.0 folder names:
+    linux64, win64, darwin64), parallel compiles (``jobs``, default the CPU count), a progress callback."""
+
+    fmi_version: int = 2
+    kinds: tuple[str, ...] = ("cs", "me")
+    platforms: tuple[str, ...] = ("linux64", "win64", "darwin64")
+    jobs: int | None = None
+    progress: Callable[[str], None] | None = None
 
 
 def split_params(data: dict[str, Any]) -> dict[str, dict[str, Any]]:
@@ -59,35 +78,76 @@ def make_model(name: str, values: dict[str, Any] | None, source: str) -> Any:
     raise ValueError(f"model = {name!r} is not one of {', '.join(MODELS)}")
 
 
+def _platforms(names: Sequence[str]) -> tuple[Any, ...]:
+    from fmu_models.fmi import zigcc
+
+    unknown = [n for n in names if n not in zigcc.BY_NAME]
+    if unknown or not names:
+        raise ValueError(f"platforms = {list(names)!r}: each must be one of {', '.join(zigcc.BY_NAME)}")
+    return tuple(zigcc.BY_NAME[n] for n in dict.fromkeys(names))
+
+
+def _build_native(models: list[tuple[Any, Path]], out_dir: Path, params_file: Path | None,
+                  options: BuildOptions) -> list[Path]:
+    """Generate every model's sources, compile all (model, platform) pairs in parallel, write the FMUs."""
+    from fmu_models.fmi import fmuzip
+    from fmu_models.fmi.native_build import Interface, prepare
+
+    interface = Interface(options.fmi_version, tuple(options.kinds))
+    plats = _platforms(options.platforms)
+    say = options.progress or (lambda _msg: None)
+    jobs = max(1, min(MAX_JOBS, options.jobs or os.cpu_count() or 1))
+    with tempfile.TemporaryDirectory(prefix="uavfmu_native_") as tmp:
+        built = []
+        for model, readme in models:
+            t0 = time.perf_counter()
+            built.append(prepare(model, Path(tmp) / model.name, warnings=WARNINGS.get(model.name),
+                                 documentation=readme, params_file=params_file, interface=interface))
+            say(f"generated {model.name} C sources ({time.perf_counter() - t0:.1f} s)")
+        total, done = len(built) * len(plats), 0
+        with ThreadPoolExecutor(max_workers=jobs) as pool:
+            futures = {pool.submit(job.compile, plat): (job, plat) for job in built for plat in plats}
+            for fut in as_completed(futures):
+                job, plat = futures[fut]
+                arc, data = fut.result()
+                job.files[arc] = data
+                done += 1
+                say(f"[{done}/{total}] compiled {job.model.name} for {plat.fmi_name}")
+        return [fmuzip.write_fmu(Path(out_dir) / f"{job.model.name}.fmu", job.files, job.epoch) for job in built]
+
+
 def build_fmus(
     params_file: Path | None,
     out_dir: Path,
     only: Sequence[str] | None = None,
     backend: Backend = "native",
+    options: BuildOptions | None = None,
 ) -> BuildResult:
-    """Build the FMUs of ``only`` (default: all) into ``out_dir`` with ``backend``.
+    """Build the FMUs of ``only`` (default: all) into ``out_dir`` with ``backend`` (native: ``options``).
 
-    Raises ``ValueError`` (bad parameters, unknown model or backend), ``FileNotFoundError`` and
-    ``codegen.CompileError`` (the C compiler failed).
+    Raises ``ValueError`` (bad parameters, unknown model, backend, FMI version, kind or platform),
+    ``FileNotFoundError`` and ``codegen.CompileError`` (the C compiler failed).
     """
     from fmu_models.common.params import read_json
 
+    options = options or BuildOptions()
     if backend not in BACKENDS:
         raise ValueError(f"backend = {backend!r} is not one of {', '.join(BACKENDS)}")
+    if backend == "python" and (options.fmi_version != 2 or "cs" not in options.kinds):
+        raise ValueError("the python backend builds FMI 2.0 Co-Simulation only (--fmi 2 --kind cs)")
     t0 = time.perf_counter()
     sections = split_params(read_json(params_file)) if params_file else {}
-    out = []
-    for name in only or MODELS:
-        model = make_model(name, sections.get(name), f"{params_file or 'defaults'} [{name}]")
-        readme = HERE / name / "readme.md"
-        if backend == "native":
-            from fmu_models.fmi.native_build import build_native_fmu
+    models = [(make_model(name, sections.get(name), f"{params_file or 'defaults'} [{name}]"),
+               HERE / name / "readme.md") for name in only or MODELS]
+    if backend == "native":
+        from fmu_models.fmi.native_build import Interface
 
-            out.append(build_native_fmu(model, out_dir, warnings=WARNINGS.get(name), documentation=readme,
-                                        params_file=params_file))
-        else:
-            from fmu_models.fmi.build import build_fmu
+        Interface(options.fmi_version, tuple(options.kinds))  # refuse a bad choice before any work
+        _platforms(options.platforms)
+        out = _build_native(models, out_dir, params_file, options)
+    else:
+        from fmu_models.fmi.build import build_fmu
 
-            out.append(build_fmu(model, out_dir, warnings=WARNINGS.get(name), documentation=readme,
-                                 params_file=params_file))
+        out = [build_fmu(model, out_dir, warnings=WARNINGS.get(model.name), documentation=readme,
+                         params_file=params_file) for model, readme in models]
     return BuildResult(tuple(out), backend, time.perf_counter() - t0)

@@ -22,11 +22,9 @@ def _fmt(v: float) -> str:
     return repr(float(v))
 
 
-def complete_model_description(xml_text: bytes, variables: dict[str, dict[str, Any]]) -> bytes:
-    """Return ``xml_text`` with unit definitions, per-variable unit/min/max and InitialUnknowns."""
-    root = ET.fromstring(xml_text)
+def unit_definitions(variables: dict[str, dict[str, Any]]) -> ET.Element:
+    """``<UnitDefinitions>`` of every unit the (non-Boolean) ``variables`` use, with SI base exponents."""
     units = sorted({v["unit"] for v in variables.values() if v.get("unit") and not v.get("boolean")})
-    # UnitDefinitions goes right after CoSimulation/ModelExchange and before LogCategories (FMI 2.0 order)
     unit_defs = ET.Element("UnitDefinitions")
     for u in units:
         exps, factor = parse_unit(u)
@@ -35,9 +33,18 @@ def complete_model_description(xml_text: bytes, variables: dict[str, dict[str, A
         if factor != 1.0:
             attrs["factor"] = _fmt(factor)
         ET.SubElement(el, "BaseUnit", attrs)
+    return unit_defs
+
+
+def complete_model_description(xml_text: bytes, variables: dict[str, dict[str, Any]],
+                               initial_unknowns: list[int] | None = None) -> bytes:
+    """Return ``xml_text`` (FMI 2.0) with unit definitions, per-variable unit/min/max and InitialUnknowns
+    (``initial_unknowns``: 1-based variable indices, default the outputs)."""
+    root = ET.fromstring(xml_text)
+    # UnitDefinitions goes right after CoSimulation/ModelExchange and before LogCategories (FMI 2.0 order)
     children = list(root)
-    pos = next(i for i, c in enumerate(children) if c.tag in ("CoSimulation", "ModelExchange")) + 1
-    root.insert(pos, unit_defs)
+    pos = max(i for i, c in enumerate(children) if c.tag in ("CoSimulation", "ModelExchange")) + 1
+    root.insert(pos, unit_definitions(variables))
 
     index_of: dict[str, int] = {}
     for i, sv in enumerate(root.find("ModelVariables"), start=1):
@@ -61,12 +68,12 @@ def complete_model_description(xml_text: bytes, variables: dict[str, dict[str, A
     for old in structure.findall("InitialUnknowns"):
         structure.remove(old)
     outputs = structure.find("Outputs")
-    if outputs is not None:
-        init = ET.Element("InitialUnknowns")
-        for unk in outputs.findall("Unknown"):
-            ET.SubElement(init, "Unknown", index=unk.get("index"))
-        children = list(structure)
-        structure.insert(children.index(outputs) + 1, init)
+    if initial_unknowns is None and outputs is not None:
+        initial_unknowns = [int(unk.get("index")) for unk in outputs.findall("Unknown")]
+    if initial_unknowns:
+        init = ET.SubElement(structure, "InitialUnknowns")
+        for index in sorted(initial_unknowns):
+            ET.SubElement(init, "Unknown", index=str(index))
     for el in root.iter():
         el.tail = None
         if el.text is not None and not el.text.strip():

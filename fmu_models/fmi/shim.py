@@ -26,6 +26,13 @@ the calls that pass its checks. Why a C layer, and what it protects against in p
   ``finalizePythonInterpreter``; both later releases then see an empty pointer.
 * pythonfmu returns fmi2Discard when ``do_step`` returns False; the FMI 2.0 standard asks for fmi2Error when a
   step cannot be computed (NaN input, divergence) but the instance may be reset or freed: mapped here.
+* One state machine with the native layer: the allowed-state masks and argument rules come from the same
+  generated ``uavfmu_states.h`` (``fmu_models/fmi/statemachine.py``), so both backends answer every call alike
+  (tests/robustness/test_fmi_sequences.py requires identical statuses). The slave never raises into pythonfmu:
+  it reports a model failure (a refused parameter at initialisation, an output recomputed from a refused input)
+  by logging an error, which the shim turns into fmi2Error and the Error state, as the native layer does. The
+  shim tracks ``step_internal_s`` from the values set, to refuse a step needing too many internal steps before
+  pythonfmu sees it, and derives the resource location from its own path when the importer passes NULL.
 
 pythonfmu forwards log messages only when logging is on, so the shim turns it on: the slave logs nothing but
 warnings and errors, which FMI 2.0 expects to reach the importer whatever its debug-logging setting.
@@ -33,18 +40,22 @@ warnings and errors, which FMI 2.0 expects to reach the importer whatever its de
 
 from __future__ import annotations
 
-import zipfile
+import json
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
 import fmpy
 
+from fmu_models.fmi import statemachine
 from fmu_models.fmi.codegen import compile_library
 
 HEADERS = Path(fmpy.__file__).parent / "c-code"
 
-#: (value reference, type letter R/I/B/S, settable: 0 never, 1 before exitInitializationMode, 2 also while stepping)
-VarRow = tuple[int, str, int]
+#: (value reference, type letter R/I/B/S, settable: 0 never (output), 1 fixed parameter, 2 tunable parameter, 3 input,
+#: name, start value or None)
+VarRow = tuple[int, str, int, str, float | None]
+#: the parameter the shim tracks to refuse a step needing too many internal steps (as the native layer)
+INTERNAL_STEP = "step_internal_s"
 
 _TYPES = {"Real": "R", "Integer": "I", "Enumeration": "I", "Boolean": "B", "String": "S"}
 
@@ -61,21 +72,13 @@ def variable_table(model_description: bytes) -> list[VarRow]:
         variability = sv.get("variability", "continuous")
         settable = 0
         if causality == "input":
-            settable = 2
+            settable = 3
         elif causality == "parameter":
             settable = 2 if variability == "tunable" else 1
-        rows.append((int(sv.get("valueReference")), kind, settable))
+        start = next((c.get("start") for c in sv if c.tag in _TYPES and c.get("start") is not None), None)
+        rows.append((int(sv.get("valueReference")), kind, settable, sv.get("name", ""),
+                     float(start) if start is not None and kind == "R" else None))
     return sorted(rows)
-
-
-def model_guid(model_description: bytes) -> str:
-    """The ``guid`` of a modelDescription.xml (the shim refuses instantiation with another one)."""
-    return ET.fromstring(model_description).get("guid", "")
-
-
-def fmu_variable_table(fmu: Path) -> list[VarRow]:
-    with zipfile.ZipFile(fmu) as z:
-        return variable_table(z.read("modelDescription.xml"))
 
 
 C_CORE = r"""
@@ -90,27 +93,33 @@ C_CORE = r"""
 #include <stdlib.h>
 #include <string.h>
 #include "fmi2Functions.h"
+#include "uavfmu_states.h" /* the one state machine table (fmu_models/fmi/statemachine.py) */
 
-typedef struct { fmi2ValueReference vr; char type; char settable; } VarInfo;
+typedef struct { fmi2ValueReference vr; char type; char settable; const char* name; } VarInfo;
 @TABLE@
 
-enum { S_INSTANTIATED = 1, S_INIT = 2, S_STEPPING = 4, S_TERMINATED = 8, S_ERROR = 16, S_FATAL = 32 };
-#define S_ANY (S_INSTANTIATED | S_INIT | S_STEPPING | S_TERMINATED | S_ERROR)
-#define S_GET (S_INIT | S_STEPPING | S_TERMINATED | S_ERROR)
-#define S_SET (S_INSTANTIATED | S_INIT | S_STEPPING)
+/* the pythonfmu slave is Co-Simulation only: these are the states it can be in */
+#define S_INSTANTIATED Instantiated
+#define S_INIT InitializationMode
+#define S_STEPPING StepComplete
+#define S_TERMINATED Terminated
+#define S_ERROR Error
+#define S_FATAL Fatal
 #define INST_MAGIC 0x7561766675696e73ULL
 #define STATE_MAGIC 0x7561766673746174ULL
 #define MAX_NVR 1000000u
 static const char SER_MAGIC[8] = {'U', 'A', 'V', 'F', 'M', 'U', 'S', '1'};
-enum { SER_HEADER = 8 + 8 + 8 + 8 + 8 };  /* magic, model key, payload checksum, time, machine state */
+/* magic, model key, checksum (of everything after it), time, machine state, internal step */
+enum { SER_HEADER = 8 + 8 + 8 + 8 + 8 + 8 };
 
 typedef struct State { uint64_t magic; struct Inst* owner; fmi2FMUstate real; double time; int mstate;
-                       struct State* next; } State;
+                       struct State* next; double dt; } State;
 /* A pythonfmu instance with the callbacks the shim gave it (its logger forwards to the current owner). */
 typedef struct Slot { fmi2Component real; struct Inst* owner; fmi2CallbackFunctions cb; char key[4096];
                       struct Slot* next; } Slot;
+/* dt: the model's internal step (s), tracked from SetReal so a step needing too many is refused up front */
 typedef struct Inst { uint64_t magic; struct Inst* next; fmi2Component real; Slot* slot; int state; double time;
-                      fmi2CallbackFunctions cb; char name[128]; State* states; } Inst;
+                      fmi2CallbackFunctions cb; char name[128]; State* states; int logged_error; double dt; } Inst;
 
 static Inst* live = NULL;
 static Slot* pool = NULL;  /* freed instances kept for reuse: pythonfmu leaks ~1 KB per fmi2Instantiate */
@@ -150,19 +159,20 @@ static void* sym(const char* name) {
 }
 #define REAL(fn) static fn##TYPE* f = NULL; if (!f) f = (fn##TYPE*)sym(#fn); if (!f) return fmi2Error
 
+/* a message to the importer as the logger's format with every '%' doubled (as the native layer does), so a
+   logger that does not expand variadic arguments (ctypes, many bindings) still shows the text */
+static void emit(const Inst* in, fmi2Status s, const char* category, const char* text) {
+  char buf[2100]; size_t j = 0;
+  for (size_t i = 0; text[i] && j + 2 < sizeof buf; ++i) { if (text[i] == '%') buf[j++] = '%'; buf[j++] = text[i]; }
+  buf[j] = 0;
+  in->cb.logger(in->cb.componentEnvironment, in->name, s, category, buf);
+}
+
 static void say(const Inst* in, fmi2Status s, const char* fmt, ...) {
   char buf[1024]; va_list ap;
   if (!in || !in->cb.logger) return;
   va_start(ap, fmt); vsnprintf(buf, sizeof buf, fmt, ap); va_end(ap);
-  in->cb.logger(in->cb.componentEnvironment, in->name, s, s == fmi2Error ? "logStatusError" : "logAll", "%s", buf);
-}
-
-static const char* state_name(int s) {
-  switch (s) {
-    case S_INSTANTIATED: return "instantiated"; case S_INIT: return "initialization mode";
-    case S_STEPPING: return "initialized (stepping)"; case S_TERMINATED: return "terminated";
-    case S_ERROR: return "error (only get, reset or free)"; default: return "fatal (only free)";
-  }
+  emit(in, s, s == fmi2Error ? "logStatusError" : s == fmi2Discard ? "logStatusDiscard" : "logAll", buf);
 }
 
 static Inst* find(fmi2Component c) {
@@ -175,10 +185,11 @@ static Inst* enter(fmi2Component c, const char* fn, int allowed) {
   Inst* in = find(c);
   if (!in) return NULL;  /* NULL, freed or foreign handle: no logger to tell */
   if (!(in->state & allowed)) {
-    say(in, fmi2Error, "%s is not allowed in state %s (FMI 2.0 co-simulation state machine)", fn,
-        state_name(in->state));
+    say(in, fmi2Error, "%s: not allowed in state '%s' (FMI Co-Simulation state machine)", fn,
+        uavfmu_state_name(in->state));
     return NULL;
   }
+  in->logged_error = 0;  /* an error the slave logs during this call makes the call an fmi2Error */
   return in;
 }
 
@@ -186,7 +197,8 @@ static fmi2Status after(Inst* in, const char* fn, fmi2Status s) {
   if (s == fmi2Fatal) {
     in->state = S_FATAL;
     say(in, fmi2Error, "%s: the model failed fatally; the instance is quarantined (only fmi2FreeInstance)", fn);
-  } else if (s == fmi2Error) {
+  } else if (s == fmi2Error || (s <= fmi2Warning && in->logged_error)) {
+    s = fmi2Error;  /* our slave reports model failures by logging an error (it never raises into pythonfmu) */
     in->state = S_ERROR;
   }
   return s;
@@ -210,9 +222,12 @@ static int check_refs(Inst* in, const char* fn, const fmi2ValueReference vr[], s
       return 0; }
     if (v->type != type) { say(in, fmi2Error, "%s: value reference %u is of type %c, not %c", fn, vr[i], v->type, type);
       return 0; }
-    if (setting && (v->settable == 0 || (v->settable == 1 && (in->state & S_STEPPING)))) {
-      say(in, fmi2Error, "%s: value reference %u is not settable %s (only inputs and %s parameters)", fn, vr[i],
-          v->settable ? "after initialization" : "", v->settable ? "tunable" : "");
+    int mask = v->settable == 3 ? MASK_SetInput : v->settable == 2 ? MASK_SetTunable : v->settable == 1
+               ? MASK_SetFixed : 0;
+    if (setting && !(in->state & mask)) {
+      say(in, fmi2Error, "%s: %s (%s) cannot be set in state '%s'", fn, v->name, v->settable == 3
+          ? "input" : v->settable == 2 ? "tunable parameter" : v->settable ? "fixed parameter" : "output",
+          uavfmu_state_name(in->state));
       return 0;
     }
     if (setting && type == 'S' && !((const fmi2String*)values)[i]) {
@@ -230,10 +245,10 @@ static void forward_log(fmi2ComponentEnvironment env, fmi2String name, fmi2Statu
                         fmi2String msg, ...) {
   /* pythonfmu passes its message as the format string: forwarded as a plain string, never formatted */
   const Slot* slot = (const Slot*)env;
-  const Inst* in = slot ? slot->owner : NULL;
+  Inst* in = slot ? slot->owner : NULL;
   (void)name;
-  if (in && in->cb.logger) in->cb.logger(in->cb.componentEnvironment, in->name, s, cat ? cat : "logAll", "%s",
-                                         msg ? msg : "");
+  if (in && s >= fmi2Error) in->logged_error = 1;
+  if (in && in->cb.logger) emit(in, s, cat ? cat : "logAll", msg ? msg : "");
 }
 
 /* A pooled pythonfmu instance of the same FMU, reset, or a new one; NULL after logging why not. */
@@ -274,8 +289,17 @@ fmi2Component fmi2Instantiate(fmi2String n, fmi2Type t, fmi2String g, fmi2String
     cb->logger(cb->componentEnvironment, who, fmi2Error, "logStatusError",
                "fmi2Instantiate: GUID %s does not match this FMU's %s", g ? g : "(null)", MODEL_GUID);
     return NULL; }
-  if (!g || !r) { cb->logger(cb->componentEnvironment, who, fmi2Error, "logStatusError",
-                             "fmi2Instantiate: fmuGUID and fmuResourceLocation must not be NULL"); return NULL; }
+  char derived[4200];
+  if (!r) {  /* no resource location given (allowed): pythonfmu needs it, so it is found from this library */
+    Dl_info info;
+    if (!dladdr((void*)&fmi2Instantiate, &info) || !info.dli_fname || !realpath(info.dli_fname, derived + 7)) {
+      cb->logger(cb->componentEnvironment, who, fmi2Error, "logStatusError",
+                 "fmi2Instantiate: no fmuResourceLocation and this library's folder is unknown"); return NULL; }
+    memcpy(derived, "file://", 7);
+    for (int up = 0; up < 3; ++up) { char* sl = strrchr(derived + 7, '/'); if (sl) *sl = 0; }
+    strncat(derived, "/resources", sizeof derived - strlen(derived) - 1);
+    r = derived;
+  }
   fmi2InstantiateTYPE* f = (fmi2InstantiateTYPE*)sym("fmi2Instantiate");
   if (!f) { cb->logger(cb->componentEnvironment, n, fmi2Error, "logStatusError", "cannot load @REAL@: %s",
                        load_error); return NULL; }
@@ -288,7 +312,7 @@ fmi2Component fmi2Instantiate(fmi2String n, fmi2Type t, fmi2String g, fmi2String
   in->slot = take_slot(in, f, n, g, r, v);
   if (!in->slot) { free(in); return NULL; }
   in->real = in->slot->real;
-  in->magic = INST_MAGIC; in->state = S_INSTANTIATED; in->time = 0.0;
+  in->magic = INST_MAGIC; in->state = S_INSTANTIATED; in->time = 0.0; in->dt = DT_START;
   in->next = live; live = in;
   return in;
 }
@@ -324,11 +348,11 @@ void fmi2FreeInstance(fmi2Component c) {
 }
 
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cats[]) {
-  Inst* in = enter(c, "fmi2SetDebugLogging", S_ANY);
+  Inst* in = enter(c, "fmi2SetDebugLogging", MASK_SetDebugLogging);
   if (!in) return fmi2Error;
-  if (n > 0 && !cats) { say(in, fmi2Error, "fmi2SetDebugLogging: NULL categories for n = %zu", n); return fmi2Error; }
-  for (size_t i = 0; i < n; ++i) if (!cats[i]) { say(in, fmi2Error, "fmi2SetDebugLogging: NULL category %zu", i);
-    return fmi2Error; }
+  char why[256];
+  if (!uavfmu_rule_categories(why, sizeof why, n, cats)) {
+    say(in, fmi2Error, "fmi2SetDebugLogging: %s", why); return fmi2Error; }
   REAL(fmi2SetDebugLogging);
   /* warnings and errors always reach the importer: pythonfmu keeps logging on for every category (a category
      list would filter out its error messages, and a pooled instance would keep the filter for its next owner);
@@ -339,11 +363,11 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const 
 
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean td, fmi2Real tol, fmi2Real t0, fmi2Boolean sd,
                                fmi2Real t1) {
-  Inst* in = enter(c, "fmi2SetupExperiment", S_INSTANTIATED);
+  Inst* in = enter(c, "fmi2SetupExperiment", MASK_SetupExperiment);
   if (!in) return fmi2Error;
-  if (!isfinite(t0) || (sd && !(isfinite(t1) && t1 >= t0)) || (td && !(isfinite(tol) && tol > 0))) {
-    say(in, fmi2Error, "fmi2SetupExperiment: start %g, stop %g (defined %d), tolerance %g (defined %d): start "
-        "must be finite, stop finite and >= start, tolerance finite and > 0", t0, t1, sd, tol, td);
+  char why[256];
+  if (!uavfmu_rule_setup(why, sizeof why, td, tol, t0, sd, t1)) {
+    say(in, fmi2Error, "fmi2SetupExperiment: %s", why);
     return fmi2Error;
   }
   REAL(fmi2SetupExperiment);
@@ -363,17 +387,17 @@ static fmi2Status transition(fmi2Component c, const char* fn, int allowed, int n
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
-  return transition(c, "fmi2EnterInitializationMode", S_INSTANTIATED, S_INIT);
+  return transition(c, "fmi2EnterInitializationMode", MASK_EnterInitializationMode, S_INIT);
 }
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
-  return transition(c, "fmi2ExitInitializationMode", S_INIT, S_STEPPING);
+  return transition(c, "fmi2ExitInitializationMode", MASK_ExitInitializationMode, S_STEPPING);
 }
-fmi2Status fmi2Terminate(fmi2Component c) { return transition(c, "fmi2Terminate", S_STEPPING, S_TERMINATED); }
+fmi2Status fmi2Terminate(fmi2Component c) { return transition(c, "fmi2Terminate", MASK_Terminate, S_TERMINATED); }
 
 fmi2Status fmi2Reset(fmi2Component c) {
-  fmi2Status s = transition(c, "fmi2Reset", S_ANY, S_INSTANTIATED);
+  fmi2Status s = transition(c, "fmi2Reset", MASK_Reset, S_INSTANTIATED);
   Inst* in = find(c);
-  if (in && s <= fmi2Warning) in->time = 0.0;
+  if (in && s <= fmi2Warning) { in->time = 0.0; in->dt = DT_START; }
   return s;
 }
 """
@@ -385,28 +409,27 @@ C_VALUES = r"""
     if (!in || !check_refs(in, #NAME, vr, nvr, value, LETTER, SETTING)) return fmi2Error;          \
     if (nvr == 0) return fmi2OK;                                                                   \
     REAL(NAME);                                                                                    \
-    return after(in, #NAME, f(in->real, vr, nvr, value));                                          \
+    fmi2Status s = after(in, #NAME, f(in->real, vr, nvr, value));                                  \
+    if (SETTING && LETTER == 'R' && s <= fmi2Warning)                                              \
+      for (size_t i = 0; i < nvr; ++i) if ((long long)vr[i] == DT_VR) in->dt = *(const double*)&value[i]; \
+    return s;                                                                                      \
   }
-GETSET(fmi2GetReal, fmi2Real, 'R', 0, S_GET)
-GETSET(fmi2GetInteger, fmi2Integer, 'I', 0, S_GET)
-GETSET(fmi2GetBoolean, fmi2Boolean, 'B', 0, S_GET)
-GETSET(fmi2GetString, fmi2String, 'S', 0, S_GET)
-GETSET(fmi2SetReal, const fmi2Real, 'R', 1, S_SET)
-GETSET(fmi2SetInteger, const fmi2Integer, 'I', 1, S_SET)
-GETSET(fmi2SetBoolean, const fmi2Boolean, 'B', 1, S_SET)
-GETSET(fmi2SetString, const fmi2String, 'S', 1, S_SET)
+GETSET(fmi2GetReal, fmi2Real, 'R', 0, MASK_GetValue)
+GETSET(fmi2GetInteger, fmi2Integer, 'I', 0, MASK_GetValue)
+GETSET(fmi2GetBoolean, fmi2Boolean, 'B', 0, MASK_GetValue)
+GETSET(fmi2GetString, fmi2String, 'S', 0, MASK_GetValue)
+GETSET(fmi2SetReal, const fmi2Real, 'R', 1, MASK_SetInput)
+GETSET(fmi2SetInteger, const fmi2Integer, 'I', 1, MASK_SetInput)
+GETSET(fmi2SetBoolean, const fmi2Boolean, 'B', 1, MASK_SetInput)
+GETSET(fmi2SetString, const fmi2String, 'S', 1, MASK_SetInput)
 
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_prior) {
-  Inst* in = enter(c, "fmi2DoStep", S_STEPPING);
+  Inst* in = enter(c, "fmi2DoStep", MASK_DoStep);
   if (!in) return fmi2Error;
-  double tol = 1e-9 * (fabs(in->time) > 1.0 ? fabs(in->time) : 1.0);
-  if (!isfinite(t) || !isfinite(h) || !(h > 0.0)) {
-    say(in, fmi2Error, "fmi2DoStep: communication point %g and step size %g must be finite, step size > 0", t, h);
-    return fmi2Error;
-  }
-  if (fabs(t - in->time) > tol) {
-    say(in, fmi2Error, "fmi2DoStep: communication point %.17g s does not continue the last one (%.17g s)",
-        t, in->time);
+  char why[256];
+  if (!uavfmu_rule_step(why, sizeof why, t, h, in->time) ||
+      (DT_VR >= 0 && !uavfmu_rule_internal_steps(why, sizeof why, h, in->dt))) {
+    say(in, fmi2Error, "fmi2DoStep: %s", why);
     return fmi2Error;
   }
   REAL(fmi2DoStep);
@@ -417,37 +440,48 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
   return s;
 }
 
-static fmi2Status unsupported(fmi2Component c, const char* fn) {
-  Inst* in = enter(c, fn, S_ANY);
-  if (in) say(in, fmi2Error, "%s is not supported by this FMU", fn);
+static fmi2Status unsupported(fmi2Component c, const char* fn, int mask) {
+  Inst* in = enter(c, fn, mask);
+  if (in) say(in, fmi2Error, "%s: not supported by this FMU", fn);
   return fmi2Error;
 }
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference a[], size_t n,
     const fmi2ValueReference b[], size_t m, const fmi2Real d[], fmi2Real e[]) {
-  (void)a; (void)n; (void)b; (void)m; (void)d; (void)e; return unsupported(c, "fmi2GetDirectionalDerivative"); }
+  (void)a; (void)n; (void)b; (void)m; (void)d; (void)e;
+  return unsupported(c, "fmi2GetDirectionalDerivative", MASK_GetDirectionalDerivative); }
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference a[], size_t n,
     const fmi2Integer b[], const fmi2Real d[]) {
-  (void)a; (void)n; (void)b; (void)d; return unsupported(c, "fmi2SetRealInputDerivatives"); }
+  (void)a; (void)n; (void)b; (void)d; return unsupported(c, "fmi2SetRealInputDerivatives", MASK_SetInputDerivatives); }
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference a[], size_t n,
     const fmi2Integer b[], fmi2Real d[]) {
-  (void)a; (void)n; (void)b; (void)d; return unsupported(c, "fmi2GetRealOutputDerivatives"); }
-fmi2Status fmi2CancelStep(fmi2Component c) { return unsupported(c, "fmi2CancelStep"); }
-fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind k, fmi2Status* v) {
-  (void)k; (void)v; return unsupported(c, "fmi2GetStatus"); }
-fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind k, fmi2Integer* v) {
-  (void)k; (void)v; return unsupported(c, "fmi2GetIntegerStatus"); }
-fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind k, fmi2Boolean* v) {
-  (void)k; (void)v; return unsupported(c, "fmi2GetBooleanStatus"); }
-fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind k, fmi2String* v) {
-  (void)k; (void)v; return unsupported(c, "fmi2GetStringStatus"); }
-fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind k, fmi2Real* v) {
-  Inst* in = enter(c, "fmi2GetRealStatus", S_STEPPING | S_ERROR | S_TERMINATED);
+  (void)a; (void)n; (void)b; (void)d;
+  return unsupported(c, "fmi2GetRealOutputDerivatives", MASK_GetOutputDerivatives); }
+/* fmi2DoStep is synchronous: StepInProgress is never entered, so this is always a state error */
+fmi2Status fmi2CancelStep(fmi2Component c) { enter(c, "fmi2CancelStep", MASK_CancelStep); return fmi2Error; }
+
+/* as the native layer (fmu_models/fmi/native/fmi2Functions.c): fmi2LastSuccessfulTime and fmi2Terminated are
+   answered, the kinds about an asynchronous step are not available (fmi2Discard) */
+static fmi2Status get_status(fmi2Component c, const char* fn, fmi2StatusKind k, int kind, void* v) {
+  Inst* in = enter(c, fn, MASK_GetStatus);
   if (!in) return fmi2Error;
-  if (k != fmi2LastSuccessfulTime || !v) {
-    say(in, fmi2Error, "fmi2GetRealStatus: only fmi2LastSuccessfulTime with a non-NULL value"); return fmi2Error; }
-  *v = in->time;
+  if (!v) { say(in, fmi2Error, "%s: value is NULL", fn); return fmi2Error; }
+  if (!uavfmu_status_available(kind, (int)k)) {
+    say(in, fmi2Discard, "%s: status kind %d is not available (no asynchronous step)", fn, (int)k);
+    return fmi2Discard;
+  }
+  if (k == fmi2LastSuccessfulTime) *(fmi2Real*)v = in->time; else *(fmi2Boolean*)v = fmi2False;
   return fmi2OK;
 }
+#define GET_STATUS(Type, TypeName, kind)                                                      \
+  fmi2Status fmi2Get##Type##Status(fmi2Component c, const fmi2StatusKind k, TypeName* v) {   \
+    return get_status(c, "fmi2Get" #Type "Status", k, kind, v);                              \
+  }
+GET_STATUS(, fmi2Status, fmi2DoStepStatus)
+GET_STATUS(Real, fmi2Real, fmi2LastSuccessfulTime)
+GET_STATUS(Integer, fmi2Integer, -1)
+GET_STATUS(Boolean, fmi2Boolean, fmi2Terminated)
+GET_STATUS(String, fmi2String, fmi2PendingStatus)
+#undef GET_STATUS
 """
 
 C_STATES = r"""
@@ -458,7 +492,7 @@ static State* owned(Inst* in, const char* fn, fmi2FMUstate s) {
 }
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate* out) {
-  Inst* in = enter(c, "fmi2GetFMUstate", S_ANY);
+  Inst* in = enter(c, "fmi2GetFMUstate", MASK_FMUState);
   if (!in) return fmi2Error;
   if (!out) { say(in, fmi2Error, "fmi2GetFMUstate: NULL state pointer"); return fmi2Error; }
   State* st = *out ? owned(in, "fmi2GetFMUstate", *out) : NULL;
@@ -475,23 +509,23 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate* out) {
     if (!st) { say(in, fmi2Error, "fmi2GetFMUstate: out of memory"); return fmi2Error; }
     st->magic = STATE_MAGIC; st->owner = in; st->next = in->states; in->states = st;
   }
-  st->real = real; st->time = in->time; st->mstate = in->state;
+  st->real = real; st->time = in->time; st->mstate = in->state; st->dt = in->dt;
   *out = st;
   return s;
 }
 
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate s) {
-  Inst* in = enter(c, "fmi2SetFMUstate", S_ANY);
+  Inst* in = enter(c, "fmi2SetFMUstate", MASK_FMUState);
   State* st = in ? owned(in, "fmi2SetFMUstate", s) : NULL;
   if (!st) return fmi2Error;
   REAL(fmi2SetFMUstate);
   fmi2Status r = after(in, "fmi2SetFMUstate", f(in->real, st->real));
-  if (r <= fmi2Warning) { in->time = st->time; in->state = st->mstate; }
+  if (r <= fmi2Warning) { in->time = st->time; in->state = st->mstate; in->dt = st->dt; }
   return r;
 }
 
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate* s) {
-  Inst* in = enter(c, "fmi2FreeFMUstate", S_ANY);
+  Inst* in = enter(c, "fmi2FreeFMUstate", MASK_FMUState);
   if (!in) return fmi2Error;
   if (!s || !*s) return fmi2OK;  /* freeing NULL is a no-op */
   State* st = owned(in, "fmi2FreeFMUstate", *s);
@@ -511,7 +545,7 @@ static uint64_t fnv(const fmi2Byte* b, size_t n) {
 }
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate s, size_t* n) {
-  Inst* in = enter(c, "fmi2SerializedFMUstateSize", S_ANY);
+  Inst* in = enter(c, "fmi2SerializedFMUstateSize", MASK_FMUState);
   State* st = in ? owned(in, "fmi2SerializedFMUstateSize", s) : NULL;
   if (!st) return fmi2Error;
   if (!n) { say(in, fmi2Error, "fmi2SerializedFMUstateSize: NULL size pointer"); return fmi2Error; }
@@ -523,7 +557,7 @@ fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate s, size_t* n
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate s, fmi2Byte b[], size_t n) {
-  Inst* in = enter(c, "fmi2SerializeFMUstate", S_ANY);
+  Inst* in = enter(c, "fmi2SerializeFMUstate", MASK_FMUState);
   State* st = in ? owned(in, "fmi2SerializeFMUstate", s) : NULL;
   if (!st) return fmi2Error;
   REAL(fmi2SerializedFMUstateSize);
@@ -538,22 +572,25 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate s, fmi2Byte b[], 
   if (!g) return fmi2Error;
   fmi2Status r = after(in, "fmi2SerializeFMUstate", g(in->real, st->real, b + SER_HEADER, m));
   if (r > fmi2Warning) return r;
-  uint64_t key = MODEL_KEY, sum = fnv(b + SER_HEADER, m), ms = (uint64_t)st->mstate;
-  memcpy(b, SER_MAGIC, 8); memcpy(b + 8, &key, 8); memcpy(b + 16, &sum, 8); memcpy(b + 24, &st->time, 8);
-  memcpy(b + 32, &ms, 8);
+  uint64_t key = MODEL_KEY, ms = (uint64_t)st->mstate;
+  memcpy(b, SER_MAGIC, 8); memcpy(b + 8, &key, 8); memcpy(b + 24, &st->time, 8); memcpy(b + 32, &ms, 8);
+  memcpy(b + 40, &st->dt, 8);
+  uint64_t sum = fnv(b + 24, m + SER_HEADER - 24);
+  memcpy(b + 16, &sum, 8);
   return r;
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n, fmi2FMUstate* out) {
-  Inst* in = enter(c, "fmi2DeSerializeFMUstate", S_ANY);
+  Inst* in = enter(c, "fmi2DeSerializeFMUstate", MASK_FMUState);
   if (!in) return fmi2Error;
-  uint64_t key = 0, sum = 0, ms = 0; double t = 0.0;
+  uint64_t key = 0, sum = 0, ms = 0; double t = 0.0, dt = 0.0;
   if (!b || !out || n < SER_HEADER) {
     say(in, fmi2Error, "fmi2DeSerializeFMUstate: %s", !b || !out ? "NULL argument" : "shorter than the header");
     return fmi2Error;
   }
   memcpy(&key, b + 8, 8); memcpy(&sum, b + 16, 8); memcpy(&t, b + 24, 8); memcpy(&ms, b + 32, 8);
-  if (memcmp(b, SER_MAGIC, 8) || key != MODEL_KEY || sum != fnv(b + SER_HEADER, n - SER_HEADER) || !isfinite(t)
+  memcpy(&dt, b + 40, 8);
+  if (memcmp(b, SER_MAGIC, 8) || key != MODEL_KEY || sum != fnv(b + 24, n - 24) || !isfinite(t)
       || !(ms == S_INSTANTIATED || ms == S_INIT || ms == S_STEPPING || ms == S_TERMINATED || ms == S_ERROR)) {
     say(in, fmi2Error, "fmi2DeSerializeFMUstate: not a serialised state of this model (or damaged)");
     return fmi2Error;
@@ -564,7 +601,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n
   if (r > fmi2Warning) return r;
   State* st = (State*)calloc(1, sizeof(State));
   if (!st) { say(in, fmi2Error, "fmi2DeSerializeFMUstate: out of memory"); return fmi2Error; }
-  st->magic = STATE_MAGIC; st->owner = in; st->real = real; st->time = t; st->mstate = (int)ms;
+  st->magic = STATE_MAGIC; st->owner = in; st->real = real; st->time = t; st->mstate = (int)ms; st->dt = dt;
   st->next = in->states; in->states = st;
   *out = st;
   return r;
@@ -573,12 +610,15 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n
 
 
 def _table_c(rows: list[VarRow], model_identifier: str, guid: str) -> str:
-    body = ",\n".join(f"  {{{vr}u, '{kind}', {settable}}}" for vr, kind, settable in rows) or "  {0u, 0, 0}"
+    body = ",\n".join(f"  {{{r[0]}u, '{r[1]}', {r[2]}, {json.dumps(r[3])}}}" for r in rows)
+    dt = next(((r[0], r[4]) for r in rows if r[3] == INTERNAL_STEP and r[4] is not None), (-1, 0.0))
+    body = body or '  {0u, 0, 0, ""}'
     key = 1469598103934665603
-    for ch in f"{model_identifier}:{rows}".encode():
+    for ch in f"{model_identifier}:{[r[:3] for r in rows]}".encode():
         key = ((key ^ ch) * 1099511628211) % (1 << 64)
     return (f"static const VarInfo VARS[] = {{\n{body}\n}};\n"
             f"static const size_t NVARS = {len(rows)};\n"
+            f"#define DT_VR {dt[0]}LL\n#define DT_START {dt[1]!r}\n"
             f"#define MODEL_KEY 0x{key:016x}ULL\n"
             f"static const char MODEL_GUID[] = \"{guid.replace(chr(92), '').replace(chr(34), '')}\";\n")
 
@@ -593,8 +633,9 @@ def shim_source(real_library_name: str, rows: list[VarRow] | None = None, model_
 def build_shim(model_identifier: str, out_dir: Path, compiler: str, rows: list[VarRow] | None = None,
                guid: str = "") -> Path:
     """Compile ``<id>.so`` guarding and forwarding to ``<id>_pythonfmu.so``; return its path."""
+    (out_dir / "uavfmu_states.h").write_text(statemachine.header())
     src = out_dir / f"{model_identifier}_shim.c"
     src.write_text(shim_source(f"{model_identifier}_pythonfmu.so", rows, model_identifier, guid))
     lib = out_dir / f"{model_identifier}.so"
-    compile_library(src, lib, compiler, extra=["-I", str(HEADERS), "-ldl"])
+    compile_library(src, lib, compiler, extra=["-I", str(HEADERS), "-I", str(out_dir), "-ldl"])
     return lib

@@ -27,14 +27,18 @@ class ModelLoadError(RuntimeError):
 
 
 class CompiledEngine:
-    """The generated C functions ``uavfmu_initialize`` and ``uavfmu_advance`` through ctypes."""
+    """The generated C functions ``<model>_uavfmu_initialize``, ``_advance`` and ``_outputs`` through ctypes."""
 
     backend = "compiled"
 
-    def __init__(self, library: Path) -> None:
+    def __init__(self, library: Path, model: str) -> None:
         self._lib = ctypes.CDLL(str(library))
-        self._init = self._lib.uavfmu_initialize
-        self._advance = self._lib.uavfmu_advance
+        self._init = getattr(self._lib, f"{model}_uavfmu_initialize")
+        self._advance = getattr(self._lib, f"{model}_uavfmu_advance")
+        self._outputs = getattr(self._lib, f"{model}_uavfmu_outputs")
+
+    def outputs(self, x: Any, u: Any, p: Any, y: Any) -> int:
+        return int(self._outputs(x, u, p, y))
 
     def initialize(self, u: Any, p: Any, x: Any, y: Any) -> int:
         return int(self._init(u, p, x, y))
@@ -55,12 +59,18 @@ class CasadiEngine:
 
     backend = "casadi"
 
-    def __init__(self, step_file: Path, init_file: Path, limits: list[float]) -> None:
+    def __init__(self, step_file: Path, init_file: Path, limits: list[float], outputs_file: Path) -> None:
         import casadi  # only here: the compiled path needs no CasADi
 
         self._step = casadi.Function.load(str(step_file))
         self._init = casadi.Function.load(str(init_file))
+        self._out = casadi.Function.load(str(outputs_file))
         self._limits = limits
+
+    def outputs(self, x: Any, u: Any, p: Any, y: Any) -> int:
+        y[:] = [float(v) for v in self._out(list(x), list(u), list(p)).full().ravel()]
+        bad = [i for i, v in enumerate(y) if not math.isfinite(v)]
+        return -(bad[0] + 1) if bad else 0
 
     def initialize(self, u: Any, p: Any, x: Any, y: Any) -> int:
         x0, y0 = self._init(list(u), list(p))
@@ -90,11 +100,12 @@ def load_engine(resources: Path, spec: dict[str, Any]) -> tuple[Any, str]:
     """The compiled engine if its library loads here, else the CasADi one; and a note on which."""
     lib = resources / spec["library"]
     try:
-        return CompiledEngine(lib), f"compiled library {lib.name}"
+        return CompiledEngine(lib, spec["name"]), f"compiled library {lib.name}"
     except OSError as err:
         why = f"{lib.name} not loadable ({err})"
     try:
-        eng = CasadiEngine(resources / spec["casadi_step"], resources / spec["casadi_init"], spec["state_limits"])
+        eng = CasadiEngine(resources / spec["casadi_step"], resources / spec["casadi_init"], spec["state_limits"],
+                           resources / spec["casadi_outputs"])
     except ImportError as err:
         raise ModelLoadError(f"{why}, and CasADi is not importable for the fallback ({err})") from err
     return eng, f"CasADi fallback ({why})"
@@ -140,7 +151,10 @@ class VehicleSlave(Fmi2Slave):
         self.engine_note = ""
         self._time = 0.0
         self._params_dirty = True
+        self._outputs_dirty = False
+        self._stepping = False
         self._failed = ""
+        self._max_steps = int(spec["max_internal_steps"])
         self._register()
 
     # ---------------------------------------------------------------- variables
@@ -152,7 +166,8 @@ class VehicleSlave(Fmi2Slave):
                 getter=self._getter(self._u, i), setter=self._setter(self._u, i, False)))
         for i, v in enumerate(self._spec["params"]):
             self.register_variable(Real(
-                v["name"], causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable,
+                v["name"], causality=Fmi2Causality.parameter,
+                variability=Fmi2Variability.tunable if v.get("tunable", True) else Fmi2Variability.fixed,
                 description=v["description"], start=v["start"],
                 getter=self._getter(self._p, i), setter=self._setter(self._p, i, True)))
         for i, v in enumerate(self._spec["outputs"]):
@@ -162,19 +177,36 @@ class VehicleSlave(Fmi2Slave):
                 v["name"], causality=Fmi2Causality.output, variability=variability,
                 description=v["description"], getter=self._getter(self._y, i, v["boolean"])))
 
-    @staticmethod
-    def _getter(arr: Any, i: int, boolean: bool = False) -> Any:
-        if boolean:
-            return lambda: arr[i] > 0.5
-        return lambda: arr[i]
+    def _getter(self, arr: Any, i: int, boolean: bool = False) -> Any:
+        def get_value() -> Any:
+            if arr is self._y and self._outputs_dirty:
+                self._refresh_outputs()
+            return arr[i] > 0.5 if boolean else arr[i]
+
+        return get_value
 
     def _setter(self, arr: Any, i: int, is_param: bool) -> Any:
         def set_value(value: float) -> None:
             arr[i] = value
+            self._outputs_dirty = self._stepping
             if is_param:
                 self._params_dirty = True
 
         return set_value
+
+    def _refresh_outputs(self) -> None:
+        """Outputs of the current states after an input or parameter changed while stepping (as the native
+        layer): the same range checks first; a failure is logged as an error (the shim returns fmi2Error)."""
+        self._outputs_dirty = False
+        if self._failed or self._engine is None:
+            return
+        problem = self._check(self._u, self._u_limits, "input") or self._check(self._p, self._p_limits, "parameter")
+        if problem:
+            self._fail(f"outputs at t = {self._time:.6g} s: {problem}")
+            return
+        status = self._engine.outputs(self._x, self._u, self._p, self._y)
+        if status:
+            self._fail(f"outputs at t = {self._time:.6g} s: {self._diverged(status)}")
 
     # ---------------------------------------------------------------- checks
     def _check(self, arr: Any, limits: list[tuple[Any, Any, str]], kind: str) -> str:
@@ -215,12 +247,18 @@ class VehicleSlave(Fmi2Slave):
             self._fail(f"initialisation: the initial state is not finite ({self._diverged(status)})")
             return
         self._params_dirty = False
+        self._stepping = True
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         if self._failed:
             self.log(f"{self.modelName} cannot step after an error; reset it. The error: {self._failed}",
                      Fmi2Status.error)
             return False
+        dt = self._p[self._i_dt]
+        if not (math.isfinite(dt) and dt > 0.0 and step_size / dt <= self._max_steps + 0.5):
+            # refused before any work, as the native layer's uavfmu_rule_step (fmu_models/fmi/statemachine.py)
+            return self._fail(f"fmi2DoStep: a step of {step_size:g} s needs more than the {self._max_steps} "
+                              f"internal steps of {dt:g} s allowed per communication step")
         problem = self._check(self._u, self._u_limits, "input")
         if problem:
             return self._fail(f"t = {current_time:.6g} s: {problem}")
@@ -232,11 +270,12 @@ class VehicleSlave(Fmi2Slave):
         if not step_size > 0.0:
             return self._fail(f"communication step size {step_size} must be > 0")
         self._h[0] = step_size
-        self._h[1] = self._p[self._i_dt]
+        self._h[1] = dt
         status = self._engine.advance(self._x, self._u, self._p, self._h, self._x_next, self._y)
         if status:
             return self._fail(f"t = {current_time:.6g} s: integration diverged: {self._diverged(status)}")
         ctypes.memmove(self._x, self._x_next, ctypes.sizeof(self._x))
+        self._outputs_dirty = False
         self._time = current_time + step_size
         for i, name, text in self._warn_flags:
             if self._y[i] > 0.5 and name not in self._warned:
@@ -257,6 +296,7 @@ class VehicleSlave(Fmi2Slave):
         return {
             "x": list(self._x), "u": list(self._u), "p": list(self._p), "y": list(self._y),
             "time": self._time, "warned": sorted(self._warned), "failed": self._failed,
+            "stepping": self._stepping, "outputs_dirty": self._outputs_dirty,
         }
 
     def _state_problem(self, state: Any) -> str:
@@ -292,6 +332,8 @@ class VehicleSlave(Fmi2Slave):
         self._time = state["time"]
         self._warned = set(state["warned"])
         self._failed = state["failed"]
+        self._stepping = bool(state.get("stepping", True))
+        self._outputs_dirty = bool(state.get("outputs_dirty", False))
         self._params_dirty = True
         if self._engine is None:
             try:

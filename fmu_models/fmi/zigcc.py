@@ -21,18 +21,31 @@ from fmu_models.fmi.jit import cache_dir
 
 @dataclass(frozen=True)
 class Platform:
-    """One FMI 2.0 binary platform: folder name, zig target triple, library suffix."""
+    """One binary platform: FMI 2.0 folder name, zig target triple, library suffix, FMI 3.0 folder name."""
 
     fmi_name: str
     target: str
     suffix: str
+    fmi3_name: str
 
 
 PLATFORMS: tuple[Platform, ...] = (
-    Platform("linux64", "x86_64-linux-gnu.2.17", ".so"),
-    Platform("win64", "x86_64-windows-gnu", ".dll"),
-    Platform("darwin64", "x86_64-macos", ".dylib"),
+    Platform("linux64", "x86_64-linux-gnu.2.17", ".so", "x86_64-linux"),
+    Platform("win64", "x86_64-windows-gnu", ".dll", "x86_64-windows"),
+    Platform("darwin64", "x86_64-macos", ".dylib", "x86_64-darwin"),
 )
+BY_NAME = {p.fmi_name: p for p in PLATFORMS}
+
+
+def host_platform() -> Platform:
+    """The platform of this machine (``make demo`` builds only this one)."""
+    import platform as _platform
+
+    key = {"linux": "linux64", "win32": "win64", "darwin": "darwin64"}.get(sys.platform)
+    if key is None or _platform.machine().lower() not in ("x86_64", "amd64"):
+        raise CompileError(f"no native FMU platform for {sys.platform}/{_platform.machine()} "
+                           f"(built: {', '.join(BY_NAME)})")
+    return BY_NAME[key]
 
 #: flags of every native FMU library: only the fmi2 functions are exported, no build paths leak in
 CFLAGS = ("-O2", "-fvisibility=hidden", "-DCASADI_SYMBOL_EXPORT=", "-ffp-contract=off", "-fno-fast-math")

@@ -3,8 +3,9 @@
 ``python tests/robustness/fmi_worker.py UNZIPPED_QUADROTOR UNZIPPED_FIXED_WING``. Each input line is a list of
 operations (``[op, slot, args...]``, see ``OPS``) run on up to two instance slots per model; the answer line
 holds, per operation, the returned status (``null`` for void calls, ``-1`` for an ``fmi2Instantiate`` that
-returned NULL, ``-2`` for a call the worker skipped because its slot is empty) and the number of messages the
-FMU logged during the call. After the sequence every live instance is freed and a fresh instance must
+returned NULL, ``-2`` for a call the worker skipped because its slot is empty), the number of messages the
+FMU logged during the call and whether one of them was a state-machine refusal ("not allowed in state").
+After the sequence every live instance is freed and a fresh instance must
 initialise and step: the last entry says whether it did. Run in a subprocess by test_fmi_sequences.py: a
 crash here kills only this process, and the test names the sequence that did it.
 """
@@ -34,10 +35,12 @@ libc.calloc.restype = C.c_void_p
 libc.calloc.argtypes = [C.c_size_t, C.c_size_t]
 libc.free.argtypes = [C.c_void_p]
 LOGGED = [0]
+STATE_ERROR = [False]
 
 
 def _logger(env: Any, name: Any, status: int, category: Any, message: Any) -> None:
     LOGGED[0] += 1
+    STATE_ERROR[0] |= b"not allowed in state" in (message or b"")
 
 
 def _calloc(n: int, size: int) -> int | None:
@@ -82,7 +85,11 @@ SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
     "fmi2SerializedFMUstateSize": (B, [V, V, C.POINTER(C.c_size_t)]),
     "fmi2SerializeFMUstate": (B, [V, V, C.c_void_p, U]),
     "fmi2DeSerializeFMUstate": (B, [V, C.c_void_p, U, C.POINTER(C.c_void_p)]),
+    "fmi2GetDirectionalDerivative": (B, [V, P, U, P, U, C.c_void_p, C.c_void_p]),
+    "fmi2SetRealInputDerivatives": (B, [V, P, U, C.c_void_p, C.c_void_p]),
+    "fmi2GetRealOutputDerivatives": (B, [V, P, U, C.c_void_p, C.c_void_p]),
 }
+DERIVATIVE_FUNCTIONS = ("fmi2GetDirectionalDerivative", "fmi2SetRealInputDerivatives", "fmi2GetRealOutputDerivatives")
 
 
 class Model:
@@ -106,9 +113,10 @@ class Model:
     def call(self, name: str, *args: Any) -> Any:
         return getattr(self.lib, name)(*args)
 
-    def instantiate(self, name: bytes | None = b"seq", kind: int = 1, guid: bytes | None = None) -> int | None:
-        return self.call("fmi2Instantiate", name, kind, self.guid if guid is None else guid, self.resources,
-                         C.cast(C.pointer(CALLBACKS), C.c_void_p), 0, 0)
+    def instantiate(self, name: bytes | None = b"seq", kind: int = 1, guid: bytes | None = None,
+                    resources: bool = True) -> int | None:
+        return self.call("fmi2Instantiate", name, kind, self.guid if guid is None else guid,
+                         self.resources if resources else None, C.cast(C.pointer(CALLBACKS), C.c_void_p), 0, 0)
 
     def free_all(self) -> None:
         for k, comp in enumerate(self.slots):
@@ -200,8 +208,10 @@ def run_op(models: dict[str, Model], op: list[Any]) -> int | None:
         if m.slots[slot]:
             m.call("fmi2FreeInstance", m.slots[slot])
             m.states[:] = [s for s in m.states if s[0] != slot]
-        comp = m.instantiate(*({0: (), 1: (b"",), 2: (b"seq", 0), 3: (b"seq", 1, b"{bad-guid}"),
-                                4: (None,)}[args[0]]))
+        # 0 valid, 1 empty name, 2 an fmuType that does not exist, 3 wrong GUID, 4 NULL name,
+        # 5 valid with a NULL resource location (allowed: the FMU finds what it needs itself)
+        comp = m.instantiate(*({0: (), 1: (b"",), 2: (b"seq", 7), 3: (b"seq", 1, b"{bad-guid}"),
+                                4: (None,), 5: (b"seq", 1, None, False)}[args[0]]))
         m.slots[slot] = comp or None
         m.time_s[slot] = 0.0
         return 0 if comp else -1
@@ -240,6 +250,11 @@ def run_op(models: dict[str, Model], op: list[Any]) -> int | None:
         fn = ("fmi2GetStatus", "fmi2GetRealStatus", "fmi2GetBooleanStatus", "fmi2GetIntegerStatus",
               "fmi2GetStringStatus")[args[0]]
         return m.call(fn, comp, args[1], None if args[2] else C.cast(out, C.c_void_p))
+    if name == "deriv":  # the derivative functions this FMU declares unsupported, nvr = 0
+        fn = DERIVATIVE_FUNCTIONS[args[0]]
+        if fn == "fmi2GetDirectionalDerivative":
+            return m.call(fn, comp, None, 0, None, 0, None, None)
+        return m.call(fn, comp, None, 0, None, None)
     if name == "debug":
         cats = (C.c_char_p * 2)(b"logAll", b"nonsense")
         return m.call("fmi2SetDebugLogging", comp, args[0], args[1], None if args[2] else C.cast(cats, C.c_void_p))
@@ -250,8 +265,9 @@ def run_sequence(models: dict[str, Model], seq: list[list[Any]]) -> list[Any]:
     out: list[Any] = []
     for op in seq:
         LOGGED[0] = 0
+        STATE_ERROR[0] = False
         status = run_op(models, op)
-        out.append([status, LOGGED[0]])
+        out.append([status, LOGGED[0], STATE_ERROR[0]])
     for m in models.values():
         m.free_all()
     out.append(all(m.healthy() for m in models.values()))

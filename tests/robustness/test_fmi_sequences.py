@@ -1,14 +1,18 @@
-"""Generated FMI 2.0 call sequences against both backends (issue 16): the FMU never crashes its host.
+"""Generated FMI 2.0 call sequences, the same ones against every backend (issues 16, 25): the FMU never crashes
+its host, follows the one state machine table both directions, and every backend answers alike.
 
 Hypothesis builds sequences of calls (life-cycle calls in any order, value references valid, unknown or of
-the wrong type, NaN/inf/huge values, NULL arrays and components, steps from the wrong time or with a bad size,
-FMU states of the other instance or the other model, damaged and truncated serialized states, status queries,
-bad instantiations) and ``fmi_worker.py`` runs them with plain ctypes in a subprocess, one per backend, so a
-crash fails the test with the sequence that caused it. Each answer is checked against the FMI 2.0
-Co-Simulation state machine: a call the standard forbids in the current state, a step that does not start at
-the last communication point or has a non-positive or non-finite size, and a NULL component return
-fmi2Error; every fmi2Error is logged; bad instantiations return NULL with a message; afterwards every instance
-frees cleanly and a fresh one initialises and steps. At least 1000 sequences run per backend (printed).
+the wrong type, NaN/inf/huge values, NULL arrays and components, steps from the wrong time or with a bad or
+huge size, FMU states of the other instance or the other model, damaged and truncated serialized states, status
+queries, the unsupported derivative functions, debug-logging categories, bad instantiations) and
+``fmi_worker.py`` runs each sequence with plain ctypes in one subprocess per backend (the native FMI 2.0
+Co-Simulation FMU and the pythonfmu FMU behind its guard), so a crash fails the test with the sequence that
+caused it. Every answer is judged by an oracle built on ``fmu_models/fmi/statemachine.py`` (the table the C
+layers are generated from), in both directions: a call the table forbids, or with arguments its rules refuse,
+must return fmi2Error (with a logged state error when it is the state); an allowed call with valid arguments
+must succeed (fmi2OK), except where the outcome depends on values the sequence set (then either, and an
+error moves the oracle to the Error state); the oracle keeps judging after errors. The two backends must
+return identical statuses for every call. At least 1000 sequences run (printed).
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ import selectors
 import subprocess
 import sys
 from collections.abc import Iterator
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +33,10 @@ from fmpy import extract, read_model_description
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
+from build_fmus import make_model
+from fmu_models.fmi import zigcc
+from fmu_models.fmi.statemachine import MASKS, MAX_INTERNAL_STEPS
+
 WORKER = Path(__file__).with_name("fmi_worker.py")
 EXAMPLES = 1000
 TIMEOUT_S = 30.0
@@ -35,6 +44,7 @@ MODELS = ("quadrotor", "fixed_wing")
 COUNTS: dict[str, int] = {}
 OK, WARNING, DISCARD, ERROR, FATAL = range(5)
 NULL_INSTANCE, SKIPPED = -1, -2
+BACKENDS = ("native", "python")
 
 
 class Worker:
@@ -74,38 +84,55 @@ class Worker:
             self.proc.wait(timeout=10)
 
 
-def _vrs(fmu: Path) -> dict[str, list[int]]:
-    md = read_model_description(str(fmu))
-    out: dict[str, list[int]] = {"Real": [], "Boolean": [], "Integer": [], "String": []}
-    for v in md.modelVariables:
-        out.setdefault(v.type, []).append(v.valueReference)
-    return out
+@dataclass(frozen=True)
+class Var:
+    """What the oracle knows of a variable: type and how it may be set."""
+
+    type: str
+    causality: str
+    variability: str
+    name: str
 
 
-@pytest.fixture(scope="module", params=["native", "python"])
-def backend(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple]:
-    fmus = request.getfixturevalue("built_fmus" if request.param == "native" else "python_fmus")
-    folders = [extract(str(fmus[m]), str(tmp_path_factory.mktemp(f"{request.param}_{m}"))) for m in MODELS]
-    worker = Worker(folders)
-    yield request.param, worker, [_vrs(fmus[m]) for m in MODELS]
-    worker.close()
+def _vars(fmu: Path) -> dict[int, Var]:
+    return {v.valueReference: Var(v.type, v.causality, v.variability, v.name)
+            for v in read_model_description(str(fmu)).modelVariables}
+
+
+@pytest.fixture(scope="module")
+def backends(python_fmus: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict]:
+    """A worker per backend: the native FMI 2.0 Co-Simulation FMUs (the same variables as the pythonfmu ones)
+    and the pythonfmu FMUs; the oracle's variable tables (identical in both, checked)."""
+    from build_fmus import BuildOptions, build
+
+    out = tmp_path_factory.mktemp("native_cs")
+    opts = BuildOptions(kinds=("cs",), platforms=(zigcc.host_platform().fmi_name,))
+    native = {p.stem: p for p in build(None, out, options=opts)}
+    workers, tables = {}, {}
+    for name, fmus in (("native", native), ("python", python_fmus)):
+        folders = [extract(str(fmus[m]), str(tmp_path_factory.mktemp(f"{name}_{m}"))) for m in MODELS]
+        workers[name] = Worker(folders)
+        tables[name] = [_vars(fmus[m]) for m in MODELS]
+    assert tables["native"] == tables["python"]
+    yield {"workers": workers, "vars": tables["native"]}
+    for w in workers.values():
+        w.close()
 
 
 # ----------------------------------------------------------------------------------------- strategies
 SLOT, MODEL = st.integers(0, 1), st.integers(0, 1)
 BAD_TIMES = (-5.0, 1e6, math.nan, math.inf)
-STEP_SIZES = (0.001, 0.01, 0.1, 1.0, 0.0, -0.01, math.nan, math.inf, 1e9)
+STEP_SIZES = (0.001, 0.01, 0.1, 1.0, 0.0, -0.01, math.nan, math.inf, 1e5, 1e9)
 VALUES = st.one_of(st.floats(-1e3, 1e3), st.sampled_from([math.nan, math.inf, -math.inf, 1e300, 0.0, 1500.0]))
 
 
-def _call_ops(vrs: list[dict[str, list[int]]]) -> st.SearchStrategy[list[Any]]:
+def _call_ops(every_vr: list[int]) -> st.SearchStrategy[list[Any]]:
     kinds = st.sampled_from(["Real", "Real", "Real", "Boolean", "Integer", "String"])
-    every_vr = sorted({r for model in vrs for refs in model.values() for r in refs})
     refs = st.lists(st.one_of(st.sampled_from(every_vr), st.integers(0, 2**32 - 1)), max_size=6)
     null_comp = st.sampled_from(["fmi2EnterInitializationMode", "fmi2ExitInitializationMode", "fmi2Terminate",
                                  "fmi2Reset", "fmi2CancelStep", "fmi2FreeInstance"])
     return st.one_of(
-        st.tuples(st.just("inst"), MODEL, SLOT, st.integers(0, 4)).map(list),
+        st.tuples(st.just("inst"), MODEL, SLOT, st.integers(0, 5)).map(list),
         st.tuples(st.sampled_from(["enter", "exit", "terminate", "reset", "cancel", "free", "getState"]),
                   MODEL, SLOT).map(list),
         st.tuples(st.just("setup"), MODEL, SLOT, st.integers(0, 1), VALUES, st.sampled_from([0.0, 2.5, -1.0]),
@@ -119,12 +146,13 @@ def _call_ops(vrs: list[dict[str, list[int]]]) -> st.SearchStrategy[list[Any]]:
                   st.integers(0, 400)).map(list),
         st.tuples(st.just("status"), MODEL, SLOT, st.integers(0, 4), st.integers(-1, 5), st.integers(0, 1)).map(list),
         st.tuples(st.just("debug"), MODEL, SLOT, st.integers(0, 1), st.integers(0, 2), st.integers(0, 1)).map(list),
+        st.tuples(st.just("deriv"), MODEL, SLOT, st.integers(0, 2)).map(list),
         st.tuples(st.just("null"), MODEL, SLOT, null_comp).map(list),
     )
 
 
 @st.composite
-def sequences(draw: st.DrawFn, vrs: list[dict[str, list[int]]]) -> list[list[Any]]:
+def sequences(draw: st.DrawFn, every_vr: list[int]) -> list[list[Any]]:
     """A valid start of a life (so deep states are reached) then any calls."""
     seq: list[list[Any]] = []
     for slot in range(draw(st.integers(0, 2))):
@@ -133,7 +161,7 @@ def sequences(draw: st.DrawFn, vrs: list[dict[str, list[int]]]) -> list[list[Any
                 ["exit", model, slot]]
         life += [["step", model, slot, 0, 0.0, 0.01]] * draw(st.integers(0, 3))
         seq += life[: draw(st.integers(1, len(life)))]
-    return seq + draw(st.lists(_call_ops(vrs), min_size=1, max_size=20))
+    return seq + draw(st.lists(_call_ops(every_vr), min_size=1, max_size=20))
 
 
 #: instantiate, set up, initialise and make one step (slot 0 of the quadrotor), for explicit examples
@@ -142,73 +170,223 @@ LIFE = [["inst", 0, 0, 0], ["setup", 0, 0, 0, 0.0, 0.0, 0, 0.0], ["enter", 0, 0]
 
 
 # ----------------------------------------------------------------------------------------- the oracle
-FORBIDDEN = {  # FMI 2.0 CS state machine (spec 2.0.4, 4.2.4): states in which a call must return fmi2Error
-    "setup": {"init", "step", "terminated"},
-    "enter": {"init", "step", "terminated"},
-    "exit": {"instantiated", "step", "terminated"},
-    "step": {"instantiated", "init", "terminated"},
-    "terminate": {"instantiated", "init", "terminated"},
-    "get": {"instantiated"},
-    "set": {"terminated"},
-}
-AFTER_OK = {"enter": "init", "exit": "step", "terminate": "terminated", "reset": "instantiated",
-            "step": "step", "setup": "instantiated"}
+#: worker operation -> the state-machine operation of fmu_models/fmi/statemachine.py (MASKS)
+OP_MASK = {"setup": "SetupExperiment", "enter": "EnterInitializationMode", "exit": "ExitInitializationMode",
+           "terminate": "Terminate", "reset": "Reset", "cancel": "CancelStep", "getState": "FMUState",
+           "setState": "FMUState", "freeState": "FMUState", "serial": "FMUState", "step": "DoStep",
+           "get": "GetValue", "set": "SetInput", "status": "GetStatus", "debug": "SetDebugLogging"}
+DERIV_MASK = ("GetDirectionalDerivative", "SetInputDerivatives", "GetOutputDerivatives")
+#: status function (worker index) -> the one status kind it answers (fmi2LastSuccessfulTime, fmi2Terminated)
+STATUS_KIND = {1: 2, 2: 3}
+INTERNAL_STEP_S = 0.001  # the models' default step_internal_s (a parameter the sequences may change: then "either")
+MODEL_DEPENDENT = (OK, ERROR)
+#: the first output's value reference of the quadrotor (inputs, then parameters, then outputs)
+_QUAD = make_model("quadrotor", None, "defaults")
+OUT = len(_QUAD.inputs) + len(_QUAD.params)
 
 
-def check(seq: list[list[Any]], answer: list[Any]) -> None:
-    *results, healthy = answer
-    assert healthy, "after freeing everything, a fresh instance no longer initialises and steps"
-    state: dict[tuple[int, int], str | None] = {}
-    for op, (status, logged) in zip(seq, results, strict=True):
+@dataclass
+class Life:
+    """What the oracle knows of one instance: its state, last communication point, whether values were set
+    that the model may refuse (then model-dependent outcomes are "OK or error")."""
+
+    state: str = "Instantiated"
+    time: float = 0.0
+    suspect: bool = False
+    internal_step_s: float = INTERNAL_STEP_S
+
+
+@dataclass
+class Oracle:
+    """Expected answers of the FMI 2.0 Co-Simulation state machine for one sequence (see the module docstring)."""
+
+    vars: list[dict[int, Var]]
+    lives: dict[tuple[int, int], Life] = field(default_factory=dict)
+    saved: dict[int, list[tuple[int, Life]]] = field(default_factory=lambda: {0: [], 1: []})
+
+    def drop(self, model: int, slot: int) -> None:
+        self.lives.pop((model, slot), None)
+        self.saved[model] = [e for e in self.saved[model] if e[0] != slot]
+
+    def judge(self, op: list[Any], status: Any, state_error: bool) -> None:
+        """Assert ``status`` is an allowed answer to ``op`` and advance the oracle."""
         name, model, slot, *args = op
-        key = (model, slot)
-        where = f"{op} returned {status} (logged {logged})"
-        assert status is None or status in (NULL_INSTANCE, SKIPPED) or OK <= status <= FATAL, where
-        if status in (ERROR, FATAL) and name != "null":
-            assert logged >= 1, f"{where}: an fmi2Error without a logged message"
+        where = f"{op} returned {status}"
         if name == "null":
             assert status in (None, ERROR), where
-            continue
+            return
         if name == "inst":
-            assert (status == OK) == (args[0] == 0), where  # empty/NULL name, ME type, wrong GUID: NULL
-            assert status == OK or logged >= 1, f"{where}: refused instantiation not logged"
-            state[key] = "instantiated" if status == OK else None
-            if status != OK:
-                state.pop(key, None)
-            continue
-        if status == SKIPPED:
-            continue
+            self.drop(model, slot)
+            assert (status == OK) == (args[0] in (0, 5)), where  # 5: NULL resource location is allowed
+            if status == OK:
+                self.lives[(model, slot)] = Life()
+            return
+        life = self.lives.get((model, slot))
+        if life is None:
+            assert status == SKIPPED, where
+            return
         if name == "free":
-            state.pop(key, None)
-            continue
-        current = state.get(key)
-        if current is not None and current in FORBIDDEN.get(name, ()):
-            assert status == ERROR, f"{where}: not allowed in state {current}"
-        if name == "step" and current == "step" and (args[0] == 1 or not args[2] > 0 or not math.isfinite(args[2])):
-            assert status == ERROR, f"{where}: wrong communication point or step size"
-        if name == "status" and args[0] == 3:  # FMI 2.0 CS defines no Integer status: never answered fmi2OK
-            assert status != OK, f"{where}: fmi2GetIntegerStatus answered"
-        if name == "setup" and current == "instantiated" and args[0] == 1 and not math.isfinite(args[1]):
-            assert status == ERROR, f"{where}: non-finite tolerance"
-        if status in (OK, WARNING) and name in AFTER_OK and current is not None:
-            state[key] = AFTER_OK[name]
-        elif status not in (OK, WARNING) or name == "setState":
-            state[key] = None  # an error or a restored state: the oracle stops judging this slot
-        if name == "reset" and status == OK:
-            state[key] = "instantiated"
+            self.drop(model, slot)
+            return
+        mask = DERIV_MASK[args[0]] if name == "deriv" else OP_MASK[name]
+        if life.state not in MASKS[mask]:
+            assert status == ERROR and state_error, f"{where}: not allowed in state {life.state}"
+            return
+        assert not state_error, f"{where}: a state error in allowed state {life.state}"
+        expected = self.expect(name, model, slot, args, life)
+        assert status in expected, f"{where}: expected one of {expected} in state {life.state}"
+        if expected == MODEL_DEPENDENT and status == ERROR:
+            life.state = "Error"  # the model refused a value the sequence set: the instance is in the Error state
+            return
+        self.advance(name, model, slot, args, life, status)
+
+    def expect(self, name: str, model: int, slot: int, args: list[Any], life: Life) -> tuple[Any, ...]:
+        """The allowed statuses; ``MODEL_DEPENDENT`` when only the model's checks of set values decide."""
+        either = MODEL_DEPENDENT
+        if name in ("cancel", "deriv"):
+            return (ERROR,)  # never in StepInProgress / not supported: both refused
+        if name == "setup":
+            td, tol, t0, sd, t1 = args
+            bad = (td and not (math.isfinite(tol) and tol > 0)) or (sd and not (math.isfinite(t1) and t1 >= t0))
+            return (ERROR,) if bad else (OK,)
+        if name == "exit":
+            return either if life.suspect else (OK,)
+        if name == "step":
+            t = life.time if args[0] == 0 else args[1]
+            h = args[2]
+            if not (math.isfinite(h) and h > 0) or not math.isfinite(t) or abs(t - life.time) > 1e-9 * max(
+                    1.0, abs(life.time)):
+                return (ERROR,)
+            dt = life.internal_step_s
+            if not (math.isfinite(dt) and dt > 0) or h / dt > MAX_INTERNAL_STEPS + 0.5:
+                return (ERROR,)  # refused before any work (uavfmu_rule_internal_steps): nothing changes
+            return either if life.suspect else (OK,)  # set values: the model may refuse them
+        if name in ("get", "set"):
+            return self.expect_values(name, model, args, life)
+        if name == "status":
+            fn, kind, null = args
+            if null:
+                return (ERROR,)
+            return (OK,) if STATUS_KIND.get(fn) == kind else (DISCARD,)
+        if name == "debug":
+            _on, n, null = args
+            return (OK,) if n == 0 or (not null and n == 1) else (ERROR,)  # categories: logAll, nonsense
+        if name in ("enter", "terminate", "reset", "getState"):
+            return (OK,)
+        return self.expect_states(name, model, slot, args)
+
+    def expect_values(self, name: str, model: int, args: list[Any], life: Life) -> tuple[Any, ...]:
+        kind, refs, _values, null = args
+        if not refs:
+            return (OK,)
+        if null:
+            return (ERROR,)
+        table = self.vars[model]
+        for r in refs:
+            v = table.get(r)
+            if v is None or v.type != kind:
+                return (ERROR,)
+            if name == "set":
+                op = {"input": "SetInput", "parameter": "SetTunable" if v.variability == "tunable" else "SetFixed"}
+                if v.causality not in op or life.state not in MASKS[op[v.causality]]:
+                    return (ERROR,)
+        outputs = any(table[r].causality == "output" for r in refs)
+        if name == "get" and outputs and life.suspect and life.state != "Error":
+            return MODEL_DEPENDENT  # outputs recomputed from values the model may refuse
+        return (OK,)
+
+    def expect_states(self, name: str, model: int, slot: int, args: list[Any]) -> tuple[Any, ...]:
+        owner, idx = args[0], args[1]
+        entries = self.saved[owner]
+        if not entries:
+            return (SKIPPED,)
+        mine = owner == model and entries[idx % len(entries)][0] == slot
+        if not mine:
+            return (ERROR,)
+        if name == "serial":
+            return (OK,) if args[2] == 0 else (ERROR,)  # a damaged or truncated serialized state is refused
+        return (OK,)
+
+    def advance(self, name: str, model: int, slot: int, args: list[Any], life: Life, status: Any) -> None:
+        if status not in (OK, WARNING):
+            return
+        moves = {"enter": "InitializationMode", "exit": "StepComplete", "terminate": "Terminated",
+                 "reset": "Instantiated"}
+        if name in moves:
+            life.state = moves[name]
+        if name == "reset":
+            life.time, life.suspect, life.internal_step_s = 0.0, False, INTERNAL_STEP_S
+        elif name == "setup":
+            life.time = args[2]
+        elif name == "step":
+            life.time = (life.time if args[0] == 0 else args[1]) + args[2]
+        elif name == "set" and args[1]:
+            life.suspect = True
+            values = (args[2] + [0.0] * len(args[1]))[: len(args[1])]  # as the worker pads them
+            for r, value in zip(args[1], values, strict=True):
+                if self.vars[model][r].name == "step_internal_s":
+                    life.internal_step_s = float(value)
+        elif name == "getState":
+            self.saved[model].append((slot, replace(life)))
+        elif name in ("setState", "freeState", "serial"):
+            entries = self.saved[args[0]]
+            idx = args[1] % len(entries)
+            if name == "setState":
+                restored = entries[idx][1]
+                life.state, life.time, life.suspect = restored.state, restored.time, restored.suspect
+                life.internal_step_s = restored.internal_step_s
+            elif name == "freeState":
+                del entries[idx]
+            else:
+                entries.append((slot, replace(entries[idx][1])))
 
 
-def test_generated_call_sequences_never_crash_and_follow_the_state_machine(backend: tuple) -> None:
-    name, worker, vrs = backend
+def check(seq: list[list[Any]], answers: dict[str, list[Any]], tables: list[dict[int, Var]]) -> None:
+    """Identical statuses from every backend, each judged by the oracle; every error logged; all healthy."""
+    statuses = {name: [r[0] for r in a[:-1]] for name, a in answers.items()}
+    first, *others = BACKENDS
+    for other in others:
+        diff = [(op, statuses[first][k], statuses[other][k]) for k, op in enumerate(seq)
+                if statuses[first][k] != statuses[other][k]]
+        assert not diff, f"backends disagree ({first}, {other}): {diff[:5]} in {seq}"
+    for name, answer in answers.items():
+        *results, healthy = answer
+        assert healthy, f"{name}: after freeing everything, a fresh instance no longer initialises and steps"
+        oracle = Oracle(tables)
+        for op, (status, logged, state_error) in zip(seq, results, strict=True):
+            if status in (ERROR, FATAL, DISCARD) and op[0] != "null":
+                assert logged >= 1, f"{name}: {op} returned {status} without a logged message"
+            oracle.judge(op, status, state_error)
+
+
+EXPLICIT = [
+    [*LIFE[:2], ["setup", 0, 0, 1, math.nan, 0.0, 0, 0.0], ["setup", 0, 0, 0, 0.0, 0.0, 1, math.inf],
+     ["setup", 0, 0, 1, 1e-6, 0.0, 1, 10.0]],  # NaN tolerance and stopTime = inf refused; a good one accepted
+    [["inst", 0, 0, 5], *LIFE[1:], ["inst", 1, 1, 5], ["step", 0, 0, 0, 0.0, 0.01]],  # NULL resource location
+    [*LIFE, *[["status", 0, 0, fn, kind, 0] for fn in range(5) for kind in (-1, 0, 1, 2, 3)]],  # Get*Status
+    [["inst", 0, 0, 0], ["cancel", 0, 0], ["deriv", 0, 0, 0], ["deriv", 0, 0, 1], ["deriv", 0, 0, 2],
+     *LIFE[1:], ["cancel", 0, 0], ["deriv", 0, 0, 0], ["deriv", 0, 0, 1], ["deriv", 0, 0, 2]],
+    [*LIFE, ["set", 0, 0, "Real", [0], [math.nan], 0], ["step", 0, 0, 0, 0.0, 0.01],
+     ["get", 0, 0, "Real", [OUT], [], 0], ["status", 0, 0, 1, 2, 0], ["reset", 0, 0]],  # a rejected step
+    [*LIFE, ["set", 0, 0, "Real", [0], [1600.0], 0], ["get", 0, 0, "Real", [OUT, OUT + 1], [], 0],
+     ["step", 0, 0, 0, 0.0, 1e9], ["step", 0, 0, 0, 0.0, 1e5], ["step", 0, 0, 0, 0.0, 0.01]],
+    [*LIFE, ["terminate", 0, 0], ["terminate", 0, 0], ["reset", 0, 0], ["debug", 0, 0, 1, 2, 0]],
+]
+
+
+def test_the_same_call_sequences_give_the_same_answers_on_every_backend(backends: dict) -> None:
+    workers, tables = backends["workers"], backends["vars"]
+    every_vr = sorted({r for table in tables for r in table})
 
     @settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None,
               suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
-    @given(sequences(vrs))
-    @example([*LIFE, ["status", 0, 0, 3, -1, 0], ["status", 0, 0, 3, 2, 0], ["status", 0, 0, 1, 2, 0]])
+    @given(sequences(every_vr))
     def run(seq: list[list[Any]]) -> None:
-        COUNTS[name] = COUNTS.get(name, 0) + 1
-        check(seq, worker.run(seq))
+        COUNTS["sequences"] = COUNTS.get("sequences", 0) + 1
+        check(seq, {name: workers[name].run(seq) for name in BACKENDS}, tables)
 
+    for seq in EXPLICIT:
+        run = example(seq)(run)
     run()
-    print(f"\nFMI call sequences ({name} backend): {COUNTS[name]} generated, none crashed")
-    assert COUNTS[name] >= EXAMPLES
+    print(f"\nFMI call sequences: {COUNTS['sequences']} generated, each on {', '.join(BACKENDS)}: same answers")
+    assert COUNTS["sequences"] >= EXAMPLES

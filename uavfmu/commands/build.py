@@ -1,9 +1,12 @@
 """``uavfmu build``: parameters in, ``dist/quadrotor.fmu`` and ``dist/fixed_wing.fmu`` out.
 
-``uavfmu build [--params FILE.json] [--out DIR] [--only quadrotor|fixed_wing] [--backend native|python]``.
-Native FMUs (default) carry C binaries for linux64, win64 and darwin64 and their sources; ``--backend
-python`` builds the pythonfmu FMUs. The work is done by ``fmu_models.fmi.fmus.build_fmus``; this module
-parses and prints. Exit status: 0 built, 2 bad input or a failed compilation.
+``uavfmu build [--params FILE.json] [--out DIR] [--only quadrotor|fixed_wing] [--backend native|python]
+[--fmi 2|3] [--kind cs|me|both] [--platforms linux64,win64,darwin64] [--jobs N]``.
+Native FMUs (default: FMI 2.0 Co-Simulation + Model Exchange in one FMU) carry C binaries for the chosen
+platforms (default all three, compiled in parallel, one progress line per compile) and their sources;
+``--backend python`` builds the pythonfmu FMUs (FMI 2.0 Co-Simulation). The work is done by
+``fmu_models.fmi.fmus.build_fmus``; this module parses and prints. Exit status: 0 built, 2 bad input or a
+failed compilation.
 """
 
 from __future__ import annotations
@@ -14,7 +17,9 @@ import sys
 from pathlib import Path
 
 from fmu_models.fmi.codegen import CompileError
-from fmu_models.fmi.fmus import BACKENDS, MODELS, build_fmus
+from fmu_models.fmi.fmus import BACKENDS, MODELS, BuildOptions, build_fmus
+
+KINDS = {"cs": ("cs",), "me": ("me",), "both": ("cs", "me")}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -22,13 +27,30 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("dist"), help="output folder (default: dist)")
     parser.add_argument("--only", choices=MODELS, action="append", help="build only this model (repeatable)")
     parser.add_argument("--backend", choices=BACKENDS, default="native",
-                        help="native C FMUs for linux64/win64/darwin64 (default) or pythonfmu FMUs")
+                        help="native C FMUs (default) or pythonfmu FMUs (FMI 2.0 Co-Simulation)")
+    parser.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
+    parser.add_argument("--kind", choices=tuple(KINDS), default=None,
+                        help="Co-Simulation, Model Exchange or both in one FMU (default: both; python: cs)")
+    parser.add_argument("--platforms", default="linux64,win64,darwin64",
+                        help="comma-separated binary platforms (default: linux64,win64,darwin64)")
+    parser.add_argument("--jobs", type=int, default=None, help="parallel compiles (default: CPU count, max 8)")
+
+
+def options(args: argparse.Namespace) -> BuildOptions:
+    """The native build options of parsed arguments."""
+    kind = args.kind or ("cs" if args.backend == "python" else "both")
+    plats = tuple(p.strip() for p in str(args.platforms).split(",") if p.strip())
+    return BuildOptions(fmi_version=args.fmi, kinds=KINDS[kind], platforms=plats, jobs=args.jobs,
+                        progress=lambda msg: print(f"build: {msg}", flush=True))
 
 
 def run(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    if args.jobs is not None and not 1 <= args.jobs <= 64:
+        print(f"build: error: --jobs {args.jobs} is outside 1..64", file=sys.stderr)
+        return 2
     try:
-        result = build_fmus(args.params, args.out, args.only, args.backend)
+        result = build_fmus(args.params, args.out, args.only, args.backend, options(args))
     except (ValueError, FileNotFoundError, CompileError) as err:
         print(f"build: error: {err}", file=sys.stderr)
         return 2

@@ -1,0 +1,196 @@
+"""The one FMI state machine of every uavfmu FMU: allowed-state masks and argument rules, as a table.
+
+From this table ``header()`` generates ``uavfmu_states.h``, which the native FMI 2.0 / 3.0 layers
+(``native/fmi2Functions.c``, ``native/fmi3Functions.c`` over ``native/uavfmu_core.h``) and the pythonfmu guard
+(``shim.py``) include; the call-sequence test (tests/robustness/test_fmi_sequences.py) judges every backend
+by the same table (``allowed``). States follow the FMI 2.0.4 (sections 3.2.3, 4.2.4) and FMI 3.0 state
+machines; FMI 3.0's Step Mode is FMI 2.0's stepComplete. Deliberate, documented choices beyond the figures:
+
+* the Get functions (values, status, continuous states) also answer in the Error state, for diagnostics;
+* Terminate is also accepted in the Error state (importers such as FMPy terminate after a failed step before
+  freeing; it only moves the instance to Terminated, from which Reset starts again);
+* fmi2DoStep is synchronous: the StepInProgress state is never entered, so fmi2CancelStep always answers
+  "not allowed in state" (and the Get*Status kinds about a pending step are never available);
+* no structural parameters, clocks or event mode in Co-Simulation: the FMI 3.0 configuration and clock
+  functions answer an error;
+* a communication step that would need more than ``MAX_INTERNAL_STEPS`` internal RK4 steps is refused with an
+  error before any work (so an enormous step can neither hang the host nor overflow a counter).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+#: one bit per state (the bit values are shared by the FMI 2.0 and FMI 3.0 layers)
+STATES: dict[str, int] = {
+    "StartAndEnd": 1 << 0,
+    "Instantiated": 1 << 1,
+    "InitializationMode": 1 << 2,
+    "EventMode": 1 << 3,
+    "ContinuousTimeMode": 1 << 4,
+    "StepComplete": 1 << 5,
+    "StepInProgress": 1 << 6,
+    "StepFailed": 1 << 7,
+    "StepCanceled": 1 << 8,
+    "Terminated": 1 << 9,
+    "Error": 1 << 10,
+    "Fatal": 1 << 11,
+    "ConfigurationMode": 1 << 12,
+}
+STATE_TEXT = {
+    "StartAndEnd": "start/end", "Instantiated": "instantiated", "InitializationMode": "initialization mode",
+    "EventMode": "event mode", "ContinuousTimeMode": "continuous-time mode", "StepComplete": "step complete",
+    "StepInProgress": "step in progress", "StepFailed": "step failed", "StepCanceled": "step canceled",
+    "Terminated": "terminated", "Error": "error", "Fatal": "fatal", "ConfigurationMode": "configuration mode",
+}
+
+#: the largest number of internal RK4 steps one communication step may take (1e6 x ~1 us: about a second)
+MAX_INTERNAL_STEPS = 1_000_000
+#: |currentCommunicationPoint - last communication point| allowed, relative to max(1, |last|)
+TIME_TOLERANCE = 1e-9
+
+
+def _mask(*names: str) -> int:
+    return sum(STATES[n] for n in names)
+
+
+LIVE = ("Instantiated", "InitializationMode", "EventMode", "ContinuousTimeMode", "StepComplete", "StepFailed",
+        "StepCanceled", "Terminated", "Error")
+INITIALIZED = ("EventMode", "ContinuousTimeMode", "StepComplete", "StepFailed", "StepCanceled", "Terminated")
+
+#: operation -> states in which it is allowed (anything else: error "not allowed in state ...")
+MASKS: dict[str, tuple[str, ...]] = {
+    "SetDebugLogging": LIVE,
+    "SetupExperiment": ("Instantiated",),
+    "EnterInitializationMode": ("Instantiated",),
+    "ExitInitializationMode": ("InitializationMode",),
+    "Terminate": ("EventMode", "ContinuousTimeMode", "StepComplete", "StepFailed", "Error"),
+    "Reset": LIVE,
+    "GetValue": ("InitializationMode", *INITIALIZED, "Error"),
+    "SetInput": ("Instantiated", "InitializationMode", "EventMode", "ContinuousTimeMode", "StepComplete"),
+    "SetTunable": ("Instantiated", "InitializationMode", "EventMode", "StepComplete"),
+    "SetFixed": ("Instantiated", "InitializationMode"),
+    "FMUState": LIVE,
+    "DoStep": ("StepComplete",),
+    "CancelStep": ("StepInProgress",),
+    "GetStatus": ("StepComplete", "StepFailed", "StepCanceled", "Terminated", "Error"),
+    "SetInputDerivatives": ("Instantiated", "InitializationMode", "StepComplete"),
+    "GetOutputDerivatives": ("StepComplete", "StepFailed", "StepCanceled", "Terminated"),
+    "GetDirectionalDerivative": ("InitializationMode", *INITIALIZED),
+    "EnterEventMode": ("EventMode", "ContinuousTimeMode"),
+    "NewDiscreteStates": ("EventMode",),
+    "EnterContinuousTimeMode": ("EventMode",),
+    "CompletedIntegratorStep": ("ContinuousTimeMode",),
+    "SetTime": ("EventMode", "ContinuousTimeMode"),
+    "SetContinuousStates": ("ContinuousTimeMode",),
+    "GetContinuousStates": ("InitializationMode", "EventMode", "ContinuousTimeMode", "Terminated", "Error"),
+    "GetDerivatives": ("InitializationMode", "EventMode", "ContinuousTimeMode", "Terminated", "Error"),
+    "GetEventIndicators": ("InitializationMode", "EventMode", "ContinuousTimeMode", "Terminated", "Error"),
+    "GetNominals": ("Instantiated", "InitializationMode", "EventMode", "ContinuousTimeMode", "Terminated", "Error"),
+    "GetNumber": LIVE,
+    "EnterStepMode": ("EventMode",),
+    "EnterConfigurationMode": ("Instantiated", "StepComplete", "EventMode"),
+    "ExitConfigurationMode": ("ConfigurationMode",),
+    "Clock": ("EventMode",),
+}
+
+#: what each state-changing operation leads to when it succeeds (ME exits initialisation into Event Mode)
+TRANSITIONS: dict[str, str] = {
+    "EnterInitializationMode": "InitializationMode", "Terminate": "Terminated", "Reset": "Instantiated",
+    "EnterEventMode": "EventMode", "EnterContinuousTimeMode": "ContinuousTimeMode",
+}
+
+
+@dataclass(frozen=True)
+class Rule:
+    """One argument rule: a C function ``uavfmu_rule_<name>(msg, n, args...)`` returning 1 when every
+    ``(condition, message format, format arguments)`` holds, else 0 with the first failing message."""
+
+    name: str
+    params: str
+    checks: tuple[tuple[str, str, str], ...]
+
+
+RULES: tuple[Rule, ...] = (
+    Rule("setup", "int tolerance_defined, double tolerance, double start, int stop_defined, double stop", (
+        ("isfinite(start)", "startTime %g is not finite", "start"),
+        ("!tolerance_defined || (isfinite(tolerance) && tolerance > 0.0)",
+         "tolerance %g must be finite and > 0", "tolerance"),
+        ("!stop_defined || (isfinite(stop) && stop >= start)",
+         "stopTime %g must be finite and >= startTime %g", "stop, start"),
+    )),
+    Rule("step", "double t, double h, double last", (
+        ("isfinite(h) && h > 0.0", "communication step size %g must be finite and > 0", "h"),
+        ("isfinite(t) && fabs(t - last) <= UAVFMU_TIME_TOLERANCE * (fabs(last) > 1.0 ? fabs(last) : 1.0)",
+         "currentCommunicationPoint %.17g is not the last communication point %.17g", "t, last"),
+    )),
+    Rule("internal_steps", "double h, double internal_step", (
+        ("isfinite(internal_step) && internal_step > 0.0",
+         "the internal step %g s must be finite and > 0", "internal_step"),
+        ("h / internal_step <= UAVFMU_MAX_INTERNAL_STEPS + 0.5",
+         "a step of %g s needs %.3g internal steps of %g s, more than the %d allowed per communication step "
+         "(make smaller communication steps or a larger step_internal_s)",
+         "h, ceil(h / internal_step), internal_step, UAVFMU_MAX_INTERNAL_STEPS"),
+    )),
+    Rule("time", "double t", (("isfinite(t)", "time %g is not finite", "t"),)),
+    Rule("name", "const char* name", (("name && name[0]", "instanceName must be a non-empty string", ""),)),
+)
+
+
+#: the log categories of every FMU (modelDescription ``LogCategories``; SetDebugLogging refuses others)
+LOG_CATEGORIES = ("logStatusWarning", "logStatusDiscard", "logStatusError", "logStatusFatal", "logAll")
+
+
+def allowed(op: str) -> int:
+    """The state mask of ``op`` (for tests and the shim)."""
+    return _mask(*MASKS[op])
+
+
+def header() -> str:
+    """C text of ``uavfmu_states.h``: state bits, their names, the masks and the argument rules."""
+    lines = [
+        "/* Generated by uavfmu (fmu_models/fmi/statemachine.py): the one FMI state machine table. Do not edit. */",
+        "#ifndef UAVFMU_STATES_H", "#define UAVFMU_STATES_H", "#include <math.h>", "#include <stdio.h>",
+        "#include <string.h>", "",
+        f"#define UAVFMU_MAX_INTERNAL_STEPS {MAX_INTERNAL_STEPS}",
+        f"#define UAVFMU_TIME_TOLERANCE {TIME_TOLERANCE!r}", "",
+        "typedef enum {",
+        *(f"    {name} = {bit}," for name, bit in STATES.items()),
+        "} UavfmuState;", "",
+        *(f"#define MASK_{op} {allowed(op)} /* {' | '.join(states)} */" for op, states in MASKS.items()), "",
+        "static inline const char* uavfmu_state_name(int s) {",
+        "    switch (s) {",
+        *(f'    case {name}: return "{STATE_TEXT[name]}";' for name in STATES),
+        "    }", '    return "unknown";', "}", "",
+    ]
+    for rule in RULES:
+        lines.append(f"static inline int uavfmu_rule_{rule.name}(char* msg, size_t n, {rule.params}) {{")
+        for cond, fmt, args in rule.checks:
+            call = f'snprintf(msg, n, "{fmt}"{", " + args if args else ""})'
+            lines.append(f"    if (!({cond})) {{ {call}; return 0; }}")
+        lines += ["    (void)msg; (void)n;", "    return 1;", "}", ""]
+    known = " && ".join(f'strcmp(k, "{c}")' for c in LOG_CATEGORIES)
+    lines += [
+        "/* SetDebugLogging: every category one of the modelDescription's LogCategories */",
+        "static inline int uavfmu_rule_categories(char* msg, size_t n, size_t count, const char* const* cats) {",
+        "    if (count > 0 && !cats) {",
+        '        snprintf(msg, n, "categories is NULL with nCategories = %zu", count);',
+        "        return 0;",
+        "    }",
+        "    for (size_t i = 0; i < count; ++i) {",
+        "        const char* k = cats[i];",
+        f'        if (!k || ({known})) {{',
+        '            snprintf(msg, n, "unknown log category %s", k ? k : "(null)");',
+        "            return 0;",
+        "        }",
+        "    }",
+        "    return 1;",
+        "}", "",
+        "/* FMI 2.0 Get*Status: 1 if the function answering status kind `answered` (-1: none) answers `asked`.",
+        "   Synchronous DoStep: the kinds about an asynchronous step (fmi2DoStepStatus 0, fmi2PendingStatus 1) are",
+        "   never available; fmi2LastSuccessfulTime (2) and fmi2Terminated (3) are. */",
+        "static inline int uavfmu_status_available(int answered, int asked) {",
+        "    return answered >= 2 && asked == answered;",
+        "}", "",
+        "#endif", ""]
+    return "\n".join(lines)

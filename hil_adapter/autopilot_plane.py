@@ -1,0 +1,260 @@
+"""ArduPlane parameters from the fixed-wing model (see ``hil_adapter.autopilot_params``).
+
+Rate loops: ``rate_derivatives`` gives the dimensional roll, pitch and yaw derivatives at a trimmed airspeed
+(uavbook ch. 5: ``a_phi1 = -q S b C_p_p b / (2 V)``, ``a_phi2 = q S b C_p_da`` with the Gamma inertia terms,
+``M_q = q S c C_m_q c / (2 V Jy)``, ``M_a = q S c C_m_a / Jy``, ``M_de = q S c C_m_de / Jy``, and the yaw terms
+from ``C_r_r``, ``C_r_dr``; ``q = rho V^2 / 2``). ``rate_gains`` turns one axis into ArduPilot's FF, P, I.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from fmu_models.signals.pwm_mapping import default_mapping
+
+G_M_S2 = 9.80665
+DEG = 180.0 / math.pi
+
+
+@dataclass(frozen=True)
+class AxisModel:
+    """One rate axis at trim, linear: ``x' = A x + B surface``, the rate is state ``rate_index``; ``throw_rad``
+    the surface's full throw (positive surface = positive rate, signs folded in)."""
+
+    a: np.ndarray
+    b: np.ndarray
+    rate_index: int
+    throw_rad: float
+
+    @property
+    def steady_gain(self) -> float:
+        """Steady rate per surface deflection [1/s]."""
+        x = np.linalg.solve(self.a, -self.b)
+        return float(x[self.rate_index])
+
+
+def surface_throws() -> dict[str, float]:
+    """Full throw [rad] of each surface in the adapter's default PWM mapping (what ArduPilot's 45 reaches)."""
+    return {c.target: c.out_max for c in default_mapping("fixed_wing").channels if c.target.endswith("_rad")}
+
+
+def rate_derivatives(pv: Any, va_m_s: float) -> dict[str, AxisModel]:
+    """Roll ``[p]``, pitch ``[alpha, q]`` (short period) and yaw ``[beta, r]`` (Dutch roll) models at airspeed
+    ``va_m_s`` from the parameter view ``pv`` (home density)."""
+    throws = surface_throws()
+    qbar = 0.5 * pv.rho_kg_m3 * va_m_s ** 2
+    gam = pv.Jx_kg_m2 * pv.Jz_kg_m2 - pv.Jxz_kg_m2 ** 2
+    g3, g4, g8 = pv.Jz_kg_m2 / gam, pv.Jxz_kg_m2 / gam, pv.Jx_kg_m2 / gam
+    b, c, s, m = pv.b_m, pv.c_m, pv.S_wing_m2, pv.mass_kg
+    k_lat = qbar * s * b
+    c_pp = g3 * pv.C_ell_p + g4 * pv.C_n_p
+    c_pda = g3 * pv.C_ell_delta_a + g4 * pv.C_n_delta_a
+    roll = AxisModel(np.array([[k_lat * c_pp * b / (2 * va_m_s)]]), np.array([abs(k_lat * c_pda)]), 0,
+                     throws["aileron_rad"])
+    k_lon = qbar * s * c / pv.Jy_kg_m2
+    z_a = -qbar * s * pv.C_L_alpha / (m * va_m_s)
+    pitch = AxisModel(np.array([[z_a, 1.0], [k_lon * pv.C_m_alpha, k_lon * pv.C_m_q * c / (2 * va_m_s)]]),
+                      np.array([0.0, abs(k_lon * pv.C_m_delta_e)]), 1, throws["elevator_rad"])
+    c_rb = g4 * pv.C_ell_beta + g8 * pv.C_n_beta
+    c_rr = g4 * pv.C_ell_r + g8 * pv.C_n_r
+    c_rdr = g4 * pv.C_ell_delta_r + g8 * pv.C_n_delta_r
+    y_b = qbar * s * pv.C_Y_beta / (m * va_m_s)
+    yaw = AxisModel(np.array([[y_b, -1.0], [k_lat * c_rb, k_lat * c_rr * b / (2 * va_m_s)]]),
+                    np.array([0.0, abs(k_lat * c_rdr)]), 1, throws["rudder_rad"])
+    return {"roll": roll, "pitch": pitch, "yaw": yaw}
+
+
+def step_metrics(axis: AxisModel, ff: float, p: float, i: float, servo_tau_s: float, dt: float = 0.0025,
+                 duration_s: float = 1.5) -> tuple[float, float]:
+    """(10-90 % rise [s], overshoot [fraction]) of the linear loop for a unit rate step: surface =
+    ``k (FF r + P e + I int e)`` (``k = throw (180/pi) / 45``, rates in rad/s) through the servo
+    ``1/(tau s + 1)``; exact discretisation of the closed loop (states: model, servo, integrator)."""
+    from scipy.linalg import expm
+
+    k = axis.throw_rad * DEG / 45.0
+    n = len(axis.b)
+    cl = np.zeros((n + 2, n + 2))
+    cl[:n, :n] = axis.a
+    cl[:n, n] = axis.b
+    cl[n, n] = -1.0 / servo_tau_s
+    cl[n, axis.rate_index] = -k * p / servo_tau_s
+    cl[n, n + 1] = k / servo_tau_s
+    cl[n + 1, axis.rate_index] = -i
+    drive = np.zeros(n + 2)
+    drive[n] = k * (ff + p) / servo_tau_s
+    drive[n + 1] = i
+    big = np.zeros((n + 3, n + 3))
+    big[:n + 2, :n + 2], big[:n + 2, n + 2] = cl, drive
+    step = expm(big * dt)
+    ad, bd = step[:n + 2, :n + 2], step[:n + 2, n + 2]
+    z, rates = np.zeros(n + 2), np.empty(round(duration_s / dt))
+    for j in range(len(rates)):
+        z = ad @ z + bd
+        rates[j] = z[axis.rate_index]
+    if not np.all(np.isfinite(rates)):
+        return math.inf, math.inf
+    above10, above90 = np.argmax(rates >= 0.1), np.argmax(rates >= 0.9)
+    rise = (above90 - above10) * dt if rates.max() >= 0.9 else math.inf
+    return rise, float(rates.max() - 1.0)
+
+
+def rate_gains(axis: AxisModel, servo_tau_s: float, overshoot_max: float, integrator_time_s: float) -> dict[str, float]:
+    """ArduPilot FF, P, I (at speed scaler 1) for one axis: the fastest 10-90 % rise of the linear loop
+    (``step_metrics``) whose overshoot stays under ``overshoot_max``, over FF from 0.2 to 1 x the steady
+    feed-forward ``1 / (steady_gain k)`` (which alone makes the steady rate exact) and P on a log grid around
+    the servo-limited loop gain; ``I = P / integrator_time_s``."""
+    k = axis.throw_rad * DEG / 45.0
+    ff_steady = 1.0 / (axis.steady_gain * k)
+    p_unit = 1.0 / (k * axis.b.max() * servo_tau_s)  # loop gain 1/tau: the servo's own bandwidth
+    best: tuple[float, float, float, float] | None = None
+    for ff_frac in np.linspace(0.2, 1.0, 9):
+        for p_frac in np.geomspace(0.01, 1.0, 15):
+            ff, p = ff_frac * ff_steady, p_frac * p_unit
+            rise, over = step_metrics(axis, ff, p, p / integrator_time_s, servo_tau_s)
+            if over <= overshoot_max and (best is None or rise < best[0] - 1e-9):
+                best = (rise, ff, p, over)
+    if best is None:
+        raise ValueError("no rate-loop gains keep the overshoot under the limit")
+    rise, ff, p, over = best
+    return {"FF": ff, "P": p, "I": p / integrator_time_s, "rise_s": rise, "overshoot": over,
+            "ff_steady": ff_steady}
+
+
+# ------------------------------------------------------------------------------------------ trims
+class _Trimmer:
+    """Trims of the model at home density; ``None`` where no trim exists inside the surface throws."""
+
+    def __init__(self, sim: Any, p: np.ndarray) -> None:
+        from fmu_models.fixed_wing.trim import TrimError, trim
+
+        self.sim, self.p, self._trim, self._err = sim, p, trim, TrimError
+        self.pv = sim.model.params.view(p)
+        self.elevator_limit = 0.8 * surface_throws()["elevator_rad"]  # 20 % of the throw left for control
+
+    def at(self, va: float, gamma: float = 0.0) -> Any:
+        try:
+            t = self._trim(self.sim.model, self.p, va, gamma)
+        except (self._err, ValueError):
+            return None
+        if (t.residual_norm > 1e-2 or abs(t.elevator_rad) > self.elevator_limit
+                or t.alpha_rad > 0.9 * self.pv.alpha0_rad):
+            return None
+        return t
+
+    def slowest(self, lo: float = 5.0, hi: float = 35.0) -> float:
+        """The slowest level-flight trim speed [m/s] (stall or elevator limit, whichever comes first)."""
+        if self.at(hi) is None:
+            raise ValueError(f"the model has no level trim even at {hi} m/s")
+        for _ in range(20):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if self.at(mid) is not None else (mid, hi)
+        return hi
+
+    def gamma_at_throttle(self, va: float, throttle: float, lo: float, hi: float) -> float:
+        """Flight-path angle [rad] at ``va`` whose trim throttle is ``throttle`` (bisection in [lo, hi])."""
+        for _ in range(20):
+            mid = 0.5 * (lo + hi)
+            t = self.at(va, mid)  # no trim: beyond full throttle (climbing) or below idle (descending)
+            value = t.throttle if t is not None else (math.inf if mid > 0 else -math.inf)
+            if value > throttle:
+                hi = mid
+            else:
+                lo = mid
+        return 0.5 * (lo + hi)
+
+
+def _servos(out: Any) -> None:
+    """SERVO1-4 as the adapter's default mapping reads them (ArduPilot functions 4, 19, 70, 21)."""
+    function = {"aileron_rad": 4, "elevator_rad": 19, "throttle": 70, "rudder_rad": 21}
+    for ch in sorted(default_mapping("fixed_wing").channels, key=lambda c: c.source):
+        n = ch.source
+        out(f"SERVO{n}_FUNCTION", function[ch.target], f"{ch.target} on output {n} (adapter default mapping)")
+        out(f"SERVO{n}_MIN", ch.min_us)
+        out(f"SERVO{n}_TRIM", ch.trim_us)
+        out(f"SERVO{n}_MAX", ch.max_us)
+
+
+def _rate_loops(out: Any, pv: Any, va: float, servo_tau_s: float) -> dict[str, float]:
+    """RLL/PTCH/YAW_RATE_* at the cruise trim; returns the designed 10-90 % rise [s] by axis."""
+    from hil_adapter.autopilot_params import INTEGRATOR_TIME_S, OVERSHOOT_MAX
+
+    rises = {}
+    for axis, prefix, model in zip(("roll", "pitch", "yaw"), ("RLL", "PTCH", "YAW"),
+                                   rate_derivatives(pv, va).values(), strict=True):
+        g = rate_gains(model, servo_tau_s, OVERSHOOT_MAX, INTEGRATOR_TIME_S)
+        why = (f"{axis} at {va:.1f} m/s: linear {axis} model, servo {servo_tau_s} s; steady FF "
+               f"{g['ff_steady']:.3g}; designed rise {g['rise_s']:.3f} s, overshoot {100 * g['overshoot']:.1f} %")
+        out(f"{prefix}_RATE_FF", g["FF"], why, 4)
+        out(f"{prefix}_RATE_P", g["P"], "", 4)
+        out(f"{prefix}_RATE_I", g["I"], f"P / {INTEGRATOR_TIME_S} s", 4)
+        out(f"{prefix}_RATE_D", 0.0)
+        rises[axis] = g["rise_s"]
+    out("YAW_RATE_ENABLE", 1, "yaw rate loop on (gains above)")
+    return rises
+
+
+def arduplane(sim: Any, p: np.ndarray, out: Any, servo_tau_s: float) -> None:
+    """Fill ``out`` with the ArduPlane set of the fixed-wing model ``sim`` with parameters ``p``."""
+    trims = _Trimmer(sim, p)
+    pv = trims.pv
+    _servos(out)
+    vs = trims.slowest()
+    v_min = out("AIRSPEED_MIN", math.ceil(1.1 * vs), f"1.1 x the slowest level trim {vs:.1f} m/s (stall or 80 % "
+                                                     "elevator, whichever first)")
+    vc = out("AIRSPEED_CRUISE", max(v_min + 3, round(1.3 * vs)), "1.3 x the slowest trim")
+    v_full = vc
+    while v_full < 80 and (t := trims.at(v_full + 1)) is not None and t.throttle < 0.95:
+        v_full += 1
+    out("AIRSPEED_MAX", max(v_full, vc + 4), "fastest level trim below 95 % throttle")
+    cruise = trims.at(vc)
+    out("TRIM_THROTTLE", round(100 * cruise.throttle), f"trim throttle at {vc} m/s")
+    out("SCALING_SPEED", vc, "the rate gains are computed at cruise: speed scaler 1 there")
+    out("TKOFF_ROTATE_SPD", math.ceil(vs), "the slowest trim speed: the elevator can hold the attitude from there")
+    out("TKOFF_THR_MAX", 100)
+    out("TKOFF_ALT", 50)
+    out("TKOFF_LVL_ALT", 10)
+    out("TKOFF_LVL_PITCH", 10)
+    rises = _rate_loops(out, pv, vc, servo_tau_s)
+    out("RLL2SRV_TCONST", max(0.3, round(3 * rises["roll"], 2)), "3 x the designed roll-rate rise (>= 0.3 s)")
+    tconst = out("PTCH2SRV_TCONST", max(0.3, round(3 * rises["pitch"], 2)), "3 x the designed pitch-rate rise")
+    n_max = (vc / (1.15 * vs)) ** 2  # keep 15 % above the stall speed in the turn (Vs sqrt(n))
+    roll = out("ROLL_LIMIT_DEG", round(min(45.0, max(20.0, math.degrees(math.acos(min(1.0, 1 / n_max)))))),
+               f"load factor {n_max:.2f} at cruise keeps 1.15 x the stall speed (20..45)")
+    radius = vc ** 2 / (G_M_S2 * math.tan(math.radians(roll)))
+    out("WP_LOITER_RAD", 10 * math.ceil(2 * radius / 10), f"2 x the turn radius {radius:.0f} m at the roll limit")
+    out("WP_RADIUS", 10 * math.ceil(radius / 10), "the turn radius at the roll limit")
+    out("NAVL1_PERIOD", 20)
+    out("NAVL1_DAMPING", 0.8)
+    gamma_max = trims.gamma_at_throttle(vc, 0.9, 0.0, 0.4)
+    climb = trims.at(vc, gamma_max)
+    out("PTCH_LIM_MAX_DEG", round(min(25, max(8, math.degrees(gamma_max + climb.alpha_rad)))),
+        f"climb at 90 % throttle and cruise: flight path {math.degrees(gamma_max):.1f} deg + alpha")
+    gamma_glide = trims.gamma_at_throttle(vc, 0.0, -0.4, 0.0)
+    out("PTCH_LIM_MIN_DEG", -round(min(25, max(10, 1.5 * abs(math.degrees(gamma_glide))))),
+        f"1.5 x the idle glide angle {math.degrees(gamma_glide):.1f} deg (10..25)")
+    out("TECS_CLMB_MAX", round(0.8 * vc * math.sin(gamma_max), 1), "80 % of the climb rate at 90 % throttle")
+    sink_min = out("TECS_SINK_MIN", round(vc * math.sin(abs(gamma_glide)), 1), "idle glide sink at cruise")
+    lim_min = out.values["PTCH_LIM_MIN_DEG"]
+    out("TECS_SINK_MAX", round(max(sink_min + 1, vc * math.sin(math.radians(-lim_min))), 1),
+        "the sink at cruise speed and the pitch floor (at least the idle sink + 1)")
+    t_ph = math.pi * math.sqrt(2) * vc / G_M_S2
+    out("TECS_TIME_CONST", round(max(3.0, t_ph / 2.5), 1), f"phugoid period pi sqrt(2) V/g = {t_ph:.1f} s / 2.5")
+    _landing(out, trims, v_min, tconst)
+
+
+def _landing(out: Any, trims: _Trimmer, v_land: float, tconst: float) -> None:
+    """TECS landing time constant, flare and touchdown attitude from the landing-speed trim."""
+    land = trims.at(v_land)
+    t_ph = math.pi * math.sqrt(2) * v_land / G_M_S2
+    out("TECS_LAND_ARSPD", v_land, "AIRSPEED_MIN")
+    out("TECS_LAND_TCONST", round(max(2.0, t_ph / 2.5), 1),
+        f"landing phugoid period {t_ph:.1f} s / 2.5 (the 2 s default is faster than the airframe's height response)")
+    out("TECS_LAND_SINK", 0.5, "flare sink target [m/s], under the 1 m/s touchdown aim")
+    out("LAND_PITCH_DEG", round(max(0.0, math.degrees(land.alpha_rad)), 1),
+        f"the trim angle of attack at {v_land} m/s: level attitude of the flare")
+    out("LAND_FLARE_SEC", round(max(2.0, 3 * tconst + 1.0), 1), "3 pitch time constants + 1 s to arrest the sink")
+    out("LAND_FLARE_ALT", 3)
