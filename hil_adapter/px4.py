@@ -27,6 +27,7 @@ from typing import Any, Protocol
 from pymavlink.dialects.v20 import common as mavlink2
 
 from fmu_models.common.atmosphere import G0_M_S2
+from fmu_models.quadrotor.constants import N_MOTORS
 from hil_adapter.core import BUSY_POLL_S, Pacer, Plant, Recorder, SocketSpinner, Stats, Watchdog
 from hil_adapter.mavlink_fast import FastMavlink
 
@@ -52,7 +53,7 @@ def _clip(v: float, lo: float, hi: float) -> float:
     return lo if not math.isfinite(v) else min(max(v, lo), hi)
 
 
-_MOTORS_OFF = dict.fromkeys(range(1, 5), 1000.0)
+_MOTORS_OFF = dict.fromkeys(range(1, N_MOTORS + 1), 1000.0)
 
 
 def controls_to_pwm(controls: Sequence[float], vehicle: str, armed: bool,

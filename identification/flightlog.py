@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fmu_models.common.units import DEG_TO_RAD, G0_M_S2
+
 #: canonical battery signals [V], [A] (``battery_voltage_V`` is kept as an alias of the voltage for older callers)
 BATTERY_VOLTAGE, BATTERY_CURRENT, BATTERY_VOLTAGE_LEGACY = "battery_voltage_v", "battery_current_a", "battery_voltage_V"
 
@@ -33,7 +35,7 @@ JUMP_S = 60.0
 #: identification refuses a log whose damage fraction exceeds this unless forced
 DEFAULT_MAX_DAMAGE = 0.05
 #: |value| at or above which a canonical sensor signal counts as clipped (16 g, 2000 deg/s full scale, 2 % margin)
-CLIP_LIMITS = {"accel_body_": 0.98 * 16 * 9.80665, "gyro_body_": 0.98 * 2000 * 3.141592653589793 / 180}
+CLIP_LIMITS = {"accel_body_": 0.98 * 16 * G0_M_S2, "gyro_body_": 0.98 * 2000 * DEG_TO_RAD}
 _MAX_LISTED = 20  #: gaps/jumps/regions kept in detail (the counts are always complete)
 
 
@@ -218,15 +220,6 @@ class FlightLog:
     def duration_s(self) -> float:
         ends = [s.t_s[-1] for s in self.signals.values() if len(s.t_s)]
         return float(max(ends)) if ends else 0.0
-
-    def window(self, t0_s: float, t1_s: float) -> FlightLog:
-        """The part of the log between ``t0_s`` and ``t1_s`` (times kept as in the full log)."""
-        out = {}
-        for n, s in self.signals.items():
-            keep = (s.t_s >= t0_s) & (s.t_s <= t1_s)
-            out[n] = Signal(n, s.t_s[keep], s.values[keep], s.unit, s.description)
-        return FlightLog(self.source, self.fmt, out, dict(self.params), self.vehicle, list(self.warnings),
-                         self.quality)
 
 
 def add_battery(signals: dict[str, Signal], t_s: np.ndarray, voltage_v: np.ndarray | None,

@@ -6,6 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.signals.pwm_mapping import MappingError, PwmMapping
 from identification.flightlog import FlightLog, Signal
 
@@ -47,7 +48,7 @@ def ground_samples(log: FlightLog, vehicle: str, t_s: np.ndarray, idle_pwm_us: f
     if log.has("landed"):
         out["landed flag set"] = hold(log.signal("landed"), t_s) > 0.5
     if vehicle == "quadrotor":
-        pwm = np.max([hold(log.signal(f"motor_{k}_pwm_us"), t_s) for k in range(1, 5)], axis=0)
+        pwm = np.max([hold(log.signal(f"motor_{k}_pwm_us"), t_s) for k in range(1, N_MOTORS + 1)], axis=0)
         out[f"motors at idle (<= {idle_pwm_us + IDLE_MARGIN_US:g} us)"] = pwm <= idle_pwm_us + IDLE_MARGIN_US
     elif log.has("airspeed_m_s"):
         out[f"airspeed below {WING_GROUND_AIRSPEED_M_S:g} m/s"] = \

@@ -111,11 +111,17 @@ def skill(rmse_model: float, rmse_baseline: float) -> float:
     return 1.0 - rmse_model / rmse_baseline
 
 
+#: verdicts of a scored signal: beats persistence with confidence, loses or is inaccurate, beats it by a margin
+#: that noise makes (the interval reaches zero), nothing to score
+VERDICTS = ("pass", "FAIL", "tie", "n/a")
+
+
 @dataclass(frozen=True)
 class Score:
     """A model's fit beside its two baselines over the same samples: persistence (the logged value at the
     start of each replay window held over the window) and the window mean of the log (an oracle: it knows the
-    window's data). ``verdict`` is ``pass``, ``FAIL`` or ``n/a``, with a plain-words ``reason``."""
+    window's data). ``verdict`` is one of :data:`VERDICTS`, with a plain-words ``reason``; ``interval`` is the
+    block-bootstrap interval of the skill against persistence (pooled scores only)."""
 
     fit: FitMetrics
     rmse_persistence: float
@@ -123,6 +129,7 @@ class Score:
     verdict: str = "n/a"
     reason: str = ""
     gated: bool = True
+    interval: SkillInterval | None = None
 
     @property
     def skill_persistence(self) -> float:
@@ -135,7 +142,11 @@ class Score:
     def as_dict(self) -> dict[str, Any]:
         return {**self.fit.as_dict(), "rmse_persistence": self.rmse_persistence, "rmse_mean": self.rmse_mean,
                 "skill_persistence": self.skill_persistence, "skill_mean": self.skill_mean,
-                "verdict": self.verdict, "reason": self.reason, "gated": self.gated}
+                "verdict": self.verdict, "reason": self.reason, "gated": self.gated,
+                **({} if self.interval is None else {
+                    "skill_persistence_lo": self.interval.lo, "skill_persistence_hi": self.interval.hi,
+                    "skill_level": self.interval.level, "skill_blocks": self.interval.n_blocks,
+                    "skill_outcome": self.interval.outcome})}
 
 
 def window_baselines(measured: np.ndarray, starts: np.ndarray, init_values: np.ndarray) -> tuple[np.ndarray,
@@ -242,5 +253,8 @@ def skill_interval(measured: np.ndarray, model: np.ndarray, baseline: np.ndarray
     with np.errstate(divide="ignore", invalid="ignore"):
         boot = np.where(den > 0, 1.0 - np.sqrt(num / np.where(den > 0, den, 1.0)), -np.inf)
     tail = 100.0 * (1.0 - level) / 2.0
-    lo, hi = np.percentile(boot, [tail, 100.0 - tail])
+    # order statistics, not interpolation: the interval is never narrower than the resamples say, and a
+    # resample without any baseline error (-inf) gives lo = -inf instead of NaN (-inf - -inf)
+    lo = np.percentile(boot, tail, method="lower")
+    hi = np.percentile(boot, 100.0 - tail, method="higher")
     return SkillInterval(point, float(lo), float(hi), level, n_blocks)

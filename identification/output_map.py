@@ -26,7 +26,10 @@ Verdict of a signal over samples (one window, or all scored windows pooled), in 
 signal and the model both stay within ``max_rmse`` of persistence (nothing to score); ``FAIL`` "loses to
 persistence" when ``1 - RMSE/RMSE_persistence <= min_skill_persistence``; ``FAIL`` when Theil's U is not below
 ``max_theil`` (and the RMSE not below ``max_rmse``); ``FAIL`` when ``min_skill_mean`` is set and not met;
-else ``pass``. ``max_rmse`` can never pass a signal that loses to persistence.
+``tie`` when the pooled skill's block-bootstrap interval (over the replay windows,
+:func:`identification.metrics.skill_interval`) reaches down to ``min_skill_persistence``: the model beats
+persistence by a margin that noise makes; else ``pass``. ``max_rmse`` can never pass a signal that loses to
+persistence. A single window has no interval: its verdict is the point rule alone.
 """
 
 from __future__ import annotations
@@ -40,20 +43,14 @@ from typing import Annotated, Any
 import numpy as np
 from pydantic import Field
 
+from fmu_models.common.units import LOG_UNITS
 from fmu_models.config import ConfigError, FiniteFloat, PositiveFiniteFloat, Schema, read_config_file, validate_config
-from identification.metrics import FitMetrics, skill
+from identification.metrics import FitMetrics, SkillInterval, skill
 
 DEFAULT_MAX_THEIL = 0.3
 DEFAULT_MIN_SKILL = 0.0
-G0_M_S2 = 9.80665
-
-#: log unit -> (SI unit, factor)
-UNIT_CONVERSIONS: dict[str, tuple[str, float]] = {
-    "deg": ("rad", math.pi / 180), "cdeg": ("rad", math.pi / 18000), "deg/s": ("rad/s", math.pi / 180),
-    "cm": ("m", 0.01), "mm": ("m", 0.001), "ft": ("m", 0.3048), "km": ("m", 1000.0),
-    "cm/s": ("m/s", 0.01), "kn": ("m/s", 1852 / 3600), "km/h": ("m/s", 1 / 3.6), "ft/s": ("m/s", 0.3048),
-    "g": ("m/s2", G0_M_S2), "mG": ("m/s2", G0_M_S2 / 1000), "kN": ("N", 1000.0),
-}
+#: log unit -> (SI unit, factor): one table for the readers and the output maps
+UNIT_CONVERSIONS = LOG_UNITS
 SI_UNITS = ("m", "rad", "m/s", "m/s2", "rad/s", "N", "1", "s")
 
 
@@ -67,30 +64,32 @@ Skill = Annotated[float, Field(ge=-100.0, lt=1.0, allow_inf_nan=False)]
 class SignalEntry(Schema):
     """One ``[signals.<fmu output>]`` table."""
 
-    log: str | None = None
-    log_unit: str | None = None
-    scale: FiniteFloat = 1.0
-    scale_by_param: str | None = None
-    offset: FiniteFloat = 0.0
-    wrap: bool = False
-    max_theil: PositiveFiniteFloat | None = None
-    max_rmse: PositiveFiniteFloat | None = None
-    min_skill_persistence: Skill | None = None
-    min_skill_mean: Skill | None = None
-    gate: bool = True
+    log: str | None = None  # canonical log signal or raw "MSG.Field" (default: the FMU output's name)
+    log_unit: str | None = None  # unit of the log values, converted to the FMU output's unit (deg, cm, g, ...)
+    scale: FiniteFloat = 1.0  # after unit conversion; -1 flips an axis (FLU -> FRD, up -> down)
+    scale_by_param: str | None = None  # multiply by this FMU parameter too (mass_kg: specific force -> force)
+    offset: FiniteFloat = 0.0  # added after scaling [FMU unit]
+    wrap: bool = False  # an angle: every metric and plot on the wrapped difference (-180..180 deg)
+    max_theil: PositiveFiniteFloat | None = None  # Theil's U must be below this (default: thresholds.max_theil)
+    max_rmse: PositiveFiniteFloat | None = None  # tolerance [FMU unit]: accurate below it; moving less is n/a
+    min_skill_persistence: Skill | None = None  # skill against persistence must exceed this over its interval
+    min_skill_mean: Skill | None = None  # optional: must beat the window mean of the log by this too
+    gate: bool = True  # false: scored and reported, but its verdict does not set the run's status
 
 
 class Thresholds(Schema):
-    max_theil: PositiveFiniteFloat = DEFAULT_MAX_THEIL
-    min_skill_persistence: Skill = DEFAULT_MIN_SKILL
+    """Defaults for every signal of the map."""
+
+    max_theil: PositiveFiniteFloat = DEFAULT_MAX_THEIL  # Theil's U below this (0 perfect, 1 useless)
+    min_skill_persistence: Skill = DEFAULT_MIN_SKILL  # skill against persistence above this, with confidence
 
 
 class OutputMapFile(Schema):
     """An output-map file."""
 
-    thresholds: Thresholds = Thresholds()
-    signals: dict[str, SignalEntry] | None = None
-    signals_extra: dict[str, SignalEntry] = Field(default_factory=dict)
+    thresholds: Thresholds = Thresholds()  # defaults for every signal
+    signals: dict[str, SignalEntry] | None = None  # by FMU output name: replaces the vehicle's default map
+    signals_extra: dict[str, SignalEntry] = Field(default_factory=dict)  # by FMU output name: added to it
 
 
 @dataclass(frozen=True)
@@ -108,8 +107,10 @@ class SignalMap:
     min_skill_mean: float | None = None
     gate: bool = True
 
-    def judge(self, fit: FitMetrics, rmse_persistence: float, rmse_mean: float) -> tuple[str, str]:
-        """``(verdict, reason)`` of a fit beside its baselines; see the module docstring for the rules."""
+    def judge(self, fit: FitMetrics, rmse_persistence: float, rmse_mean: float,
+              interval: SkillInterval | None = None) -> tuple[str, str]:
+        """``(verdict, reason)`` of a fit beside its baselines and, for pooled scores, the interval of its skill
+        against persistence; see the module docstring for the rules."""
         tol = self.max_rmse
         sp, sm = skill(fit.rmse, rmse_persistence), skill(fit.rmse, rmse_mean)
         if fit.rmse <= (tol or 0.0) and rmse_persistence <= (tol or 0.0):
@@ -124,7 +125,14 @@ class SignalMap:
             return "FAIL", f"inaccurate: Theil U {fit.theil_u:.3f} >= {self.max_theil:g}{extra}"
         if self.min_skill_mean is not None and not sm > self.min_skill_mean:
             return "FAIL", f"loses to the window mean: skill {sm:+.2f} (needs > {self.min_skill_mean:g})"
-        return "pass", f"beats persistence (skill {sp:+.2f}), Theil U {fit.theil_u:.3f} < {self.max_theil:g}"
+        if interval is not None and not interval.lo > self.min_skill_persistence:
+            return "tie", (f"no better than persistence with confidence: skill {sp:+.3f}, "
+                           f"{100 * interval.level:.0f} % interval {_signed(interval.lo)}..{_signed(interval.hi)} "
+                           f"over {interval.n_blocks} windows reaches {self.min_skill_persistence:g}")
+        margin = "" if interval is None else \
+            f" {100 * interval.level:.0f} % interval {_signed(interval.lo)}..{_signed(interval.hi)},"
+        return "pass", (f"beats persistence (skill {sp:+.2f},{margin} Theil U {fit.theil_u:.3f} < "
+                        f"{self.max_theil:g})")
 
     def convert(self, values: np.ndarray, fmu_unit: str | None, params: Mapping[str, float]) -> np.ndarray:
         """Log values in the FMU output's unit and frame."""
@@ -224,3 +232,7 @@ def from_dict(data: Mapping[str, Any], vehicle: str, source: str = "output map")
     if not base:
         raise OutputMapError(source, ["no signals to compare"])
     return tuple(base.values())
+
+
+def _signed(x: float) -> str:
+    return f"{x:+.3f}" if math.isfinite(x) else "n/a"

@@ -127,10 +127,11 @@ def _verdict_table(res: ReplayResult) -> str:
             bv = res.bands.verdict(m.fmu)[0]
             band = [f"<span class='{'fail' if bv == 'not explained' else ''}'>"
                     f"{_fmt(100 * res.bands.coverage[m.fmu], '.0f')} % ({html.escape(bv)})</span>"]
-        rows.append([m.fmu, _verdict_cell(s.verdict, m.gate), _fmt(s.skill_persistence, "+.2f"),
+        margin = "" if s.interval is None else f" ({_fmt(s.interval.lo, '+.2f')}..{_fmt(s.interval.hi, '+.2f')})"
+        rows.append([m.fmu, _verdict_cell(s.verdict, m.gate), _fmt(s.skill_persistence, "+.2f") + margin,
                      _fmt(s.skill_mean, "+.2f"), *band, f"{w['pass']} / {w['FAIL']} / {w['n/a']}",
                      html.escape(s.reason)])
-    return _table(["signal", "verdict", "skill vs persistence", "skill vs window mean",
+    return _table(["signal", "verdict", "skill vs persistence (90 % interval)", "skill vs window mean",
                    *(["5-95 % band coverage"] if res.bands is not None else []), "windows pass / FAIL / n/a",
                    "reason"], rows, raw=True) + _band_note(res)
 
@@ -220,14 +221,17 @@ def validation_page(res: ReplayResult) -> str:
     one-step force check, identities, overlays with the persistence baseline, residuals."""
     fmu, log = res.fmu, res.log
     params = _table(["parameter", "value"], [[k, f"{v:.6g}"] for k, v in fmu["parameters"].items()])
-    verdict = "all gated signals pass" if not res.failed else f"FAILED: {', '.join(res.failed)}"
+    verdict = {"pass": "all gated signals pass", "fail": f"FAILED: {', '.join(res.failed)}",
+               "tie": f"TIE: {', '.join(res.ties)} not better than persistence with confidence",
+               "unscored": "NOT SCORED: no gated signal has a verdict"}[res.status]
     parts = [
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>uavfmu validation</title><style>{STYLE}</style>"
         "</head><body>",
         f"<h1>{html.escape(fmu['model_name'])} against {html.escape(log['path'])}</h1>",
         _verdict_table(res),
-        f"<p class='{'fail' if res.failed else 'pass'}'>{html.escape(verdict)}. A signal passes only when it beats "
-        "persistence (the logged value at the window start, held) and meets its accuracy threshold.</p>",
+        f"<p class='{'pass' if res.status == 'pass' else 'fail'}'>{html.escape(verdict)}. A signal passes only "
+        "when it beats persistence (the logged value at the window start, held) over the whole 90 % block-bootstrap "
+        "interval of its skill and meets its accuracy threshold; a skill whose interval reaches zero is a tie.</p>",
         *_log_notes(res),
         "<h2>Metrics beside the baselines</h2>", _metrics_table(res),
         "<h2>Error against prediction horizon</h2>", *_horizon_section(res),

@@ -14,7 +14,6 @@ the force model (the FMU's accelerometer output for the logged state and inputs)
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import itertools
 import re
@@ -28,7 +27,7 @@ from pydantic import Field, model_validator
 
 from fmu_models.config import ConfigError, Schema, validate_config
 from fmu_models.fmi.host import FmuHost, FmuRunError
-from fmu_models.quadrotor.params import QuadrotorParams
+from fmu_models.quadrotor.constants import N_MOTORS, PWM_IDLE_US
 from fmu_models.signals.pwm_mapping import PwmMapping
 from identification.flightlog import FlightLog, LogError
 from identification.log_state import (
@@ -39,14 +38,17 @@ from identification.log_state import (
     unwrapped_angle,
 )
 from identification.metrics import (
+    VERDICTS,
     FitMetrics,
     MetricsError,
     Score,
+    block_starts,
     fit_metrics,
     rmse,
     segment_metrics,
     segment_rmse,
     skill,
+    skill_interval,
     window_baselines,
 )
 from identification.output_map import SignalMap
@@ -56,9 +58,14 @@ ACCEL = ("accel_body_x_m_s2", "accel_body_y_m_s2", "accel_body_z_m_s2")
 DEFAULT_HORIZONS_S = (0.1, 0.5, 1.0, 2.0)
 #: motors at or below the FMU's idle PWM, and never below the F450 default idle (an identified model may put its
 #: zero-thrust point lower than the PWM an autopilot spins its motors at when armed on the ground)
-DEFAULT_IDLE_US = next(f.default for f in dataclasses.fields(QuadrotorParams) if f.name == "pwm_idle_us")
+DEFAULT_IDLE_US = PWM_IDLE_US
 #: bytes a replay holds per grid sample: an upper estimate of 20 float64 arrays per compared signal (measured,
 #: model, baselines, masks, metric temporaries) and 50 for the grid, inputs and initial states
+#: two-sided level and resamples of the skill interval a pass needs (seeded: a verdict is reproducible)
+SKILL_LEVEL, SKILL_RESAMPLES = 0.90, 2000
+#: bootstrap block length of a single full-length replay [s] (its persistence is one held value: blocks of
+#: about the usual window length keep the serial correlation of its error)
+FULL_LENGTH_BLOCK_S = 2.0
 BYTES_PER_SAMPLE_SIGNAL = 160
 BYTES_PER_SAMPLE_BASE = 400
 
@@ -148,12 +155,32 @@ class ReplayResult:
         return [m.fmu for m in self.maps if self.scores[m.fmu].verdict == "FAIL" and m.gate]
 
     @property
+    def ties(self) -> list[str]:
+        """Gated signals whose pooled verdict is a tie (beat persistence by a margin noise makes)."""
+        return [m.fmu for m in self.maps if self.scores[m.fmu].verdict == "tie" and m.gate]
+
+    @property
+    def scored(self) -> list[str]:
+        """Gated signals with a verdict (pass, FAIL or tie): a run where this is empty proved nothing."""
+        return [m.fmu for m in self.maps if self.scores[m.fmu].verdict != "n/a" and m.gate]
+
+    @property
+    def status(self) -> str:
+        """``fail`` (a gated signal fails), ``tie`` (none fails, one ties), ``unscored`` (no gated signal has
+        a verdict) or ``pass``."""
+        if self.failed:
+            return "fail"
+        if self.ties:
+            return "tie"
+        return "pass" if self.scored else "unscored"
+
+    @property
     def excluded(self) -> int:
         return sum(not k for k in self.included)
 
     def window_counts(self, name: str) -> dict[str, int]:
         """How many scored windows gave each verdict for signal ``name``."""
-        out = {"pass": 0, "FAIL": 0, "n/a": 0}
+        out = dict.fromkeys(VERDICTS, 0)
         for w in self.window_scores:
             if name in w:
                 out[w[name].verdict] += 1
@@ -189,7 +216,7 @@ def fmu_identity(host: FmuHost, start_values: Mapping[str, float]) -> dict[str, 
 def log_inputs(vehicle: str, log: FlightLog, t_s: np.ndarray, mapping: PwmMapping | None) -> dict[str, np.ndarray]:
     """FMU inputs at ``t_s``: motor PWM for the quadrotor, mapped surface and throttle commands for the wing."""
     if vehicle == "quadrotor":
-        return {f"pwm_{k}_us": hold(log.signal(f"motor_{k}_pwm_us"), t_s) for k in range(1, 5)}
+        return {f"pwm_{k}_us": hold(log.signal(f"motor_{k}_pwm_us"), t_s) for k in range(1, N_MOTORS + 1)}
     if mapping is None:
         mapping = PwmMapping.from_ardupilot(log.params)
     u = mapped_inputs(WING_INPUTS, log, mapping, t_s)
@@ -223,7 +250,7 @@ def _check_inputs(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[
     if missing_out:
         raise ValidationInputError(f"output map: {', '.join(missing_out)} not outputs of {host.path.name}")
     absent = [m.log for m in maps if not log.has(m.log)]
-    motors = [f"motor_{k}_pwm_us" for k in range(1, 5)] if vehicle == "quadrotor" else []
+    motors = [f"motor_{k}_pwm_us" for k in range(1, N_MOTORS + 1)] if vehicle == "quadrotor" else []
     absent_in = [n for n in motors if not log.has(n)]
     if absent or absent_in:
         what = [f"inputs {', '.join(absent_in)}"] if absent_in else []
@@ -346,7 +373,7 @@ def _windows_to_score(log: FlightLog, log_path: Path, vehicle: str, maps: Sequen
         ground = {f"{k} (samples)": int(v.sum()) for k, v in masks.items() if v.any()}
     elif not opts.include_ground:
         included, ground = _ground_windows(log, vehicle, t, edges, idle_pwm_us)
-    used = [f"motor_{k}_pwm_us" for k in range(1, 5)] if vehicle == "quadrotor" else \
+    used = [f"motor_{k}_pwm_us" for k in range(1, N_MOTORS + 1)] if vehicle == "quadrotor" else \
         [f"servo_{c.source}_pwm_us" for c in (mapping or PwmMapping.from_ardupilot(log.params)).channels
          if c.target in WING_INPUTS and log.has(f"servo_{c.source}_pwm_us")]
     covered, gaps = _coverage_windows(log, [*used, *(m.log for m in maps)], t, edges)
@@ -453,19 +480,26 @@ def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalM
                        [], {}, tuple(maps), overrides, included=list(s.included), ground=s.ground, gaps=s.gaps,
                        options=opts.model_dump(), battery=s.battery)
     res.log["warnings"] += s.notes
-    _score(res, np.asarray(edges), {m.fmu: measured[m.fmu][edges[:-1]] for m in maps})
+    score(res, np.asarray(edges), {m.fmu: measured[m.fmu][edges[:-1]] for m in maps})
     res.horizons = _horizons(maps, measured, model, edges, s.included, opts)
     res.one_step = _one_step(log, t[edges[:-1]], first, s.extra)
     return res
 
 
-def _score(res: ReplayResult, edges: np.ndarray, init: Mapping[str, np.ndarray]) -> None:
-    """Fill ``res`` with pooled and per-window metrics, baselines and verdicts of the included windows."""
+def score(res: ReplayResult, edges: np.ndarray, init: Mapping[str, np.ndarray]) -> None:
+    """Fill ``res`` with pooled and per-window metrics, baselines and verdicts of the included windows.
+
+    ``res.model``/``res.measured`` hold the grid after its first sample, ``edges`` the window edges on the grid,
+    ``init`` each signal's logged value at each window start. The pooled verdict needs the skill against
+    persistence above ``min_skill_persistence`` over its whole block-bootstrap interval (blocks: the scored
+    windows; a single full-length window is cut into blocks of ``FULL_LENGTH_BLOCK_S``), else it is a tie."""
     starts = edges[:-1]
     counts = np.diff(edges)
     keep = np.repeat(np.asarray(res.included), counts)
     inc = np.flatnonzero(res.included)
     starts_c = np.concatenate([[0], np.cumsum(counts[inc])[:-1]]).astype(int)
+    blocks = starts_c if len(starts_c) >= 2 else \
+        block_starts(int(counts[inc].sum()), max(2, round(FULL_LENGTH_BLOCK_S * res.options.get("rate_hz", 50.0))))
     per_window: dict[str, tuple[list[FitMetrics], np.ndarray, np.ndarray]] = {}
     for m in res.maps:
         y = res.measured[m.fmu]
@@ -478,7 +512,8 @@ def _score(res: ReplayResult, edges: np.ndarray, init: Mapping[str, np.ndarray])
             raise ValidationInputError(f"{m.fmu}: {err} (no finite FMU value in the scored windows)") from None
         rp, rm = rmse(y_c, p_c), rmse(y_c, w_c)
         res.overall[m.fmu] = fit
-        res.scores[m.fmu] = Score(fit, rp, rm, *m.judge(fit, rp, rm), gated=m.gate)
+        band = skill_interval(y_c, m_c, p_c, blocks, level=SKILL_LEVEL, n_boot=SKILL_RESAMPLES)
+        res.scores[m.fmu] = Score(fit, rp, rm, *m.judge(fit, rp, rm, band), gated=m.gate, interval=band)
         per_window[m.fmu] = (segment_metrics(y_c, m_c, starts_c), segment_rmse(y_c, p_c, starts_c),
                              segment_rmse(y_c, w_c, starts_c))
     res.window_metrics, res.window_scores = [], []
@@ -528,13 +563,15 @@ def _one_step(log: FlightLog, t0: np.ndarray, first: np.ndarray, extra: Sequence
         ok = np.isfinite(first[:, j])
         if ok.sum() < 2:
             continue
+        mean = np.full(int(ok.sum()), float(np.mean(y[ok])))
         fit = fit_metrics(y[ok], first[ok, j])
-        base = rmse(y[ok], np.full(int(ok.sum()), float(np.mean(y[ok]))))
-        sm = skill(fit.rmse, base)
-        verdict = "pass" if sm > 0 else "FAIL"
-        reason = (f"force model {'beats' if sm > 0 else 'loses to'} the log's mean specific force "
-                  f"(skill {sm:+.2f})")
-        out[name] = Score(fit, float("nan"), base, verdict, reason, gated=False)
+        base = rmse(y[ok], mean)
+        band = skill_interval(y[ok], first[ok, j], mean, np.arange(int(ok.sum())), SKILL_LEVEL, SKILL_RESAMPLES)
+        verdict = "FAIL" if not band.skill > 0 else ("pass" if band.outcome == "win" else "tie")
+        words = {"pass": "beats", "FAIL": "loses to", "tie": "is no better with confidence than"}[verdict]
+        reason = (f"force model {words} the log's mean specific force (skill {band.skill:+.2f}, "
+                  f"{100 * band.level:.0f} % interval {band.lo:+.2f}..{band.hi:+.2f} over {band.n_blocks} restarts)")
+        out[name] = Score(fit, float("nan"), base, verdict, reason, gated=False, interval=band)
     return out
 
 

@@ -91,7 +91,8 @@ class ValidationJob:
 
 @dataclass
 class ValidationResult:
-    """Outcome of one job: ``status`` pass | fail | error, per-signal pooled scores with verdicts and
+    """Outcome of one job: ``status`` pass | fail | tie | unscored | error (see ``ReplayResult.status``),
+    per-signal pooled scores with verdicts and
     reasons, window counts, log warnings; ``replay`` holds the full arrays (None across processes)."""
 
     fmu: str
@@ -173,7 +174,7 @@ def result_of(res: ReplayResult, job: ValidationJob) -> ValidationResult:
             signals[m.fmu] |= {"band_coverage": res.bands.coverage[m.fmu], "band_verdict": verdict,
                                "band_reason": why}
     warnings = list(dict.fromkeys([*res.log["warnings"], *res.log.get("quality_lines", [])]))  # once each
-    return ValidationResult(str(job.fmu), str(job.log), "fail" if res.failed else "pass", "", signals,
+    return ValidationResult(str(job.fmu), str(job.log), res.status, "", signals,
                             res.failed, len(res.windows), res.excluded, dict(res.ground), dict(res.gaps), warnings,
                             {k: v.as_dict() for k, v in res.one_step.items()},
                             {k: [r.as_dict() for r in rows] for k, rows in res.horizons.items()}, None, res,
@@ -393,8 +394,11 @@ def summary_lines(r: ValidationResult) -> list[str]:
         return [head + f"ERROR {r.error}"]
     ungated = [s for s, v in r.signals.items() if v["verdict"] == "FAIL" and not v["gated"]]
     na = [s for s, v in r.signals.items() if v["verdict"] == "n/a"]
-    verdict = "PASS" if r.status == "pass" else f"FAIL ({len(r.failed)} of {len(r.signals)} signals fail: " \
-                                                 f"{', '.join(r.failed)})"
+    ties = [s for s, v in r.signals.items() if v["verdict"] == "tie" and v["gated"]]
+    verdict = {"pass": "PASS",
+               "fail": f"FAIL ({len(r.failed)} of {len(r.signals)} signals fail: {', '.join(r.failed)})",
+               "tie": f"TIE ({', '.join(ties)} not better than persistence with confidence; nothing fails)",
+               "unscored": "NOT SCORED (no gated signal has a verdict: nothing was shown)"}[r.status]
     out = [head + verdict]
     if r.retried:
         out.append(f"  run twice: the first attempt failed ({r.retried})")
@@ -412,6 +416,7 @@ def summary_lines(r: ValidationResult) -> list[str]:
     bands = any("band_coverage" in v for v in r.signals.values())
     out.append(f"  {'signal':<18} {'verdict':<7} {'skill/pers':>10} {'skill/mean':>10} {'RMSE':>9} {'Theil U':>7} "
                f"{'R^2':>7}{' band cover' if bands else ''} {'windows pass/FAIL/n/a':>21}  reason")
+    # per-window verdicts are point verdicts (one window has no interval); the pooled verdict has the margin
     for s, v in r.signals.items():
         w = v["windows"]
         tag = v["verdict"] + ("" if v["gated"] or v["verdict"] != "FAIL" else "*")
@@ -443,10 +448,9 @@ def _band_lines(r: ValidationResult) -> list[str]:
 
 
 def batch_summary(results: Sequence[ValidationResult]) -> str:
-    n_fail = sum(r.status == "fail" for r in results)
-    n_err = sum(r.status == "error" for r in results)
+    n = {k: sum(r.status == k for r in results) for k in ("pass", "fail", "tie", "unscored", "error")}
     n_retry = sum(bool(r.retried) for r in results)
-    return (f"{len(results)} runs: {len(results) - n_fail - n_err} pass, {n_fail} fail, {n_err} error"
+    return (f"{len(results)} runs: " + ", ".join(f"{v} {k}" for k, v in n.items() if v or k in ("pass", "fail"))
             + (f"; {n_retry} retried after a failed first attempt" if n_retry else ""))
 
 
@@ -472,6 +476,10 @@ def failure_lines(results: Sequence[ValidationResult]) -> list[str]:
         run = f"{Path(r.fmu).name} against {Path(r.log).name}"
         if r.status == "error":
             out.append(f"{run} could not be validated: {r.error}")
+        if r.status == "unscored":
+            out.append(f"{run}: no gated signal could be scored (every one n/a or ungated): not a pass")
+        for s in (k for k, v in r.signals.items() if v["verdict"] == "tie" and v["gated"]):
+            out.append(f"{run}: {s} ties with persistence - {r.signals[s]['reason']}")
         for s in r.failed:
             out.append(f"{run}: {s} fails - {r.signals[s]['reason']}{_horizon_words(r.horizons.get(s, []))}")
     return out

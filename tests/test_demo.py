@@ -24,6 +24,11 @@ def test_demo_pipeline(tmp_path: Path, capsys) -> None:
     assert aero["C_ell_p"]["value"] == pytest.approx(-0.51, rel=0.05)
     assert aero["C_ell_delta_a"]["value"] == pytest.approx(0.17, rel=0.05)
     results = json.loads((work / "report" / "results.json").read_text())
+    # scored on held-out flights (other references, excitation and noise), never on the identification logs
+    assert [Path(r["log"]).name for r in results] == ["quadrotor_flight_held_out.bin", "fixed_wing_flight_held_out.bin"]
     assert [r["status"] for r in results] == ["pass", "pass"]
+    for r in results:
+        passed = [s for s in r["signals"].values() if s["gated"] and s["verdict"] == "pass"]
+        assert len(passed) >= 2 and all(s["skill_persistence_lo"] > 0 for s in passed), r["log"]
     assert (work / "report" / "index.html").exists()
     assert all((work / "report" / r["report"]).exists() for r in results)

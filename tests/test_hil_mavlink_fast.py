@@ -165,3 +165,31 @@ def test_ground_truth_saturates_int16_fields_instead_of_failing() -> None:
                                                       .state(0, state))[0]
     assert (msg.vx, msg.vy, msg.vz) == (32767, -32768, 100)
     assert (msg.xacc, msg.zacc) == (32767, -32768)
+
+
+def test_sequence_wraps_and_only_zero_bytes_are_trimmed() -> None:
+    """The sequence number after 255 is 0; a payload ending in a non-zero byte (0x58, 'X') keeps it."""
+    ours, ref = mavlink2.MAVLink(None, 1, 51), mavlink2.MAVLink(None, 1, 51)
+    ours.seq = ref.seq = 255
+    args = (1, *([0.5] * 13), 0x58000000)  # fields_updated little-endian: its last byte is 0x58
+    fast = FastMavlink(ours).pack(mavlink2.MAVLink_hil_sensor_message, *args)
+    assert fast == _reference(ref, mavlink2.MAVLink_hil_sensor_message(*args))
+    assert ours.seq == 0 and fast[-3] == 0x58  # ... then the two CRC bytes
+
+
+def test_actuator_fast_path_checks_all_three_message_id_bytes() -> None:
+    """A frame whose 24-bit message id only shares its low byte with HIL_ACTUATOR_CONTROLS (93) is not taken,
+    even with a checksum made for it; nor is a buffer too short for a header."""
+    from hil_adapter.mavlink_fast import CRC, HEADER_LEN, _crc16
+
+    fast = FastMavlink(mavlink2.MAVLink(None, 1, 51))
+    frame = _actuator_frame([0.5] * 4 + [0.0] * 12, 128, 1)
+    extra = bytes((mavlink2.MAVLink_hil_actuator_controls_message.crc_extra,))
+    assert fast.actuator_controls(frame) is not None
+    for at in (8, 9):  # id bytes 2 and 3
+        other = bytearray(frame)
+        other[at] = 1
+        other[-2:] = CRC.pack(_crc16(bytes(other[1:-2]) + extra))
+        assert len(other) > HEADER_LEN + 2 and fast.actuator_controls(bytes(other)) is None, at
+    for short in (b"", b"\xfd", frame[:HEADER_LEN + 1]):
+        assert fast.actuator_controls(short) is None

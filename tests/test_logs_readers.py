@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from identification.flightlog import LogError, MissingSignalError
+from identification.flightlog import DataQuality, FlightLog, LogError, MissingSignalError, check_quality
 from identification.readers import read_log
 from tests.conftest import shared_data
 
@@ -334,3 +334,125 @@ def test_standard_bat_layout_gives_battery_signals(tmp_path: Path) -> None:
     np.testing.assert_allclose(log.signal("battery_voltage_v").values, 16.0 - t, rtol=1e-6)
     np.testing.assert_allclose(log.signal("battery_current_a").values, 20.0 + t, rtol=1e-6)
     np.testing.assert_allclose(log.signals["BAT.Temp"].values, 25.0)
+
+
+# ------------------------------------------------------------------ refusing a damaged log
+def _damaged(bytes_skipped: int) -> FlightLog:
+    q = DataQuality("f.bin", bytes_total=1000, bytes_skipped=bytes_skipped, messages_total=100,
+                    messages_skipped=1, damaged_regions=[(40, bytes_skipped)], jumps=[(12.0, 3600.0)],
+                    samples_beyond_jumps=7, dropped_segments=[(2.0, 7)], duplicate_samples=3, gap_count=1,
+                    gaps=[(5.0, 0.8)], gap_total_s=0.8, time_total_s=10.0, time_kept_s=10.0)
+    return FlightLog("f.bin", "dataflash", {}, {}, quality=q)
+
+
+def test_check_quality_refuses_above_the_limit_and_says_what_was_lost() -> None:
+    check_quality(_damaged(50))  # exactly the 5 % limit: kept
+    check_quality(_damaged(300), force=True)  # --force: the caller takes what is left
+    check_quality(_damaged(300), max_damage=0.3)
+    with pytest.raises(LogError) as err:
+        check_quality(_damaged(60))
+    msg = str(err.value)
+    assert msg.startswith("f.bin: 6.0 % of the log is damaged or lost (limit 5.0 %): 60 of 1000 bytes could not be")
+    # the first three findings without their file prefix, the jump's own ": " kept
+    assert "time jump(s) +3.6e+03 s at t=12.0 s: the log was split there and 2.0 s (7 samples)" in msg
+    assert "; 3 duplicated sample(s) dropped. Repair or re-download the log, or pass --force to use what is left" \
+        in msg
+    assert "gap(s)" not in msg and msg.count("f.bin") == 1
+    with pytest.raises(LogError, match=r"\(limit 2\.0 %\)"):
+        check_quality(_damaged(50), max_damage=0.02)
+
+
+def test_missing_signal_error_reads_plainly() -> None:
+    assert str(MissingSignalError("f.bin: no airspeed_m_s")) == "f.bin: no airspeed_m_s"  # not KeyError's quotes
+
+
+def test_quality_report_lines_and_json_by_hand() -> None:
+    """Every finding in words with its numbers, and the JSON summary a metrics file carries."""
+    q = DataQuality("f.bin", bytes_total=1000, bytes_skipped=60, messages_total=100, messages_skipped=2,
+                    damaged_regions=[(40, 50), (900, 10)], samples_total=500, jumps=[(12.0, 3600.0)],
+                    samples_beyond_jumps=7, dropped_segments=[(2.0, 7)], backward_steps=2, samples_reordered=3,
+                    samples_backward_dropped=1, time_outliers=4, duplicate_samples=3, non_finite_times=1,
+                    gap_count=2, gaps=[(5.0, 0.8), (9.0, 1.2)], gap_total_s=2.0, non_finite_samples=5,
+                    canonical_samples=1000, clipped_samples=6, time_total_s=20.0, time_kept_s=18.0)
+    # lost shares: bytes 0.06, messages 0.02, samples (7 + 1 + 4 + 1) / 500, values 0.005, time 1 - 18/20
+    assert q.samples_dropped == 13 and q.damage_fraction == pytest.approx(0.1) and not q.ok
+    lines = [
+        "f.bin: 60 of 1000 bytes could not be decoded and were skipped (2 damaged message(s) in 2 region(s); "
+        "first at byte 40)",
+        "f.bin: time jump(s) +3.6e+03 s at t=12.0 s: the log was split there and 2.0 s (7 samples) beyond the "
+        "jump(s) dropped",
+        "f.bin: 5 sample(s) with implausible or non-finite time stamps dropped",
+        "f.bin: time went backwards 2 time(s): 3 sample(s) put back in order, 1 dropped (beyond the tolerance)",
+        "f.bin: 3 duplicated sample(s) dropped",
+        "f.bin: 2 gap(s) without data, 2.00 s in all (longest 1.20 s at t=9.0 s)",
+        "f.bin: 5 non-finite (NaN/inf) value(s) removed from canonical signals",
+        "f.bin: 6 clipped sensor sample(s) (at full scale)",
+        "f.bin: kept 18.0 of 20.0 s of log; damage 10.0 %",
+    ]
+    assert q.lines() == lines
+    assert q.to_dict() == {
+        "source": "f.bin", "ok": False, "damage_fraction": pytest.approx(0.1), "bytes_total": 1000,
+        "bytes_skipped": 60, "damaged_regions": [[40, 50], [900, 10]], "messages_total": 100, "messages_skipped": 2,
+        "samples_total": 500, "samples_dropped": 13, "gap_count": 2, "gap_total_s": 2.0,
+        "gaps": [[5.0, 0.8], [9.0, 1.2]], "jumps": [[12.0, 3600.0]], "dropped_segments": [[2.0, 7]],
+        "samples_beyond_jumps": 7, "backward_steps": 2, "samples_reordered": 3, "samples_backward_dropped": 1,
+        "time_outliers": 4, "duplicate_samples": 3, "non_finite_times": 1, "non_finite_samples": 5,
+        "clipped_samples": 6, "time_total_s": 20.0, "time_kept_s": 18.0, "lines": lines}
+    only_messages = DataQuality("g.bin", messages_total=10, messages_skipped=1)
+    assert only_messages.lines() == ["g.bin: 1 of 10 message(s) damaged and skipped",
+                                     "g.bin: kept 0.0 of 0.0 s of log; damage 10.0 %"]
+    clean = DataQuality("h.bin")
+    assert clean.ok and clean.lines() == [] and clean.damage_fraction == 0.0
+    many = DataQuality("m.bin", bytes_total=10**6)
+    for k in range(25):
+        many.add_damage(100 * k, 10)
+    assert many.bytes_skipped == 250 and many.messages_skipped == 25 and len(many.damaged_regions) == 20
+    assert "25 damaged message(s) in 20+ region(s); first at byte 0" in many.lines()[0]
+
+
+def test_add_battery_keeps_only_what_was_measured() -> None:
+    from identification.flightlog import BATTERY_CURRENT, BATTERY_VOLTAGE, BATTERY_VOLTAGE_LEGACY, add_battery
+
+    t = np.array([0.0, 1.0, 2.0, np.nan, 4.0])
+    sig: dict = {}
+    add_battery(sig, t, np.array([12.0, 0.0, np.nan, 11.0, 11.5]), np.array([1.0, np.inf, 0.0, 2.0, 3.0]), "BAT")
+    v, a = sig[BATTERY_VOLTAGE], sig[BATTERY_CURRENT]
+    assert v.t_s.tolist() == [0.0, 4.0] and v.values.tolist() == [12.0, 11.5] and v.unit == "V"
+    assert v.description == "battery voltage from BAT" and a.description == "battery current from BAT"
+    assert sig[BATTERY_VOLTAGE_LEGACY].values.tolist() == [12.0, 11.5]
+    assert sig[BATTERY_VOLTAGE_LEGACY].description == f"alias of {BATTERY_VOLTAGE}"
+    assert a.t_s.tolist() == [0.0, 2.0, 4.0] and a.values.tolist() == [1.0, 0.0, 3.0] and a.unit == "A"
+    earlier = {BATTERY_VOLTAGE: v}
+    add_battery(earlier, t, np.full(5, 20.0), None, "other")  # an earlier, better source is kept
+    assert earlier[BATTERY_VOLTAGE] is v and BATTERY_VOLTAGE_LEGACY not in earlier
+    none: dict = {}
+    add_battery(none, t, np.zeros(5), np.zeros(5), "BAT")  # no sensor: ArduPilot logs zeros
+    assert none == {}
+    current_only: dict = {}
+    add_battery(current_only, t, None, np.array([0.0, 0.5, 0.0, 0.0, 0.0]), "BAT")  # not all zero: measured
+    assert current_only[BATTERY_CURRENT].values.tolist() == [0.0, 0.5, 0.0, 0.0]
+
+
+def test_sanitiser_counts_non_finite_and_clipped_canonical_samples() -> None:
+    from identification.flightlog import CLIP_LIMITS, Signal, sanitize_log
+
+    t = np.arange(10) * 0.1
+    az = np.full(10, -9.8)
+    az[[2, 3]] = [np.nan, np.inf]
+    az[7] = -CLIP_LIMITS["accel_body_"]  # at full scale
+    gx = np.zeros(10)
+    gx[5] = 1.01 * CLIP_LIMITS["gyro_body_"]
+    log = FlightLog("c.bin", "csv", {
+        "accel_body_z_m_s2": Signal("accel_body_z_m_s2", t, az, "m/s2"),
+        "gyro_body_x_rad_s": Signal("gyro_body_x_rad_s", t, gx, "rad/s"),
+        "IMU.AccZ": Signal("IMU.AccZ", t, az.copy(), "m/s2"),  # raw fields are not checked
+        "VIBE.Clip0": Signal("VIBE.Clip0", t, np.arange(10.0), "1"),  # the IMU's own running clip count
+        "mode": Signal("mode", t, np.array(["a"] * 10), ""),
+    }, {})
+    out = sanitize_log(log)
+    q = out.quality
+    assert q.non_finite_samples == 2 and q.canonical_samples == 20  # accel and gyro: raw fields and text skipped
+    assert q.clipped_samples == 1 + 1 + 9
+    kept = out.signal("accel_body_z_m_s2").values
+    assert kept.size == 8 and np.isfinite(kept).all()
+    assert out.signal("IMU.AccZ").values.size == 10

@@ -14,8 +14,9 @@ from typing import Any
 
 import numpy as np
 
+from fmu_models.common.units import G0_M_S2
 from fmu_models.fmi.host import FmuHost, FmuRunError
-from fmu_models.quadrotor.constants import MASS_KG
+from fmu_models.quadrotor.constants import MASS_KG, N_MOTORS
 
 
 @dataclass
@@ -133,7 +134,7 @@ class QuadrotorAutopilot:
     altitude_m: Callable[[float], float]
     thrust_inverse: ThrustInverse
     mass_kg: float = MASS_KG
-    gravity_m_s2: float = 9.80665
+    gravity_m_s2: float = G0_M_S2
     kp_alt: float = 1.2
     kd_alt: float = 1.8
     ki_alt: float = 0.15
@@ -155,7 +156,7 @@ class QuadrotorAutopilot:
         accel_up = self.kp_alt * alt_err - self.kd_alt * climb_m_s + self.ki_alt * self.integral
         accel_up = min(max(accel_up, -4.0), 4.0)
         tilt = max(math.cos(y["roll_rad"]) * math.cos(y["pitch_rad"]), 0.5)
-        base = self.thrust_inverse(self.mass_kg * (self.gravity_m_s2 + accel_up) / tilt / 4.0)
+        base = self.thrust_inverse(self.mass_kg * (self.gravity_m_s2 + accel_up) / tilt / N_MOTORS)
         # hold horizontal velocity at zero: body-frame velocity error -> attitude reference
         roll_ref = max(min(-self.kp_vel * y["vel_body_y_m_s"], 0.3), -0.3)
         pitch_ref = max(min(self.kp_vel * y["vel_body_x_m_s"], 0.3), -0.3)

@@ -18,6 +18,7 @@ from fmu_models.common.simulate import Simulator
 from fmu_models.fixed_wing.model import FixedWingModel
 from fmu_models.fixed_wing.params import FixedWingParams
 from fmu_models.fixed_wing.trim import trim
+from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.signals.names import OUTPUT_TO_LOG
 from fmu_models.signals.pwm_mapping import PwmMapping, ardupilot_servo_reversed, default_mapping
 from identification.oem import Manoeuvre, OutputErrorEstimator
@@ -91,7 +92,7 @@ def recording_signals(rec: Recording, noise: bool = False, seed: int = 0) -> dic
             if col in signals:
                 signals[col] = signals[col] + rng.normal(0.0, sigma, len(rec.t_s))
     if "pwm_1_us" in rec.inputs:
-        for k in range(1, 5):
+        for k in range(1, N_MOTORS + 1):
             pwm = np.asarray(rec.inputs[f"pwm_{k}_us"], dtype=float)
             signals[f"servo_{k}_pwm_us"] = pwm
             signals[f"motor_{k}_pwm_us"] = pwm
@@ -177,7 +178,7 @@ def ardupilot_params(vehicle: str) -> dict[str, float]:
     """The ArduPilot parameters a log of ``vehicle`` carries for its output mapping (``SERVOn_*``)."""
     if vehicle == "quadrotor":
         out = {"FRAME_CLASS": 1.0, "FRAME_TYPE": 1.0}
-        for k in range(1, 5):
+        for k in range(1, N_MOTORS + 1):
             out |= {f"SERVO{k}_FUNCTION": 32.0 + k, f"SERVO{k}_MIN": 1000.0, f"SERVO{k}_MAX": 2000.0}
         return out
     functions = {"aileron_rad": 4, "elevator_rad": 19, "throttle": 70, "rudder_rad": 21}

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 from fmu_models.config import ConfigError
 
 __all__ = ["ParameterError", "ProblemList"]
@@ -25,17 +23,6 @@ class ProblemList:
 
     def add(self, message: str) -> None:
         self.items.append(message)
-
-    def check_range(self, name: str, value: object, lo: float | None, hi: float | None) -> None:
-        """Record a problem when ``value`` is not a finite number (booleans refused) or outside ``[lo, hi]``."""
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            self.add(f"{name} = {value!r} is not a number")
-            return
-        v = float(value)
-        if not math.isfinite(v):
-            self.add(f"{name} = {v} is not finite")
-        elif (lo is not None and v < lo) or (hi is not None and v > hi):
-            self.add(f"{name} = {v} is outside the allowed range [{lo}, {hi}]")
 
     def raise_if_any(self) -> None:
         if self.items:

@@ -10,15 +10,12 @@ import math
 
 G0_M_S2 = 9.80665  #: standard gravity (CGPM 1901; ISA, "g" and milli-g units) [m/s^2]
 DEG_TO_RAD = math.pi / 180.0
-RAD_TO_DEG = 180.0 / math.pi
 CDEG_TO_RAD = DEG_TO_RAD / 100.0  #: centidegrees (ArduPilot attitude fields)
 DEGE7_TO_DEG = 1e-7  #: latitude/longitude as int32 degrees * 1e7 (MAVLink, DataFlash, ULog)
 FT_TO_M = 0.3048
 NMI_M = 1852.0  #: international nautical mile [m]
 KN_TO_M_S = NMI_M / 3600.0
-M_S_TO_KN = 3600.0 / NMI_M
 KMH_TO_M_S = 1.0 / 3.6
-RPM_TO_RAD_S = 2.0 * math.pi / 60.0
 
 LOG_UNITS: dict[str, tuple[str, float]] = {
     "deg": ("rad", DEG_TO_RAD), "cdeg": ("rad", CDEG_TO_RAD), "deg/s": ("rad/s", DEG_TO_RAD),

@@ -23,7 +23,6 @@ from fmu_models.common.rigid_body import (
     rigid_body_derivatives,
 )
 
-N_BODY_STATES = 16
 _XYZ = {"x": "x", "y": "y", "z": "z"}
 
 

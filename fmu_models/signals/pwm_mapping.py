@@ -106,15 +106,15 @@ class Channel:
 class ChannelConfig(Schema):
     """One channel of a mapping file (``[channels.<fmu input>]``); ranges checked field by field."""
 
-    source: int = Field(ge=1, le=32)
-    min_us: float = Field(1000.0, ge=PWM_LIMITS_US[0], le=PWM_LIMITS_US[1])
-    trim_us: float = Field(1500.0, ge=PWM_LIMITS_US[0], le=PWM_LIMITS_US[1])
-    max_us: float = Field(2000.0, ge=PWM_LIMITS_US[0], le=PWM_LIMITS_US[1])
-    out_min: FiniteFloat = -1.0
-    out_max: FiniteFloat = 1.0
-    reversed: bool = False
-    deadband_us: float = Field(0.0, ge=0.0, le=500.0)
-    failsafe: FiniteFloat = 0.0
+    source: int = Field(ge=1, le=32)  # autopilot output channel (SERVOn / actuator output n)
+    min_us: float = Field(1000.0, ge=PWM_LIMITS_US[0], le=PWM_LIMITS_US[1])  # PWM giving out_min [us]
+    trim_us: float = Field(1500.0, ge=PWM_LIMITS_US[0], le=PWM_LIMITS_US[1])  # PWM giving 0 [us], min..max
+    max_us: float = Field(2000.0, ge=PWM_LIMITS_US[0], le=PWM_LIMITS_US[1])  # PWM giving out_max [us]
+    out_min: FiniteFloat = -1.0  # FMU input at min_us [FMU unit: rad for surfaces, 0..1 throttle]
+    out_max: FiniteFloat = 1.0  # FMU input at max_us [FMU unit], above out_min
+    reversed: bool = False  # the servo turns the other way (SERVOn_REVERSED)
+    deadband_us: float = Field(0.0, ge=0.0, le=500.0)  # |PWM - trim| below this gives 0 [us]
+    failsafe: FiniteFloat = 0.0  # FMU input when the channel is missing or out of range [FMU unit]
 
 
 class MappingConfig(Schema):

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fmu_models.common.units import DEGE7_TO_DEG
 from fmu_models.quadrotor.constants import N_MOTORS
 from identification.flightlog import DataQuality, FlightLog, LogError, Signal, add_battery, sanitize_log
 
@@ -45,7 +46,7 @@ CANONICAL: list[tuple[str, str, str, float, str]] = [
 NUMERIC_FORMATS: dict[str, tuple[str, float | None]] = {
     "b": ("i1", None), "B": ("u1", None), "h": ("<i2", None), "H": ("<u2", None), "i": ("<i4", None),
     "I": ("<u4", None), "f": ("<f4", None), "d": ("<f8", None), "c": ("<i2", 0.01), "C": ("<u2", 0.01),
-    "e": ("<i4", 0.01), "E": ("<u4", 0.01), "L": ("<i4", 1e-7), "M": ("i1", None), "q": ("<i8", None),
+    "e": ("<i4", 0.01), "E": ("<u4", 0.01), "L": ("<i4", DEGE7_TO_DEG), "M": ("i1", None), "q": ("<i8", None),
     "Q": ("<u8", None), "g": ("<f2", None),
 }
 #: byte sizes of the non-numeric ones (strings, int16[32])

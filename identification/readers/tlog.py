@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 from pymavlink import mavutil
 
+from fmu_models.common.units import DEGE7_TO_DEG, G0_M_S2
 from identification.flightlog import DataQuality, FlightLog, LogError, Signal, add_battery, sanitize_log
 
 MAV_MODE_FLAG_SAFETY_ARMED = 128
-G0 = 9.80665
 UINT16_MAX = 65535
 MAX_CONSECUTIVE_ERRORS = 1000
 
@@ -22,9 +22,10 @@ FIELDS = [
     ("roll_rad", "ATTITUDE", "roll", 1.0), ("pitch_rad", "ATTITUDE", "pitch", 1.0), ("yaw_rad", "ATTITUDE", "yaw", 1.0),
     ("gyro_body_x_rad_s", "ATTITUDE", "rollspeed", 1.0), ("gyro_body_y_rad_s", "ATTITUDE", "pitchspeed", 1.0),
     ("gyro_body_z_rad_s", "ATTITUDE", "yawspeed", 1.0),
-    ("accel_body_x_m_s2", "SCALED_IMU", "xacc", G0 / 1000), ("accel_body_y_m_s2", "SCALED_IMU", "yacc", G0 / 1000),
-    ("accel_body_z_m_s2", "SCALED_IMU", "zacc", G0 / 1000),
-    ("lat_deg", "GLOBAL_POSITION_INT", "lat", 1e-7), ("lon_deg", "GLOBAL_POSITION_INT", "lon", 1e-7),
+    ("accel_body_x_m_s2", "SCALED_IMU", "xacc", G0_M_S2 / 1000),
+    ("accel_body_y_m_s2", "SCALED_IMU", "yacc", G0_M_S2 / 1000),
+    ("accel_body_z_m_s2", "SCALED_IMU", "zacc", G0_M_S2 / 1000),
+    ("lat_deg", "GLOBAL_POSITION_INT", "lat", DEGE7_TO_DEG), ("lon_deg", "GLOBAL_POSITION_INT", "lon", DEGE7_TO_DEG),
     ("height_m", "GLOBAL_POSITION_INT", "alt", 1e-3), ("altitude_m", "GLOBAL_POSITION_INT", "relative_alt", 1e-3),
     ("vel_north_m_s", "GLOBAL_POSITION_INT", "vx", 0.01), ("vel_east_m_s", "GLOBAL_POSITION_INT", "vy", 0.01),
     ("vel_down_m_s", "GLOBAL_POSITION_INT", "vz", 0.01), ("airspeed_m_s", "VFR_HUD", "airspeed", 1.0),

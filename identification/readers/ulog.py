@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 from pyulog import ULog
 
+from fmu_models.common.units import DEGE7_TO_DEG
 from fmu_models.quadrotor.constants import N_MOTORS
 from identification.flightlog import DataQuality, FlightLog, LogError, Signal, add_battery, sanitize_log
 from identification.readers.px4_signals import add_imu_and_attitude, add_local_position, add_outputs, alias
@@ -66,8 +67,8 @@ def read_ulog(path: Path) -> FlightLog:
     alias(signals, "lat_deg", "vehicle_gps_position.latitude_deg", "deg")
     alias(signals, "lon_deg", "vehicle_gps_position.longitude_deg", "deg")
     alias(signals, "height_m", "vehicle_gps_position.altitude_msl_m", "m")
-    alias(signals, "lat_deg", "vehicle_gps_position.lat", "deg", 1e-7)
-    alias(signals, "lon_deg", "vehicle_gps_position.lon", "deg", 1e-7)
+    alias(signals, "lat_deg", "vehicle_gps_position.lat", "deg", DEGE7_TO_DEG)
+    alias(signals, "lon_deg", "vehicle_gps_position.lon", "deg", DEGE7_TO_DEG)
     alias(signals, "height_m", "vehicle_gps_position.alt", "m", 1e-3)
     for a, full in (("n", "north"), ("e", "east"), ("d", "down")):
         alias(signals, f"vel_{full}_m_s", f"vehicle_gps_position.vel_{a}_m_s", "m/s")

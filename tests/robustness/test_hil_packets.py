@@ -7,8 +7,10 @@ interface; the counts are printed."""
 from __future__ import annotations
 
 import math
+import os
 import struct
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +26,8 @@ from hil_adapter.packets import SERVO16, SERVO16_MAGIC, SERVO32, SERVO32_MAGIC
 from hil_adapter.px4 import Px4Server
 from hil_adapter.sensors import SensorConfig, SensorSuite
 
-EXAMPLES = 1000
+#: ``UAVFMU_FUZZ_SCALE`` (0..1, default 1) shrinks the example count for `make mutation` only
+EXAMPLES = max(10, round(1000 * min(1.0, max(0.01, float(os.environ.get("UAVFMU_FUZZ_SCALE", "1"))))))
 COUNTS: Counter[str] = Counter()
 FUZZ = settings(max_examples=EXAMPLES, deadline=None, database=None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
@@ -78,9 +81,13 @@ def bad_servo_packets(draw: Any) -> bytes:
     return layout.pack(magic, rate, count, *pwm)
 
 
+def test_malformed_servo_packets_have_no_side_effect(plant: Plant) -> None:
+    _counted(_servo_packet_fuzz, "ardupilot-json", plant)
+
+
 @FUZZ
 @given(data=bad_servo_packets())
-def test_malformed_servo_packets_have_no_side_effect(plant: Plant, data: bytes) -> None:
+def _servo_packet_fuzz(plant: Plant, data: bytes) -> None:
     srv = ArduPilotJsonServer(plant, transport=None)  # type: ignore[arg-type]  (handle() only)
     assert srv.handle(SERVO16.pack(SERVO16_MAGIC, 400, 1, *([1000] * 16))) is not None
     before = _snapshot(plant, srv.stats, (srv.last_count, srv.last_reply))
@@ -113,9 +120,13 @@ def px4(plant: Plant):
     srv.close()
 
 
+def test_malformed_px4_actuator_messages_have_no_side_effect(px4: Px4Server) -> None:
+    _counted(_px4_fuzz, "px4", px4)
+
+
 @FUZZ
 @given(data=bad_actuator_bytes())
-def test_malformed_px4_actuator_messages_have_no_side_effect(px4: Px4Server, data: bytes) -> None:
+def _px4_fuzz(px4: Px4Server, data: bytes) -> None:
     mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
     good = mav.hil_actuator_controls_encode(1, [0.25] * 16, mavlink2.MAV_MODE_FLAG_SAFETY_ARMED, 1).pack(mav)
     assert _resync(px4, good) == 1  # after a good message the next one is taken at once
@@ -160,11 +171,14 @@ def _servo_raw(pwm: list[int]) -> Any:
     return mavlink2.MAVLink_servo_output_raw_message(0, 0, *pwm[:8], *([0] * 8))
 
 
+def test_malformed_servo_output_raw_has_no_side_effect(plant: Plant) -> None:
+    _counted(_servo_raw_fuzz, "mavlink", plant)
+
+
 @FUZZ
 @given(pwm=st.lists(st.integers(1000, 2000), min_size=8, max_size=8), where=st.integers(0, 3), bad=BAD_PWM,
        garbage=st.booleans())
-def test_malformed_servo_output_raw_has_no_side_effect(plant: Plant, pwm: list[int], where: int, bad: int,
-                                                       garbage: bool) -> None:
+def _servo_raw_fuzz(plant: Plant, pwm: list[int], where: int, bad: int, garbage: bool) -> None:
     conn = ScriptedConnection()
     bridge = MavlinkBridge(plant, SensorSuite(SensorConfig.noise_free()), conn, dt_s=0.004)  # type: ignore[arg-type]
     conn.inbox.append(_servo_raw([1000] * 8))
@@ -179,10 +193,12 @@ def test_malformed_servo_output_raw_has_no_side_effect(plant: Plant, pwm: list[i
     COUNTS["mavlink"] += 1
 
 
-def test_counts_reached() -> None:
-    """Runs after the fuzzers in file order: each interface got its examples (hypothesis may stop early only
-    when it has exhausted a strategy, which none of these can)."""
-    assert all(COUNTS[k] >= EXAMPLES for k in ("ardupilot-json", "px4", "mavlink")), COUNTS
+def _counted(fuzz: Callable[..., None], key: str, *args: Any) -> None:
+    """Run a property test and check, in the same test (whatever ran before), that all its examples ran
+    (hypothesis may stop early only when it has exhausted a strategy, which none of these can)."""
+    before = COUNTS[key]
+    fuzz(*args)
+    assert COUNTS[key] - before >= EXAMPLES, f"{key}: {COUNTS[key] - before} of {EXAMPLES} examples ran"
 
 
 def test_struct_layouts_are_what_sitl_sends() -> None:

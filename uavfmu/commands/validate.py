@@ -18,7 +18,8 @@ block, restart states and sensor noise from the log; each signal's band coverage
 ``battery_voltage_V`` from its battery-state model: the logged voltage, else the hover state computed from the
 log (``identification.replay_battery``); the source is printed and in ``metrics.json``.
 
-Exit status: 0 every gated signal of every run passes, 1 a signal fails (or a batch run errors), 2 bad input.
+Exit status: 0 every gated signal of every run passes, 1 a signal fails (or a batch run errors), 2 bad input,
+3 nothing fails but a signal ties with persistence (its skill interval reaches zero) or nothing was scored.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import os
 import sys
 from pathlib import Path
 
-EXIT_PASS, EXIT_FAIL, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_PASS, EXIT_FAIL, EXIT_BAD_INPUT, EXIT_TIE = 0, 1, 2, 3
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -152,7 +153,7 @@ def _run_one(job: object, args: argparse.Namespace, uncertainty: object = None) 
     print("\n".join(res.lines()))
     if res.report:
         print(f"report: {res.report}")
-    return EXIT_FAIL if res.failed else EXIT_PASS
+    return exit_status([res.status])
 
 
 def _run_batch(jobs: list, args: argparse.Namespace, uncertainty: object = None) -> int:
@@ -173,4 +174,11 @@ def _run_batch(jobs: list, args: argparse.Namespace, uncertainty: object = None)
     print(batch_summary(results))
     if args.report:
         print(f"report: {write_batch_report(results, args.report)}")
-    return EXIT_FAIL if any(r.status != "pass" for r in results) else EXIT_PASS
+    return exit_status([r.status for r in results])
+
+
+def exit_status(statuses: list[str]) -> int:
+    """0 all pass; 1 any fails or errors; else 3 (a tie or nothing scored: not shown better than persistence)."""
+    if any(s in ("fail", "error") for s in statuses):
+        return EXIT_FAIL
+    return EXIT_PASS if all(s == "pass" for s in statuses) else EXIT_TIE
