@@ -115,7 +115,7 @@ def _trailing_comment(line: str) -> str:
                 ast.parse(line[:k].strip().rstrip(",") or "0")
             except SyntaxError:
                 continue
-            return line[k + 1:].strip()
+            return line[k + 1:].lstrip(":").strip()  # a trailing ``#:`` comment too
     return ""
 
 
