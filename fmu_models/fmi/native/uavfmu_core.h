@@ -225,7 +225,7 @@ static const char* uav_num(double v, char* buf, size_t n) {
 }
 
 /* 0 if every input (or parameter) is finite and inside [min, max], else 1 after logging which is not */
-static int uav_check_values(Instance* c, int causality, const char* when) {
+static int uav_check_values(Instance* c, int causality, const char* fn, double t) {
     const uavfmu_model_info* m = c->model;
     const double* arr = causality == UAVFMU_INPUT ? c->u : c->p;
     const int* list = causality == UAVFMU_INPUT ? c->kinds : c->kinds + c->n_in;
@@ -234,7 +234,11 @@ static int uav_check_values(Instance* c, int causality, const char* when) {
         const uavfmu_variable* v = &m->variables[list[k]];
         double val = arr[v->index];
         if (val != val || (v->has_min && val < v->min) || (v->has_max && val > v->max) || isinf(val)) {
-            char a[40], b[40], d[40];
+            char a[40], b[40], d[40], when[96];
+            /* the time is formatted only here, on failure: doStep's hot path formats nothing */
+            if (fn && t == t) snprintf(when, sizeof when, "%s at t = %g s", fn, t);
+            else if (fn) snprintf(when, sizeof when, "%s", fn);  /* t = NaN: no time (initialisation) */
+            else snprintf(when, sizeof when, "t = %g s", t);
             uav_fail(c, UAV_ERROR, "%s: %s %s = %s is outside its allowed range [%s, %s]", when,
                      causality == UAVFMU_INPUT ? "input" : "parameter", v->name, uav_num(val, a, sizeof a),
                      v->has_min ? uav_num(v->min, b, sizeof b) : "None",
@@ -246,8 +250,8 @@ static int uav_check_values(Instance* c, int causality, const char* when) {
 }
 
 /* inputs always, parameters when changed: 0 if usable, else 1 (logged, instance in the Error state) */
-static int uav_check_inputs(Instance* c, const char* when) {
-    if (uav_check_values(c, UAVFMU_INPUT, when) || (c->params_dirty && uav_check_values(c, UAVFMU_PARAMETER, when))) {
+static int uav_check_inputs(Instance* c, const char* fn, double t) {
+    if (uav_check_values(c, UAVFMU_INPUT, fn, t) || (c->params_dirty && uav_check_values(c, UAVFMU_PARAMETER, fn, t))) {
         c->state = Error;
         return 1;
     }
@@ -274,7 +278,7 @@ static const char* uav_diverged(Instance* c, int status, const char* what, char*
 /* x and y from the current inputs and parameters (initialisation) */
 static int uav_initialize(Instance* c, const char* when) {
     char why[256];
-    if (uav_check_values(c, UAVFMU_PARAMETER, when)) return UAV_ERROR;
+    if (uav_check_values(c, UAVFMU_PARAMETER, when, NAN)) return UAV_ERROR;
     int s = uavfmu_initialize(c->u, c->p, c->x, c->y);
     if (s)
         return uav_fail(c, UAV_ERROR, "%s: the initial state is not finite (%s)", when,
@@ -329,13 +333,12 @@ static int uav_initial_state_ready(Instance* c, const char* fn) {
 static int uav_outputs_ready(Instance* c, const char* fn) {
     if (c->state == InitializationMode) return uav_initial_state_ready(c, fn);
     if (!c->outputs_dirty || c->state == Error) return UAV_OK;
-    char when[96], why[256];
-    snprintf(when, sizeof when, "%s at t = %g s", fn, c->time);
-    if (uav_check_inputs(c, when)) return UAV_ERROR;
+    char why[256];
+    if (uav_check_inputs(c, fn, c->time)) return UAV_ERROR;
     int s = uavfmu_outputs(c->x, c->u, c->p, c->y_next);
     if (s) {
         c->state = Error;
-        return uav_fail(c, UAV_ERROR, "%s: %s", when, uav_diverged(c, s, "state", why, sizeof why));
+        return uav_fail(c, UAV_ERROR, "%s at t = %g s: %s", fn, c->time, uav_diverged(c, s, "state", why, sizeof why));
     }
     memcpy(c->y, c->y_next, sizeof(double) * (size_t)c->model->ny);
     c->outputs_dirty = 0;
@@ -443,9 +446,7 @@ static int uav_do_step(Instance* c, double t, double h, const char* fn) {
     if (!uavfmu_rule_step(c->why, sizeof c->why, t, h, c->time) ||
         !uavfmu_rule_internal_steps(c->why, sizeof c->why, h, dt))
         return uav_fail(c, UAV_ERROR, "%s: %s", fn, c->why);
-    char when[64];
-    snprintf(when, sizeof when, "t = %g s", t);
-    if (uav_check_inputs(c, when)) return UAV_ERROR;
+    if (uav_check_inputs(c, NULL, t)) return UAV_ERROR;
     double hh[2] = {h, dt};
     int s = uavfmu_advance(c->x, c->u, c->p, hh, c->x_next, c->y_next);
     if (s) {
@@ -494,13 +495,13 @@ static int uav_get_states(Instance* c, double* x, size_t n, const char* fn) {
 
 static int uav_get_derivatives(Instance* c, double* xdot, size_t n, const char* fn) {
     if (uav_check_nx(c, xdot, n, fn) || uav_initial_state_ready(c, fn)) return UAV_ERROR;
-    char when[96], why[256];
-    snprintf(when, sizeof when, "%s at t = %g s", fn, c->time);
-    if (c->state != Error && uav_check_inputs(c, when)) return UAV_ERROR;
+    char why[256];
+    if (c->state != Error && uav_check_inputs(c, fn, c->time)) return UAV_ERROR;
     int s = uavfmu_derivatives(c->x, c->u, c->p, c->xdot);
     if (s) {
         c->state = Error;
-        return uav_fail(c, UAV_ERROR, "%s: %s", when, uav_diverged(c, s, "the derivative of state", why, sizeof why));
+        return uav_fail(c, UAV_ERROR, "%s at t = %g s: %s", fn, c->time,
+                        uav_diverged(c, s, "the derivative of state", why, sizeof why));
     }
     memmove(xdot, c->xdot, sizeof(double) * n);
     return UAV_OK;
