@@ -197,7 +197,8 @@ def test_out_of_range_pwm_is_an_error_and_reset_recovers(quadrotor_fmu: Path) ->
         with pytest.raises(FMICallException) as err:
             fmu.step(0.01)
         assert err.value.status == 3
-        assert "pwm_1_us = 3100.0 is outside its allowed range [0.0, 2500.0]" in fmu.text()
+        # the message names when (the communication point) and what, with the whole allowed range
+        assert "t = 0 s: input pwm_1_us = 3100.0 is outside its allowed range [0.0, 2500.0]" in fmu.text()
         fmu.s.reset()
         fmu.start()
         fmu.step(0.01)  # usable again after reset
@@ -219,7 +220,7 @@ def test_parameter_out_of_range_is_reported_at_initialisation(quadrotor_fmu: Pat
     with pytest.raises(FMICallException) as err:
         fmu.start(mass_kg=-1.0)  # the native FMU refuses to leave initialisation with a bad parameter
     assert err.value.status == 3
-    assert "mass_kg = -1.0 is outside its allowed range [0.05, 50.0]" in fmu.text()
+    assert "parameter mass_kg = -1.0 is outside its allowed range [0.05, 50.0]" in fmu.text()
     with pytest.raises(FMICallException) as err:
         fmu.step(0.01)
     assert err.value.status == 3
