@@ -27,6 +27,7 @@ from scipy import signal
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from fmu_models.common.units import G0_M_S2 as G0
 from identification.readers import read_log
 from identification.thrust_dataset import ThrustDatasetConfig, build_thrust_dataset
 from identification.thrust_model import FlightData, command
@@ -35,7 +36,7 @@ from identification.thrust_workflow import HOVER_CLIMB_M_S
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 PX4 = ((DATA / "quadrotor_px4_csv" / "drone1-8", 1.32), (DATA / "quadrotor_px4_csv" / "drone1-10", 1.085))
 ERLE = tuple((DATA / "quadrotor" / f"arducopter_x_quad_real_{n}.BIN", 1.14) for n in (218, 104, 105))
-IDLE_US, FULL_US, G0 = 1000.0, 2000.0, 9.80665
+IDLE_US, FULL_US = 1000.0, 2000.0
 DELAYS_S = (0.0, 0.01, 0.02, 0.03, 0.04)
 TAUS_S = (0.0, 0.01, 0.02, 0.03, 0.05)
 

@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from fmu_models.common.units import G0_M_S2
+
 PWM_MIN_US, PWM_MAX_US = 1000.0, 2000.0
 SPIN_MAX = 0.95  #: ArduCopter's MOT_SPIN_MAX default
 CELL_FULL_V, CELL_EMPTY_V, CELL_NOMINAL_V = 4.2, 3.3, 3.7  #: LiPo cell voltages
@@ -51,7 +53,7 @@ def _hover_pwm(sim: Any, p: np.ndarray, weight_n: float) -> float:
 
 def _weight(sim: Any, p: np.ndarray) -> float:
     pv = sim.model.params.view(p)
-    return pv.mass_kg * 9.80665
+    return pv.mass_kg * G0_M_S2
 
 
 def arducopter(sim: Any, p: np.ndarray, out: Any) -> None:

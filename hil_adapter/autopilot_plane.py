@@ -14,9 +14,9 @@ from typing import Any
 
 import numpy as np
 
+from fmu_models.common.units import G0_M_S2 as G_M_S2
 from fmu_models.signals.pwm_mapping import default_mapping
 
-G_M_S2 = 9.80665
 DEG = 180.0 / math.pi
 
 

@@ -32,6 +32,7 @@ from pydantic import BeforeValidator, Field
 # Both helpers are written once for CasADi but take and return plain floats for float arguments, which is
 # all we use here (checked: ``isa(1000.0)`` and ``radii_of_curvature(0.8)`` return Python floats).
 from fmu_models.common.atmosphere import EXPONENT, LAPSE_K_M, P0_PA, T0_K, isa
+from fmu_models.common.units import G0_M_S2
 from fmu_models.common.wgs84 import radii_of_curvature
 from fmu_models.config import ConfigError, Schema, validate_config
 
@@ -273,7 +274,7 @@ PROFILES: dict[str, dict[str, dict[str, float]]] = {
                 "pos_gm_std_v_m": 1.5 * _M8_SIGMA_H_M, "pos_gm_tau_s": 60.0, "pos_noise_std_h_m": 0.0,
                 "pos_noise_std_v_m": 0.0, "vel_noise_std_m_s": 0.05, "vel_noise_std_down_m_s": 0.05},
         "gyro": {"noise_density": math.radians(0.004)},
-        "accel": {"noise_density": 100e-6 * 9.80665},
+        "accel": {"noise_density": 100e-6 * G0_M_S2},
         "baro": {"noise_std": 1.2},
     },
     "ideal": {name: {"noise_std": 0.0, "noise_density": 0.0, "drift_std": 0.0, "turn_on_bias_std": 0.0}
