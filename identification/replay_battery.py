@@ -16,6 +16,7 @@ The source used is printed and written to ``metrics.json``.
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -57,8 +58,33 @@ class BatteryStateModel:
 def read_battery_state(path: str | Path) -> BatteryStateModel | None:
     """The battery-state model of a parameter file written by ``identify thrust``; None when the file has none.
     :class:`ParameterError` naming the file and field when it is malformed."""
-    data = read_json(path)
-    info = (data.get("_identification") or {}).get("battery_state") if isinstance(data, dict) else None
+    return battery_state_of(read_json(path), str(path))
+
+
+def embedded_battery_state(fmu: str | Path) -> BatteryStateModel | None:
+    """The battery-state model of the parameter file an FMU was built from (``build --params`` embeds it as
+    ``fmu_models.fmi.fmuzip.EMBEDDED_PARAMS``); None when the FMU carries none or the file has no state.
+    :class:`ParameterError` naming the FMU and the member when it is malformed."""
+    from fmu_models.fmi.fmuzip import EMBEDDED_PARAMS, read_embedded_params
+
+    source = f"{fmu} ({EMBEDDED_PARAMS})"
+    try:
+        raw = read_embedded_params(Path(fmu))
+    except ValueError as err:
+        raise ParameterError(source, [str(err)]) from None
+    if raw is None:
+        return None
+    try:
+        data = json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise ParameterError(source, [f"not a JSON parameter file: {err}"]) from None
+    return battery_state_of(data, source) if isinstance(data, dict) else None
+
+
+def battery_state_of(data: dict[str, Any], path: str) -> BatteryStateModel | None:
+    """The battery-state model of parameter-file contents ``data`` read from ``path`` (named in errors)."""
+    ident = data.get("_identification") if isinstance(data, dict) else None
+    info = ident.get("battery_state") if isinstance(ident, dict) else None
     if not isinstance(info, dict) or not isinstance(data.get("quadrotor"), dict):
         return None
     p = QuadrotorParams.from_dict(data["quadrotor"], source=f"{path}: quadrotor")
@@ -131,4 +157,4 @@ def feed(model: BatteryStateModel, vehicle: str, fmu_params: dict[str, float], l
     volt, source = battery_input(model, log, t_s, inputs, float(fmu_params.get("mass_kg", model.params.mass_kg)))
     inputs[INPUT] = volt
     notes[:] = [n for n in notes if not n.startswith(f"FMU input {INPUT} ")]
-    return source
+    return {**source, "params": model.source}

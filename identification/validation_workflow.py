@@ -85,8 +85,12 @@ class ValidationJob:
     #: with ``report_dir``: also ``report.html`` (plots: about a second a run), else ``metrics.json`` alone
     report_html: bool = True
     #: parameter file of ``identify thrust`` whose battery-state model drives ``battery_voltage_V``
-    #: (``identification.replay_battery``; None: the input is logged or held at its start value)
+    #: (``identification.replay_battery``; None: the one embedded in the FMU, else the input is logged or held
+    #: at its start value)
     params_file: Path | None = None
+    #: without ``params_file``, read the battery-state model from the parameter file embedded in the FMU
+    #: (``build --params`` embeds it); False holds the input at its start value unless logged
+    embedded_params: bool = True
 
 
 @dataclass
@@ -142,11 +146,14 @@ def validate(job: ValidationJob, progress: Callable[[int, int], None] | None = N
     from fmu_models.fmi.host import FmuHost
     from fmu_models.signals.pwm_mapping import PwmMapping
     from identification.readers import read_log
-    from identification.replay_battery import read_battery_state
+    from identification.replay_battery import embedded_battery_state, read_battery_state
     from identification.validation import replay, vehicle_of
 
     log = read_log(job.log, channel_map=job.channel_map)
-    battery = read_battery_state(job.params_file) if job.params_file is not None else None
+    if job.params_file is not None:
+        battery = read_battery_state(job.params_file)
+    else:
+        battery = embedded_battery_state(job.fmu) if job.embedded_params else None
     o = job.options
     with FmuHost(job.fmu) as host:
         maps = _load_maps(job, vehicle_of(host))
@@ -403,7 +410,8 @@ def summary_lines(r: ValidationResult) -> list[str]:
     if r.retried:
         out.append(f"  run twice: the first attempt failed ({r.retried})")
     if r.battery:
-        out.append(f"  battery_voltage_V: {r.battery['source']} ({r.battery['detail']})")
+        out.append(f"  battery_voltage_V: {r.battery['source']} ({r.battery['detail']}; model from "
+                   f"{r.battery.get('params', '?')})")
     scored = r.windows - r.excluded
     why = ", ".join(f"{k}: {n}" for k, n in {**r.ground, **r.gaps}.items())
     out.append(f"  {scored} of {r.windows} replay windows scored"

@@ -59,10 +59,14 @@ def test_the_hover_battery_state_cuts_the_replay_thrust_error(identified: tuple[
     assert model is not None and model.has_state
     rec = _sagging_flight(fmu, model.params)
     log = write_log(tmp_path / "sag.bin", rec)  # a DataFlash log: no battery voltage logged
-    held = validate(ValidationJob(fmu, log))
+    held = validate(ValidationJob(fmu, log, embedded_params=False))
     fed = validate(ValidationJob(fmu, log, params_file=params, report_dir=tmp_path / "rep", report_html=False))
+    embedded = validate(ValidationJob(fmu, log))  # no --params: the file the FMU was built from
     assert held.battery is None and any("battery_voltage_V is not in the log" in w for w in held.warnings)
     assert fed.battery is not None and fed.battery["source"] == "hover battery state"
+    assert embedded.battery is not None and embedded.battery["source"] == "hover battery state"
+    assert "resources/uavfmu_parameters.json" in embedded.battery["params"]
+    assert embedded.signals["thrust_total_N"]["rmse"] == fed.signals["thrust_total_N"]["rmse"]
     assert not any("battery_voltage_V" in w for w in fed.warnings)
     e_held, e_fed = (r.signals["thrust_total_N"]["rmse"] for r in (held, fed))
     # the true battery runs 12.3 -> 10.1 V about the 11.1 V nominal: thrust off by up to ~10 % when held
@@ -88,6 +92,31 @@ def test_a_logged_voltage_is_fed_as_logged(identified: tuple[Path, Path], tmp_pa
     fed = validate(ValidationJob(fmu, log, params_file=params))
     assert fed.battery is not None and fed.battery["source"] == "logged"
     assert fed.signals["thrust_total_N"]["rmse"] < 0.2  # the true input: only the replay's own error remains
+
+
+def test_the_fmu_carries_the_file_it_was_built_from(identified: tuple[Path, Path], tmp_path: Path) -> None:
+    """``build --params`` embeds the file verbatim; a damaged or oversized embedded file is a named error."""
+    import zipfile
+
+    from fmu_models.common.errors import ParameterError
+    from fmu_models.fmi import fmuzip
+    from identification.replay_battery import embedded_battery_state
+
+    params, fmu = identified
+    with zipfile.ZipFile(fmu) as z:
+        assert z.read(fmuzip.EMBEDDED_PARAMS) == params.read_bytes()
+    damaged = tmp_path / "damaged.fmu"
+    with zipfile.ZipFile(fmu) as z, zipfile.ZipFile(damaged, "w") as out:
+        for item in z.infolist():
+            out.writestr(item, b"{not json" if item.filename == fmuzip.EMBEDDED_PARAMS else z.read(item))
+    with pytest.raises(ParameterError, match=r"(?s)damaged\.fmu.*uavfmu_parameters\.json.*not a JSON"):
+        embedded_battery_state(damaged)
+    big = tmp_path / "big.json"
+    big.write_bytes(b" " * (fmuzip.MAX_EMBEDDED_BYTES + 1))
+    with pytest.raises(ValueError, match=r"big\.json: .* at most"):
+        fmuzip.embedded_params_bytes(big)
+    (plain,) = __import__("build_fmus").build(None, tmp_path / "plain", ["quadrotor"])
+    assert embedded_battery_state(plain) is None  # built from defaults: nothing embedded
 
 
 def test_a_parameter_file_of_another_fmu_is_refused(identified: tuple[Path, Path], tmp_path: Path) -> None:

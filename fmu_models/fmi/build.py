@@ -124,6 +124,10 @@ def build_fmu(
             project.append(lib)
         else:
             log.warning("%s: no C compiler; the FMU will evaluate its model with CasADi (slower)", model.name)
+        if params_file is not None:  # pythonfmu puts project files in resources/
+            embedded = work / Path(fmuzip.EMBEDDED_PARAMS).name
+            embedded.write_bytes(fmuzip.embedded_params_bytes(params_file))
+            project.append(embedded)
         spec_file = work / f"{model.name}_spec.json"
         spec_file.write_text(json.dumps(spec, indent=1))
         project.append(spec_file)

@@ -15,6 +15,10 @@ from pathlib import Path
 
 #: the earliest time a zip member can carry (1980-01-01 00:00:00 UTC)
 ZIP_EPOCH = 315532800
+#: the parameter file an FMU was built from (``build --params``), carried verbatim in its resources
+EMBEDDED_PARAMS = "resources/uavfmu_parameters.json"
+#: largest parameter file embedded or read back [bytes] (identified files are a few kB)
+MAX_EMBEDDED_BYTES = 4 * 1024 * 1024
 
 
 def package_version() -> str:
@@ -41,6 +45,34 @@ def build_epoch(params_file: Path | None = None) -> int:
 def iso_date(epoch: int) -> str:
     """``generationDateAndTime`` of ``epoch`` (xs:dateTime, UTC)."""
     return datetime.fromtimestamp(epoch, UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def embedded_params_bytes(params_file: Path) -> bytes:
+    """The bytes of ``params_file`` to embed as :data:`EMBEDDED_PARAMS`; ValueError naming it when too large."""
+    size = Path(params_file).stat().st_size
+    if size > MAX_EMBEDDED_BYTES:
+        raise ValueError(f"{params_file}: {size} bytes; a parameter file embedded in an FMU may have at most "
+                         f"{MAX_EMBEDDED_BYTES} bytes")
+    return Path(params_file).read_bytes()
+
+
+def read_embedded_params(fmu: Path) -> bytes | None:
+    """The parameter file embedded in ``fmu`` (:data:`EMBEDDED_PARAMS`), or None when it has none.
+
+    ValueError naming the FMU when the archive cannot be read or the member is larger than
+    :data:`MAX_EMBEDDED_BYTES`."""
+    try:
+        with zipfile.ZipFile(fmu) as z:
+            try:
+                info = z.getinfo(EMBEDDED_PARAMS)
+            except KeyError:
+                return None
+            if info.file_size > MAX_EMBEDDED_BYTES:
+                raise ValueError(f"{fmu}: {EMBEDDED_PARAMS} has {info.file_size} bytes; allowed at most "
+                                 f"{MAX_EMBEDDED_BYTES}")
+            return z.read(info)
+    except (OSError, zipfile.BadZipFile) as err:
+        raise ValueError(f"{fmu}: cannot read the FMU archive ({err})") from None
 
 
 def write_fmu(path: Path, files: dict[str, bytes], epoch: int) -> Path:

@@ -374,6 +374,8 @@ def prepare(model: VehicleModel, work: Path, *, warnings: dict[str, str] | None 
     job.files["modelDescription.xml"] = model_description(model, guid, fmuzip.iso_date(epoch), interface)
     if documentation is not None and Path(documentation).exists():
         job.files["documentation/index.md"] = Path(documentation).read_bytes()
+    if params_file is not None:
+        job.files[fmuzip.EMBEDDED_PARAMS] = fmuzip.embedded_params_bytes(params_file)
     return job
 
 

@@ -16,7 +16,9 @@ PARAMS`` adds Monte Carlo bands: N replays with parameters drawn from the parame
 block, restart states and sensor noise from the log; each signal's band coverage is printed beside its skill.
 ``--params PARAMS`` (an ``identify thrust`` parameter file; manifest key ``params``) drives the quadrotor's
 ``battery_voltage_V`` from its battery-state model: the logged voltage, else the hover state computed from the
-log (``identification.replay_battery``); the source is printed and in ``metrics.json``.
+log (``identification.replay_battery``); the source is printed and in ``metrics.json``. Without ``--params`` the
+parameter file the FMU was built from (``build --params`` embeds it) does the same; ``--no-embedded-params``
+holds the input at its start value instead.
 
 Exit status: 0 every gated signal of every run passes, 1 a signal fails (or a batch run errors), 2 bad input,
 3 nothing fails but a signal ties with persistence (its skill interval reaches zero) or nothing was scored.
@@ -54,6 +56,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="parameter file of `identify thrust`: its battery-state model drives the quadrotor's "
                              "battery_voltage_V (logged voltage, else the hover state from the log; default with "
                              "--mc: the --uncertainty file)")
+    parser.add_argument("--no-embedded-params", action="store_true",
+                        help="without --params, do not read the battery-state model from the parameter file the "
+                             "FMU was built from (embedded by `build --params`)")
     parser.add_argument("--jobs", type=int, default=min(4, os.cpu_count() or 1),
                         help="local worker processes (batch and --mc; ignored with --scheduler)")
     parser.add_argument("--scheduler", default=os.environ.get("UAVFMU_SCHEDULER"),
@@ -110,7 +115,8 @@ def run(args: argparse.Namespace) -> int:
         else:
             jobs = [ValidationJob(args.fmu, args.log, opts, args.map, args.mapping, args.channel_map,
                                   _parse_set(args.set), args.max_theil, args.report,
-                                  params_file=args.params or (args.uncertainty if args.mc else None))]
+                                  params_file=args.params or (args.uncertainty if args.mc else None),
+                                  embedded_params=not args.no_embedded_params)]
         uncertainty = _uncertainty(args)
     except (ValueError, ConfigError) as err:
         print(f"uavfmu validate: error: {err}", file=sys.stderr)
