@@ -8,8 +8,9 @@ which for a one-rule map equals the FMU's ``tau_motor_s`` lag on the thrust), pr
 raw and with the per-flight hover calibration (hover = |climb| < 0.3 m/s, no tilt correction, so Erle
 calibrated figures differ slightly from ``identify thrust``), and the in-sample RMSE of each fold. Then the same
 map with the battery voltage replaced by an estimate of the instantaneous terminal voltage ``V_oc - R I_hat`` (``R`` and
-``V_oc`` from the 2 Hz voltage/current, ``I_hat = k sum u^3`` at the PWM rate). Last, per PX4 flight held out,
-the coherence between the model's thrust (fitted on the other flight) and the measured thrust by frequency band,
+``V_oc`` from the 2 Hz voltage/current, ``I_hat = k sum u^3`` at the PWM rate). Then the common-mode vs
+differential curvature split of the one-rule voltage map (:func:`mode_split`). Last, per PX4 flight held out, the
+coherence between the model's thrust (fitted on the other flight) and the measured thrust by frequency band,
 with the transfer function ``H = S_xy / S_xx`` and the error no linear time-invariant map of the model's thrust
 (lag, delay, any filter) can remove: ``sqrt(int (1 - coh) S_yy df)``. A study, not a target: exit 0 when the
 data are there, 2 when not.
@@ -97,6 +98,39 @@ def lofo(flights: list[FlightData], volts: list[np.ndarray | None], tau_s: float
     return float(np.sqrt(sse / n)), float(np.sqrt(sse_cal / n)), inside
 
 
+def mode_split(flights: list[FlightData], volts: list[np.ndarray]) -> None:
+    """Common-mode vs differential curvature: ``T = A n xbar^2 + D sum (x_i - xbar)^2 + B sum x_i`` with ``x`` the
+    per-motor ``u V/V_nom`` and ``xbar`` their mean (the one-rule map has ``A = D``). Prints the held-out pooled
+    RMSE raw / calibrated, the coefficients of each fold, and the slope of the total thrust in one motor's
+    command at the band corner (that motor at the band's low end, the others at its top): ``2 A xbar + B +
+    2 D (x_k - xbar)``; a negative slope means the total thrust falls as that motor's command rises."""
+    nominal = float(np.median(np.concatenate(volts)))
+    xs = [command(f.pwm_us, IDLE_US, FULL_US) * (v / nominal)[:, None] for f, v in zip(flights, volts, strict=True)]
+
+    def design(x: np.ndarray) -> np.ndarray:
+        xbar = x.mean(axis=1, keepdims=True)
+        return np.stack([x.shape[1] * xbar[:, 0] ** 2, ((x - xbar) ** 2).sum(axis=1), x.sum(axis=1)], axis=1)
+
+    sse = sse_cal = 0.0
+    n = 0
+    for i, test in enumerate(flights):
+        tr = [j for j in range(len(flights)) if j != i]
+        theta = np.linalg.lstsq(np.concatenate([design(xs[j]) for j in tr]),
+                                np.concatenate([flights[j].thrust_N for j in tr]), rcond=None)[0]
+        pred = design(xs[i]) @ theta
+        cal = pred * test.weight_N / np.mean(pred[test.hover])
+        sse += float(np.sum((pred - test.thrust_N) ** 2))
+        sse_cal += float(np.sum((cal - test.thrust_N) ** 2))
+        n += len(pred)
+        a, d, b = theta
+        lo, hi = float(xs[i].min()), float(xs[i].max())
+        xbar = (lo + 3.0 * hi) / 4.0
+        corner = 2 * a * xbar + b + 2 * d * (lo - xbar)
+        print(f"  fold without {test.name}: A {a:.2f} N, D {d:.2f} N, B {b:.2f} N; total-thrust slope at the corner "
+              f"{corner:+.2f} N per unit command")
+    print(f"  held-out {np.sqrt(sse / n):.3f} / {np.sqrt(sse_cal / n):.3f}")
+
+
 def terminal_voltage(f: FlightData, log: object) -> tuple[np.ndarray, float]:
     """``V_oc - R I_hat`` [V] at the PWM samples and ``R`` [ohm]: ``V = c0 + c1 t - R I`` on the 2 Hz samples."""
     sig = log.signals  # type: ignore[attr-defined]
@@ -175,6 +209,8 @@ def main() -> int:
     fl = [f for f, _ in loaded]
     raw, cal, _ = lofo(fl, [v for v, _ in sag], 0.0)
     print(f"  V_oc - R I_hat (R = {', '.join(f'{r * 1e3:.1f}' for _, r in sag)} mOhm): {raw:.3f} / {cal:.3f}")
+    print("PX4 common-mode vs differential curvature (u V/V_nom; one-rule map: A = D)")
+    mode_split(fl, [f.volt_V for f in fl])  # type: ignore[misc]
     print("PX4 coherence of the held-out measured thrust with the model's (per-flight delay estimate)")
     coherence_floor(fl)
     print("Erle LOFO, one-rule map (no voltage), per-flight delay estimate")
