@@ -16,7 +16,6 @@ The source used is printed and written to ``metrics.json``.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -65,20 +64,10 @@ def embedded_battery_state(fmu: str | Path) -> BatteryStateModel | None:
     """The battery-state model of the parameter file an FMU was built from (``build --params`` embeds it as
     ``fmu_models.fmi.fmuzip.EMBEDDED_PARAMS``); None when the FMU carries none or the file has no state.
     :class:`ParameterError` naming the FMU and the member when it is malformed."""
-    from fmu_models.fmi.fmuzip import EMBEDDED_PARAMS, read_embedded_params
+    from fmu_models.fmi.fmuzip import embedded_params
 
-    source = f"{fmu} ({EMBEDDED_PARAMS})"
-    try:
-        raw = read_embedded_params(Path(fmu))
-    except ValueError as err:
-        raise ParameterError(source, [str(err)]) from None
-    if raw is None:
-        return None
-    try:
-        data = json.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise ParameterError(source, [f"not a JSON parameter file: {err}"]) from None
-    return battery_state_of(data, source) if isinstance(data, dict) else None
+    found = embedded_params(Path(fmu))
+    return None if found is None else battery_state_of(*found)
 
 
 def battery_state_of(data: dict[str, Any], path: str) -> BatteryStateModel | None:

@@ -140,3 +140,9 @@ def test_the_identified_file_carries_an_uncertainty_validate_mc_reads(identified
     unc = read_uncertainty(params)  # the file identify thrust writes, with its note
     with FmuHost(fmu) as host:
         assert all(host.variables[n].causality == "parameter" for n in unc.names)
+    from fmu_models.common.params import uncertainty_of
+    from fmu_models.fmi.fmuzip import embedded_params
+
+    found = embedded_params(fmu)  # `validate --mc N` without --uncertainty reads the file the FMU was built from
+    assert found is not None and found[1].endswith("(resources/uavfmu_parameters.json)")
+    assert uncertainty_of(*found) == unc

@@ -210,9 +210,13 @@ UNCERTAINTY_FIELD: ExtraFields = {"uncertainty": (Uncertainty | None, None)}
 def read_uncertainty(path: str | Path) -> Uncertainty:
     """The ``uncertainty`` block of a parameter file (JSON, or TOML by suffix); :class:`ParameterError` naming
     the file and each problem when it is missing or malformed."""
+    return uncertainty_of(read_json(path), str(path))
+
+
+def uncertainty_of(data: dict[str, Any], path: str) -> Uncertainty:
+    """The ``uncertainty`` block of parameter-file contents ``data`` read from ``path`` (named in errors)."""
     from fmu_models.config import validate_config
 
-    data = read_json(path)
     if "uncertainty" not in data:
         raise ParameterError(str(path), ['no "uncertainty" key: identify with a covariance, or add '
                                          '{"uncertainty": {"names": [...], "mean": [...], "covariance": [[...]]}}'])

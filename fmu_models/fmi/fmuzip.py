@@ -75,6 +75,29 @@ def read_embedded_params(fmu: Path) -> bytes | None:
         raise ValueError(f"{fmu}: cannot read the FMU archive ({err})") from None
 
 
+def embedded_params(fmu: Path) -> tuple[dict, str] | None:
+    """The parsed parameter file embedded in ``fmu`` and the name to cite it by (``FMU (member)``), or None when
+    the FMU carries none. :class:`ParameterError` naming the FMU and member when it cannot be read or parsed."""
+    import json
+
+    from fmu_models.common.errors import ParameterError
+
+    source = f"{fmu} ({EMBEDDED_PARAMS})"
+    try:
+        raw = read_embedded_params(Path(fmu))
+    except ValueError as err:
+        raise ParameterError(source, [str(err)]) from None
+    if raw is None:
+        return None
+    try:
+        data = json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise ParameterError(source, [f"not a JSON parameter file: {err}"]) from None
+    if not isinstance(data, dict):
+        raise ParameterError(source, [f"top level is {type(data).__name__}; allowed: a JSON object"])
+    return data, source
+
+
 def write_fmu(path: Path, files: dict[str, bytes], epoch: int) -> Path:
     """Write ``files`` (archive name -> bytes) to ``path`` sorted by name with one fixed timestamp."""
     stamp = time.gmtime(max(ZIP_EPOCH, epoch))[:6]

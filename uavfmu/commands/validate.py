@@ -13,7 +13,8 @@ windows with the vehicle on the ground are left out unless ``--include-ground``.
 Runs go through ``fmu_models.parallel`` (dask.distributed): local worker processes (``--jobs``), or a running
 cluster (``--scheduler tcp://HOST:PORT`` or ``UAVFMU_SCHEDULER``; docs/scale-out.md). ``--mc N --uncertainty
 PARAMS`` adds Monte Carlo bands: N replays with parameters drawn from the parameter file's ``uncertainty``
-block, restart states and sensor noise from the log; each signal's band coverage is printed beside its skill.
+block (default: the file the FMU was built from), restart states and sensor noise from the log; each signal's
+band coverage is printed beside its skill.
 ``--params PARAMS`` (an ``identify thrust`` parameter file; manifest key ``params``) drives the quadrotor's
 ``battery_voltage_V`` from its battery-state model: the logged voltage, else the hover state computed from the
 log (``identification.replay_battery``); the source is printed and in ``metrics.json``. Without ``--params`` the
@@ -68,7 +69,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mc", type=int, metavar="N", help="Monte Carlo bands: N replays with parameters drawn from "
                                                             "--uncertainty (20..10000)")
     parser.add_argument("--uncertainty", type=Path, metavar="PARAMS",
-                        help="parameter file (JSON/TOML) whose 'uncertainty' key gives names, mean, covariance")
+                        help="parameter file (JSON/TOML) whose 'uncertainty' key gives names, mean, covariance "
+                             "(default: the file embedded in the FMU by `build --params`)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the Monte Carlo draws (default 0)")
 
 
@@ -126,7 +128,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _uncertainty(args: argparse.Namespace) -> object:
     """The parameter file's uncertainty block for ``--mc`` (None without ``--mc``)."""
-    from fmu_models.common.params import read_uncertainty
+    from fmu_models.common.params import read_uncertainty, uncertainty_of
+    from fmu_models.fmi.fmuzip import embedded_params
     from identification.mc_bands import MAX_DRAWS, MIN_DRAWS
 
     if args.mc is None:
@@ -135,11 +138,15 @@ def _uncertainty(args: argparse.Namespace) -> object:
         return None
     if not MIN_DRAWS <= args.mc <= MAX_DRAWS:
         raise ValueError(f"--mc = {args.mc}: allowed {MIN_DRAWS}..{MAX_DRAWS}")
-    if args.uncertainty is None:
-        raise ValueError("--mc needs --uncertainty PARAMS (a parameter file with an 'uncertainty' key)")
     if not 0 <= args.seed < 2**63:
         raise ValueError(f"--seed = {args.seed}: allowed 0..2**63-1")
-    return read_uncertainty(args.uncertainty)
+    if args.uncertainty is not None:
+        return read_uncertainty(args.uncertainty)
+    found = embedded_params(args.fmu) if args.fmu is not None and not args.batch else None
+    if found is None or "uncertainty" not in found[0]:
+        raise ValueError("--mc needs --uncertainty PARAMS (a parameter file with an 'uncertainty' key); the FMU "
+                         "carries none (build it with `uavfmu build --params` from an identified file)")
+    return uncertainty_of(*found)
 
 
 def _run_one(job: object, args: argparse.Namespace, uncertainty: object = None) -> int:
