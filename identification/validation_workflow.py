@@ -150,12 +150,11 @@ def validate(job: ValidationJob, progress: Callable[[int, int], None] | None = N
     from identification.validation import replay, vehicle_of
 
     log = read_log(job.log, channel_map=job.channel_map)
-    if job.params_file is not None:
-        battery = read_battery_state(job.params_file)
-    else:
-        battery = embedded_battery_state(job.fmu) if job.embedded_params else None
+    battery = read_battery_state(job.params_file) if job.params_file is not None else None
     o = job.options
-    with FmuHost(job.fmu) as host:
+    with FmuHost(job.fmu) as host:  # names a missing or broken FMU before its resources are read
+        if job.params_file is None and job.embedded_params:
+            battery = embedded_battery_state(job.fmu)
         maps = _load_maps(job, vehicle_of(host))
         mapping = PwmMapping.load(job.mapping) if job.mapping else None
         res = replay(host, log, job.log, maps, rate_hz=o.rate_hz, window_s=o.window_s or None,

@@ -142,6 +142,8 @@ def _uncertainty(args: argparse.Namespace) -> object:
         raise ValueError(f"--seed = {args.seed}: allowed 0..2**63-1")
     if args.uncertainty is not None:
         return read_uncertainty(args.uncertainty)
+    if args.fmu is not None and not args.batch and not args.fmu.is_file():
+        raise ValueError(f"{args.fmu}: FMU not found")
     found = embedded_params(args.fmu) if args.fmu is not None and not args.batch else None
     if found is None or "uncertainty" not in found[0]:
         raise ValueError("--mc needs --uncertainty PARAMS (a parameter file with an 'uncertainty' key); the FMU "
