@@ -213,7 +213,8 @@ def arduplane(sim: Any, p: np.ndarray, out: Any, servo_tau_s: float) -> None:
     cruise = trims.at(vc)
     out("TRIM_THROTTLE", round(100 * cruise.throttle), f"trim throttle at {vc} m/s")
     out("SCALING_SPEED", vc, "the rate gains are computed at cruise: speed scaler 1 there")
-    out("TKOFF_ROTATE_SPD", math.ceil(vs), "the slowest trim speed: the elevator can hold the attitude from there")
+    out("TKOFF_ROTATE_SPD", out.clamp("TKOFF_ROTATE_SPD", math.ceil(vs), 0, 30, "ArduPlane range [m/s]"),
+        "the slowest trim speed: the elevator can hold the attitude from there")
     out("TKOFF_THR_MAX", 100)
     out("TKOFF_ALT", 50)
     out("TKOFF_LVL_ALT", 10)
@@ -246,12 +247,19 @@ def arduplane(sim: Any, p: np.ndarray, out: Any, servo_tau_s: float) -> None:
     _landing(out, trims, v_min, tconst)
 
 
+#: AP_TECS: TECS_LAND_TCONST 1..5 s, "smaller than TECS_TIME_CONST"
+LAND_TCONST_S = (1.0, 5.0)
+
+
 def _landing(out: Any, trims: _Trimmer, v_land: float, tconst: float) -> None:
     """TECS landing time constant, flare and touchdown attitude from the landing-speed trim."""
     land = trims.at(v_land)
     t_ph = math.pi * math.sqrt(2) * v_land / G_M_S2
     out("TECS_LAND_ARSPD", v_land, "AIRSPEED_MIN")
-    out("TECS_LAND_TCONST", round(max(2.0, t_ph / 2.5), 1),
+    hi = min(LAND_TCONST_S[1], out.values["TECS_TIME_CONST"] - 0.1)
+    land_tc = out.clamp("TECS_LAND_TCONST", round(max(2.0, t_ph / 2.5), 1), LAND_TCONST_S[0], hi,
+                        "AP_TECS range, below TECS_TIME_CONST")
+    out("TECS_LAND_TCONST", land_tc,
         f"landing phugoid period {t_ph:.1f} s / 2.5 (the 2 s default is faster than the airframe's height response)")
     out("TECS_LAND_SINK", 0.5, "flare sink target [m/s], under the 1 m/s touchdown aim")
     out("LAND_PITCH_DEG", round(max(0.0, math.degrees(land.alpha_rad)), 1),
