@@ -99,6 +99,15 @@ class _Params:
             log.warning("%s", self.warnings[-1])
         return value
 
+    def advise(self, name: str, value: float, lo: float, hi: float, limit_source: str) -> None:
+        """Record a warning when ``value`` lies outside ``[lo, hi]``, a range the autopilot only documents (its
+        parameter metadata, flagged by ground stations, not enforced by the firmware): the value is kept."""
+        if not lo <= value <= hi:
+            self.warnings.append(f"{name} = {value:.4g} lies outside {lo:g}..{hi:g}, the range documented in "
+                                 f"{limit_source} (advisory: the firmware does not constrain it); kept, the design "
+                                 "needs it")
+            log.warning("%s", self.warnings[-1])
+
 
 # ------------------------------------------------------------------------------------------ the model
 def fmu_parameters(fmu: str | Path) -> dict[str, float]:
