@@ -274,7 +274,8 @@ RANGES: dict[str, dict[str, tuple[float, float, str]]] = {
         "TECS_LAND_TCONST": (1.0, 5.0, AP_TECS), "TECS_LAND_SINK": (0.0, 2.0, AP_TECS),
         "TECS_CLMB_MAX": (0.1, 20.0, AP_TECS), "TECS_SINK_MIN": (0.1, 10.0, AP_TECS),
         "TECS_SINK_MAX": (0.0, 20.0, AP_TECS), "TECS_TIME_CONST": (3.0, 10.0, AP_TECS),
-        "TECS_LAND_ARSPD": (-1, 127, AP_TECS),
+        "TECS_LAND_ARSPD": (-1, 127, AP_TECS), "AIRSPEED_MIN": (5, 100, AP_PLANE), "AIRSPEED_MAX": (5, 100, AP_PLANE),
+        "WP_LOITER_RAD": (-32767, 32767, AP_PLANE),
         "RLL2SRV_TCONST": (0.4, 1.0, AP_FW), "PTCH2SRV_TCONST": (0.4, 1.0, AP_FW),
         **{f"{a}_RATE_FF": (0.0, 3.0, AP_FW) for a in ("RLL", "PTCH", "YAW")},
     },
@@ -285,8 +286,8 @@ ADVISORY = {f"{a}_RATE_{k}": r for a in ("RLL", "PTCH", "YAW") for k, r in (("P"
 NOT_YET_CHECKED = {
     "px4": set(),
     "arducopter": {"FRAME_CLASS", "FRAME_TYPE", "PILOT_SPEED_DN", "WPNAV_SPEED"},
-    "arduplane": {"AIRSPEED_MIN", "AIRSPEED_CRUISE", "AIRSPEED_MAX", "TRIM_THROTTLE", "SCALING_SPEED", "TKOFF_THR_MAX",
-                  "TKOFF_ALT", "TKOFF_LVL_ALT", "TKOFF_LVL_PITCH", "YAW_RATE_ENABLE", "WP_LOITER_RAD", "WP_RADIUS",
+    "arduplane": {"AIRSPEED_CRUISE", "TRIM_THROTTLE", "SCALING_SPEED", "TKOFF_THR_MAX",
+                  "TKOFF_ALT", "TKOFF_LVL_ALT", "TKOFF_LVL_PITCH", "YAW_RATE_ENABLE", "WP_RADIUS",
                   "NAVL1_PERIOD", "NAVL1_DAMPING", "LAND_PITCH_DEG", "LAND_FLARE_SEC", "LAND_FLARE_ALT",
                   "RLL_RATE_D", "PTCH_RATE_D", "YAW_RATE_D"}
                  | {f"SERVO{n}_{k}" for n in range(1, 5) for k in ("FUNCTION", "MIN", "TRIM", "MAX")},
@@ -304,6 +305,14 @@ def test_generated_values_lie_in_the_autopilots_documented_ranges(autopilot: str
     for name, (lo, hi) in ADVISORY.items():
         if name in values and not lo <= values[name] <= hi:
             assert any(w.startswith(f"{name} = ") for w in warnings), f"{name} outside {lo}..{hi} without a warning"
+
+
+def test_plane_speeds_follow_arduplanes_documented_advice(generated: dict[str, object]) -> None:
+    """ArduPlane/Parameters.cpp: AIRSPEED_MAX at least 50 % above AIRSPEED_MIN (for TECS height control);
+    AP_TECS: TECS_LAND_TCONST smaller than TECS_TIME_CONST."""
+    v = generated["arduplane"].values
+    assert v["AIRSPEED_MAX"] >= 1.5 * v["AIRSPEED_MIN"]
+    assert v["TECS_LAND_TCONST"] < v["TECS_TIME_CONST"]
 
 
 def test_px4_values_pass_the_position_controllers_boot_checks(generated: dict[str, object]) -> None:
