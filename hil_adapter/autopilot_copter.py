@@ -16,6 +16,15 @@ from fmu_models.common.units import G0_M_S2
 
 PWM_MIN_US, PWM_MAX_US = 1000.0, 2000.0
 SPIN_MAX = 0.95  #: ArduCopter's MOT_SPIN_MAX default
+#: ArduCopter constrains MOT_THST_EXPO to [-1, 1] (AP_MotorsMulticopter / Thrust_Linearization)
+EXPO_LIMITS = (-1.0, 1.0)
+#: ArduCopter constrains the hover thrust it uses and learns to [0.125, 0.6875] (AP_MOTORS_THST_HOVER_MIN/MAX)
+HOVER_LIMITS = (0.125, 0.6875)
+AP_MOTORS = "ArduPilot libraries/AP_Motors/AP_MotorsMulticopter"
+#: PX4 v1.13 ranges (mc_pos_control_params.c; mixer THR_MDL_FAC 0..1)
+PX4_TILT_DEG = (20.0, 89.0)
+PX4_CLIMB_M_S = (1.0, 8.0)  #: MPC_Z_VEL_MAX_UP 0.5..8, floored at MPC_TKO_SPEED's minimum 1 m/s
+PX4_LAND_SPEED_MIN_M_S = 0.6
 CELL_FULL_V, CELL_EMPTY_V, CELL_NOMINAL_V = 4.2, 3.3, 3.7  #: LiPo cell voltages
 
 
@@ -71,13 +80,16 @@ def arducopter(sim: Any, p: np.ndarray, out: Any) -> None:
     a = np.linspace(0.0, 1.0, 21)
     pwm = PWM_MIN_US + (spin_min + (SPIN_MAX - spin_min) * a) * (PWM_MAX_US - PWM_MIN_US)
     thrust = thrust_curve(sim, p, pwm)
-    expo = min(1.0, max(-1.0, _expo(a, thrust)))
+    expo = out.clamp("MOT_THST_EXPO", _expo(a, thrust), *EXPO_LIMITS, f"{AP_MOTORS}.cpp constrains it")
     rms = float(np.sqrt(np.mean((thrust / thrust[-1] - ((1 - expo) * a + expo * a * a)) ** 2)))
     out("MOT_THST_EXPO", round(expo, 3), "least squares of thrust/thrust(spin max) = (1-e) a + e a^2 over the "
-                                         f"spin range (model thrust map; rms misfit {rms:.3f})")
+                                         f"spin range (model thrust map; rms misfit {rms:.3f} after any clamp)")
     pwm_hover = _hover_pwm(sim, p, _weight(sim, p))
     a_h = ((pwm_hover - PWM_MIN_US) / (PWM_MAX_US - PWM_MIN_US) - spin_min) / (SPIN_MAX - spin_min)
-    out("MOT_THST_HOVER", round((1 - expo) * a_h + expo * a_h * a_h, 3),
+    hover = out.clamp("MOT_THST_HOVER", (1 - expo) * a_h + expo * a_h * a_h, *HOVER_LIMITS,
+                      f"{AP_MOTORS}.h AP_MOTORS_THST_HOVER_MIN/MAX, applied by get_throttle_hover() and the learner; "
+                      "the altitude controller's integrator supplies the rest")
+    out("MOT_THST_HOVER", round(hover, 4),
         f"the model hovers at {pwm_hover:.0f} us (actuator {a_h:.3f} of the spin range): its thrust on the curve "
         "above, so that ArduCopter's thrust-to-actuator mapping puts hover there")
     out("MOT_HOVER_LEARN", 2, "learned and saved in flight from there on")
@@ -115,28 +127,39 @@ def px4(sim: Any, p: np.ndarray, out: Any) -> None:
     c = np.linspace(0.0, 1.0, 21)  # PX4 control 0..1 -> 1000..2000 us in the adapter
     thrust = thrust_curve(sim, p, PWM_MIN_US + c * (PWM_MAX_US - PWM_MIN_US))
     weight = _weight(sim, p)
-    fac = out("THR_MDL_FAC", round(min(1.0, max(0.0, _expo(c, thrust))), 3),
+    fac = out("THR_MDL_FAC", round(out.clamp("THR_MDL_FAC", _expo(c, thrust), 0.0, 1.0, "PX4 THR_MDL_FAC range"), 3),
               "least squares of thrust/thrust(1) = (1-f) c + f c^2 over control 0..1 (model thrust map)")
     c_hover = (_hover_pwm(sim, p, weight) - PWM_MIN_US) / (PWM_MAX_US - PWM_MIN_US)
-    out("MPC_THR_HOVER", round((1 - fac) * c_hover + fac * c_hover ** 2, 3),
+    out("MPC_THR_HOVER", round(out.clamp("MPC_THR_HOVER", (1 - fac) * c_hover + fac * c_hover ** 2, 0.1, 0.8,
+                                         "PX4 range"), 3),
         f"hover at control {c_hover:.3f} ({PWM_MIN_US + 1000 * c_hover:.0f} us), through THR_MDL_FAC")
     out("MPC_USE_HTE", 1, "hover thrust estimator on")
     c_idle = (pv.pwm_idle_us - PWM_MIN_US) / (PWM_MAX_US - PWM_MIN_US)
     out("MPC_THR_MIN", round((1 - fac) * (c_idle + 0.05) + fac * (c_idle + 0.05) ** 2, 3),
         f"5 % above the model's idle control {c_idle:.2f}")
     tw = thrust[-1] / weight
-    out("MPC_TILTMAX_AIR", _tilt_deg(tw), f"thrust/weight {tw:.2f}: 10 % vertical reserve at full tilt [deg]")
-    climb = _climb_m_s(tw, weight, pv.kd_z_N_s_m)
+    out("MPC_TILTMAX_AIR", out.clamp("MPC_TILTMAX_AIR", _tilt_deg(tw), *PX4_TILT_DEG, "PX4 range"),
+        f"thrust/weight {tw:.2f}: 10 % vertical reserve at full tilt [deg]")
+    climb = out.clamp("MPC_Z_VEL_MAX_UP", _climb_m_s(tw, weight, pv.kd_z_N_s_m), *PX4_CLIMB_M_S,
+                      "PX4 range, floored at MPC_TKO_SPEED's minimum")
     up = out("MPC_Z_VEL_MAX_UP", climb, "half the excess thrust against the vertical drag [m/s]")
-    out("MPC_Z_V_AUTO_UP", up, "= MPC_Z_VEL_MAX_UP (PX4 constrains it: above, a CRITICAL at boot)")
-    out("MPC_TKO_SPEED", round(min(1.0, up), 1), "<= MPC_Z_VEL_MAX_UP")
-    dn = out("MPC_Z_VEL_MAX_DN", round(min(1.0, up), 1), "[m/s]")
-    out("MPC_Z_V_AUTO_DN", dn, "= MPC_Z_VEL_MAX_DN")
-    out("MPC_LAND_SPEED", round(min(0.5, dn), 1), "<= MPC_Z_VEL_MAX_DN")
+    out("MPC_Z_V_AUTO_UP", up, "= MPC_Z_VEL_MAX_UP (PX4 resets a larger one with a CRITICAL at boot)")
+    out("MPC_TKO_SPEED", 1.0, "PX4's minimum, <= MPC_Z_VEL_MAX_UP [m/s]")
+    dn = out("MPC_Z_VEL_MAX_DN", 1.0, "[m/s]")
+    out("MPC_Z_V_AUTO_DN", dn, "= MPC_Z_VEL_MAX_DN (PX4 resets a larger one with a CRITICAL at boot)")
+    out("MPC_LAND_SPEED", PX4_LAND_SPEED_MIN_M_S, "PX4's minimum: the softest touchdown it allows [m/s]")
     out("MPC_XY_VEL_MAX", 5.0, "[m/s]")
     out("MPC_XY_CRUISE", 3.0, "<= MPC_XY_VEL_MAX")
     out("MPC_VEL_MANUAL", 3.0, "<= MPC_XY_VEL_MAX")
     out("MIS_TAKEOFF_ALT", 2.5, "commander takeoff climbs to this [m]")
-    out("NAV_DLL_ACT", 0, "no ground station: data link loss does not fail safe")
-    out("NAV_RCL_ACT", 0, "no RC: RC loss does not fail safe")
-    out("COM_RC_IN_MODE", 4, "stick input disabled: no RC or joystick needed to arm and take off")
+    _px4_no_gcs(out)
+
+
+def _px4_no_gcs(out: Any) -> None:
+    """PX4 v1.13 (state_machine_helper.cpp set_nav_state): with neither RC nor a ground station, takeoff, hold and
+    mission fail safe with "no RC and no datalink" unless COM_RCL_EXCEPT exempts them (bit 0 mission, bit 1 hold,
+    which covers takeoff); NAV_DLL_ACT 0 keeps the data-link-loss failsafe ("no datalink") off."""
+    out("NAV_DLL_ACT", 0, "no ground station: no data-link-loss failsafe (v1.13 default, stated)")
+    out("COM_RCL_EXCEPT", 3, "RC loss ignored in mission (bit 0) and hold/takeoff (bit 1): no 'no RC and no "
+                             "datalink' failsafe; manual modes keep the RC-loss action NAV_RCL_ACT")
+    out("COM_RC_IN_MODE", 1, "no RC checks at arming (PX4's own SITL rcS default)")

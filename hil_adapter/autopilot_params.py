@@ -15,6 +15,7 @@ for flight without a ground station or RC. Every value carries the formula it ca
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -23,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+log = logging.getLogger(__name__)
 AUTOPILOTS = ("arduplane", "arducopter", "px4")
 VEHICLE_OF = {"arduplane": "fixed_wing", "arducopter": "quadrotor", "px4": "quadrotor"}
 #: ArduPilot's rate controllers saturate their output at 45 (degrees of the nominal full throw)
@@ -41,6 +43,8 @@ class AutopilotParams:
     source: str
     values: dict[str, float] = field(default_factory=dict)
     notes: dict[str, str] = field(default_factory=dict)
+    #: values the model asked for outside what the autopilot accepts, clamped (also ``# WARNING`` lines in the file)
+    warnings: tuple[str, ...] = ()
 
     def text(self) -> str:
         """The file: ArduPilot ``.parm`` (``NAME value``) or PX4 ``param set-default NAME value`` lines."""
@@ -48,7 +52,7 @@ class AutopilotParams:
         head = "#!/bin/sh\n" if px4 else ""
         head += (f"# {self.autopilot} parameters computed by `uavfmu autopilot-params` from {self.source}\n"
                  "# (hil_adapter/autopilot_params.py); regenerate, do not edit by hand.\n")
-        lines = [head.rstrip("\n")]
+        lines = [head.rstrip("\n")] + [f"# WARNING: {w}" for w in self.warnings]
         for name, value in self.values.items():
             note = self.notes.get(name)
             if note:
@@ -75,6 +79,7 @@ class _Params:
     def __init__(self) -> None:
         self.values: dict[str, float] = {}
         self.notes: dict[str, str] = {}
+        self.warnings: list[str] = []
 
     def __call__(self, name: str, value: float, note: str = "", digits: int | None = None) -> float:
         if not math.isfinite(value):
@@ -83,6 +88,25 @@ class _Params:
         if note:
             self.notes[name] = note
         return self.values[name]
+
+    def clamp(self, name: str, wanted: float, lo: float, hi: float, limit_source: str) -> float:
+        """``wanted`` limited to the autopilot's ``[lo, hi]``; a clamp is recorded as a warning naming the value the
+        model asked for and ``limit_source`` (where the autopilot sets the limit)."""
+        value = min(hi, max(lo, wanted))
+        if value != wanted:
+            self.warnings.append(f"{name}: the model gives {wanted:.4g}, outside {lo:g}..{hi:g} ({limit_source}): "
+                                 f"clamped to {value:g}")
+            log.warning("%s", self.warnings[-1])
+        return value
+
+    def advise(self, name: str, value: float, lo: float, hi: float, limit_source: str) -> None:
+        """Record a warning when ``value`` lies outside ``[lo, hi]``, a range the autopilot only documents (its
+        parameter metadata, flagged by ground stations, not enforced by the firmware): the value is kept."""
+        if not lo <= value <= hi:
+            self.warnings.append(f"{name} = {value:.4g} lies outside {lo:g}..{hi:g}, the range documented in "
+                                 f"{limit_source} (advisory: the firmware does not constrain it); kept, the design "
+                                 "needs it")
+            log.warning("%s", self.warnings[-1])
 
 
 # ------------------------------------------------------------------------------------------ the model
@@ -147,7 +171,7 @@ def autopilot_params(fmu: str | Path, autopilot: str, servo_tau_s: float = SERVO
         from hil_adapter.autopilot_copter import arducopter, px4
 
         (arducopter if autopilot == "arducopter" else px4)(sim, p, out)
-    return AutopilotParams(autopilot, vehicle, Path(fmu).name, out.values, out.notes)
+    return AutopilotParams(autopilot, vehicle, Path(fmu).name, out.values, out.notes, tuple(out.warnings))
 
 
 __all__ = ["AUTOPILOTS", "AutopilotParams", "autopilot_params", "fmu_parameters", "vehicle_of"]

@@ -18,6 +18,7 @@ from fmu_models.common.units import G0_M_S2 as G_M_S2
 from fmu_models.signals.pwm_mapping import default_mapping
 
 DEG = 180.0 / math.pi
+TECS = "ArduPilot libraries/AP_TECS/AP_TECS.cpp range"
 
 
 @dataclass(frozen=True)
@@ -178,6 +179,13 @@ def _servos(out: Any) -> None:
         out(f"SERVO{n}_MAX", ch.max_us)
 
 
+#: ArduPlane's documented rate-gain ranges (AP_RollController / AP_PitchController / AP_YawController ``_RATE_*``)
+RATE_GAIN_RANGES = {"FF": (0.0, 3.0), "P": (0.08, 0.35), "I": (0.01, 0.6)}
+RATE_METADATA = "ArduPilot libraries/APM_Control/AP_{Roll,Pitch,Yaw}Controller.cpp _RATE_* @Range"
+#: ArduPlane's documented RLL2SRV_TCONST / PTCH2SRV_TCONST range [s] (AP_RollController / AP_PitchController)
+TCONST_S = (0.4, 1.0)
+
+
 def _rate_loops(out: Any, pv: Any, va: float, servo_tau_s: float) -> dict[str, float]:
     """RLL/PTCH/YAW_RATE_* at the cruise trim; returns the designed 10-90 % rise [s] by axis."""
     from hil_adapter.autopilot_params import INTEGRATOR_TIME_S, OVERSHOOT_MAX
@@ -191,7 +199,10 @@ def _rate_loops(out: Any, pv: Any, va: float, servo_tau_s: float) -> dict[str, f
         out(f"{prefix}_RATE_FF", g["FF"], why, 4)
         out(f"{prefix}_RATE_P", g["P"], "", 4)
         out(f"{prefix}_RATE_I", g["I"], f"P / {INTEGRATOR_TIME_S} s", 4)
-        out(f"{prefix}_RATE_D", 0.0)
+        out(f"{prefix}_RATE_D", 0.0, "ArduPlane's own default (AC_PID defaults d = 0)")
+        for gain, key in (("FF", "FF"), ("P", "P"), ("I", "I")):
+            name = f"{prefix}_RATE_{gain}"
+            out.advise(name, out.values[name], *RATE_GAIN_RANGES[key], RATE_METADATA)
         rises[axis] = g["rise_s"]
     out("YAW_RATE_ENABLE", 1, "yaw rate loop on (gains above)")
     return rises
@@ -213,14 +224,17 @@ def arduplane(sim: Any, p: np.ndarray, out: Any, servo_tau_s: float) -> None:
     cruise = trims.at(vc)
     out("TRIM_THROTTLE", round(100 * cruise.throttle), f"trim throttle at {vc} m/s")
     out("SCALING_SPEED", vc, "the rate gains are computed at cruise: speed scaler 1 there")
-    out("TKOFF_ROTATE_SPD", math.ceil(vs), "the slowest trim speed: the elevator can hold the attitude from there")
+    out("TKOFF_ROTATE_SPD", out.clamp("TKOFF_ROTATE_SPD", math.ceil(vs), 0, 30, "ArduPlane range [m/s]"),
+        "the slowest trim speed: the elevator can hold the attitude from there")
     out("TKOFF_THR_MAX", 100)
     out("TKOFF_ALT", 50)
     out("TKOFF_LVL_ALT", 10)
     out("TKOFF_LVL_PITCH", 10)
     rises = _rate_loops(out, pv, vc, servo_tau_s)
-    out("RLL2SRV_TCONST", max(0.3, round(3 * rises["roll"], 2)), "3 x the designed roll-rate rise (>= 0.3 s)")
-    tconst = out("PTCH2SRV_TCONST", max(0.3, round(3 * rises["pitch"], 2)), "3 x the designed pitch-rate rise")
+    out("RLL2SRV_TCONST", min(TCONST_S[1], max(TCONST_S[0], round(3 * rises["roll"], 2))),
+        "3 x the designed roll-rate rise, inside ArduPlane's 0.4..1 s")
+    tconst = out("PTCH2SRV_TCONST", min(TCONST_S[1], max(TCONST_S[0], round(3 * rises["pitch"], 2))),
+                 "3 x the designed pitch-rate rise, inside ArduPlane's 0.4..1 s")
     n_max = (vc / (1.15 * vs)) ** 2  # keep 15 % above the stall speed in the turn (Vs sqrt(n))
     roll = out("ROLL_LIMIT_DEG", round(min(45.0, max(20.0, math.degrees(math.acos(min(1.0, 1 / n_max)))))),
                f"load factor {n_max:.2f} at cruise keeps 1.15 x the stall speed (20..45)")
@@ -236,14 +250,21 @@ def arduplane(sim: Any, p: np.ndarray, out: Any, servo_tau_s: float) -> None:
     gamma_glide = trims.gamma_at_throttle(vc, 0.0, -0.4, 0.0)
     out("PTCH_LIM_MIN_DEG", -round(min(25, max(10, 1.5 * abs(math.degrees(gamma_glide))))),
         f"1.5 x the idle glide angle {math.degrees(gamma_glide):.1f} deg (10..25)")
-    out("TECS_CLMB_MAX", round(0.8 * vc * math.sin(gamma_max), 1), "80 % of the climb rate at 90 % throttle")
-    sink_min = out("TECS_SINK_MIN", round(vc * math.sin(abs(gamma_glide)), 1), "idle glide sink at cruise")
+    out("TECS_CLMB_MAX", out.clamp("TECS_CLMB_MAX", round(0.8 * vc * math.sin(gamma_max), 1), 0.1, 20.0, TECS),
+        "80 % of the climb rate at 90 % throttle")
+    sink_min = out("TECS_SINK_MIN", out.clamp("TECS_SINK_MIN", round(vc * math.sin(abs(gamma_glide)), 1), 0.1, 10.0,
+                                              TECS), "idle glide sink at cruise")
     lim_min = out.values["PTCH_LIM_MIN_DEG"]
-    out("TECS_SINK_MAX", round(max(sink_min + 1, vc * math.sin(math.radians(-lim_min))), 1),
-        "the sink at cruise speed and the pitch floor (at least the idle sink + 1)")
+    out("TECS_SINK_MAX", out.clamp("TECS_SINK_MAX", round(max(sink_min + 1, vc * math.sin(math.radians(-lim_min))), 1),
+                                   0.0, 20.0, TECS), "the sink at cruise speed and the pitch floor (>= idle sink + 1)")
     t_ph = math.pi * math.sqrt(2) * vc / G_M_S2
-    out("TECS_TIME_CONST", round(max(3.0, t_ph / 2.5), 1), f"phugoid period pi sqrt(2) V/g = {t_ph:.1f} s / 2.5")
+    out("TECS_TIME_CONST", out.clamp("TECS_TIME_CONST", round(max(3.0, t_ph / 2.5), 1), 3.0, 10.0, TECS),
+        f"phugoid period pi sqrt(2) V/g = {t_ph:.1f} s / 2.5")
     _landing(out, trims, v_min, tconst)
+
+
+#: AP_TECS: TECS_LAND_TCONST 1..5 s, "smaller than TECS_TIME_CONST"
+LAND_TCONST_S = (1.0, 5.0)
 
 
 def _landing(out: Any, trims: _Trimmer, v_land: float, tconst: float) -> None:
@@ -251,7 +272,10 @@ def _landing(out: Any, trims: _Trimmer, v_land: float, tconst: float) -> None:
     land = trims.at(v_land)
     t_ph = math.pi * math.sqrt(2) * v_land / G_M_S2
     out("TECS_LAND_ARSPD", v_land, "AIRSPEED_MIN")
-    out("TECS_LAND_TCONST", round(max(2.0, t_ph / 2.5), 1),
+    hi = min(LAND_TCONST_S[1], out.values["TECS_TIME_CONST"] - 0.1)
+    land_tc = out.clamp("TECS_LAND_TCONST", round(max(2.0, t_ph / 2.5), 1), LAND_TCONST_S[0], hi,
+                        "AP_TECS range, below TECS_TIME_CONST")
+    out("TECS_LAND_TCONST", land_tc,
         f"landing phugoid period {t_ph:.1f} s / 2.5 (the 2 s default is faster than the airframe's height response)")
     out("TECS_LAND_SINK", 0.5, "flare sink target [m/s], under the 1 m/s touchdown aim")
     out("LAND_PITCH_DEG", round(max(0.0, math.degrees(land.alpha_rad)), 1),

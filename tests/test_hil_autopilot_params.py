@@ -109,14 +109,16 @@ def test_px4_limits_are_mutually_consistent(generated: dict[str, object]) -> Non
     assert v["MPC_Z_V_AUTO_UP"] <= v["MPC_Z_VEL_MAX_UP"] and v["MPC_TKO_SPEED"] <= v["MPC_Z_VEL_MAX_UP"]
     assert v["MPC_Z_V_AUTO_DN"] <= v["MPC_Z_VEL_MAX_DN"] and v["MPC_LAND_SPEED"] <= v["MPC_Z_VEL_MAX_DN"]
     assert v["MPC_XY_CRUISE"] <= v["MPC_XY_VEL_MAX"] and v["MPC_VEL_MANUAL"] <= v["MPC_XY_VEL_MAX"]
-    assert (v["NAV_DLL_ACT"], v["NAV_RCL_ACT"], v["COM_RC_IN_MODE"]) == (0, 0, 4)
+    # v1.13 set_nav_state: "no RC and no datalink" in takeoff/hold/mission unless COM_RCL_EXCEPT bits 1 and 0 are set
+    assert v["NAV_DLL_ACT"] == 0 and int(v["COM_RCL_EXCEPT"]) & 0b11 == 0b11 and v["COM_RC_IN_MODE"] == 1
+    assert "NAV_RCL_ACT" not in v  # 0 is outside its documented range 1..6; manual modes keep their RC-loss action
     assert v["MPC_THR_MIN"] < v["MPC_THR_HOVER"] < 1.0
 
 
 def test_hover_throttles_hover_the_model(built_fmus: dict[str, Path], generated: dict[str, object]) -> None:
     """The hover settings are the model's own: at PX4's hover control the model's thrust equals its weight,
     and ArduCopter's hover thrust fraction times the thrust at spin max is the weight (1 %)."""
-    from hil_adapter.autopilot_copter import SPIN_MAX, thrust_curve
+    from hil_adapter.autopilot_copter import HOVER_LIMITS, SPIN_MAX, _hover_pwm, thrust_curve
     from hil_adapter.autopilot_params import _simulator, fmu_parameters
 
     sim, p = _simulator("quadrotor", fmu_parameters(built_fmus["quadrotor"]))
@@ -127,13 +129,17 @@ def test_hover_throttles_hover_the_model(built_fmus: dict[str, Path], generated:
     assert thrust_curve(sim, p, np.array([1000.0 + 1000.0 * c]))[0] == pytest.approx(weight, rel=0.01)
     # ArduCopter: thrust demand MOT_THST_HOVER through its curve (AP_MotorsMulticopter, battery scale 1) and
     # spin range to PWM: the model's thrust there is its weight
+    # (ArduCopter uses at most 0.6875: a larger hover thrust is clamped, with a warning in the file)
     v = generated["arducopter"].values
-    e, t = v["MOT_THST_EXPO"], v["MOT_THST_HOVER"]
-    a = ((e - 1) + np.sqrt((1 - e) ** 2 + 4 * e * t)) / (2 * e) if e != 0 else t
-    pwm = v["MOT_PWM_MIN"] + (v["MOT_SPIN_MIN"] + (v["MOT_SPIN_MAX"] - v["MOT_SPIN_MIN"]) * a) * (
-        v["MOT_PWM_MAX"] - v["MOT_PWM_MIN"])
+    e = v["MOT_THST_EXPO"]
+    hover_pwm = _hover_pwm(sim, p, weight)
+    a = ((hover_pwm - v["MOT_PWM_MIN"]) / (v["MOT_PWM_MAX"] - v["MOT_PWM_MIN"]) - v["MOT_SPIN_MIN"]) / (
+        v["MOT_SPIN_MAX"] - v["MOT_SPIN_MIN"])
+    wanted = (1 - e) * a + e * a * a
     assert v["MOT_SPIN_MAX"] == SPIN_MAX
-    assert thrust_curve(sim, p, np.array([pwm]))[0] == pytest.approx(weight, rel=0.01)
+    assert v["MOT_THST_HOVER"] == pytest.approx(min(wanted, HOVER_LIMITS[1]), abs=1e-4)
+    clamped = [w for w in generated["arducopter"].warnings if w.startswith("MOT_THST_HOVER")]
+    assert bool(clamped) == (wanted > HOVER_LIMITS[1])
 
 
 def _rate_step(fmu: Path, params: dict[str, float], axis: str, step_deg_s: float, gain_scale: float = 1.0,
@@ -226,3 +232,108 @@ def test_wrong_vehicle_and_bad_options_are_clear_errors(built_fmus: dict[str, Pa
         autopilot_params(built_fmus["fixed_wing"], "arduplane", servo_tau_s=0.0)
     out = autopilot_params(built_fmus["quadrotor"], "px4").write(tmp_path / "p.params")
     assert out.read_text().startswith("#!/bin/sh\n") and "param set-default MPC_THR_HOVER" in out.read_text()
+
+
+# ------------------------------------------------------------------------------------------ the autopilots' source
+# Documented ranges read from the autopilots' own parameter definitions (docs/hil-sitl.md, "Verified against", names the
+# stored versions). Every generated parameter is either range-checked here or listed as not yet checked, so a new
+# parameter cannot slip in unclassified.
+PX4_MPC = "PX4 src/modules/mc_pos_control/mc_pos_control_params.c (v1.13 era)"
+PX4_COM = "PX4 src/modules/commander/commander_params.c (v1.13/v1.14)"
+PX4_MIX = "PX4 src/lib/mixer_module/params.c"
+PX4_NAV = "PX4 src/modules/navigator/mission_params.c"
+AP_MOT = "ArduPilot libraries/AP_Motors/AP_MotorsMulticopter.cpp/.h (4.3+)"
+AP_COPTER = "ArduPilot ArduCopter/Parameters.cpp (4.5+)"
+AP_WPNAV = "ArduPilot libraries/AC_WPNav/AC_WPNav.cpp"
+AP_PLANE = "ArduPilot ArduPlane/Parameters.cpp (4.5+)"
+AP_TECS = "ArduPilot libraries/AP_TECS/AP_TECS.cpp (4.5+)"
+AP_FW = "ArduPilot libraries/APM_Control/AP_{Roll,Pitch}Controller.cpp (4.5+)"
+RANGES: dict[str, dict[str, tuple[float, float, str]]] = {
+    "px4": {
+        "MPC_THR_MIN": (0.05, 1.0, PX4_MPC), "MPC_THR_HOVER": (0.1, 0.8, PX4_MPC), "MPC_USE_HTE": (0, 1, PX4_MPC),
+        "MPC_Z_V_AUTO_UP": (0.5, 8.0, PX4_MPC), "MPC_Z_VEL_MAX_UP": (0.5, 8.0, PX4_MPC),
+        "MPC_Z_V_AUTO_DN": (0.5, 4.0, PX4_MPC), "MPC_Z_VEL_MAX_DN": (0.5, 4.0, PX4_MPC),
+        "MPC_XY_CRUISE": (3.0, 20.0, PX4_MPC), "MPC_VEL_MANUAL": (3.0, 20.0, PX4_MPC),
+        "MPC_XY_VEL_MAX": (0.0, 20.0, PX4_MPC), "MPC_TILTMAX_AIR": (20.0, 89.0, PX4_MPC),
+        "MPC_LAND_SPEED": (0.6, math.inf, PX4_MPC), "MPC_TKO_SPEED": (1.0, 5.0, PX4_MPC),
+        "NAV_DLL_ACT": (0, 6, PX4_COM), "COM_RCL_EXCEPT": (0, 7, PX4_COM), "COM_RC_IN_MODE": (0, 4, PX4_COM),
+        "THR_MDL_FAC": (0.0, 1.0, PX4_MIX), "MIS_TAKEOFF_ALT": (0.0, 80.0, PX4_NAV),
+    },
+    "arducopter": {
+        "MOT_THST_EXPO": (-1.0, 1.0, AP_MOT), "MOT_THST_HOVER": (0.125, 0.6875, AP_MOT),
+        "MOT_SPIN_ARM": (0.0, 0.2, AP_MOT), "MOT_SPIN_MIN": (0.0, 0.3, AP_MOT), "MOT_SPIN_MAX": (0.9, 1.0, AP_MOT),
+        "MOT_PWM_MIN": (0, 2000, AP_MOT), "MOT_PWM_MAX": (0, 2000, AP_MOT), "MOT_HOVER_LEARN": (0, 2, AP_MOT),
+        "MOT_BAT_VOLT_MAX": (6.0, 53.0, AP_MOT), "MOT_BAT_VOLT_MIN": (6.0, 42.0, AP_MOT),
+        "ANGLE_MAX": (1000, 8000, AP_COPTER), "PILOT_SPEED_UP": (50, 500, AP_COPTER),
+        "LAND_SPEED": (30, 200, AP_COPTER), "PILOT_TKOFF_ALT": (0, 1000, AP_COPTER),
+        "WPNAV_SPEED_UP": (10, 1000, AP_WPNAV), "WPNAV_SPEED_DN": (10, 500, AP_WPNAV),
+    },
+    "arduplane": {
+        "TKOFF_ROTATE_SPD": (0.0, 30.0, AP_PLANE), "ROLL_LIMIT_DEG": (0.0, 90.0, AP_PLANE),
+        "PTCH_LIM_MAX_DEG": (0.0, 90.0, AP_PLANE), "PTCH_LIM_MIN_DEG": (-90.0, 0.0, AP_PLANE),
+        "TECS_LAND_TCONST": (1.0, 5.0, AP_TECS), "TECS_LAND_SINK": (0.0, 2.0, AP_TECS),
+        "TECS_CLMB_MAX": (0.1, 20.0, AP_TECS), "TECS_SINK_MIN": (0.1, 10.0, AP_TECS),
+        "TECS_SINK_MAX": (0.0, 20.0, AP_TECS), "TECS_TIME_CONST": (3.0, 10.0, AP_TECS),
+        "TECS_LAND_ARSPD": (-1, 127, AP_TECS), "AIRSPEED_MIN": (5, 100, AP_PLANE), "AIRSPEED_MAX": (5, 100, AP_PLANE),
+        "WP_LOITER_RAD": (-32767, 32767, AP_PLANE),
+        "RLL2SRV_TCONST": (0.4, 1.0, AP_FW), "PTCH2SRV_TCONST": (0.4, 1.0, AP_FW),
+        **{f"{a}_RATE_FF": (0.0, 3.0, AP_FW) for a in ("RLL", "PTCH", "YAW")},
+    },
+}
+#: ranges the autopilot documents but does not enforce (parameter metadata): a generated value may lie outside only
+#: with a WARNING line naming it in the file. The D gains are ArduPlane's own default 0 (below the documented 0.001).
+ADVISORY = {f"{a}_RATE_{k}": r for a in ("RLL", "PTCH", "YAW") for k, r in (("P", (0.08, 0.35)), ("I", (0.01, 0.6)))}
+NOT_YET_CHECKED = {
+    "px4": set(),
+    "arducopter": {"FRAME_CLASS", "FRAME_TYPE", "PILOT_SPEED_DN", "WPNAV_SPEED"},
+    "arduplane": {"AIRSPEED_CRUISE", "TRIM_THROTTLE", "SCALING_SPEED", "TKOFF_THR_MAX",
+                  "TKOFF_ALT", "TKOFF_LVL_ALT", "TKOFF_LVL_PITCH", "YAW_RATE_ENABLE", "WP_RADIUS",
+                  "NAVL1_PERIOD", "NAVL1_DAMPING", "LAND_PITCH_DEG", "LAND_FLARE_SEC", "LAND_FLARE_ALT",
+                  "RLL_RATE_D", "PTCH_RATE_D", "YAW_RATE_D"}
+                 | {f"SERVO{n}_{k}" for n in range(1, 5) for k in ("FUNCTION", "MIN", "TRIM", "MAX")},
+}
+
+
+@pytest.mark.parametrize("autopilot", sorted(GENERATED))
+def test_generated_values_lie_in_the_autopilots_documented_ranges(autopilot: str, generated: dict[str, object]) -> None:
+    values, warnings = generated[autopilot].values, generated[autopilot].warnings
+    unclassified = set(values) - set(RANGES[autopilot]) - set(ADVISORY) - NOT_YET_CHECKED[autopilot]
+    assert not unclassified, f"{autopilot}: add {sorted(unclassified)} to RANGES (with its source) or NOT_YET_CHECKED"
+    for name, (lo, hi, source) in RANGES[autopilot].items():
+        if name in values:
+            assert lo <= values[name] <= hi, f"{name} = {values[name]} outside {lo}..{hi} ({source})"
+    for name, (lo, hi) in ADVISORY.items():
+        if name in values and not lo <= values[name] <= hi:
+            assert any(w.startswith(f"{name} = ") for w in warnings), f"{name} outside {lo}..{hi} without a warning"
+
+
+def test_plane_speeds_follow_arduplanes_documented_advice(generated: dict[str, object]) -> None:
+    """ArduPlane/Parameters.cpp: AIRSPEED_MAX at least 50 % above AIRSPEED_MIN (for TECS height control);
+    AP_TECS: TECS_LAND_TCONST smaller than TECS_TIME_CONST."""
+    v = generated["arduplane"].values
+    assert v["AIRSPEED_MAX"] >= 1.5 * v["AIRSPEED_MIN"]
+    assert v["TECS_LAND_TCONST"] < v["TECS_TIME_CONST"]
+
+
+def test_px4_values_pass_the_position_controllers_boot_checks(generated: dict[str, object]) -> None:
+    """MulticopterPositionControl::parameters_update() resets (with a CRITICAL) a cruise or manual speed above
+    MPC_XY_VEL_MAX, an auto climb/descent speed above the manual maximum, a hover thrust outside MPC_THR_MIN..MAX
+    (MPC_THR_MAX default 1) and MPC_TILTMAX_LND (default 12) above MPC_TILTMAX_AIR."""
+    v = generated["px4"].values
+    assert v["MPC_XY_CRUISE"] <= v["MPC_XY_VEL_MAX"] and v["MPC_VEL_MANUAL"] <= v["MPC_XY_VEL_MAX"]
+    assert v["MPC_Z_V_AUTO_UP"] <= v["MPC_Z_VEL_MAX_UP"] and v["MPC_Z_V_AUTO_DN"] <= v["MPC_Z_VEL_MAX_DN"]
+    assert v["MPC_THR_MIN"] <= v["MPC_THR_HOVER"] <= 1.0 and 12.0 <= v["MPC_TILTMAX_AIR"]
+
+
+def test_a_value_outside_the_autopilots_range_is_clamped_with_a_warning_in_the_file() -> None:
+    from hil_adapter.autopilot_params import AutopilotParams, _Params
+
+    out = _Params()
+    assert out.clamp("MOT_THST_EXPO", -1.28, -1.0, 1.0, "AP_Motors") == -1.0
+    assert out.clamp("MOT_SPIN_MAX", 0.95, 0.9, 1.0, "AP_Motors") == 0.95  # inside: no warning
+    assert out.warnings == ["MOT_THST_EXPO: the model gives -1.28, outside -1..1 (AP_Motors): clamped to -1"]
+    out.advise("PTCH_RATE_P", 0.3, 0.08, 0.35, "AP_PitchController")  # inside: nothing
+    out.advise("PTCH_RATE_P", 1.149, 0.08, 0.35, "AP_PitchController")  # outside a documented-only range: kept, warned
+    assert len(out.warnings) == 2 and out.warnings[1].startswith("PTCH_RATE_P = 1.149 lies outside 0.08..0.35")
+    text = AutopilotParams("arducopter", "quadrotor", "q.fmu", {"MOT_THST_EXPO": -1.0}, {}, tuple(out.warnings)).text()
+    assert "# WARNING: MOT_THST_EXPO: the model gives -1.28" in text
