@@ -39,4 +39,6 @@ def run(args: argparse.Namespace) -> int:
     else:
         result.write(args.output)
         print(f"wrote {args.output} ({len(result.values)} {args.autopilot} parameters from {args.fmu.name})")
+    for w in result.warnings:  # also in the file as '# WARNING' lines
+        print(f"uavfmu autopilot-params: warning: {w}", file=sys.stderr)
     return 0
