@@ -88,10 +88,22 @@ MASKS: dict[str, tuple[str, ...]] = {
     "GetEventIndicators": ("InitializationMode", "EventMode", "ContinuousTimeMode", "Terminated", "Error"),
     "GetNominals": ("Instantiated", "InitializationMode", "EventMode", "ContinuousTimeMode", "Terminated", "Error"),
     "GetNumber": LIVE,
+    "GetNumberOfStates": LIVE,
     "EnterStepMode": ("EventMode",),
     "EnterConfigurationMode": ("Instantiated", "StepComplete", "EventMode"),
     "ExitConfigurationMode": ("ConfigurationMode",),
     "Clock": ("EventMode",),
+}
+
+#: the operations of one interface only (FMI 3.0 sections 3.2.1, 4.2.1: e.g. fmi3EnterStepMode is a Co-Simulation
+#: function, fmi3GetContinuousStates a Model Exchange one, whatever the state): the FMI 3.0 layer refuses them
+#: for an instance of the other interface (an error, not a state error); every other operation serves both
+INTERFACE: dict[str, str] = {
+    **dict.fromkeys(("DoStep", "CancelStep", "GetStatus", "SetInputDerivatives", "GetOutputDerivatives",
+                     "EnterStepMode"), "CoSimulation"),
+    **dict.fromkeys(("EnterContinuousTimeMode", "CompletedIntegratorStep", "SetTime", "SetContinuousStates",
+                     "GetContinuousStates", "GetDerivatives", "GetEventIndicators", "GetNominals", "GetNumberOfStates"),
+                    "ModelExchange"),
 }
 
 #: what each state-changing operation leads to when it succeeds (ME exits initialisation into Event Mode)
@@ -141,6 +153,9 @@ RULES: tuple[Rule, ...] = (
 LOG_CATEGORIES = ("logStatusWarning", "logStatusDiscard", "logStatusError", "logStatusFatal", "logAll")
 
 
+INTERFACE_CODE = {"ModelExchange": 1, "CoSimulation": 0, None: -1}
+
+
 def allowed(op: str) -> int:
     """The state mask of ``op`` (for tests and the shim)."""
     return _mask(*MASKS[op])
@@ -158,6 +173,8 @@ def header() -> str:
         *(f"    {name} = {bit}," for name, bit in STATES.items()),
         "} UavfmuState;", "",
         *(f"#define MASK_{op} {allowed(op)} /* {' | '.join(states)} */" for op, states in MASKS.items()), "",
+        "/* the interface an operation belongs to: 1 Model Exchange, 0 Co-Simulation, -1 both */",
+        *(f"#define INTERFACE_{op} {INTERFACE_CODE[INTERFACE.get(op)]}" for op in MASKS), "",
         "static inline const char* uavfmu_state_name(int s) {",
         "    switch (s) {",
         *(f'    case {name}: return "{STATE_TEXT[name]}";' for name in STATES),

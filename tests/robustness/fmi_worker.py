@@ -216,6 +216,9 @@ I3 = [C.c_char_p, C.c_char_p, C.c_char_p, C.c_bool, C.c_bool]
 CLOCK_FUNCTIONS = ("fmi3GetIntervalDecimal", "fmi3GetIntervalFraction", "fmi3GetShiftDecimal", "fmi3GetShiftFraction",
                    "fmi3SetIntervalDecimal", "fmi3SetIntervalFraction", "fmi3SetShiftDecimal", "fmi3SetShiftFraction",
                    "fmi3GetClock", "fmi3SetClock")
+#: the Model Exchange functions taking (instance, array, size) ("me" op 0..4)
+ME_ARRAYS = ("fmi3GetContinuousStates", "fmi3GetContinuousStateDerivatives", "fmi3GetNominalsOfContinuousStates",
+             "fmi3SetContinuousStates", "fmi3GetEventIndicators")
 #: FMI 3.0 value types the worker gets and sets -> ctypes element type
 TYPES3 = {"Float64": C.c_double, "Boolean": C.c_bool, "Int32": C.c_int32, "String": C.c_char_p}
 
@@ -239,6 +242,11 @@ class Fmi3(Model):
         "fmi3ActivateModelPartition": (B, [V, C.c_uint, Z]),
         "fmi3GetNumberOfVariableDependencies": (B, [V, C.c_uint, C.POINTER(C.c_size_t)]),
         "fmi3UpdateDiscreteStates": (B, [V, V, V, V, V, V, V]),
+        "fmi3SetTime": (B, [V, Z]),
+        **{name: (B, [V, V, U]) for name in ME_ARRAYS},
+        "fmi3GetNumberOfContinuousStates": (B, [V, V]),
+        "fmi3GetNumberOfEventIndicators": (B, [V, V]),
+        "fmi3CompletedIntegratorStep": (B, [V, C.c_bool, V, V]),
     }
     DERIVATIVE_FUNCTIONS = ("fmi3GetDirectionalDerivative", "fmi3GetAdjointDerivative", "fmi3GetOutputDerivatives")
 
@@ -246,6 +254,7 @@ class Fmi3(Model):
         super().__init__(unzipped)
         self.token = self.md.instantiationToken.encode()
         self.resources = str(unzipped / "resources").encode() + b"/"
+        self.nx = sum(v.name.startswith("der(") for v in self.md.modelVariables)
 
     @staticmethod
     def platform_folder() -> str:
@@ -302,7 +311,26 @@ class Fmi3(Model):
             return self.call("fmi3GetNumberOfVariableDependencies", comp, 0, C.byref(C.c_size_t()))
         if name == "update":  # every output argument may be NULL
             return self.call("fmi3UpdateDiscreteStates", comp, *([None] * 6))
+        if name == "setTime":
+            return self.call("fmi3SetTime", comp, args[0])
+        if name == "me":
+            return self.model_exchange(comp, args[0], args[1])
         raise KeyError(name)
+
+    def model_exchange(self, comp: int, fn: int, variant: int) -> int:
+        """Model Exchange call ``fn`` (0..4 ``ME_ARRAYS``, 5/6 the numbers of states/event indicators, 7
+        CompletedIntegratorStep); variant 0 valid (states set: zeros; no event indicators), 1 a wrong size,
+        2 NULL arrays or outputs, 3 NaN states."""
+        if fn < len(ME_ARRAYS):
+            n = 0 if fn == 4 else self.nx
+            arr = (C.c_double * (self.nx + 1))(*([math.nan] * (self.nx + 1) if variant == 3 else []))
+            return self.call(ME_ARRAYS[fn], comp, None if variant == 2 else arr, n + (variant == 1))
+        flags = [C.c_bool(), C.c_size_t()]
+        if fn in (5, 6):
+            fn_name = ("fmi3GetNumberOfContinuousStates", "fmi3GetNumberOfEventIndicators")[fn - 5]
+            return self.call(fn_name, comp, None if variant == 2 else C.byref(flags[1]))
+        outs = [None, None] if variant == 2 else [C.byref(flags[0]), C.byref(C.c_bool())]
+        return self.call("fmi3CompletedIntegratorStep", comp, True, *outs)
 
 
 VERSIONS: dict[int, type[Model]] = {2: Fmi2, 3: Fmi3}
