@@ -46,6 +46,7 @@ from tests.robustness.fmi_oracle import (
 EXAMPLES = 1000
 COUNTS: dict[str, int] = {}
 ME = 7  # the instantiation variant that makes a Model Exchange instance
+OWN = "own"  # in a burst of calls: the model of the instance the burst is aimed at
 
 
 @pytest.fixture(scope="module")
@@ -71,8 +72,10 @@ NO_ARGUMENTS = ("stepMode", "eventMode", "config", "exitConfig", "evaluate", "ct
                 "dependencies")
 
 
-def _call_ops(every_vr: list[int]) -> st.SearchStrategy[list[Any]]:
-    return st.one_of(
+def _call_ops(every_vr: list[int], settable: list[int]) -> st.SearchStrategy[list[list[Any]]]:
+    """One call, or a burst of calls on one instance: values set into inputs and parameters (``settable``), then
+    what makes the model check them (a step, the end of initialisation, outputs, derivatives)."""
+    single = st.one_of(
         *shared_ops(every_vr, ["Float64", "Float64", "Float64", "Boolean", "Int32", "String"],
                     (st.sampled_from([0, 0, 0, 1]),), 3),
         st.tuples(st.just("inst"), MODEL, SLOT, st.integers(0, ME)).map(list),
@@ -83,14 +86,30 @@ def _call_ops(every_vr: list[int]) -> st.SearchStrategy[list[Any]]:
         st.tuples(st.just("setTime"), MODEL, SLOT, VALUES).map(list),
         st.tuples(st.just("me"), MODEL, SLOT, st.integers(0, 7), st.integers(0, 3)).map(list),
         st.tuples(st.just("null"), MODEL, SLOT, st.sampled_from(NULL_FUNCTIONS)).map(list),
-    )
+    ).map(lambda op: [op])
+    then = st.sampled_from([["step", 0, 0, 0, 0.0, 0.01, 0], ["exit", 0, 0], ["getState", 0, 0], ["me", 0, 0, 1, 0],
+                            ["get", 0, 0, "Float64", [OUT, OUT + 1], [], 0], ["me", 0, 0, 7, 0]])
+    burst = st.tuples(st.lists(st.sampled_from(settable), min_size=1, max_size=2), st.lists(VALUES, max_size=2),
+                      st.lists(then, min_size=1, max_size=3))
+    own_state = st.one_of(  # "own": an FMU state of the instance's own model
+        st.tuples(st.sampled_from(["setState", "freeState"]), st.just(0), st.just(0), st.just(OWN),
+                  st.integers(0, 5)),
+        st.tuples(st.just("serial"), st.just(0), st.just(0), st.just(OWN), st.integers(0, 5), st.integers(0, 2),
+                  st.integers(0, 400))).map(list)
+    ending = st.sampled_from([["terminate", 0, 0], ["get", 0, 0, "Float64", [OUT], [], 0], ["reset", 0, 0],
+                              ["getState", 0, 0]])
+    return st.one_of(single, burst.map(lambda b: [["set", 0, 0, "Float64", b[0], b[1], 0], *b[2]]),
+                     st.lists(st.one_of(then, own_state), max_size=3).map(lambda b: [["getState", 0, 0], *b]),
+                     st.lists(ending, min_size=1, max_size=3))
 
 
 @st.composite
-def sequences(draw: st.DrawFn, every_vr: list[int]) -> list[list[Any]]:
-    """A valid start of a Co-Simulation or Model Exchange life (so deep states are reached) then any calls."""
+def sequences(draw: st.DrawFn, every_vr: list[int], settable: list[int]) -> list[list[Any]]:
+    """A valid start of one or two Co-Simulation or Model Exchange lives (so deep states are reached), then any
+    calls, three in four aimed at an instance that start made (a burst always is)."""
     seq: list[list[Any]] = []
-    for slot in range(draw(st.integers(0, 2))):
+    lives = []
+    for slot in range(draw(st.integers(1, 2))):
         model, me = draw(MODEL), draw(st.sampled_from([False, False, True]))
         life = [["inst", model, slot, ME if me else 0], ["enter", model, slot, 0, 0.0, 0.0, 0, 0.0],
                 ["exit", model, slot]]
@@ -99,7 +118,12 @@ def sequences(draw: st.DrawFn, every_vr: list[int]) -> list[list[Any]]:
         else:
             life += [["step", model, slot, 0, 0.0, 0.01, 0]] * draw(st.integers(0, 3))
         seq += life[: draw(st.integers(1, len(life)))]
-    return seq + draw(st.lists(_call_ops(every_vr), min_size=1, max_size=20))
+        lives.append([model, slot])
+    for calls in draw(st.lists(_call_ops(every_vr, settable), min_size=1, max_size=12)):
+        target = draw(st.sampled_from(lives))
+        aim = len(calls) > 1 or (calls[0][0] != "null" and draw(st.integers(0, 3)) > 0)
+        seq += [[op[0], *target, *(target[0] if a == OWN else a for a in op[3:])] if aim else op for op in calls]
+    return seq
 
 
 #: instantiate (Co-Simulation), initialise and make one step (slot 0 of the quadrotor), for explicit examples
@@ -205,10 +229,11 @@ EXPLICIT = [
 def test_fmi3_call_sequences_follow_the_state_machine_table(fmi3: dict) -> None:
     worker, tables = fmi3["worker"], fmi3["vars"]
     every_vr = sorted({r for table in tables for r in table})
+    settable = sorted({r for table in tables for r, v in table.items() if v.causality in ("input", "parameter")})
 
     @settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None,
               suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
-    @given(sequences(every_vr))
+    @given(sequences(every_vr, settable))
     def run(seq: list[list[Any]]) -> None:
         COUNTS["sequences"] = COUNTS.get("sequences", 0) + 1
         check(seq, {"native FMI 3.0": worker.run(seq)}, tables, Oracle3)
