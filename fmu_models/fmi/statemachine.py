@@ -2,8 +2,8 @@
 
 From this table ``header()`` generates ``uavfmu_states.h``, which the native FMI 2.0 / 3.0 layers
 (``native/fmi2Functions.c``, ``native/fmi3Functions.c`` over ``native/uavfmu_core.h``) and the pythonfmu guard
-(``shim.py``) include; the call-sequence test (tests/robustness/test_fmi_sequences.py) judges every backend
-by the same table (``allowed``). States follow the FMI 2.0.4 (sections 3.2.3, 4.2.4) and FMI 3.0 state
+(``shim.py``) include; the call-sequence tests (tests/robustness/test_fmi_sequences.py, FMI 2.0 on every backend,
+and test_fmi3_sequences.py, FMI 3.0) judge by the same table (``MASKS``, ``RULES``, ``INTERFACE``). States follow the FMI 2.0.4 (sections 3.2.3, 4.2.4) and FMI 3.0 state
 machines; FMI 3.0's Step Mode is FMI 2.0's stepComplete. Deliberate, documented choices beyond the figures:
 
 * the Get functions (values, status, continuous states) also answer in the Error state, for diagnostics;
@@ -13,6 +13,9 @@ machines; FMI 3.0's Step Mode is FMI 2.0's stepComplete. Deliberate, documented 
   "not allowed in state" (and the Get*Status kinds about a pending step are never available);
 * no structural parameters, clocks or event mode in Co-Simulation: the FMI 3.0 configuration and clock
   functions answer an error;
+* a refused call (state, arguments, interface) changes nothing, in FMI 3.0 too (where the standard lets an FMU
+  that returned fmi3Error go to Terminated); a model failure moves the instance to the Error state, which
+  answers what FMI 3.0's Terminated answers (Get, Reset, FMU state) and Terminate;
 * a communication step that would need more than ``MAX_INTERNAL_STEPS`` internal RK4 steps is refused with an
   error before any work (so an enormous step can neither hang the host nor overflow a counter).
 """
