@@ -22,6 +22,7 @@ from typing import Any, ClassVar
 
 import pytest
 from fmpy import read_model_description
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from build_fmus import make_model
@@ -306,3 +307,22 @@ def check(seq: list[list[Any]], answers: dict[str, list[Any]], tables: list[dict
             if status in (ERROR, FATAL, DISCARD) and op[0] != "null":
                 assert logged >= 1, f"{name}: {op} returned {status} without a logged message"
             judge.judge(op, status, state_error)
+
+
+def run_generated(sequences: st.SearchStrategy[list[list[Any]]], explicit: list[list[list[Any]]], count: int,
+                  run_one: Any) -> int:
+    """``run_one(seq)`` on the explicit sequences, then on ``count`` generated ones (fixed seed: the same every run);
+    the number of sequences run."""
+    done = [0]
+
+    @settings(max_examples=count, deadline=None, derandomize=True, database=None,
+              suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+    @given(sequences)
+    def run(seq: list[list[Any]]) -> None:
+        done[0] += 1
+        run_one(seq)
+
+    for seq in explicit:
+        run = example(seq)(run)
+    run()
+    return done[0]

@@ -19,11 +19,11 @@ from typing import Any, ClassVar
 
 import pytest
 from fmpy import extract
-from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from fmu_models.fmi import zigcc
 from fmu_models.fmi.statemachine import INTERFACE
+from tests.robustness import fmi_oracle as fo
 from tests.robustness.fmi_oracle import (
     ERROR,
     MODEL,
@@ -36,15 +36,9 @@ from tests.robustness.fmi_oracle import (
     VALUES,
     Life,
     Oracle,
-    Worker,
-    bad_setup,
-    check,
-    shared_ops,
-    variables,
 )
 
 EXAMPLES = 1000
-COUNTS: dict[str, int] = {}
 ME = 7  # the instantiation variant that makes a Model Exchange instance
 OWN = "own"  # in a burst of calls: the model of the instance the burst is aimed at
 
@@ -59,8 +53,8 @@ def fmi3(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict]:
     opts = BuildOptions(fmi_version=3, kinds=("cs", "me"), platforms=(zigcc.host_platform().fmi_name,))
     fmus = {p.stem: p for p in build(None, out, options=opts)}
     folders = [extract(str(fmus[m]), str(tmp_path_factory.mktemp(f"fmi3_{m}"))) for m in MODELS]
-    worker = Worker(3, folders)
-    yield {"worker": worker, "vars": [variables(fmus[m]) for m in MODELS]}
+    worker = fo.Worker(3, folders)
+    yield {"worker": worker, "vars": [fo.variables(fmus[m]) for m in MODELS]}
     worker.close()
 
 
@@ -76,7 +70,7 @@ def _call_ops(every_vr: list[int], settable: list[int]) -> st.SearchStrategy[lis
     """One call, or a burst of calls on one instance: values set into inputs and parameters (``settable``), then
     what makes the model check them (a step, the end of initialisation, outputs, derivatives)."""
     single = st.one_of(
-        *shared_ops(every_vr, ["Float64", "Float64", "Float64", "Boolean", "Int32", "String"],
+        *fo.shared_ops(every_vr, ["Float64", "Float64", "Float64", "Boolean", "Int32", "String"],
                     (st.sampled_from([0, 0, 0, 1]),), 3),
         st.tuples(st.just("inst"), MODEL, SLOT, st.integers(0, ME)).map(list),
         st.tuples(st.just("enter"), MODEL, SLOT, *SETUP).map(list),
@@ -174,7 +168,7 @@ class Oracle3(Oracle):
         if name in self.UNSUPPORTED or (name == "clock" and args[0] < 8):
             return (ERROR,)
         if name == "enter":
-            return (ERROR,) if bad_setup(*args) else (OK,)
+            return (ERROR,) if fo.bad_setup(*args) else (OK,)
         if name == "setTime":
             return (OK,) if math.isfinite(args[0]) else (ERROR,)
         if name in ("clock", "stepMode", "eventMode", "ctMode", "update", "evaluate"):
@@ -231,15 +225,7 @@ def test_fmi3_call_sequences_follow_the_state_machine_table(fmi3: dict) -> None:
     every_vr = sorted({r for table in tables for r in table})
     settable = sorted({r for table in tables for r, v in table.items() if v.causality in ("input", "parameter")})
 
-    @settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None,
-              suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
-    @given(sequences(every_vr, settable))
-    def run(seq: list[list[Any]]) -> None:
-        COUNTS["sequences"] = COUNTS.get("sequences", 0) + 1
-        check(seq, {"native FMI 3.0": worker.run(seq)}, tables, Oracle3)
-
-    for seq in EXPLICIT:
-        run = example(seq)(run)
-    run()
-    print(f"\nFMI 3.0 call sequences: {COUNTS['sequences']} generated on the native FMU: all as the table says")
-    assert COUNTS["sequences"] >= EXAMPLES
+    count = fo.run_generated(sequences(every_vr, settable), EXPLICIT, EXAMPLES,
+                             lambda seq: fo.check(seq, {"native FMI 3.0": worker.run(seq)}, tables, Oracle3))
+    print(f"\nFMI 3.0 call sequences: {count} generated on the native FMU: all as the table says")
+    assert count >= EXAMPLES

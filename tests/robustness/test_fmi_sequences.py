@@ -21,7 +21,6 @@ from typing import Any, ClassVar
 
 import pytest
 from fmpy import extract
-from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from fmu_models.fmi import zigcc
@@ -39,12 +38,12 @@ from tests.robustness.fmi_oracle import (
     Worker,
     bad_setup,
     check,
+    run_generated,
     shared_ops,
     variables,
 )
 
 EXAMPLES = 1000
-COUNTS: dict[str, int] = {}
 BACKENDS = ("native", "python")
 
 
@@ -154,15 +153,7 @@ def test_the_same_call_sequences_give_the_same_answers_on_every_backend(backends
     workers, tables = backends["workers"], backends["vars"]
     every_vr = sorted({r for table in tables for r in table})
 
-    @settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None,
-              suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
-    @given(sequences(every_vr))
-    def run(seq: list[list[Any]]) -> None:
-        COUNTS["sequences"] = COUNTS.get("sequences", 0) + 1
-        check(seq, {name: workers[name].run(seq) for name in BACKENDS}, tables, Oracle2)
-
-    for seq in EXPLICIT:
-        run = example(seq)(run)
-    run()
-    print(f"\nFMI call sequences: {COUNTS['sequences']} generated, each on {', '.join(BACKENDS)}: same answers")
-    assert COUNTS["sequences"] >= EXAMPLES
+    count = run_generated(sequences(every_vr), EXPLICIT, EXAMPLES, lambda seq: check(
+        seq, {name: workers[name].run(seq) for name in BACKENDS}, tables, Oracle2))
+    print(f"\nFMI call sequences: {count} generated, each on {', '.join(BACKENDS)}: same answers")
+    assert count >= EXAMPLES
