@@ -99,6 +99,16 @@ MASKS: dict[str, tuple[str, ...]] = {
     "Clock": ("EventMode",),
 }
 
+#: where the FMI 3.0 state machine differs from the FMI 2.0 one (FMI 3.0 sections 2.3.1, 3.2.1): Get also answers
+#: in Instantiated, with the start values of inputs and parameters (uavfmu_core.h refuses the variables without
+#: one); Event Mode offers neither fmi3EnterEventMode nor fmi3SetTime (Model Exchange sets the time in
+#: Continuous-Time Mode; a Co-Simulation FMU without event mode never enters Event Mode)
+FMI3_MASKS: dict[str, tuple[str, ...]] = {
+    "GetValue": ("Instantiated", *MASKS["GetValue"]),
+    "EnterEventMode": ("ContinuousTimeMode",),
+    "SetTime": ("ContinuousTimeMode",),
+}
+
 #: the operations of one interface only (FMI 3.0 sections 3.2.1, 4.2.1: e.g. fmi3EnterStepMode is a Co-Simulation
 #: function, fmi3GetContinuousStates a Model Exchange one, whatever the state): the FMI 3.0 layer refuses them
 #: for an instance of the other interface (an error, not a state error); every other operation serves both
@@ -160,9 +170,14 @@ LOG_CATEGORIES = ("logStatusWarning", "logStatusDiscard", "logStatusError", "log
 INTERFACE_CODE = {"ModelExchange": 1, "CoSimulation": 0, None: -1}
 
 
-def allowed(op: str) -> int:
-    """The state mask of ``op`` (for tests and the shim)."""
-    return _mask(*MASKS[op])
+def masks(version: int) -> dict[str, tuple[str, ...]]:
+    """The state table of FMI ``version`` (2 or 3)."""
+    return {**MASKS, **FMI3_MASKS} if version == 3 else MASKS
+
+
+def allowed(op: str, version: int = 2) -> int:
+    """The state mask of ``op`` in FMI ``version`` (for tests and the shim)."""
+    return _mask(*masks(version)[op])
 
 
 def header() -> str:
@@ -177,6 +192,8 @@ def header() -> str:
         *(f"    {name} = {bit}," for name, bit in STATES.items()),
         "} UavfmuState;", "",
         *(f"#define MASK_{op} {allowed(op)} /* {' | '.join(states)} */" for op, states in MASKS.items()), "",
+        "/* the FMI 3.0 layer's masks (FMI3_MASKS: where the FMI 3.0 state machine differs) */",
+        *(f"#define MASK3_{op} {allowed(op, 3)}" for op in MASKS), "",
         "/* the interface an operation belongs to: 1 Model Exchange, 0 Co-Simulation, -1 both */",
         *(f"#define INTERFACE_{op} {INTERFACE_CODE[INTERFACE.get(op)]}" for op in MASKS), "",
         "static inline const char* uavfmu_state_name(int s) {",

@@ -26,7 +26,7 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from build_fmus import make_model
-from fmu_models.fmi.statemachine import MASKS, MAX_INTERNAL_STEPS, TIME_TOLERANCE
+from fmu_models.fmi.statemachine import MAX_INTERNAL_STEPS, TIME_TOLERANCE, masks
 
 WORKER = Path(__file__).with_name("fmi_worker.py")
 TIMEOUT_S = 30.0
@@ -148,7 +148,9 @@ class Oracle:
     lives: dict[tuple[int, int], Life] = field(default_factory=dict)
     saved: dict[int, list[tuple[int, Life]]] = field(default_factory=lambda: {0: [], 1: []})
 
-    #: worker operation -> the state-machine operation of fmu_models/fmi/statemachine.py (MASKS)
+    #: the version's state table (fmu_models/fmi/statemachine.py)
+    MASKS: ClassVar[dict[str, tuple[str, ...]]] = masks(2)
+    #: worker operation -> the state-machine operation of that table
     OP_MASK: ClassVar[dict[str, str]] = {}
     #: "deriv" op argument -> the MASKS row of that (unsupported) derivative function
     DERIV_MASK: ClassVar[tuple[str, ...]] = ()
@@ -187,7 +189,7 @@ class Oracle:
         if name == "free":
             self.drop(model, slot)
             return
-        if life.state not in MASKS[self.mask(name, args, life)]:
+        if life.state not in self.MASKS[self.mask(name, args, life)]:
             assert status == ERROR and state_error, f"{where}: not allowed in state {life.state}"
             return
         assert not state_error, f"{where}: a state error in allowed state {life.state}"
@@ -239,8 +241,10 @@ class Oracle:
                 return (ERROR,)
             if name == "set":
                 op = {"input": "SetInput", "parameter": "SetTunable" if v.variability == "tunable" else "SetFixed"}
-                if v.causality not in op or life.state not in MASKS[op[v.causality]]:
+                if v.causality not in op or life.state not in self.MASKS[op[v.causality]]:
                     return (ERROR,)
+            elif life.state == "Instantiated" and v.causality not in ("input", "parameter"):
+                return (ERROR,)  # FMI 3.0: only start values before initialisation
         if name == "get" and life.suspect:
             outputs = any(table[r].causality == "output" for r in refs)
             derivatives = any(table[r].name.startswith("der(") for r in refs)

@@ -22,7 +22,7 @@ from fmpy import extract
 from hypothesis import strategies as st
 
 from fmu_models.fmi import zigcc
-from fmu_models.fmi.statemachine import INTERFACE
+from fmu_models.fmi.statemachine import INTERFACE, masks
 from tests.robustness import fmi_oracle as fo
 from tests.robustness.fmi_oracle import (
     ERROR,
@@ -136,6 +136,7 @@ class Oracle3(Oracle):
     """The FMI 3.0 state machine (Co-Simulation without event mode: initialisation exits into Step Mode, the
     table's StepComplete; Model Exchange into Event Mode) and the interface of each call."""
 
+    MASKS: ClassVar[dict[str, tuple[str, ...]]] = masks(3)
     OP_MASK: ClassVar[dict[str, str]] = {
         "enter": "EnterInitializationMode", "exit": "ExitInitializationMode", "terminate": "Terminate",
         "reset": "Reset", "getState": "FMUState", "setState": "FMUState", "freeState": "FMUState",
@@ -217,6 +218,12 @@ EXPLICIT = [
     [*LIFE[:2], ["me", 0, 0, 0, 0]],
     [*ME_LIFE[:3], ["stepMode", 0, 0], ["step", 0, 0, 0, 0.0, 0.01, 0]],
     [*LIFE, ["set", 0, 0, "Boolean", [], [], 3], ["get", 0, 0, "Int32", [], [], 3]],
+    # read in the FMI 3.0 standard: Get answers start values in Instantiated (inputs, parameters; not outputs);
+    # Event Mode has no fmi3EnterEventMode or fmi3SetTime
+    [LIFE[0], ["get", 0, 0, "Float64", [0, OUT - 1], [], 0], ["get", 0, 0, "Float64", [OUT], [], 0],
+     ["get", 0, 0, "Boolean", [], [], 0]],
+    [*ME_LIFE[:3], ["setTime", 0, 0, 0.5], ["eventMode", 0, 0], ["ctMode", 0, 0], ["setTime", 0, 0, 0.5],
+     ["eventMode", 0, 0]],
 ]
 
 

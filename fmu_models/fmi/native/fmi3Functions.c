@@ -34,7 +34,7 @@ static int wrong_interface(Instance* c, int interface, const char* fn) {
 }
 
 #define BEGIN(fn, mask)                                                    \
-    Instance* c = uav_enter(comp, MASK_##mask, fn);                         \
+    Instance* c = uav_enter(comp, MASK3_##mask, fn);                        \
     if (!c || wrong_interface(c, INTERFACE_##mask, fn)) return fmi3Error;
 
 #define CALL(fn, mask, expr) \
