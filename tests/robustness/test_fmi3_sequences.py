@@ -71,7 +71,7 @@ def _call_ops(every_vr: list[int], settable: list[int]) -> st.SearchStrategy[lis
     what makes the model check them (a step, the end of initialisation, outputs, derivatives)."""
     single = st.one_of(
         *fo.shared_ops(every_vr, ["Float64", "Float64", "Float64", "Boolean", "Int32", "String"],
-                    (st.sampled_from([0, 0, 0, 1]),), 3),
+                       (st.sampled_from([0, 0, 0, 1]),), 3),
         st.tuples(st.just("inst"), MODEL, SLOT, st.integers(0, ME)).map(list),
         st.tuples(st.just("enter"), MODEL, SLOT, *SETUP).map(list),
         st.tuples(st.sampled_from(NO_ARGUMENTS), MODEL, SLOT).map(list),
