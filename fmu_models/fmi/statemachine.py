@@ -2,9 +2,10 @@
 
 From this table ``header()`` generates ``uavfmu_states.h``, which the native FMI 2.0 / 3.0 layers
 (``native/fmi2Functions.c``, ``native/fmi3Functions.c`` over ``native/uavfmu_core.h``) and the pythonfmu guard
-(``shim.py``) include; the call-sequence test (tests/robustness/test_fmi_sequences.py) judges every backend
-by the same table (``allowed``). States follow the FMI 2.0.4 (sections 3.2.3, 4.2.4) and FMI 3.0 state
-machines; FMI 3.0's Step Mode is FMI 2.0's stepComplete. Deliberate, documented choices beyond the figures:
+(``shim.py``) include; the call-sequence tests (tests/robustness/test_fmi_sequences.py, FMI 2.0 on every backend,
+and test_fmi3_sequences.py, FMI 3.0) judge by the same table (``MASKS``, ``FMI3_MASKS``, ``RULES``,
+``INTERFACE``). States follow the FMI 2.0.4 (sections 3.2.3, 4.2.4) and FMI 3.0 state machines; FMI 3.0's Step
+Mode is FMI 2.0's stepComplete. Deliberate, documented choices beyond the figures:
 
 * the Get functions (values, status, continuous states) also answer in the Error state, for diagnostics;
 * Terminate is also accepted in the Error state (importers such as FMPy terminate after a failed step before
@@ -13,6 +14,9 @@ machines; FMI 3.0's Step Mode is FMI 2.0's stepComplete. Deliberate, documented 
   "not allowed in state" (and the Get*Status kinds about a pending step are never available);
 * no structural parameters, clocks or event mode in Co-Simulation: the FMI 3.0 configuration and clock
   functions answer an error;
+* a refused call (state, arguments, interface) changes nothing, in FMI 3.0 too (where the standard lets an FMU
+  that returned fmi3Error go to Terminated); a model failure moves the instance to the Error state, which
+  answers what FMI 3.0's Terminated answers (Get, Reset, FMU state) and Terminate;
 * a communication step that would need more than ``MAX_INTERNAL_STEPS`` internal RK4 steps is refused with an
   error before any work (so an enormous step can neither hang the host nor overflow a counter).
 """
@@ -88,10 +92,32 @@ MASKS: dict[str, tuple[str, ...]] = {
     "GetEventIndicators": ("InitializationMode", "EventMode", "ContinuousTimeMode", "Terminated", "Error"),
     "GetNominals": ("Instantiated", "InitializationMode", "EventMode", "ContinuousTimeMode", "Terminated", "Error"),
     "GetNumber": LIVE,
+    "GetNumberOfStates": LIVE,
     "EnterStepMode": ("EventMode",),
     "EnterConfigurationMode": ("Instantiated", "StepComplete", "EventMode"),
     "ExitConfigurationMode": ("ConfigurationMode",),
     "Clock": ("EventMode",),
+}
+
+#: where the FMI 3.0 state machine differs from the FMI 2.0 one (FMI 3.0 sections 2.3.1, 3.2.1): Get also answers
+#: in Instantiated, with the start values of inputs and parameters (uavfmu_core.h refuses the variables without
+#: one); Event Mode offers neither fmi3EnterEventMode nor fmi3SetTime (Model Exchange sets the time in
+#: Continuous-Time Mode; a Co-Simulation FMU without event mode never enters Event Mode)
+FMI3_MASKS: dict[str, tuple[str, ...]] = {
+    "GetValue": ("Instantiated", *MASKS["GetValue"]),
+    "EnterEventMode": ("ContinuousTimeMode",),
+    "SetTime": ("ContinuousTimeMode",),
+}
+
+#: the operations of one interface only (FMI 3.0 sections 3.2.1, 4.2.1: e.g. fmi3EnterStepMode is a Co-Simulation
+#: function, fmi3GetContinuousStates a Model Exchange one, whatever the state): the FMI 3.0 layer refuses them
+#: for an instance of the other interface (an error, not a state error); every other operation serves both
+INTERFACE: dict[str, str] = {
+    **dict.fromkeys(("DoStep", "CancelStep", "GetStatus", "SetInputDerivatives", "GetOutputDerivatives",
+                     "EnterStepMode"), "CoSimulation"),
+    **dict.fromkeys(("EnterContinuousTimeMode", "CompletedIntegratorStep", "SetTime", "SetContinuousStates",
+                     "GetContinuousStates", "GetDerivatives", "GetEventIndicators", "GetNominals", "GetNumberOfStates"),
+                    "ModelExchange"),
 }
 
 #: what each state-changing operation leads to when it succeeds (ME exits initialisation into Event Mode)
@@ -141,9 +167,17 @@ RULES: tuple[Rule, ...] = (
 LOG_CATEGORIES = ("logStatusWarning", "logStatusDiscard", "logStatusError", "logStatusFatal", "logAll")
 
 
-def allowed(op: str) -> int:
-    """The state mask of ``op`` (for tests and the shim)."""
-    return _mask(*MASKS[op])
+INTERFACE_CODE = {"ModelExchange": 1, "CoSimulation": 0, None: -1}
+
+
+def masks(version: int) -> dict[str, tuple[str, ...]]:
+    """The state table of FMI ``version`` (2 or 3)."""
+    return {**MASKS, **FMI3_MASKS} if version == 3 else MASKS
+
+
+def allowed(op: str, version: int = 2) -> int:
+    """The state mask of ``op`` in FMI ``version`` (for tests and the shim)."""
+    return _mask(*masks(version)[op])
 
 
 def header() -> str:
@@ -158,6 +192,10 @@ def header() -> str:
         *(f"    {name} = {bit}," for name, bit in STATES.items()),
         "} UavfmuState;", "",
         *(f"#define MASK_{op} {allowed(op)} /* {' | '.join(states)} */" for op, states in MASKS.items()), "",
+        "/* the FMI 3.0 layer's masks (FMI3_MASKS: where the FMI 3.0 state machine differs) */",
+        *(f"#define MASK3_{op} {allowed(op, 3)}" for op in MASKS), "",
+        "/* the interface an operation belongs to: 1 Model Exchange, 0 Co-Simulation, -1 both */",
+        *(f"#define INTERFACE_{op} {INTERFACE_CODE[INTERFACE.get(op)]}" for op in MASKS), "",
         "static inline const char* uavfmu_state_name(int s) {",
         "    switch (s) {",
         *(f'    case {name}: return "{STATE_TEXT[name]}";' for name in STATES),

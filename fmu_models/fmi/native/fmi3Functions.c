@@ -23,9 +23,19 @@ static void emit3(Instance* c, int status, const char* category, const char* tex
     if (cb && cb->log) cb->log((fmi3InstanceEnvironment)c->env, (fmi3Status)status, category, text);
 }
 
-#define BEGIN(fn, mask)                            \
-    Instance* c = uav_enter(comp, MASK_##mask, fn); \
-    if (!c) return fmi3Error;
+/* A function of the other interface (INTERFACE_<mask>: 1 Model Exchange, 0 Co-Simulation, -1 both; FMI 3.0
+   sections 3.2.1, 4.2.1) is refused whatever the state: an ME instance never enters Step Mode, a CS instance has
+   no continuous-state vector to hand out. */
+static int wrong_interface(Instance* c, int interface, const char* fn) {
+    if (interface < 0 || c->model_exchange == interface) return 0;
+    uav_fail(c, UAV_ERROR, "%s: a %s function, but this instance was instantiated for %s", fn,
+             interface ? "Model Exchange" : "Co-Simulation", c->model_exchange ? "Model Exchange" : "Co-Simulation");
+    return 1;
+}
+
+#define BEGIN(fn, mask)                                                    \
+    Instance* c = uav_enter(comp, MASK3_##mask, fn);                        \
+    if (!c || wrong_interface(c, INTERFACE_##mask, fn)) return fmi3Error;
 
 #define CALL(fn, mask, expr) \
     BEGIN(fn, mask)          \
@@ -178,21 +188,27 @@ fmi3Status fmi3GetBoolean(fmi3Instance comp, const fmi3ValueReference vr[], size
 
 fmi3Status fmi3SetBoolean(fmi3Instance comp, const fmi3ValueReference vr[], size_t nvr, const fmi3Boolean values[],
                           size_t nValues) {
-    (void)values; (void)nValues;
-    CALL("fmi3SetBoolean", SetInput, uav_boolean_output(c, vr, nvr, "fmi3SetBoolean"))
+    (void)values;
+    BEGIN("fmi3SetBoolean", SetInput)
+    if (scalars(c, nvr, nValues, "fmi3SetBoolean")) return fmi3Error;
+    return (fmi3Status)uav_boolean_output(c, vr, nvr, "fmi3SetBoolean");
 }
 
-/* the types this FMU has no variable of */
+/* the types this FMU has no variable of (nValues is still checked: a mismatch is an argument error) */
 #define NO_GET(T, CT)                                                                                        \
     fmi3Status fmi3Get##T(fmi3Instance comp, const fmi3ValueReference vr[], size_t nvr, CT values[],        \
                           size_t nValues) {                                                                  \
-        (void)values; (void)nValues;                                                                         \
-        CALL("fmi3Get" #T, GetValue, uav_no_such_type(c, vr, nvr, "fmi3Get" #T))                             \
+        (void)values;                                                                                        \
+        BEGIN("fmi3Get" #T, GetValue)                                                                        \
+        if (scalars(c, nvr, nValues, "fmi3Get" #T)) return fmi3Error;                                        \
+        return (fmi3Status)uav_no_such_type(c, vr, nvr, "fmi3Get" #T);                                       \
     }                                                                                                        \
     fmi3Status fmi3Set##T(fmi3Instance comp, const fmi3ValueReference vr[], size_t nvr, const CT values[],  \
                           size_t nValues) {                                                                  \
-        (void)values; (void)nValues;                                                                         \
-        CALL("fmi3Set" #T, SetInput, uav_no_such_type(c, vr, nvr, "fmi3Set" #T))                             \
+        (void)values;                                                                                        \
+        BEGIN("fmi3Set" #T, SetInput)                                                                        \
+        if (scalars(c, nvr, nValues, "fmi3Set" #T)) return fmi3Error;                                        \
+        return (fmi3Status)uav_no_such_type(c, vr, nvr, "fmi3Set" #T);                                       \
     }
 NO_GET(Float32, fmi3Float32)
 NO_GET(Int8, fmi3Int8)
@@ -208,14 +224,18 @@ NO_GET(String, fmi3String)
 
 fmi3Status fmi3GetBinary(fmi3Instance comp, const fmi3ValueReference vr[], size_t nvr, size_t valueSizes[],
                          fmi3Binary values[], size_t nValues) {
-    (void)valueSizes; (void)values; (void)nValues;
-    CALL("fmi3GetBinary", GetValue, uav_no_such_type(c, vr, nvr, "fmi3GetBinary"))
+    (void)valueSizes; (void)values;
+    BEGIN("fmi3GetBinary", GetValue)
+    if (scalars(c, nvr, nValues, "fmi3GetBinary")) return fmi3Error;
+    return (fmi3Status)uav_no_such_type(c, vr, nvr, "fmi3GetBinary");
 }
 
 fmi3Status fmi3SetBinary(fmi3Instance comp, const fmi3ValueReference vr[], size_t nvr, const size_t valueSizes[],
                          const fmi3Binary values[], size_t nValues) {
-    (void)valueSizes; (void)values; (void)nValues;
-    CALL("fmi3SetBinary", SetInput, uav_no_such_type(c, vr, nvr, "fmi3SetBinary"))
+    (void)valueSizes; (void)values;
+    BEGIN("fmi3SetBinary", SetInput)
+    if (scalars(c, nvr, nValues, "fmi3SetBinary")) return fmi3Error;
+    return (fmi3Status)uav_no_such_type(c, vr, nvr, "fmi3SetBinary");
 }
 
 fmi3Status fmi3GetClock(fmi3Instance comp, const fmi3ValueReference vr[], size_t nvr, fmi3Clock values[]) {
@@ -384,14 +404,14 @@ fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance comp, fmi3Float64 nomi
 }
 
 fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance comp, size_t* n) {
-    BEGIN("fmi3GetNumberOfEventIndicators", GetNumber)
+    BEGIN("fmi3GetNumberOfEventIndicators", GetNumberOfStates)
     if (!n) return (fmi3Status)uav_fail(c, UAV_ERROR, "fmi3GetNumberOfEventIndicators: NULL argument");
     *n = 0;
     return fmi3OK;
 }
 
 fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance comp, size_t* n) {
-    BEGIN("fmi3GetNumberOfContinuousStates", GetNumber)
+    BEGIN("fmi3GetNumberOfContinuousStates", GetNumberOfStates)
     if (!n) return (fmi3Status)uav_fail(c, UAV_ERROR, "fmi3GetNumberOfContinuousStates: NULL argument");
     *n = (size_t)c->model->nx;
     return fmi3OK;
