@@ -336,6 +336,28 @@ def vrs(*v: int) -> ctypes.Array:
     return (ctypes.c_uint * len(v))(*v)
 
 
+def test_a_function_of_the_other_interface_is_refused_in_every_state(built_fmus: dict[str, Path],
+                                                                     tmp_path: Path) -> None:
+    """FMI 2.0.4 sections 3.2, 4.2: a Co-Simulation instance of a CS + ME FMU hands out no continuous states or
+    derivatives, even in the states where a Model Exchange instance may (initialization, terminated)."""
+    q = Raw(built_fmus["quadrotor"], tmp_path / "q")
+    lib = q.lib
+    nx = q.md.numberOfContinuousStates
+    buf = (ctypes.c_double * nx)()
+    c = ctypes.c_void_p(q.new())  # Co-Simulation
+    assert lib.fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0) == 0 and lib.fmi2EnterInitializationMode(c) == 0
+    for fn in ("fmi2GetContinuousStates", "fmi2GetDerivatives", "fmi2GetNominalsOfContinuousStates"):
+        assert getattr(lib, fn)(c, buf, nx) == 3 and "a Model Exchange function" in q.last(), fn
+    assert lib.fmi2ExitInitializationMode(c) == 0 and lib.fmi2Terminate(c) == 0
+    assert lib.fmi2GetContinuousStates(c, buf, nx) == 3 and "instantiated for Co-Simulation" in q.last()
+    lib.fmi2FreeInstance(c)
+    me = ctypes.c_void_p(lib.fmi2Instantiate(b"me", 0, q.md.guid.encode(), b"", ctypes.byref(q.cb), 0, 0))
+    assert me.value and lib.fmi2SetupExperiment(me, 0, 0.0, 0.0, 0, 0.0) == 0
+    assert lib.fmi2EnterInitializationMode(me) == 0 and lib.fmi2GetContinuousStates(me, buf, nx) == 0
+    assert any(v != 0.0 for v in buf)  # the ME instance still answers
+    lib.fmi2FreeInstance(me)
+
+
 def test_bad_calls_are_fmi2error_with_a_message_and_the_instance_stays_usable(built_fmus: dict[str, Path],
                                                                              tmp_path: Path) -> None:
     q = Raw(built_fmus["quadrotor"], tmp_path / "q")

@@ -30,9 +30,9 @@ static void emit2(Instance* c, int status, const char* category, const char* tex
     cb->logger(cb->componentEnvironment, c->name, (fmi2Status)status, category, buf);
 }
 
-#define BEGIN(fn, mask)                            \
-    Instance* c = uav_enter(comp, MASK_##mask, fn); \
-    if (!c) return fmi2Error;
+#define BEGIN(fn, mask)                                                    \
+    Instance* c = uav_enter(comp, MASK_##mask, fn);                        \
+    if (!c || uav_wrong_interface(c, INTERFACE_##mask, fn)) return fmi2Error;
 
 #define CALL(fn, mask, expr) \
     BEGIN(fn, mask)          \

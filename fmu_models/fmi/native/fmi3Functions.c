@@ -23,19 +23,9 @@ static void emit3(Instance* c, int status, const char* category, const char* tex
     if (cb && cb->log) cb->log((fmi3InstanceEnvironment)c->env, (fmi3Status)status, category, text);
 }
 
-/* A function of the other interface (INTERFACE_<mask>: 1 Model Exchange, 0 Co-Simulation, -1 both; FMI 3.0
-   sections 3.2.1, 4.2.1) is refused whatever the state: an ME instance never enters Step Mode, a CS instance has
-   no continuous-state vector to hand out. */
-static int wrong_interface(Instance* c, int interface, const char* fn) {
-    if (interface < 0 || c->model_exchange == interface) return 0;
-    uav_fail(c, UAV_ERROR, "%s: a %s function, but this instance was instantiated for %s", fn,
-             interface ? "Model Exchange" : "Co-Simulation", c->model_exchange ? "Model Exchange" : "Co-Simulation");
-    return 1;
-}
-
 #define BEGIN(fn, mask)                                                    \
     Instance* c = uav_enter(comp, MASK3_##mask, fn);                        \
-    if (!c || wrong_interface(c, INTERFACE_##mask, fn)) return fmi3Error;
+    if (!c || uav_wrong_interface(c, INTERFACE_##mask, fn)) return fmi3Error;
 
 #define CALL(fn, mask, expr) \
     BEGIN(fn, mask)          \

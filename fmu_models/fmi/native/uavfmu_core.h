@@ -85,6 +85,16 @@ static int uav_fail(Instance* c, int status, const char* fmt, ...) {
     return status;
 }
 
+/* A function of the other interface (INTERFACE_<op>: 1 Model Exchange, 0 Co-Simulation, -1 both; FMI 2.0.4
+   sections 3.2, 4.2; FMI 3.0 sections 3.2.1, 4.2.1) is refused whatever the state: an ME instance never steps,
+   a CS instance has no continuous-state vector to hand out. 1 (logged) when refused. */
+static int uav_wrong_interface(Instance* c, int interface, const char* fn) {
+    if (interface < 0 || c->model_exchange == interface) return 0;
+    uav_fail(c, UAV_ERROR, "%s: a %s function, but this instance was instantiated for %s", fn,
+             interface ? "Model Exchange" : "Co-Simulation", c->model_exchange ? "Model Exchange" : "Co-Simulation");
+    return 1;
+}
+
 /* The instance, if it is one of ours and fn is allowed in its state, else NULL (a foreign pointer is never
    written through; a state error is logged). */
 static Instance* uav_enter(void* comp, int mask, const char* fn) {
