@@ -287,6 +287,9 @@ def _pool(sources: list[AeroSource], model: FixedWingModel, opt: AeroOptions, no
     fit, val = [], []
     for k, src in enumerate(sources):
         f, v = _source_segments(src, model, opt, notes)
+        f, cut = aero_segments.airborne_parts(src.log, f)
+        v, cut_v = aero_segments.airborne_parts(src.log, v)
+        notes += cut + cut_v
         fit += [(k, s) for s in f]
         val += [(k, s) for s in v]
     return Pool(sources, fit, val)
