@@ -3,13 +3,20 @@
 The FMU behind ``fixed_wing/arduplane_sitl_fmu_excitation.BIN`` has derivatives that are not handed over, so
 the Done-when ("every primary derivative within 10 % with a covering 95 % interval") cannot be checked on it.
 The replica keeps everything of that log but the aircraft: the same servo PWM (RCOU), the same timeline and
-segments, the logged state at each segment start; inside every fit and held-out segment the outputs
-``identify aero`` reads (attitude, gyro, accelerometer, airspeed) are replaced by our fixed-wing model flown
-from that state with those inputs and a known derivative set, plus sensor noise. The set: Aerosonde's with
-the primaries and the fixed lateral/pitch coefficients (:data:`SCALED`) each times a seeded factor in
+segments, the logged state at each segment start; inside every fit and held-out segment every signal
+``identify aero`` reads (attitude and heading, gyro, accelerometer, airspeed, GPS velocity, altitude: the fitted
+outputs, the state a segment or a piece of it starts from, the airborne test) is replaced by our fixed-wing
+model flown from that state with those inputs and a known derivative set, plus sensor noise. The set:
+Aerosonde's with the primaries and the fixed lateral/pitch coefficients (:data:`SCALED`) each times a seeded
+factor in
 [0.6, 1.6] (one draw per seed), ``C_m_0`` re-balanced so the logged trim (median elevator and angle of attack
 at the segment starts) stays a trim. Noise per output: the demo's white sensor noise
 (``uavfmu.synthetic.NOISE``) plus an AR(1) part of the same std (pole 0.9 at 50 Hz).
+
+The truth is flown open loop with the logged servo PWM (the log's FBWA recoveries included): a draw with an
+unstable spiral can dive into the ground inside a segment, which a real flight, recovered by its autopilot,
+would not; the truth's modes at trim are printed per draw, and ``identify aero`` cuts such segments where the
+aircraft comes within 10 m of the ground level (its notes are printed).
 
 Then the library path of the command a user types (``uavfmu identify aero LOG --out x.json``: every default,
 timeline found beside the log) runs on the replica, and per primary derivative the relative error, the
@@ -18,8 +25,8 @@ printed 95 % interval, whether it covers the truth and what determines it are pr
 A draw fails also when ``identify aero`` records a failure (e.g. a fitted model that runs away in a segment,
 whose bounds it then refuses to call credible).
 
-Run: ``.venv/bin/python bench/aero_replica.py [--draws 1] [--seed 0]`` (one identify run, a few minutes on
-2 shared cores, per draw). Exit 1 when a primary derivative misses 10 % or its interval does not cover it;
+Run: ``.venv/bin/python bench/aero_replica.py [--draws 1] [--seed 0]`` (one identify run per draw: 15-60 s
+on 2 cores, more when they are shared). Exit 1 when a primary derivative misses 10 % or its interval does not cover it;
 the log is read from ``../shared/data`` (exit 2 when absent).
 """
 
