@@ -48,6 +48,14 @@ STABILITY_SIGNS = {"C_ell_p": -1, "C_m_q": -1, "C_n_r": -1, "C_m_alpha": -1, "C_
 #: the primary derivatives (issue 23), the start of ``free="auto"``
 PRIMARY = ("C_ell_p", "C_ell_beta", "C_ell_r", "C_ell_delta_a", "C_n_beta", "C_n_r", "C_n_delta_r", "C_Y_beta",
            "C_m_alpha", "C_m_q", "C_m_delta_e")
+#: zero-order coefficients that ``free="auto"`` estimates with the primaries: every segment starts from a logged
+#: trim, where ``C_m_0 + C_m_alpha alpha + C_m_delta_e delta_e ~ 0``; with C_m_0 held at a value that is not the
+#: aircraft's, that trim ties C_m_alpha to C_m_delta_e (r = +0.999 on the excitation log) and biases both
+#: (intercept always in, as in equation error's stepwise regression)
+TRIM_OFFSETS = ("C_m_0",)
+#: fitted outputs that see the pitch axis: without one, the pitch derivatives rest on their priors and the trim
+#: offset is left fixed (one more parameter that only its prior would determine)
+PITCH_OUTPUTS = ("pitch_rad", "rate_body_y_rad_s", "accel_body_x_m_s2", "accel_body_z_m_s2", "airspeed_m_s")
 #: held-out outputs scored against persistence with a block-bootstrap interval over blocks of this length [s]
 SKILL_BLOCK_S = 2.0
 #: per-segment nuisance candidates of ``nuisance="auto"``
@@ -345,9 +353,11 @@ def _fit(oe: OutputErrorEstimator, data: list[Manoeuvre], opt: AeroOptions, weig
 
 
 def _choose_free(model: FixedWingModel, p: np.ndarray, data: list[Manoeuvre], opt: AeroOptions) -> list[str]:
-    """``free="auto"``: every primary derivative (the priors keep the ones the data leave open in place, and
-    the summary names them); the fixed parameters that matter are freed after the first fit."""
-    return [n for n in PRIMARY if n in model.params.index]
+    """``free="auto"``: every primary derivative, and :data:`TRIM_OFFSETS` when a fitted output sees the pitch
+    axis (the priors keep the ones the data leave open in place, and the summary names them); the fixed
+    parameters that matter are freed after the first fit."""
+    pitch_seen = any(n in PITCH_OUTPUTS for n in opt.outputs)
+    return [n for n in (*PRIMARY, *(TRIM_OFFSETS if pitch_seen else ())) if n in model.params.index]
 
 
 def _nuisance_fits(model: FixedWingModel, p: np.ndarray, free: list[str], data: list[Manoeuvre],
@@ -466,7 +476,8 @@ def identify_aero(log: FlightLog | Sequence[AeroSource], mapping: PwmMapping | N
     result.pool, result.rival = pool, rival
     result.identified = {**init.to_dict(), **fit.estimate.derivatives()}
     if opt.free == "auto":
-        notes.append(f"free=auto started from the primary derivatives {', '.join(free)}")
+        notes.append(f"free=auto started from {', '.join(free)} (the primary derivatives"
+                     f"{' and the pitch trim offset' if set(TRIM_OFFSETS) & set(free) else ''})")
     _after_fit(result, model, p, init, opt, weight)
     return result
 
