@@ -171,9 +171,9 @@ def airborne(log: FlightLog, t_s: np.ndarray) -> np.ndarray:
 
 def airborne_parts(log: FlightLog, segs: Sequence[Segment], min_s: float = MIN_AIRBORNE_S
                    ) -> tuple[list[Segment], list[str]]:
-    """Each segment up to the first sample (0.02 s grid) where the aircraft is not :func:`airborne` (a record
-    that reaches the ground cannot be fitted by an aerodynamic model, and what follows a ground strike is no
-    manoeuvre); pieces shorter than ``min_s`` are dropped. Notes say what was cut."""
+    """Each segment reduced to its spans (0.02 s grid) where the aircraft is :func:`airborne`, each of at least
+    ``min_s`` and fitted from the log's state at its start: a record that reaches the ground cannot be fitted by
+    an aerodynamic model, and what follows a ground strike is no manoeuvre. Notes say what was cut."""
     out, notes = [], []
     for s in segs:
         t = np.arange(s.t0_s, s.t1_s + 1e-9, 0.02)
@@ -181,13 +181,14 @@ def airborne_parts(log: FlightLog, segs: Sequence[Segment], min_s: float = MIN_A
         if ok.all():
             out.append(s)
             continue
-        end = float(t[int(np.argmin(ok))])
-        if end - s.t0_s >= min_s:
-            out.append(Segment(s.t0_s, round(end, 3)))
-            notes.append(f"segment {s} cut at {end:.2f} s: the aircraft is no longer airborne (within "
-                         f"{AIRBORNE_HEIGHT_M:g} m of the ground level or below {AIRBORNE_AIRSPEED_M_S:g} m/s)")
-        else:
-            notes.append(f"segment {s} dropped: airborne for less than {min_s:g} s from its start")
+        edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(int), 0]))  # run starts and ends, alternating
+        runs = [Segment(round(float(t[i]), 3), round(float(t[j - 1]), 3)) for i, j in zip(edges[::2], edges[1::2],
+                                                                                            strict=True)]
+        kept = [r for r in runs if r.t1_s - r.t0_s >= min_s]
+        out += kept
+        what = f"kept {', '.join(map(str, kept))}" if kept else f"dropped (no airborne span of {min_s:g} s)"
+        notes.append(f"segment {s}: the aircraft is not airborne throughout (within {AIRBORNE_HEIGHT_M:g} m of the "
+                     f"ground level or below {AIRBORNE_AIRSPEED_M_S:g} m/s); {what}")
     return out, notes
 
 

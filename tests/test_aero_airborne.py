@@ -67,16 +67,19 @@ def dive(tmp_path_factory: pytest.TempPathFactory) -> tuple[FlightLog, float]:
     return _dive_log(tmp_path_factory.mktemp("dive") / "dive.csv")
 
 
-def test_airborne_parts_cut_at_the_ground_level_and_drop_short_pieces(dive) -> None:
+def test_airborne_parts_keep_the_airborne_spans_and_drop_short_ones(dive) -> None:
     log, ground = dive
     assert aero_segments.ground_level_m(log) == pytest.approx(0.0, abs=1e-9)
     segs, notes = aero_segments.airborne_parts(log, [aero.Segment(1.5, 9.0), aero.Segment(1.5, 16.9),
-                                                     aero.Segment(ground - 2.0, 16.9)])
+                                                     aero.Segment(ground - 2.0, 16.9), aero.Segment(0.2, 9.0)])
     assert segs[0] == aero.Segment(1.5, 9.0)  # airborne throughout: untouched
-    assert 1.5 + aero_segments.MIN_AIRBORNE_S < segs[1].t1_s < ground  # cut before the ground strike
-    alt = log.signal("altitude_m").resample(np.array([segs[1].t1_s - 0.02, segs[1].t1_s]))
+    assert segs[1].t0_s == 1.5 and 1.5 + aero_segments.MIN_AIRBORNE_S < segs[1].t1_s < ground  # cut before
+    alt = log.signal("altitude_m").resample(np.array([segs[1].t1_s, segs[1].t1_s + 0.02]))
     assert alt[0] > aero_segments.AIRBORNE_HEIGHT_M >= alt[1]
-    assert len(segs) == 2 and any("dropped" in n for n in notes) and any("cut at" in n for n in notes)
+    # the third (airborne for ~1.3 s, then on the ground) is dropped; the fourth starts parked: its airborne
+    # span from the take-off sample on is kept
+    assert len(segs) == 3 and PARKED_S - 0.02 <= segs[2].t0_s <= PARKED_S + 0.02 and segs[2].t1_s == 9.0
+    assert len(notes) == 3 and "dropped" in notes[1] and "kept" in notes[0] and "kept" in notes[2]
 
 
 def test_a_segment_that_ends_on_the_ground_is_fitted_while_airborne(dive, monkeypatch) -> None:
@@ -89,7 +92,7 @@ def test_a_segment_that_ends_on_the_ground_is_fitted_while_airborne(dive, monkey
                       equation_error=False, consider=False, priors="none")
     new = identify_aero(log, MAPPING, start, opt)
     assert not new.failures and not new.fit.estimate.unbounded
-    assert new.fit_segments[0].t1_s < ground and any("no longer airborne" in n for n in new.notes)
+    assert new.fit_segments[0].t1_s < ground and any("not airborne throughout" in n for n in new.notes)
     got = new.fit.estimate.derivatives()
     for n in FREE:
         assert got[n] == pytest.approx(getattr(truth, n), rel=0.10), n
