@@ -300,6 +300,9 @@ def _pool(sources: list[AeroSource], model: FixedWingModel, opt: AeroOptions, no
         notes += cut + cut_v
         fit += [(k, s) for s in f]
         val += [(k, s) for s in v]
+    if not fit:
+        raise aero.SegmentError(f"no fit segment left: none is airborne for {aero_segments.MIN_AIRBORNE_S:g} s "
+                                f"({'; '.join(notes[-3:])})")
     return Pool(sources, fit, val)
 
 

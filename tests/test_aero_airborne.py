@@ -101,3 +101,9 @@ def test_a_segment_that_ends_on_the_ground_is_fitted_while_airborne(dive, monkey
     old = identify_aero(log, MAPPING, start, opt)  # the behaviour before: the whole segment
     assert old.fit.estimate.unbounded == ["1.5:16.9"]
     assert any("runs away" in f for f in old.failures)
+
+
+def test_no_airborne_segment_is_a_clear_error(dive) -> None:
+    log, _ = dive
+    with pytest.raises(aero.SegmentError, match="no fit segment left"):
+        identify_aero(log, MAPPING, FixedWingParams(), AeroOptions(free=FREE, segments=[aero.Segment(0.1, 0.9)]))
