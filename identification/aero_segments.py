@@ -9,7 +9,8 @@ scoring; an axis flown once is fitted only.
 
 Without a timeline, segments are the spans where a control surface moves faster than its slow trend (a
 3-2-1-1, a doublet, a pilot's stick input), padded and merged; when none is found the airborne part is cut
-into windows as before, and the caller says so.
+into windows as before, and the caller says so. Whatever cut them, segments are then reduced to the spans where
+the aircraft is airborne (:func:`airborne_parts`).
 """
 
 from __future__ import annotations
