@@ -350,8 +350,13 @@ def _aic(est: Estimate, data: list[Manoeuvre]) -> float:
 
 
 def _fit(oe: OutputErrorEstimator, data: list[Manoeuvre], opt: AeroOptions, weight: np.ndarray | None,
-         delay_s: float = 0.0) -> Fit:
-    est = oe.estimate(data, weight=weight, max_iter=opt.max_iter, progress=opt.progress, horizon_s=opt.horizon_s)
+         delay_s: float = 0.0, warm: bool = False) -> Fit:
+    """One output-error fit from ``oe``'s nominal values; ``warm``: they are a converged estimate (a refit with
+    more parameters free), so the whole records are fitted at once: the continuation in record length is for
+    cold starts, and its short spans, where the added freedom is barely informed, can lead a warm start away
+    into another minimum."""
+    est = oe.estimate(data, weight=weight, max_iter=opt.max_iter, progress=opt.progress,
+                      horizon_s=None if warm else opt.horizon_s)
     return Fit(oe, data, est, _aic(est, data), delay_s)
 
 
@@ -374,11 +379,19 @@ def _nuisance_fits(model: FixedWingModel, p: np.ndarray, free: list[str], data: 
     if opt.nuisance == "none":
         return plain, "none", notes
     biases = [b for b in AUTO_BIASES if b in opt.outputs]
+    # the richer, nested model starts at the plain fit's optimum (its nuisance parameters at the logged initial
+    # rates and zero biases) over the whole records: it can only lower the cost from there, and does not walk
+    # the short continuation spans, where the per-segment freedom can lead the derivatives into another minimum
+    warm = p.copy()
+    warm[plain.oe.i_free] = plain.estimate.values[:plain.estimate.n_global]
     try:
-        rich = _fit(_estimator(model, p, free, opt, AUTO_STATES, biases), data, opt, weight)
+        rich = _fit(_estimator(model, warm, free, opt, AUTO_STATES, biases), data, opt, weight, warm=True)
     except EstimationError as err:
         notes.append(f"per-segment initial rates and biases not estimable ({err}); fitted without")
         return plain, "none", notes
+    if rich.estimate.unbounded and not plain.estimate.unbounded:
+        return plain, "none (with per-segment states and biases the fitted model runs away in " \
+            f"{', '.join(rich.estimate.unbounded)})", notes
     confounded = [f"{a}~{b}" for a, b, _ in (rich.estimate.identifiability.pairs
                                               if rich.estimate.identifiability else []) if "." in a + b]
     if confounded:
@@ -459,8 +472,12 @@ def identify_aero(log: FlightLog | Sequence[AeroSource], mapping: PwmMapping | N
     pool = _pool(sources, model, opt, notes)
     data = pool.manoeuvres(model, p, pool.fit, outputs, opt.rate_hz)
     free = _choose_free(model, p, data, opt) if opt.free == "auto" else list(opt.free)
+    p_default = p.copy()
     rival = _equation_error_start(model, p, pool, free, opt, notes)
     probe = _estimator(model, p, free, opt, (), ())
+    if rival is not None and not _fits_better(probe, data, p[probe.i_free], p_default[probe.i_free], notes):
+        p[:] = p_default
+        probe = _estimator(model, p, free, opt, (), ())
     before = probe.identifiability(data, weight=weight)
     start = {n: float(p[i]) for n, i in zip(free, probe.i_free, strict=True)}
     try:
@@ -543,7 +560,7 @@ def _free_fixed(result: AeroResult, model: FixedWingModel, p: np.ndarray, opt: A
     p2 = p.copy()
     p2[result.fit.oe.i_free] = est.values[:n]
     oe = _estimator(model, p2, free, opt, result.fit.oe.states_est, result.fit.oe.biases)
-    new = _fit(oe, result.fit.data, opt, weight, result.fit.delay_s)
+    new = _fit(oe, result.fit.data, opt, weight, result.fit.delay_s, warm=True)
     result.fit, result.free = new, free
     result.start.update({c: float(p[model.params.index[c]]) for c in chosen})
     result.notes.append(f"free=auto freed {', '.join(chosen)}: held fixed, each shifted a free derivative by more "
@@ -628,6 +645,34 @@ def write_results(result: AeroResult, out: Path, metrics: Path, log_name: str, r
     except (OSError, ValueError, RuntimeError) as err:
         result.failures.append(f"plots: {err}")
         write_json(metrics, {"log": log_name, "rate_hz": rate_hz, **result.as_dict()})
+
+
+def _record_fit(oe: OutputErrorEstimator, data: list[Manoeuvre], theta: np.ndarray) -> float:
+    """``ln det R`` of the output residuals over every record (``R`` their covariance; the maximum-likelihood
+    output-error criterion up to constants), ``inf`` when the model diverges in a record."""
+    res = []
+    for j, m in enumerate(data):
+        y, _, bad = oe.simulate(theta, m, j, sensitivities=False)
+        if bad:
+            return math.inf
+        res.append(m.y - y)
+    sign, logdet = np.linalg.slogdet(np.atleast_2d(np.cov(np.vstack(res).T, bias=True)))
+    return float(logdet) if sign > 0 else math.inf
+
+
+def _fits_better(oe: OutputErrorEstimator, data: list[Manoeuvre], theta_ee: np.ndarray, theta_0: np.ndarray,
+                 notes: list[str]) -> bool:
+    """Whether the equation-error start fits the records better than the start values (:func:`_record_fit`):
+    its regression is biased towards zero by errors in the regressors (input timing, filtered rates), and a start
+    that fits worse can lead the output-error continuation into another minimum. A note says which start won."""
+    if np.array_equal(theta_ee, theta_0):
+        return True
+    ee, default = _record_fit(oe, data, theta_ee), _record_fit(oe, data, theta_0)
+    if ee < default:
+        return True
+    notes.append(f"equation-error start not used: it fits the records worse than the start values (ln det of the "
+                 f"residual covariance {ee:.2f} >= {default:.2f})")
+    return False
 
 
 def _equation_error_start(model: FixedWingModel, p: np.ndarray, pool: Pool, free: Sequence[str],
