@@ -48,6 +48,14 @@ STABILITY_SIGNS = {"C_ell_p": -1, "C_m_q": -1, "C_n_r": -1, "C_m_alpha": -1, "C_
 #: the primary derivatives (issue 23), the start of ``free="auto"``
 PRIMARY = ("C_ell_p", "C_ell_beta", "C_ell_r", "C_ell_delta_a", "C_n_beta", "C_n_r", "C_n_delta_r", "C_Y_beta",
            "C_m_alpha", "C_m_q", "C_m_delta_e")
+#: zero-order coefficients that ``free="auto"`` estimates with the primaries: every segment starts from a logged
+#: trim, where ``C_m_0 + C_m_alpha alpha + C_m_delta_e delta_e ~ 0``; with C_m_0 held at a value that is not the
+#: aircraft's, that trim ties C_m_alpha to C_m_delta_e (r = +0.999 on the excitation log) and biases both
+#: (intercept always in, as in equation error's stepwise regression)
+TRIM_OFFSETS = ("C_m_0",)
+#: fitted outputs that see the pitch axis: without one, the pitch derivatives rest on their priors and the trim
+#: offset is left fixed (one more parameter that only its prior would determine)
+PITCH_OUTPUTS = ("pitch_rad", "rate_body_y_rad_s", "accel_body_x_m_s2", "accel_body_z_m_s2", "airspeed_m_s")
 #: held-out outputs scored against persistence with a block-bootstrap interval over blocks of this length [s]
 SKILL_BLOCK_S = 2.0
 #: per-segment nuisance candidates of ``nuisance="auto"``
@@ -287,8 +295,14 @@ def _pool(sources: list[AeroSource], model: FixedWingModel, opt: AeroOptions, no
     fit, val = [], []
     for k, src in enumerate(sources):
         f, v = _source_segments(src, model, opt, notes)
+        f, cut = aero_segments.airborne_parts(src.log, f)
+        v, cut_v = aero_segments.airborne_parts(src.log, v)
+        notes += cut + cut_v
         fit += [(k, s) for s in f]
         val += [(k, s) for s in v]
+    if not fit:
+        raise aero.SegmentError(f"no fit segment left: none is airborne for {aero_segments.MIN_AIRBORNE_S:g} s "
+                                f"({'; '.join(notes[-3:])})")
     return Pool(sources, fit, val)
 
 
@@ -336,15 +350,22 @@ def _aic(est: Estimate, data: list[Manoeuvre]) -> float:
 
 
 def _fit(oe: OutputErrorEstimator, data: list[Manoeuvre], opt: AeroOptions, weight: np.ndarray | None,
-         delay_s: float = 0.0) -> Fit:
-    est = oe.estimate(data, weight=weight, max_iter=opt.max_iter, progress=opt.progress, horizon_s=opt.horizon_s)
+         delay_s: float = 0.0, warm: bool = False) -> Fit:
+    """One output-error fit from ``oe``'s nominal values; ``warm``: they are a converged estimate (a refit with
+    more parameters free), so the whole records are fitted at once: the continuation in record length is for
+    cold starts, and its short spans, where the added freedom is barely informed, can lead a warm start away
+    into another minimum."""
+    est = oe.estimate(data, weight=weight, max_iter=opt.max_iter, progress=opt.progress,
+                      horizon_s=None if warm else opt.horizon_s)
     return Fit(oe, data, est, _aic(est, data), delay_s)
 
 
 def _choose_free(model: FixedWingModel, p: np.ndarray, data: list[Manoeuvre], opt: AeroOptions) -> list[str]:
-    """``free="auto"``: every primary derivative (the priors keep the ones the data leave open in place, and
-    the summary names them); the fixed parameters that matter are freed after the first fit."""
-    return [n for n in PRIMARY if n in model.params.index]
+    """``free="auto"``: every primary derivative, and :data:`TRIM_OFFSETS` when a fitted output sees the pitch
+    axis (the priors keep the ones the data leave open in place, and the summary names them); the fixed
+    parameters that matter are freed after the first fit."""
+    pitch_seen = any(n in PITCH_OUTPUTS for n in opt.outputs)
+    return [n for n in (*PRIMARY, *(TRIM_OFFSETS if pitch_seen else ())) if n in model.params.index]
 
 
 def _nuisance_fits(model: FixedWingModel, p: np.ndarray, free: list[str], data: list[Manoeuvre],
@@ -358,11 +379,19 @@ def _nuisance_fits(model: FixedWingModel, p: np.ndarray, free: list[str], data: 
     if opt.nuisance == "none":
         return plain, "none", notes
     biases = [b for b in AUTO_BIASES if b in opt.outputs]
+    # the richer, nested model starts at the plain fit's optimum (its nuisance parameters at the logged initial
+    # rates and zero biases) over the whole records: it can only lower the cost from there, and does not walk
+    # the short continuation spans, where the per-segment freedom can lead the derivatives into another minimum
+    warm = p.copy()
+    warm[plain.oe.i_free] = plain.estimate.values[:plain.estimate.n_global]
     try:
-        rich = _fit(_estimator(model, p, free, opt, AUTO_STATES, biases), data, opt, weight)
+        rich = _fit(_estimator(model, warm, free, opt, AUTO_STATES, biases), data, opt, weight, warm=True)
     except EstimationError as err:
         notes.append(f"per-segment initial rates and biases not estimable ({err}); fitted without")
         return plain, "none", notes
+    if rich.estimate.unbounded and not plain.estimate.unbounded:
+        return plain, "none (with per-segment states and biases the fitted model runs away in " \
+            f"{', '.join(rich.estimate.unbounded)})", notes
     confounded = [f"{a}~{b}" for a, b, _ in (rich.estimate.identifiability.pairs
                                               if rich.estimate.identifiability else []) if "." in a + b]
     if confounded:
@@ -443,8 +472,12 @@ def identify_aero(log: FlightLog | Sequence[AeroSource], mapping: PwmMapping | N
     pool = _pool(sources, model, opt, notes)
     data = pool.manoeuvres(model, p, pool.fit, outputs, opt.rate_hz)
     free = _choose_free(model, p, data, opt) if opt.free == "auto" else list(opt.free)
+    p_default = p.copy()
     rival = _equation_error_start(model, p, pool, free, opt, notes)
     probe = _estimator(model, p, free, opt, (), ())
+    if rival is not None and not _fits_better(probe, data, p[probe.i_free], p_default[probe.i_free], notes):
+        p[:] = p_default
+        probe = _estimator(model, p, free, opt, (), ())
     before = probe.identifiability(data, weight=weight)
     start = {n: float(p[i]) for n, i in zip(free, probe.i_free, strict=True)}
     try:
@@ -463,7 +496,8 @@ def identify_aero(log: FlightLog | Sequence[AeroSource], mapping: PwmMapping | N
     result.pool, result.rival = pool, rival
     result.identified = {**init.to_dict(), **fit.estimate.derivatives()}
     if opt.free == "auto":
-        notes.append(f"free=auto started from the primary derivatives {', '.join(free)}")
+        notes.append(f"free=auto started from {', '.join(free)} (the primary derivatives"
+                     f"{' and the pitch trim offset' if set(TRIM_OFFSETS) & set(free) else ''})")
     _after_fit(result, model, p, init, opt, weight)
     return result
 
@@ -526,7 +560,7 @@ def _free_fixed(result: AeroResult, model: FixedWingModel, p: np.ndarray, opt: A
     p2 = p.copy()
     p2[result.fit.oe.i_free] = est.values[:n]
     oe = _estimator(model, p2, free, opt, result.fit.oe.states_est, result.fit.oe.biases)
-    new = _fit(oe, result.fit.data, opt, weight, result.fit.delay_s)
+    new = _fit(oe, result.fit.data, opt, weight, result.fit.delay_s, warm=True)
     result.fit, result.free = new, free
     result.start.update({c: float(p[model.params.index[c]]) for c in chosen})
     result.notes.append(f"free=auto freed {', '.join(chosen)}: held fixed, each shifted a free derivative by more "
@@ -611,6 +645,34 @@ def write_results(result: AeroResult, out: Path, metrics: Path, log_name: str, r
     except (OSError, ValueError, RuntimeError) as err:
         result.failures.append(f"plots: {err}")
         write_json(metrics, {"log": log_name, "rate_hz": rate_hz, **result.as_dict()})
+
+
+def _record_fit(oe: OutputErrorEstimator, data: list[Manoeuvre], theta: np.ndarray) -> float:
+    """``ln det R`` of the output residuals over every record (``R`` their covariance; the maximum-likelihood
+    output-error criterion up to constants), ``inf`` when the model diverges in a record."""
+    res = []
+    for j, m in enumerate(data):
+        y, _, bad = oe.simulate(theta, m, j, sensitivities=False)
+        if bad:
+            return math.inf
+        res.append(m.y - y)
+    sign, logdet = np.linalg.slogdet(np.atleast_2d(np.cov(np.vstack(res).T, bias=True)))
+    return float(logdet) if sign > 0 else math.inf
+
+
+def _fits_better(oe: OutputErrorEstimator, data: list[Manoeuvre], theta_ee: np.ndarray, theta_0: np.ndarray,
+                 notes: list[str]) -> bool:
+    """Whether the equation-error start fits the records better than the start values (:func:`_record_fit`):
+    its regression is biased towards zero by errors in the regressors (input timing, filtered rates), and a start
+    that fits worse can lead the output-error continuation into another minimum. A note says which start won."""
+    if np.array_equal(theta_ee, theta_0):
+        return True
+    ee, default = _record_fit(oe, data, theta_ee), _record_fit(oe, data, theta_0)
+    if ee < default:
+        return True
+    notes.append(f"equation-error start not used: it fits the records worse than the start values (ln det of the "
+                 f"residual covariance {ee:.2f} >= {default:.2f})")
+    return False
 
 
 def _equation_error_start(model: FixedWingModel, p: np.ndarray, pool: Pool, free: Sequence[str],

@@ -9,7 +9,8 @@ scoring; an axis flown once is fitted only.
 
 Without a timeline, segments are the spans where a control surface moves faster than its slow trend (a
 3-2-1-1, a doublet, a pilot's stick input), padded and merged; when none is found the airborne part is cut
-into windows as before, and the caller says so.
+into windows as before, and the caller says so. Whatever cut them, segments are then reduced to the spans where
+the aircraft is airborne (:func:`airborne_parts`).
 """
 
 from __future__ import annotations
@@ -24,10 +25,18 @@ import numpy as np
 from fmu_models.config import ConfigError
 from identification.aero import Segment, SegmentError, airborne_segments
 from identification.flightlog import FlightLog
+from identification.log_state import WING_GROUND_AIRSPEED_M_S
 from identification.timeline import load_timeline
 
 #: recovery time kept after a block's end [s]: the response to the last pulse is still informative
 TAIL_S = 2.0
+#: a segment is cut where the aircraft comes within this height [m] of the log's ground level or flies slower
+#: than this airspeed [m/s]: the aerodynamic model's range ends there (the gear may touch the ground, whose
+#: contact model no derivative describes, and what follows a ground strike is no manoeuvre)
+AIRBORNE_HEIGHT_M = 10.0
+AIRBORNE_AIRSPEED_M_S = 12.0
+#: shortest airborne piece of a segment that is kept [s]
+MIN_AIRBORNE_S = 3.0
 #: longest segment cut from detected input activity [s]; longer spans are split into equal pieces, each fitted
 #: from the log's state at its start (closed-loop flight moves the surfaces all the time: without a split
 #: the whole flight would be one record, and drift, not the manoeuvres, would dominate the fit)
@@ -131,6 +140,57 @@ def active_segments(t_s: np.ndarray, u: np.ndarray, airborne: np.ndarray, pad_s:
             out += [Segment(round(t0 + i * step, 3), round(t0 + (i + 1) * step, 3)) for i in range(n)]
         k = j + 1
     return out
+
+
+def ground_level_m(log: FlightLog) -> float | None:
+    """The log's ground level [m, its altitude scale]: the median altitude while parked (the ``landed`` flag,
+    else airspeed below ``log_state.WING_GROUND_AIRSPEED_M_S``); None when the log never shows the aircraft on
+    the ground (a log that starts in the air: no height criterion then)."""
+    if not log.has("altitude_m"):
+        return None
+    alt = log.signal("altitude_m")
+    if log.has("landed"):
+        parked = log.signal("landed").resample(alt.t_s) > 0.5
+    elif log.has("airspeed_m_s"):
+        parked = log.signal("airspeed_m_s").resample(alt.t_s) < WING_GROUND_AIRSPEED_M_S
+    else:
+        return None
+    return float(np.median(alt.values[parked])) if parked.any() else None
+
+
+def airborne(log: FlightLog, t_s: np.ndarray) -> np.ndarray:
+    """Samples of ``t_s`` where the aircraft flies: more than :data:`AIRBORNE_HEIGHT_M` above the log's
+    :func:`ground_level_m` (when known) and faster than :data:`AIRBORNE_AIRSPEED_M_S` (when logged)."""
+    ok = np.ones(len(t_s), dtype=bool)
+    level = ground_level_m(log)
+    if level is not None:
+        ok &= log.signal("altitude_m").resample(t_s) - level > AIRBORNE_HEIGHT_M
+    if log.has("airspeed_m_s"):
+        ok &= log.signal("airspeed_m_s").resample(t_s) > AIRBORNE_AIRSPEED_M_S
+    return ok
+
+
+def airborne_parts(log: FlightLog, segs: Sequence[Segment], min_s: float = MIN_AIRBORNE_S
+                   ) -> tuple[list[Segment], list[str]]:
+    """Each segment reduced to its spans (0.02 s grid) where the aircraft is :func:`airborne`, each of at least
+    ``min_s`` and fitted from the log's state at its start: a record that reaches the ground cannot be fitted by
+    an aerodynamic model, and what follows a ground strike is no manoeuvre. Notes say what was cut."""
+    out, notes = [], []
+    for s in segs:
+        t = np.arange(s.t0_s, s.t1_s + 1e-9, 0.02)
+        ok = airborne(log, t)
+        if ok.all():
+            out.append(s)
+            continue
+        edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(int), 0]))  # run starts and ends, alternating
+        runs = [Segment(round(float(t[i]), 3), round(float(t[j - 1]), 3)) for i, j in zip(edges[::2], edges[1::2],
+                                                                                            strict=True)]
+        kept = [r for r in runs if r.t1_s - r.t0_s >= min_s]
+        out += kept
+        what = f"kept {', '.join(map(str, kept))}" if kept else f"dropped (no airborne span of {min_s:g} s)"
+        notes.append(f"segment {s}: the aircraft is not airborne throughout (within {AIRBORNE_HEIGHT_M:g} m of the "
+                     f"ground level or below {AIRBORNE_AIRSPEED_M_S:g} m/s); {what}")
+    return out, notes
 
 
 def split_segments(segs: Sequence[Segment], length_s: float) -> list[Segment]:
