@@ -313,45 +313,24 @@ def correlation_lags(r: np.ndarray) -> int:
     return int(min(2 * max(first), n // 2))
 
 
-#: largest |AR(1) coefficient| of the prewhitening in :func:`coloured_covariance` (keeps the recolouring finite)
-PREWHITEN_RHO_MAX = 0.97
-
-
-def ar1_coefficients(r: np.ndarray) -> np.ndarray:
-    """Per output, the least-squares AR(1) coefficient ``rho`` of the residuals ``r`` (N x ny), clipped to
-    ``+-PREWHITEN_RHO_MAX``."""
-    num = np.einsum("ty,ty->y", r[1:], r[:-1])
-    den = np.maximum(np.einsum("ty,ty->y", r[:-1], r[:-1]), 1e-300)
-    return np.clip(num / den, -PREWHITEN_RHO_MAX, PREWHITEN_RHO_MAX)
-
-
-def coloured_covariance(G: np.ndarray, r: np.ndarray, lags: int | None = None, prewhiten: bool = True) -> np.ndarray:
+def coloured_covariance(G: np.ndarray, r: np.ndarray, lags: int | None = None) -> np.ndarray:
     """One manoeuvre's middle term of Morelli & Klein's (1997) covariance for coloured residuals.
 
     ``G`` (N x ny x np) holds the weighted sensitivities ``W dy/dθ`` per sample, ``r`` (N x ny) the residuals.
     Returns ``Σ_i Σ_j G_iᵀ R(j-i) G_j`` with the residual autocorrelation ``R`` (biased estimate) tapered by a
     Bartlett window of ``lags`` lags (default :func:`correlation_lags`); the covariance is
     ``M⁻¹ (Σ over manoeuvres) M⁻¹``. The taper keeps the estimate positive semi-definite and stops the
-    noisy far lags from shaking the bounds of white residuals, but on strongly coloured residuals it keeps only
-    part of the long-run variance (about 0.8 of it for an AR(1) pole of 0.9 with the default window). So, with
-    ``prewhiten`` (Andrews & Monahan 1992), each output's residual is first whitened by its AR(1) fit
-    ``e_t = r_t - rho r_(t-1)``, the tapered spectrum is taken of ``e`` and recoloured by ``1/(1 - rho e^(-iw))``
-    (white residuals: ``rho`` ~ 0, the plain estimate). Evaluated in the frequency domain with the residual
-    cross-spectrum: O(N log N) instead of O(N L) sums of np x np products.
+    noisy far lags from shaking the bounds of white residuals. Evaluated in the frequency domain with the
+    residual cross-spectrum: O(N log N) instead of O(N L) sums of np x np products.
     """
     n = r.shape[0]
-    rho = ar1_coefficients(r) if prewhiten and n > 2 else np.zeros(r.shape[1])
-    e = r.copy()
-    e[1:] -= rho[None, :] * r[:-1]
-    lags = correlation_lags(e) if lags is None else int(lags)
+    lags = correlation_lags(r) if lags is None else int(lags)
     size = 1 << (2 * n - 1).bit_length()
-    ef = np.fft.rfft(e, n=size, axis=0)  # (F, ny)
-    R = np.fft.irfft(np.conj(ef)[:, :, None] * ef[:, None, :], n=size, axis=0) / n  # R[τ] = E[e_t e_{t+τ}ᵀ]
+    rf = np.fft.rfft(r, n=size, axis=0)  # (F, ny)
+    R = np.fft.irfft(np.conj(rf)[:, :, None] * rf[:, None, :], n=size, axis=0) / n  # R[τ] = E[r_t r_{t+τ}ᵀ]
     tau = np.minimum(np.arange(size), size - np.arange(size))
     R *= np.clip(1.0 - tau / (lags + 1.0), 0.0, None)[:, None, None]
-    P = np.fft.rfft(R, axis=0)  # cross-spectral density of e, (F, ny, ny)
-    h = 1.0 / (1.0 - rho[None, :] * np.exp(-2j * np.pi * np.arange(P.shape[0]) / size)[:, None])  # (F, ny)
-    P = np.conj(h)[:, :, None] * P * h[:, None, :]  # recoloured: the spectrum of r
+    P = np.fft.rfft(R, axis=0)  # cross-spectral density, (F, ny, ny)
     Gf = np.fft.rfft(G, n=size, axis=0)  # (F, ny, np)
     w = np.full(P.shape[0], 2.0)  # rfft bins other than DC and Nyquist stand for a conjugate pair
     w[0] = 1.0
