@@ -115,7 +115,9 @@ def test_the_fmu_carries_the_file_it_was_built_from(identified: tuple[Path, Path
     big.write_bytes(b" " * (fmuzip.MAX_EMBEDDED_BYTES + 1))
     with pytest.raises(ValueError, match=r"big\.json: .* at most"):
         fmuzip.embedded_params_bytes(big)
-    (plain,) = __import__("build_fmus").build(None, tmp_path / "plain", ["quadrotor"])
+    from build_fmus import build
+
+    (plain,) = build(None, tmp_path / "plain", ["quadrotor"])
     assert embedded_battery_state(plain) is None  # built from defaults: nothing embedded
 
 

@@ -6,6 +6,7 @@ Two builds from the same sources and parameters give byte-identical ``.fmu`` fil
 
 from __future__ import annotations
 
+import json
 import os
 import time
 import zipfile
@@ -78,8 +79,6 @@ def read_embedded_params(fmu: Path) -> bytes | None:
 def embedded_params(fmu: Path) -> tuple[dict, str] | None:
     """The parsed parameter file embedded in ``fmu`` and the name to cite it by (``FMU (member)``), or None when
     the FMU carries none. :class:`ParameterError` naming the FMU and member when it cannot be read or parsed."""
-    import json
-
     from fmu_models.common.errors import ParameterError
 
     source = f"{fmu} ({EMBEDDED_PARAMS})"
