@@ -115,6 +115,7 @@ static int start(const char* guid, const char* resource, int first) {
         while (need) CHECK(fmi3UpdateDiscreteStates(comp, &need, &term, &nom, &val, &next_def, &next))
         CHECK(fmi3EnterContinuousTimeMode(comp))
         CHECK(fmi3GetNumberOfContinuousStates(comp, &nx))
+        if (nx > MAXX) { fprintf(stderr, "%zu continuous states, at most %d\n", nx, MAXX); return 4; }
     }
     return 0;
 }

@@ -336,7 +336,7 @@ def vrs(*v: int) -> ctypes.Array:
     return (ctypes.c_uint * len(v))(*v)
 
 
-def test_a_function_of_the_other_interface_is_refused_in_every_state(built_fmus: dict[str, Path],
+def test_a_function_of_the_other_interface_is_refused_in_initialization_and_terminated(built_fmus: dict[str, Path],
                                                                      tmp_path: Path) -> None:
     """FMI 2.0.4 sections 3.2, 4.2: a Co-Simulation instance of a CS + ME FMU hands out no continuous states or
     derivatives, even in the states where a Model Exchange instance may (initialization, terminated)."""

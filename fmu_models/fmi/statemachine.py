@@ -120,13 +120,6 @@ INTERFACE: dict[str, str] = {
                     "ModelExchange"),
 }
 
-#: what each state-changing operation leads to when it succeeds (ME exits initialisation into Event Mode)
-TRANSITIONS: dict[str, str] = {
-    "EnterInitializationMode": "InitializationMode", "Terminate": "Terminated", "Reset": "Instantiated",
-    "EnterEventMode": "EventMode", "EnterContinuousTimeMode": "ContinuousTimeMode",
-}
-
-
 @dataclass(frozen=True)
 class Rule:
     """One argument rule: a C function ``uavfmu_rule_<name>(msg, n, args...)`` returning 1 when every

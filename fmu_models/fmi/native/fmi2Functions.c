@@ -31,7 +31,7 @@ static void emit2(Instance* c, int status, const char* category, const char* tex
 }
 
 #define BEGIN(fn, mask)                                                    \
-    Instance* c = uav_enter(comp, MASK_##mask, fn);                        \
+    Instance* c = uav_enter(comp, UAV_MASK(mask), fn);                     \
     if (!c || uav_wrong_interface(c, INTERFACE_##mask, fn)) return fmi2Error;
 
 #define CALL(fn, mask, expr) \

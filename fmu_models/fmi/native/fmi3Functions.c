@@ -24,7 +24,7 @@ static void emit3(Instance* c, int status, const char* category, const char* tex
 }
 
 #define BEGIN(fn, mask)                                                    \
-    Instance* c = uav_enter(comp, MASK3_##mask, fn);                        \
+    Instance* c = uav_enter(comp, UAV_MASK(mask), fn);                     \
     if (!c || uav_wrong_interface(c, INTERFACE_##mask, fn)) return fmi3Error;
 
 #define CALL(fn, mask, expr) \

@@ -24,6 +24,14 @@
 #include "uavfmu_model.h"
 #include "uavfmu_states.h"
 
+/* The allowed-state mask of an operation for this binary's FMI version (uavfmu_config.h: UAVFMU_FMI_VERSION);
+   the front ends' BEGIN and the core's own checks use the same table rows. */
+#if UAVFMU_FMI_VERSION == 3
+#define UAV_MASK(op) MASK3_##op
+#else
+#define UAV_MASK(op) MASK_##op
+#endif
+
 #define UAV_OK 0
 #define UAV_WARNING 1
 #define UAV_DISCARD 2
@@ -417,7 +425,8 @@ static int uav_set_real(Instance* c, const unsigned* vr, size_t n, const double*
                             v->causality == UAVFMU_OUTPUT ? "an output" : v->causality == UAVFMU_TIME
                             ? "the independent variable" : "a calculated local variable (Model Exchange: use "
                             "SetContinuousStates)");
-        int mask = v->causality == UAVFMU_INPUT ? MASK_SetInput : v->tunable ? MASK_SetTunable : MASK_SetFixed;
+        int mask = v->causality == UAVFMU_INPUT ? UAV_MASK(SetInput)
+                   : v->tunable ? UAV_MASK(SetTunable) : UAV_MASK(SetFixed);
         if (!(c->state & mask))
             return uav_fail(c, UAV_ERROR, "%s: %s (%s) cannot be set in state '%s'", fn, v->name,
                             v->causality == UAVFMU_INPUT ? "input" : v->tunable ? "tunable parameter"
