@@ -122,6 +122,8 @@ def main() -> int:
     parser.add_argument("--parts", default="batch,mc", help="which measurements: batch, mc or both")
     args = parser.parse_args()
     parts = set(args.parts.split(","))
+    if not parts or not parts <= {"batch", "mc"}:
+        parser.error(f"--parts = {args.parts!r}: allowed a comma-separated subset of batch, mc")
     checks = []
     with tempfile.TemporaryDirectory() as tmp:
         d = Path(tmp)

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from fmu_models.common.units import G0_M_S2
 from fmu_models.signals.pwm_mapping import PwmMapping, default_mapping
 
 AUTOPILOT = Path(__file__).resolve().parents[1] / "autopilot"
@@ -122,7 +123,7 @@ def test_hover_throttles_hover_the_model(built_fmus: dict[str, Path], generated:
     from hil_adapter.autopilot_params import _simulator, fmu_parameters
 
     sim, p = _simulator("quadrotor", fmu_parameters(built_fmus["quadrotor"]))
-    weight = sim.model.params.view(p).mass_kg * 9.80665
+    weight = sim.model.params.view(p).mass_kg * G0_M_S2
     px4 = generated["px4"].values
     fac, hover = px4["THR_MDL_FAC"], px4["MPC_THR_HOVER"]
     c = (-(1 - fac) + np.sqrt((1 - fac) ** 2 + 4 * fac * hover)) / (2 * fac) if fac > 0 else hover

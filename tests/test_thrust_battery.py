@@ -5,14 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from fmu_models.common.units import G0_M_S2
 from identification.thrust_battery import equivalent_voltage_V, hover_thrust_scale
-
-G = 9.80665
 
 
 def test_constant_battery_is_recovered_exactly_and_the_start_uses_the_first_window() -> None:
     t = np.arange(0.0, 200.0, 0.1)
-    weight = 1.2 * G
+    weight = 1.2 * G0_M_S2
     model = np.full(t.size, weight / 0.93)  # the map over-predicts by 1/0.93: the battery gives 93 %
     hover = np.ones(t.size, bool)
     s = hover_thrust_scale(t, model, hover, weight, tau_s=30.0)

@@ -67,7 +67,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "else local workers); see docs/scale-out.md")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--mc", type=int, metavar="N", help="Monte Carlo bands: N replays with parameters drawn from "
-                                                            "--uncertainty (20..10000)")
+                                                            "--uncertainty (a wrong N names the allowed range)")
     parser.add_argument("--uncertainty", type=Path, metavar="PARAMS",
                         help="parameter file (JSON/TOML) whose 'uncertainty' key gives names, mean, covariance "
                              "(default: the file embedded in the FMU by `build --params`)")
