@@ -28,14 +28,14 @@ from fmu_models.common.errors import ParameterError
 from fmu_models.common.params import read_json
 from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.params import QuadrotorParams
+from identification.thrust_battery import HOVER_CLIMB_M_S
+from identification.thrust_dataset import MOTOR_MIN_PWM_US
 from identification.thrust_model import FlightData, ModelSpec, battery_input_V
 
 INPUT = "battery_voltage_V"
 LOGGED = "battery_voltage_v"  #: the log's canonical battery voltage signal
 #: mean motor PWM above which a sample is airborne [us] (``identify thrust``'s default ``--motor-min-pwm-us``)
-AIRBORNE_MEAN_PWM_US = 1150.0
-#: hover when |climb rate| is below this [m/s] (``identify thrust``'s hover condition) unless the file says
-HOVER_CLIMB_M_S = 0.3
+AIRBORNE_MEAN_PWM_US = MOTOR_MIN_PWM_US
 #: FMU parameters that must equal the file's for the state to mean the same thing in the FMU
 MATCH = ("battery_nominal_V", "thrust_voltage_exponent", "pwm_idle_us", "pwm_full_us")
 

@@ -27,6 +27,8 @@ import math
 
 import numpy as np
 
+#: hover when |climb rate| is below this [m/s] (calibration, battery state, summaries; replays read it back)
+HOVER_CLIMB_M_S = 0.3
 #: candidate time constants of the hover-condition estimate [s]; nested CV picks one (or none)
 HOVER_TAUS_S = (10.0, 30.0, 120.0)
 

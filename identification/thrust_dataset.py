@@ -29,6 +29,8 @@ from fmu_models.quadrotor.anfis import AnfisMap
 from fmu_models.quadrotor.constants import N_MOTORS, PWM_IDLE_US
 
 PAPER_MIN_PEARSON = 0.85  #: paper 000 section 4: correlation needed "to proceed a good training"
+#: a motor PWM above this [us] counts as spinning for flight (ArduCopter spins its motors near 1100-1150 us armed)
+MOTOR_MIN_PWM_US = 1150.0
 GAP_FACTOR = 3.0  #: a PWM sample interval longer than this many median intervals starts a new segment
 LOWPASS_ORDER = 2  #: Butterworth order of the optional zero-phase low-pass filter
 RAD_S_PER_RPM = 2.0 * math.pi / 60.0
@@ -64,7 +66,7 @@ class ThrustDatasetConfig:
 
     mass_kg: float = bounded(MISSING, 0.05, 50.0, "kg")
     n_motors: int = bounded(4, 1, 12)
-    motor_min_pwm_us: float = bounded(1150.0, 800.0, 2200.0, "us")
+    motor_min_pwm_us: float = bounded(MOTOR_MIN_PWM_US, 800.0, 2200.0, "us")
     min_altitude_m: float = bounded(0.5, -100.0, 1000.0, "m")
     min_segment_s: float = bounded(2.0, 0.0, 3600.0, "s")
     lag_s: float | None = bounded(None, -5.0, 5.0, "s (None: estimate)", optional=True)

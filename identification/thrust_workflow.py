@@ -35,7 +35,9 @@ from fmu_models.quadrotor.thrust import consequent_parameters
 from identification.anfis_train import r_squared, rmse
 from identification.jsonio import write_json
 from identification.metrics import SkillInterval, block_starts, skill_interval
+from identification.thrust_battery import HOVER_CLIMB_M_S
 from identification.thrust_dataset import (
+    MOTOR_MIN_PWM_US,
     MOTOR_SIGNAL,
     ThrustDataError,
     ThrustDataset,
@@ -58,7 +60,6 @@ from identification.thrust_model import (
     select_spec,
 )
 
-HOVER_CLIMB_M_S = 0.3  #: |climb rate| below this is hover (calibration, battery state, summaries)
 #: the hover condition: the rotors' vertical thrust T cos(roll) cos(pitch) carries the weight m g
 CALIBRATIONS = ("auto", "on", "off")
 CONSTANT = "constant m g"
@@ -101,7 +102,7 @@ class ThrustConfig:
     n_mfs: int = bounded(3, 1, 6)
     epochs: int = bounded(30, 1, 2000)
     n_folds_single: int = bounded(3, 2, 20)
-    motor_min_pwm_us: float = bounded(1150.0, 800.0, 2200.0, "us")
+    motor_min_pwm_us: float = bounded(MOTOR_MIN_PWM_US, 800.0, 2200.0, "us")
     max_lag_s: float = bounded(0.3, 0.0, 5.0, "s")
     lowpass_hz: float | None = bounded(None, 1e-3, 1000.0, "Hz (None: no filter)", optional=True)
     check_block_s: float = bounded(5.0, 0.1, 600.0, "s")
