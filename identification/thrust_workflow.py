@@ -481,7 +481,7 @@ def identify_thrust(cfg: ThrustConfig) -> ThrustResult:
                      f"{spec.describe()}")
     # thrust_scale for replays that cannot drive the battery state: the model without it, calibrated per flight
     cal = {d.name: hover_scale(predict(final, spec, d, state=False), d) for d in data} if calibrate else {}
-    yaw, yaw_note = _yaw(flights, data, final, spec, cal)
+    yaw, yaw_note, yaw_held = _yaw(flights, data, final, spec, cal)
     if yaw is not None:
         final = dataclasses.replace(final, b_drag_N_m_s2=yaw.b_drag_N_m_s2)
     pooled = {k: _pooled_rmse(results, k) for k in results[0].series if k != "measured"}
@@ -493,7 +493,8 @@ def identify_thrust(cfg: ThrustConfig) -> ThrustResult:
                           tuple(flight_summary(f) for f in flights), cal, _uncertainty(fitted),
                           warnings=tuple(warnings), overrides=tuple(overrides))
     result.metrics.update(_metrics(result, cfg, calibrate))
-    result.metrics["yaw"] = yaw.as_dict() if yaw is not None else {"skipped": yaw_note}
+    result.metrics["yaw"] = ({**yaw.as_dict(), "held_out_vs_holding_the_rate": yaw_held} if yaw is not None
+                             else {"skipped": yaw_note})
     return _write(result, cfg)
 
 
@@ -517,13 +518,15 @@ def _uncertainty(fitted: Any) -> dict[str, Any]:
 
 
 def _yaw(flights: list[Flight], data: list[FlightData], p: QuadrotorParams, spec: ModelSpec,
-         cal: dict[str, float]) -> tuple[Any, str]:
-    """Yaw torque per thrust from the flights' yaw response (None and a note when it cannot be done)."""
+         cal: dict[str, float]) -> tuple[Any, str, dict[str, dict[str, Any]]]:
+    """Yaw torque per thrust from the flights' yaw response (None and a note when it cannot be done), and with
+    two or more flights its leave-one-flight-out skill against holding the logged yaw rate per held-out flight
+    (the note says when the fit loses on one)."""
     from identification.yaw_torque import identify_yaw_torque, spin_thrust, windows
 
     if any(f.yaw_rate is None for f in flights):
-        return None, "yaw torque not identified: a flight has no gyro_body_z_rad_s"
-    ms = []
+        return None, "yaw torque not identified: a flight has no gyro_body_z_rad_s", {}
+    per_flight = []
     for f, d in zip(flights, data, strict=True):
         volt = battery_input_V(p, spec, d)  # with the battery state when the model has one, else calibrated
         scale = 1.0 if spec.tau_s is not None else cal.get(f.spec.name, 1.0)
@@ -531,13 +534,39 @@ def _yaw(flights: list[Flight], data: list[FlightData], p: QuadrotorParams, spec
                               for i in range(N_MOTORS)], axis=1) * scale
         ok = np.isfinite(f.yaw_rate)  # type: ignore[arg-type]
         seg = np.where(ok, f.data.segment, -1)
-        ms += windows(f.data.time_s, seg, spin_thrust(per_motor), np.nan_to_num(f.yaw_rate),  # type: ignore[arg-type]
-                      f.data.sample_period_s)
-    ms = [m for m in ms if np.all(np.isfinite(m.y))]
+        ms = windows(f.data.time_s, seg, spin_thrust(per_motor), np.nan_to_num(f.yaw_rate),  # type: ignore[arg-type]
+                     f.data.sample_period_s)
+        per_flight.append([m for m in ms if np.all(np.isfinite(m.y))])
     try:
-        return identify_yaw_torque(ms, p), ""
+        fitted = identify_yaw_torque([m for ms in per_flight for m in ms], p)
     except ValueError as err:
-        return None, f"yaw torque not identified: {err}"
+        return None, f"yaw torque not identified: {err}", {}
+    held = _yaw_held_out(flights, per_flight, p) if len(flights) >= 2 else {}
+    losses = [f"{name} (skill {h['skill']:+.2f} [{h['lo']:+.2f}, {h['hi']:+.2f}])" for name, h in held.items()
+              if h["outcome"] == "lose"]
+    note = (f"yaw torque LOSES to holding the logged yaw rate on held-out flight(s) {', '.join(losses)}: "
+            "b_drag_N_m_s2 is written from all flights, but the yaw axis is not validated" if losses else "")
+    return fitted, note, held
+
+
+def _yaw_held_out(flights: list[Flight], per_flight: list[list[Any]], p: QuadrotorParams
+                  ) -> dict[str, dict[str, Any]]:
+    """Per flight: the yaw torque fitted on the other flights, replayed on its windows, against holding the
+    logged yaw rate (skill interval over windows)."""
+    from identification.yaw_torque import identify_yaw_torque, replay
+
+    out: dict[str, dict[str, Any]] = {}
+    for i, f in enumerate(flights):
+        train = [m for j, ms in enumerate(per_flight) if j != i for m in ms]
+        if not train or len(per_flight[i]) < 2:
+            continue
+        c = identify_yaw_torque(train, p).b_drag_N_m_s2 / p.k_thrust_N_s2
+        model, logged, starts = replay(per_flight[i], c, p.Jz_kg_m2)
+        hold = replay(per_flight[i], 0.0, p.Jz_kg_m2)[0]
+        si = skill_interval(logged, model, hold, starts)
+        out[f.spec.name] = {"skill": si.skill, "lo": si.lo, "hi": si.hi, "outcome": si.outcome,
+                            "windows": len(per_flight[i])}
+    return out
 
 
 VERDICT_TEXT = {"win": "model beats every baseline on held-out data",

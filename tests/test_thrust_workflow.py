@@ -304,6 +304,12 @@ def test_erle_yaw_torque_replay_no_worse_than_holding_yaw_rate() -> None:
     assert yaw["n_windows"] > 50 and 0.0 < yaw["crb_std_m"] < abs(yaw["torque_per_thrust_m"])
     assert yaw["rmse_identified_rad_s"] <= yaw["rmse_hold_rad_s"] < yaw["rmse_default_rad_s"]
     assert r.params.b_drag_N_m_s2 == pytest.approx(yaw["b_drag_N_m_s2"])
+    # leave-one-flight-out against holding the rate, per flight; a loss is said in the warnings (standards)
+    held = yaw["held_out_vs_holding_the_rate"]
+    assert set(held) == {f.name for f in _erle_flights()} and all(h["windows"] > 10 for h in held.values())
+    losers = [name for name, h in held.items() if h["outcome"] == "lose"]
+    said = [w for w in r.warnings if w.startswith("yaw torque LOSES")]
+    assert bool(losers) == bool(said) and all(name in said[0] for name in losers)
 
 
 @pytest.mark.slow
