@@ -6,7 +6,8 @@ noise); ``SensorSuite.reset()`` restarts them and a rerun repeats exactly.
 
 Each sensor reads ``truth + bias + drift + noise``: ``bias`` is constant; ``drift`` a random walk whose
 increment over ``dt`` seconds has the std ``drift_std * sqrt(dt)``, for the IMU and magnetometer a first-order
-Gauss-Markov process (``drift_tau_s``) started at a turn-on bias, as in PX4's Gazebo IMU plugin; ``noise`` is
+Gauss-Markov process (``drift_tau_s``) started at 0, with a constant turn-on bias drawn at (re)start added, as
+in PX4's Gazebo IMU plugin; ``noise`` is
 white, a per-sample std ``noise_std`` and, for the IMU and magnetometer, a density ``noise_density`` (per sample
 ``density / sqrt(dt)``). Profiles (``PROFILES``, ``[sensors] profile``): ``px4_gazebo`` (the default: PX4's
 Gazebo plugins, each default citing its source in its field description), ``ublox_m8`` (data sheets: u-blox
@@ -148,8 +149,9 @@ class _Inertial(_Section):
     """Shared model of the IMU axes and the magnetometer: ``truth + bias + b(t) + white``, the white noise from
     a per-sample std ``noise_std`` and a density ``noise_density`` [unit/sqrt(Hz)] (per sample
     ``density / sqrt(dt)``, as an integrating sampler), ``b(t)`` a first-order Gauss-Markov process with the
-    random walk ``drift_std`` [unit/sqrt(s)] and correlation time ``drift_tau_s`` [s] (0: a pure random walk),
-    started at a turn-on bias of std ``turn_on_bias_std`` per axis."""
+    random walk ``drift_std`` [unit/sqrt(s)] and correlation time ``drift_tau_s`` [s] (0: a pure random walk)
+    started at 0, plus a constant turn-on bias of std ``turn_on_bias_std`` per axis drawn at (re)start, as PX4's
+    Gazebo IMU plugin adds it to every sample."""
 
     def drift_step(self, dt: float) -> tuple[float, float]:
         """(pole, drive std) of the drift over ``dt`` seconds (exact discretisation, Maybeck 4-114; a negative
@@ -457,9 +459,10 @@ class SensorSuite:
                                        "baro": 0.0, "diff_pressure": 0.0}
         self._bias3 = {name: [float(v) for v in np.broadcast_to(getattr(self.config, name).bias, 3)]
                        for name in ("accel", "gyro", "mag")}
-        for name in ("accel", "gyro", "mag"):  # the Gauss-Markov biases start at their turn-on value
+        for name in ("accel", "gyro", "mag"):  # a constant turn-on bias per axis (the Gauss-Markov part starts at 0)
             on = getattr(self.config, name).turn_on_bias_std
-            self._drift[name] = [on * z for z in self._normals("turn_on", 3)]
+            draws = self._normals("turn_on", 3)
+            self._bias3[name] = [b + on * z for b, z in zip(self._bias3[name], draws, strict=True)]
         #: (biases, drifts) of accel, gyro, mag: the same lists as in _bias3 and _drift, looked up once
         self._imu_state = (tuple(self._bias3[n] for n in ("accel", "gyro", "mag")),
                            tuple(self._drift[n] for n in ("accel", "gyro", "mag")))
