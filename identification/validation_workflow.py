@@ -214,6 +214,25 @@ def write_report(res: ReplayResult, out: ValidationResult, rdir: Path) -> None:
     out.report = str(rdir / "report.html")
 
 
+def mc_uncertainty(params_file: Path | None, fmu: Path | None = None) -> Uncertainty:
+    """The parameter uncertainty of a Monte Carlo run: the ``uncertainty`` block of ``params_file``, else of the
+    parameter file embedded in ``fmu`` by ``build --params``. ``ParameterError`` naming the file when it is
+    malformed; ``ValidationInputError`` when there is none, or ``fmu`` is missing."""
+    from fmu_models.common.params import read_uncertainty, uncertainty_of
+    from fmu_models.fmi.fmuzip import embedded_params
+
+    if params_file is not None:
+        return read_uncertainty(params_file)
+    if fmu is not None and not Path(fmu).is_file():
+        raise ValidationInputError(f"{fmu}: FMU not found")
+    found = embedded_params(Path(fmu)) if fmu is not None else None
+    if found is None or "uncertainty" not in found[0]:
+        raise ValidationInputError("--mc needs --uncertainty PARAMS (a parameter file with an 'uncertainty' key); "
+                                   "the FMU carries none (build it with `uavfmu build --params` from an identified "
+                                   "file)")
+    return uncertainty_of(*found)
+
+
 def validate_mc(job: ValidationJob, uncertainty: Uncertainty, draws: int, seed: int = 0, *,
                 workers: int | None = None, scheduler: str | None = None, progress: Any = False,
                 executor: Executor | None = None) -> ValidationResult:

@@ -142,9 +142,13 @@ def test_the_identified_file_carries_an_uncertainty_validate_mc_reads(identified
     unc = read_uncertainty(params)  # the file identify thrust writes, with its note
     with FmuHost(fmu) as host:
         assert all(host.variables[n].causality == "parameter" for n in unc.names)
-    from fmu_models.common.params import uncertainty_of
-    from fmu_models.fmi.fmuzip import embedded_params
+    from identification.validation import ValidationInputError
+    from identification.validation_workflow import mc_uncertainty
 
-    found = embedded_params(fmu)  # `validate --mc N` without --uncertainty reads the file the FMU was built from
-    assert found is not None and found[1].endswith("(resources/uavfmu_parameters.json)")
-    assert uncertainty_of(*found) == unc
+    assert mc_uncertainty(None, fmu) == unc  # `validate --mc N` without --uncertainty: the file the FMU carries
+    assert mc_uncertainty(params) == unc
+    from build_fmus import build
+
+    (plain,) = build(None, params.parent / "plain", ["quadrotor"])
+    with pytest.raises(ValidationInputError, match="the FMU carries none"):
+        mc_uncertainty(None, plain)

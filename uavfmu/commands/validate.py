@@ -128,9 +128,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _uncertainty(args: argparse.Namespace) -> object:
     """The parameter file's uncertainty block for ``--mc`` (None without ``--mc``)."""
-    from fmu_models.common.params import read_uncertainty, uncertainty_of
-    from fmu_models.fmi.fmuzip import embedded_params
     from identification.mc_bands import MAX_DRAWS, MIN_DRAWS
+    from identification.validation_workflow import mc_uncertainty
 
     if args.mc is None:
         if args.uncertainty is not None:
@@ -140,15 +139,7 @@ def _uncertainty(args: argparse.Namespace) -> object:
         raise ValueError(f"--mc = {args.mc}: allowed {MIN_DRAWS}..{MAX_DRAWS}")
     if not 0 <= args.seed < 2**63:
         raise ValueError(f"--seed = {args.seed}: allowed 0..2**63-1")
-    if args.uncertainty is not None:
-        return read_uncertainty(args.uncertainty)
-    if args.fmu is not None and not args.batch and not args.fmu.is_file():
-        raise ValueError(f"{args.fmu}: FMU not found")
-    found = embedded_params(args.fmu) if args.fmu is not None and not args.batch else None
-    if found is None or "uncertainty" not in found[0]:
-        raise ValueError("--mc needs --uncertainty PARAMS (a parameter file with an 'uncertainty' key); the FMU "
-                         "carries none (build it with `uavfmu build --params` from an identified file)")
-    return uncertainty_of(*found)
+    return mc_uncertainty(args.uncertainty, None if args.batch else args.fmu)
 
 
 def _run_one(job: object, args: argparse.Namespace, uncertainty: object = None) -> int:
