@@ -130,9 +130,15 @@ class AeroResult:
 
     @property
     def losing_outputs(self) -> list[str]:
-        """Held-out outputs where the model does not beat a rival (persistence, segment mean): its skill's
-        block-bootstrap interval (``identification.metrics.skill_interval``) is not wholly above zero."""
+        """Held-out outputs where a rival (persistence, segment mean) beats the model: its skill
+        (``identification.metrics.skill_interval``) is below ``-SAME_SKILL`` (0.1 % in RMSE)."""
         return [n for n, b in self.baselines.items() if b["loses_to"]]
+
+    @property
+    def tied_outputs(self) -> list[str]:
+        """Held-out outputs that lose to no rival but do not beat every one beyond noise (a skill interval
+        reaches zero): not a win, and not a failure."""
+        return [n for n, b in self.baselines.items() if b["ties_with"] and not b["loses_to"]]
 
     @property
     def estimate(self) -> Estimate:
@@ -158,6 +164,7 @@ class AeroResult:
             "metrics": {k: {n: m.as_dict() for n, m in v.items()} for k, v in self.scores.items()},
             "failures": self.failures, "notes": self.notes,
             "baselines_validation": self.baselines, "losing_outputs": self.losing_outputs,
+            "tied_outputs": self.tied_outputs,
             "quality": self.quality,
             "prior_dominated": self.estimate.prior_dominated(),
             "not_data_dominated": self.estimate.not_data_dominated(),
@@ -179,7 +186,8 @@ class AeroResult:
         for n, b in self.baselines.items():
             verdicts = ", ".join(f"{k} {v['outcome']} (skill {v['skill']:+.2f} [{v['skill_lo']:+.2f}, "
                                  f"{v['skill_hi']:+.2f}])" for k, v in b["skill"].items())
-            lines.append(f"held-out {n}: {'LOSES' if b['loses_to'] else 'beats'} - against {verdicts}")
+            word = "LOSES" if b["loses_to"] else ("ties (not a win)" if b["ties_with"] else "beats")
+            lines.append(f"held-out {n}: {word} - against {verdicts}")
         if self.rival is not None:
             lines += ["", *self.rival.beside(self.estimate)]
         dominated, joint = self.estimate.prior_dominated(), self.estimate.not_data_dominated()
@@ -589,8 +597,8 @@ def _baselines(replay: tuple[np.ndarray, np.ndarray, np.ndarray], data: list[Man
                ) -> dict[str, dict[str, Any]]:
     """Per held-out output: RMSE of the model and of the simplest rivals, persistence (each segment's first
     measurement held) and each segment's mean, and the model's skill against each with a block-bootstrap
-    interval over blocks of :data:`SKILL_BLOCK_S`; ``loses_to`` names a rival the model does not beat (a tie
-    is not a win)."""
+    interval over blocks of :data:`SKILL_BLOCK_S`; ``loses_to`` names the rivals that beat the model (skill below
+    ``-SAME_SKILL``), ``ties_with`` those it beats only within noise (the interval reaches zero: not a win)."""
     y, m, _ = replay
     lengths = [d.y.shape[0] for d in data]
     cuts = np.cumsum(lengths)[:-1]
@@ -606,7 +614,8 @@ def _baselines(replay: tuple[np.ndarray, np.ndarray, np.ndarray], data: list[Man
               "segment_mean": float(np.sqrt(np.mean((y[:, i] - mean[:, i]) ** 2)))}
         skill = {k: skill_interval(y[:, i], m[:, i], b[:, i], starts).as_dict()
                  for k, b in (("persistence", hold), ("segment_mean", mean))}
-        out[n] = {"rmse": rm, "skill": skill, "loses_to": [k for k, v in skill.items() if v["outcome"] != "win"]}
+        out[n] = {"rmse": rm, "skill": skill, "loses_to": [k for k, v in skill.items() if v["outcome"] == "lose"],
+                  "ties_with": [k for k, v in skill.items() if v["outcome"] == "tie"]}
     return out
 
 

@@ -183,13 +183,20 @@ def rmse(measured: np.ndarray, model: np.ndarray) -> float:
 
 
 # --------------------------------------------------------------------------- skill with a margin
+#: skills within this of zero are the same RMSE (0.1 %), not a loss
+SAME_SKILL = 1e-3
+
 @dataclass(frozen=True)
 class SkillInterval:
     """Skill of a model against a baseline, ``1 - RMSE_model / RMSE_baseline`` pooled over blocks, with its
     two-sided ``level`` block-bootstrap interval ``[lo, hi]`` (blocks resampled with replacement: windows of a
     replay, held-out flights or time blocks, so serial correlation inside a block is kept). ``outcome`` is
-    ``win`` when the whole interval is above zero, ``lose`` when it is below, else ``tie``: a difference that
-    noise makes is not a win."""
+    ``lose`` when the skill is below ``-SAME_SKILL`` (the baseline's RMSE is lower on these data by more than
+    0.1 %: the model is beaten, whatever the interval), ``win`` when the whole interval is above zero, else
+    ``tie``: a difference that noise can make is not a win, and the same RMSE (a one-rule thrust map is the
+    least-squares polynomial) is not a loss. ``identify thrust`` and ``identify aero`` decide by this rule;
+    ``validate`` fails a signal whose skill is not above its configured ``min_skill_persistence`` (0 by
+    default) and passes it only when this interval lies above that."""
 
     skill: float
     lo: float
@@ -199,13 +206,11 @@ class SkillInterval:
 
     @property
     def outcome(self) -> str:
-        if not math.isfinite(self.skill) or self.n_blocks < 2:
+        if not math.isfinite(self.skill):
             return "tie"
-        if self.lo > 0.0:
-            return "win"
-        if self.hi < 0.0:
+        if self.skill < -SAME_SKILL:
             return "lose"
-        return "tie"
+        return "win" if self.n_blocks >= 2 and self.lo > 0.0 else "tie"
 
     def as_dict(self) -> dict[str, Any]:
         return {"skill": self.skill, "skill_lo": self.lo, "skill_hi": self.hi, "level": self.level,

@@ -43,6 +43,25 @@ def test_small_skill_with_noise_is_a_tie():
     assert abs(steady.skill - 0.02) < 1e-9 and steady.outcome == "win"
 
 
+def test_a_model_the_baseline_beats_loses_even_inside_the_noise():
+    """Skill -0.02 with an interval that reaches above zero: the baseline's RMSE is lower on these data, so the
+    model is reported as losing; the same RMSE is a tie."""
+    rng = np.random.default_rng(2)
+    n_blocks, per = 20, 50
+    y = np.zeros(n_blocks * per)
+    e = rng.standard_normal((n_blocks, per))
+    e = (e / np.sqrt(np.mean(e * e, axis=1, keepdims=True))).ravel()
+    g = rng.gamma(1.0 / 0.45**2, 0.45**2, n_blocks)
+    ratio = 1.02**2 * g / g.mean()  # pooled skill exactly 1 - 1.02 = -0.02
+    res = skill_interval(y, y + np.repeat(np.sqrt(ratio), per) * e, y + e, block_starts(y.size, per))
+    assert abs(res.skill + 0.02) < 1e-9 and res.lo < 0 < res.hi
+    assert res.outcome == "lose"
+    equal = skill_interval(y, y + e, y + e, block_starts(y.size, per))  # the baseline itself: no worse
+    assert equal.skill == 0.0 and equal.outcome == "tie"
+    worse = skill_interval(y, y + 1.002 * e, y + e, block_starts(y.size, per))  # 0.2 % above: beaten
+    assert worse.outcome == "lose"
+
+
 def test_deterministic_for_a_seed_and_checks_inputs():
     rng = np.random.default_rng(3)
     y, m, b = _series(rng, 600, 0.9, 1.0)
@@ -60,3 +79,25 @@ def test_nothing_to_score_is_not_a_win():
     y = np.ones(100)
     res = skill_interval(y, y + 0.1, y, block_starts(100, 10))  # baseline exact
     assert res.outcome == "tie" and np.isnan(res.skill)
+
+
+def test_aero_verdicts_follow_the_same_rule() -> None:
+    """``identify aero``'s held-out table: an output a rival beats is losing (exit 4), one it only ties is not."""
+    from types import SimpleNamespace
+
+    from identification.aero_identify import _baselines
+
+    rng = np.random.default_rng(5)
+    n_seg, per = 8, 200
+    t = np.linspace(0.0, 4.0, per)
+    truth = np.concatenate([np.sin(2.0 * t + k) for k in range(n_seg)])
+    good = truth + 0.05 * rng.standard_normal(truth.size)
+    flat = np.concatenate([np.full(per, np.sin(2.0 * t + k).mean()) for k in range(n_seg)])  # the segment mean
+    y = np.column_stack([truth, truth])
+    m = np.column_stack([good, flat + 0.3])  # output 1: worse than the segment mean
+    data = [SimpleNamespace(y=y[k * per:(k + 1) * per], dt_s=0.02) for k in range(n_seg)]
+    out = _baselines((y, m, np.zeros(len(y))), data, ["roll_rad", "pitch_rad"])  # type: ignore[arg-type]
+    assert out["roll_rad"]["loses_to"] == [] and out["roll_rad"]["ties_with"] == []
+    assert "segment_mean" in out["pitch_rad"]["loses_to"]
+    same = _baselines((y, np.column_stack([flat, flat]), np.zeros(len(y))), data, ["roll_rad", "pitch_rad"])
+    assert same["roll_rad"]["loses_to"] == [] and same["roll_rad"]["ties_with"] == ["segment_mean"]

@@ -24,9 +24,11 @@ give them by hand), and a command -> surface delay is scanned up to ``--max-dela
 
 Exit status: 0 done, 2 bad input (unreadable log, a log damaged beyond ``--max-damage`` without ``--force``,
 unknown parameter or output, bad segment or mapping),
-3 the estimation failed (diverging start, no descent), 4 done but the model does not beat a rival
-(persistence, segment mean) on a held-out output (its skill interval is not wholly above zero: a tie is
-not a win), 5 estimates written but a late step (scoring, plots) failed.
+3 the estimation failed (diverging start, no descent), 4 done but a rival (persistence, segment mean)
+beats the model on a held-out output (its RMSE lower by more than 0.1 %; the rule of
+``identification.metrics.SkillInterval``, as for ``identify thrust``), 5 estimates written but a late step
+(scoring, plots) failed. A tie (no loss, but a skill interval that reaches zero) is printed as a tie and is
+not a failure.
 """
 
 from __future__ import annotations
