@@ -1,9 +1,8 @@
 """ArduPlane parameters from the fixed-wing model (see ``hil_adapter.autopilot_params``).
 
-Rate loops: ``rate_derivatives`` gives the dimensional roll, pitch and yaw derivatives at a trimmed airspeed
-(uavbook ch. 5: ``a_phi1 = -q S b C_p_p b / (2 V)``, ``a_phi2 = q S b C_p_da`` with the Gamma inertia terms,
-``M_q = q S c C_m_q c / (2 V Jy)``, ``M_a = q S c C_m_a / Jy``, ``M_de = q S c C_m_de / Jy``, and the yaw terms
-from ``C_r_r``, ``C_r_dr``; ``q = rho V^2 / 2``). ``rate_gains`` turns one axis into ArduPilot's FF, P, I.
+Rate loops: ``rate_derivatives`` gives the roll, pitch and yaw axis models at a trimmed airspeed
+(``fmu_models.fixed_wing.linear.rate_axes``, uavbook ch. 5). ``rate_gains`` turns one axis into ArduPilot's
+FF, P, I.
 """
 
 from __future__ import annotations
@@ -15,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from fmu_models.common.units import G0_M_S2 as G_M_S2
+from fmu_models.fixed_wing.linear import rate_axes
 from fmu_models.signals.pwm_mapping import default_mapping
 
 DEG = 180.0 / math.pi
@@ -45,28 +45,12 @@ def surface_throws() -> dict[str, float]:
 
 def rate_derivatives(pv: Any, va_m_s: float) -> dict[str, AxisModel]:
     """Roll ``[p]``, pitch ``[alpha, q]`` (short period) and yaw ``[beta, r]`` (Dutch roll) models at airspeed
-    ``va_m_s`` from the parameter view ``pv`` (home density)."""
+    ``va_m_s`` from the parameter view ``pv`` (home density): ``fmu_models.fixed_wing.linear.rate_axes`` with
+    the surfaces' throws of the default mapping and the signs folded in (positive surface = positive rate)."""
     throws = surface_throws()
-    qbar = 0.5 * pv.rho_kg_m3 * va_m_s ** 2
-    gam = pv.Jx_kg_m2 * pv.Jz_kg_m2 - pv.Jxz_kg_m2 ** 2
-    g3, g4, g8 = pv.Jz_kg_m2 / gam, pv.Jxz_kg_m2 / gam, pv.Jx_kg_m2 / gam
-    b, c, s, m = pv.b_m, pv.c_m, pv.S_wing_m2, pv.mass_kg
-    k_lat = qbar * s * b
-    c_pp = g3 * pv.C_ell_p + g4 * pv.C_n_p
-    c_pda = g3 * pv.C_ell_delta_a + g4 * pv.C_n_delta_a
-    roll = AxisModel(np.array([[k_lat * c_pp * b / (2 * va_m_s)]]), np.array([abs(k_lat * c_pda)]), 0,
-                     throws["aileron_rad"])
-    k_lon = qbar * s * c / pv.Jy_kg_m2
-    z_a = -qbar * s * pv.C_L_alpha / (m * va_m_s)
-    pitch = AxisModel(np.array([[z_a, 1.0], [k_lon * pv.C_m_alpha, k_lon * pv.C_m_q * c / (2 * va_m_s)]]),
-                      np.array([0.0, abs(k_lon * pv.C_m_delta_e)]), 1, throws["elevator_rad"])
-    c_rb = g4 * pv.C_ell_beta + g8 * pv.C_n_beta
-    c_rr = g4 * pv.C_ell_r + g8 * pv.C_n_r
-    c_rdr = g4 * pv.C_ell_delta_r + g8 * pv.C_n_delta_r
-    y_b = qbar * s * pv.C_Y_beta / (m * va_m_s)
-    yaw = AxisModel(np.array([[y_b, -1.0], [k_lat * c_rb, k_lat * c_rr * b / (2 * va_m_s)]]),
-                    np.array([0.0, abs(k_lat * c_rdr)]), 1, throws["rudder_rad"])
-    return {"roll": roll, "pitch": pitch, "yaw": yaw}
+    surface = {"roll": "aileron_rad", "pitch": "elevator_rad", "yaw": "rudder_rad"}
+    return {name: AxisModel(ax.a, np.abs(ax.b), ax.rate_index, throws[surface[name]])
+            for name, ax in rate_axes(pv, va_m_s).items()}
 
 
 def step_metrics(axis: AxisModel, ff: float, p: float, i: float, servo_tau_s: float, dt: float = 0.0025,

@@ -22,9 +22,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+import casadi as ca
 import numpy as np
 from scipy.signal import savgol_filter
 
+from fmu_models.common.rigid_body import body_moments_N_m, inertia_matrix
 from identification import aero
 from identification.oem import Estimate
 
@@ -91,17 +93,16 @@ def _segment_rows(model: Any, pv: dict[str, float], log: Any, mapping: Any, seg:
                                                   "roll_rad", "pitch_rad", "airspeed_m_s", "accel_body_y_m_s2")}
     w = np.column_stack([sig[f"gyro_body_{a}_rad_s"] for a in "xyz"])
     p, q, r = _mid(w).T
-    pd, qd, rd = (np.diff(w, axis=0) * rate_hz).T  # trapezoidal: exact to O(dt^3) for the fast roll mode
-    jx, jy, jz, jxz = pv["Jx_kg_m2"], pv["Jy_kg_m2"], pv["Jz_kg_m2"], pv["Jxz_kg_m2"]
+    # trapezoidal: exact to O(dt^3) for the fast roll mode
+    moment = body_moments_N_m(np.asarray(ca.DM(inertia_matrix(pv["Jx_kg_m2"], pv["Jy_kg_m2"], pv["Jz_kg_m2"],
+                                                             pv["Jxz_kg_m2"]))), _mid(w), np.diff(w, axis=0) * rate_hz)
     va = np.maximum(_mid(_smooth(sig["airspeed_m_s"], rate_hz)), 3.0)
     qs = 0.5 * pv["rho_kg_m3"] * va ** 2 * pv["S_wing_m2"]
     b, c = pv["b_m"], pv["c_m"]
     u = aero.log_inputs(model, log, mapping, t)[:-1]  # zero-order hold over each step
     names = list(model.inputs.index)
     rows = {
-        "C_ell": (jx * pd - jxz * rd + (jz - jy) * q * r - jxz * p * q) / (qs * b),
-        "C_m": (jy * qd + (jx - jz) * p * r + jxz * (p ** 2 - r ** 2)) / (qs * c),
-        "C_n": (jz * rd - jxz * pd + (jy - jx) * p * q + jxz * q * r) / (qs * b),
+        "C_ell": moment[:, 0] / (qs * b), "C_m": moment[:, 1] / (qs * c), "C_n": moment[:, 2] / (qs * b),
         "C_Y": pv["mass_kg"] * _mid(sig["accel_body_y_m_s2"]) / qs,
         "p_hat": p * b / (2 * va), "q_hat": q * c / (2 * va), "r_hat": r * b / (2 * va),
         "da": u[:, names.index("aileron_rad")], "de": u[:, names.index("elevator_rad")],

@@ -105,3 +105,36 @@ def test_params_load_reports_all_problems(tmp_path) -> None:
     text = str(err.value)
     assert "mass_kg = 0.0" in text and "C_ell_pp is not a parameter" in text and "D_prop_m = -1.0" in text
     assert "epsilon is no longer a parameter" in text
+
+
+def test_one_axis_rate_models_approximate_the_coupled_modes(sim: Simulator) -> None:
+    """The decoupled roll, short-period and Dutch-roll models (``rate_axes``, what the ArduPlane rate-loop design
+    uses) have the exact linearisation's roll-subsidence pole and natural frequencies to a few per cent."""
+    from fmu_models.fixed_wing.linear import lateral_modes, linearise, longitudinal_modes, rate_axes
+
+    p = sim.params()
+    lin = linearise(sim.model, p, trim(sim.model, p, 25.0))
+    roll, dutch, _ = lateral_modes(lin)
+    short, _ = longitudinal_modes(lin)
+    ax = rate_axes(sim.model.params.view(p), 25.0)
+    assert float(ax["roll"].a[0, 0]) == pytest.approx(roll.eigenvalues[0].real, rel=0.05)
+    assert np.sqrt(np.linalg.det(ax["pitch"].a)) == pytest.approx(short.wn_rad_s, rel=0.05)
+    assert np.sqrt(np.linalg.det(ax["yaw"].a)) == pytest.approx(dutch.wn_rad_s, rel=0.10)
+    assert ax["roll"].b[0] > 0 and ax["pitch"].b[1] < 0  # aileron rolls right, elevator up pitches down
+
+
+def test_moment_from_rates_inverts_the_rate_equation() -> None:
+    """``body_moments_N_m`` (equation error's regressand) is eq. 6 solved for the moment: feeding the rate
+    derivative of ``rigid_body_derivatives`` back gives the moment that produced it."""
+    import casadi as ca
+
+    from fmu_models.common.rigid_body import body_moments_N_m, inertia_matrix, rigid_body_derivatives
+
+    rng = np.random.default_rng(4)
+    J = inertia_matrix(0.82, 1.14, 1.76, 0.12)
+    for _ in range(5):
+        w, m = rng.standard_normal(3), 3.0 * rng.standard_normal(3)
+        wdot = rigid_body_derivatives(ca.DM.zeros(3), w, ca.DM([1, 0, 0, 0]), ca.DM.zeros(3), m, ca.DM.zeros(3),
+                                      1.0, J)[3]
+        got = body_moments_N_m(np.asarray(ca.DM(J)), w[None, :], np.asarray(wdot).T)
+        assert np.allclose(got[0], m, atol=1e-12)

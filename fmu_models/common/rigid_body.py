@@ -1,7 +1,8 @@
 """Rigid-body 6-DOF over a flat-earth NED frame (paper 001 eqs. 2-6), written once for CasADi.
 
 Frames: NED world, FRD body. ``quat = [w, x, y, z]`` rotates body vectors into NED. Every function takes
-and returns CasADi column vectors (SX for code generation, DM or floats for numeric use).
+and returns CasADi column vectors (SX for code generation, DM or floats for numeric use), except
+:func:`body_moments_N_m`, eq. 6 solved for the moment over arrays of samples (numpy), for identification.
 """
 
 from __future__ import annotations
@@ -9,6 +10,7 @@ from __future__ import annotations
 from typing import Any
 
 import casadi as ca
+import numpy as np
 
 from fmu_models.common.mathns import CA
 from fmu_models.common.rotations import euler_to_quat, quat_to_dcm_rows, quat_to_euler
@@ -48,6 +50,15 @@ def inertia_matrix(Jx: Any, Jy: Any, Jz: Any, Jxz: Any = 0.0) -> Any:
         ca.horzcat(0, Jy, 0),
         ca.horzcat(-Jxz, 0, Jz),
     )
+
+
+def body_moments_N_m(J_kg_m2: np.ndarray, rates_body_rad_s: np.ndarray, rates_dot_rad_s2: np.ndarray
+                     ) -> np.ndarray:
+    """The body moments [N m] that give angular accelerations ``rates_dot_rad_s2`` at ``rates_body_rad_s``: eq. 6
+    solved for the moment, ``M = J w' + w x (J w)``; rows are samples (N, 3), ``J_kg_m2`` (3, 3)."""
+    w = np.atleast_2d(rates_body_rad_s)
+    J = np.asarray(J_kg_m2, float)
+    return np.atleast_2d(rates_dot_rad_s2) @ J.T + np.cross(w, w @ J.T)
 
 
 def rigid_body_derivatives(

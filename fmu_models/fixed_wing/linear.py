@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -150,3 +151,40 @@ def modes(lin: LinearModel) -> Modes:
     sp, ph = longitudinal_modes(lin)
     roll, dr, sp_ = lateral_modes(lin)
     return Modes(sp, ph, roll, dr, sp_)
+
+
+# --------------------------------------------------------------------------- one-axis approximations
+@dataclass(frozen=True)
+class RateAxis:
+    """One rate axis, linear, decoupled: ``x' = A x + b surface`` [rad/s per rad]; the rate is state
+    ``rate_index`` (roll ``[p]``, pitch ``[alpha, q]``, yaw ``[beta, r]``)."""
+
+    a: np.ndarray
+    b: np.ndarray
+    rate_index: int
+
+
+def rate_axes(pv: Any, va_m_s: float) -> dict[str, RateAxis]:
+    """Roll subsidence ``[p]``, short period ``[alpha, q]`` and Dutch roll ``[beta, r]`` at airspeed ``va_m_s``
+    [m/s] from the dimensional derivatives (Beard & McLain ch. 5 with the Gamma inertia terms:
+    ``a_phi1 = q S b C_p_p b / (2 V)``, ``a_phi2 = q S b C_p_da``, ``M_q = q S c C_m_q c / (2 V Jy)``,
+    ``M_a = q S c C_m_a / Jy``, ``M_de = q S c C_m_de / Jy``, ``C_r_*`` for yaw; ``q = rho V^2 / 2``). ``pv``
+    is a parameter view (attribute access, e.g. ``FixedWingParams``); density ``rho_kg_m3``. The exact
+    coupled linearisation is :func:`linearise`; these are what a rate-loop design uses."""
+    qbar = 0.5 * pv.rho_kg_m3 * va_m_s ** 2
+    gam = pv.Jx_kg_m2 * pv.Jz_kg_m2 - pv.Jxz_kg_m2 ** 2
+    g3, g4, g8 = pv.Jz_kg_m2 / gam, pv.Jxz_kg_m2 / gam, pv.Jx_kg_m2 / gam
+    b, c, s, m = pv.b_m, pv.c_m, pv.S_wing_m2, pv.mass_kg
+    k_lat = qbar * s * b
+    roll = RateAxis(np.array([[k_lat * (g3 * pv.C_ell_p + g4 * pv.C_n_p) * b / (2 * va_m_s)]]),
+                    np.array([k_lat * (g3 * pv.C_ell_delta_a + g4 * pv.C_n_delta_a)]), 0)
+    k_lon = qbar * s * c / pv.Jy_kg_m2
+    z_a = -qbar * s * pv.C_L_alpha / (m * va_m_s)
+    pitch = RateAxis(np.array([[z_a, 1.0], [k_lon * pv.C_m_alpha, k_lon * pv.C_m_q * c / (2 * va_m_s)]]),
+                     np.array([0.0, k_lon * pv.C_m_delta_e]), 1)
+    c_rb = g4 * pv.C_ell_beta + g8 * pv.C_n_beta
+    c_rr = g4 * pv.C_ell_r + g8 * pv.C_n_r
+    y_b = qbar * s * pv.C_Y_beta / (m * va_m_s)
+    yaw = RateAxis(np.array([[y_b, -1.0], [k_lat * c_rb, k_lat * c_rr * b / (2 * va_m_s)]]),
+                   np.array([0.0, k_lat * (g4 * pv.C_ell_delta_r + g8 * pv.C_n_delta_r)]), 1)
+    return {"roll": roll, "pitch": pitch, "yaw": yaw}
