@@ -69,7 +69,8 @@ def test_cli_builds_fmi3_model_exchange_for_one_platform_with_a_progress_line_pe
     (["--fmi", "4"], "invalid choice: 4"),
     (["--kind", "xx"], "invalid choice: 'xx'"),
     (["--platforms", "amiga"], "platforms = ['amiga']: each must be one of linux64, win64, darwin64"),
-    (["--jobs", "0"], "--jobs 0 is outside 1..64"),
+    (["--jobs", "0"], "--jobs 0 is outside 1..8"),
+    (["--jobs", "9"], "--jobs 9 is outside 1..8"),
     (["--backend", "python", "--fmi", "3"], "the python backend builds FMI 2.0 Co-Simulation only"),
 ])
 def test_bad_build_options_are_refused_with_a_clear_error(args: list[str], why: str, tmp_path: Path,

@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 
 from fmu_models.fmi.codegen import CompileError
-from fmu_models.fmi.fmus import BACKENDS, MODELS, BuildOptions, build_fmus
+from fmu_models.fmi.fmus import BACKENDS, MAX_JOBS, MODELS, BuildOptions, build_fmus
 
 KINDS = {"cs": ("cs",), "me": ("me",), "both": ("cs", "me")}
 
@@ -33,7 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="Co-Simulation, Model Exchange or both in one FMU (default: both; python: cs)")
     parser.add_argument("--platforms", default="linux64,win64,darwin64",
                         help="comma-separated binary platforms (default: linux64,win64,darwin64)")
-    parser.add_argument("--jobs", type=int, default=None, help="parallel compiles (default: CPU count, max 8)")
+    parser.add_argument("--jobs", type=int, default=None,
+                        help=f"parallel compiles (default: CPU count, max {MAX_JOBS})")
 
 
 def options(args: argparse.Namespace) -> BuildOptions:
@@ -46,8 +47,8 @@ def options(args: argparse.Namespace) -> BuildOptions:
 
 def run(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-    if args.jobs is not None and not 1 <= args.jobs <= 64:
-        print(f"build: error: --jobs {args.jobs} is outside 1..64", file=sys.stderr)
+    if args.jobs is not None and not 1 <= args.jobs <= MAX_JOBS:
+        print(f"build: error: --jobs {args.jobs} is outside 1..{MAX_JOBS}", file=sys.stderr)
         return 2
     try:
         result = build_fmus(args.params, args.out, args.only, args.backend, options(args))
