@@ -29,7 +29,7 @@ from fmu_models.common.params import read_json
 from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.params import QuadrotorParams
 from identification.thrust_battery import HOVER_CLIMB_M_S
-from identification.thrust_dataset import MOTOR_MIN_PWM_US
+from identification.thrust_dataset import MOTOR_MIN_PWM_US, without_ground_contact
 from identification.thrust_model import FlightData, ModelSpec, battery_input_V
 
 INPUT = "battery_voltage_V"
@@ -108,7 +108,7 @@ def battery_input(model: BatteryStateModel, log: Any, t_s: np.ndarray, inputs: d
         return np.full(len(t_s), nominal), {"source": "nominal", "detail": f"{model.source} has no hover battery "
                                             f"state and the log no voltage: battery_nominal_V = {nominal:g} V"}
     pwm = np.stack([inputs[f"pwm_{k}_us"] for k in range(1, N_MOTORS + 1)], axis=1)
-    airborne = pwm.mean(axis=1) > AIRBORNE_MEAN_PWM_US
+    airborne = without_ground_contact(pwm.mean(axis=1) > AIRBORNE_MEAN_PWM_US, t_s)
     climb = _climb(log, t_s)
     hover = airborne if climb is None else airborne & (np.abs(climb) < model.hover_climb_m_s)
     tilt = None

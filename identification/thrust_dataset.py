@@ -52,6 +52,10 @@ class CorrelationGateError(ValueError):
         self.correlations = dict(correlations)
 
 
+#: samples dropped after every take-off and before every touch-down [s] (landing gear on the ground, motors on)
+EDGE_GUARD_S = 1.0
+
+
 @dataclass(frozen=True)
 class ThrustDatasetConfig:
     """How to cut a thrust data set from a log (checked at construction).
@@ -74,7 +78,7 @@ class ThrustDatasetConfig:
     lowpass_hz: float | None = bounded(None, 1e-3, 1000.0, "Hz (None: no filter)", optional=True)
     extra_inputs: tuple[str, ...] = EXTRA_INPUTS
     pwm_idle_us: float = bounded(PWM_IDLE_US, 800.0, 1500.0, "us")
-    edge_guard_s: float = bounded(1.0, 0.0, 60.0, "s")  #: dropped at both ends of every airborne segment
+    edge_guard_s: float = bounded(EDGE_GUARD_S, 0.0, 60.0, "s")  #: dropped at both ends of every airborne segment
     airborne_on_mean_pwm: bool = False  #: airborne test on the mean motor PWM instead of every motor
 
     def __post_init__(self) -> None:
@@ -387,6 +391,19 @@ def _trim_edges(mask: np.ndarray, grid: _PwmGrid, guard_s: float, notes: list[st
         notes.append(f"dropped {int(drop.sum())} samples within {guard_s} s of take-off or touch-down "
                      "(ground contact)")
     return out
+
+
+def without_ground_contact(airborne: np.ndarray, t_s: np.ndarray, guard_s: float | None = None) -> np.ndarray:
+    """``airborne`` on a regular time grid ``t_s`` [s] (a replay's) without the samples within ``guard_s``
+    (default :data:`EDGE_GUARD_S`, ``ThrustDatasetConfig.edge_guard_s``'s) of a take-off or touch-down, as the data set
+    drops them (:func:`_trim_edges`), so a replay's hover battery state sees the samples identification saw."""
+    t = np.asarray(t_s, float)
+    mask = np.asarray(airborne, bool)
+    if t.size < 2:
+        return mask
+    period = float(np.median(np.diff(t)))
+    grid = _PwmGrid(t, np.empty((t.size, 0)), period, np.zeros(t.size, bool), t + period)
+    return _trim_edges(mask, grid, EDGE_GUARD_S if guard_s is None else guard_s, [])
 
 
 def _drop_short_segments(

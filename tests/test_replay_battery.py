@@ -72,6 +72,8 @@ def test_the_hover_battery_state_cuts_the_replay_thrust_error(identified: tuple[
     # the true battery runs 12.3 -> 10.1 V about the 11.1 V nominal: thrust off by up to ~10 % when held
     assert e_fed < 0.6 * e_held, (e_fed, e_held)
     held_n, fed_n = held.signals["thrust_total_N"], fed.signals["thrust_total_N"]
+    print(f"held {e_held:.3f} N skill {held_n['skill_persistence']:+.2f}, fed {e_fed:.3f} N skill "
+          f"{fed_n['skill_persistence']:+.2f} {fed_n['verdict']}")
     # identification/readme_thrust.md quotes these: held at nominal it fails, fed it no longer does
     assert held_n["verdict"] == "FAIL" and held_n["skill_persistence"] < 0.0, held_n
     assert fed_n["verdict"] != "FAIL" and fed_n["skill_persistence"] > 0.0, fed_n

@@ -257,3 +257,16 @@ def test_options_refuse_booleans_strings_and_non_finite_values(kwargs: dict, exp
 def test_options_take_numpy_numbers_and_none_where_optional() -> None:
     cfg = ThrustDatasetConfig(mass_kg=np.float64(1.2), n_motors=np.int64(4), lag_s=None, lowpass_hz=None)
     assert cfg.mass_kg == 1.2 and cfg.n_motors == 4
+
+
+def test_a_replay_drops_the_same_take_off_and_touch_down_samples() -> None:
+    """``without_ground_contact`` (the replay's hover battery state) drops 1 s after take-off and before
+    touch-down, and keeps a short dip of the motors in flight (not a ground contact)."""
+    from identification.thrust_dataset import without_ground_contact
+
+    t = np.arange(0.0, 25.0, 0.1)
+    airborne = (t >= 5.0) & (t < 20.0) & ~((t >= 12.0) & (t < 12.3))
+    kept = without_ground_contact(airborne, t)
+    assert not kept[(t >= 5.0) & (t < 5.95)].any() and kept[(t >= 6.05) & (t < 12.0)].all()
+    assert kept[(t >= 12.3) & (t < 18.95)].all() and not kept[(t >= 19.05)].any()
+    assert np.array_equal(without_ground_contact(airborne, t, guard_s=0.0), airborne)
