@@ -217,6 +217,14 @@ class SkillInterval:
                 "n_blocks": self.n_blocks, "outcome": self.outcome}
 
 
+def overall_outcome(outcomes: list[str]) -> str:
+    """One verdict over several skill outcomes (baselines, held-out sets): ``lose`` if any loses, ``win`` if all
+    win, else ``tie``."""
+    if "lose" in outcomes:
+        return "lose"
+    return "win" if outcomes and all(o == "win" for o in outcomes) else "tie"
+
+
 def block_starts(n_samples: int, block_len: int) -> np.ndarray:
     """Starts of consecutive blocks of ``block_len`` samples covering ``n_samples`` (the last may be shorter)."""
     if n_samples < 1 or block_len < 1:

@@ -35,7 +35,7 @@ from identification.anfis_train import (
     train_anfis,
 )
 from identification.jsonio import write_json
-from identification.metrics import block_starts, skill_interval
+from identification.metrics import block_starts, overall_outcome, skill_interval
 from identification.thrust_dataset import (
     MOTOR_SIGNAL,
     PAPER_MIN_PEARSON,
@@ -368,8 +368,7 @@ def _fit_metrics(res: TrainResult, data: PaperData, polys: list[PolynomialFit],
               **{f"polynomial degree {p.degree}": p(val.pwm_sum_us) for p in polys}}
     starts = block_starts(val.n_samples, max(1, round(check_block_s / val.sample_period_s)))
     skill = {k: skill_interval(val.fz_N, y_val, b, starts).as_dict() for k, b in rivals.items()}
-    outcomes = [v["outcome"] for v in skill.values()]
-    verdict = "lose" if "lose" in outcomes else ("win" if all(o == "win" for o in outcomes) else "tie")
+    verdict = overall_outcome([v["outcome"] for v in skill.values()])
     return {
         "scored_with": "fmu_models.quadrotor.thrust.motor_thrust per motor (the FMU's function)",
         "constant_validation_rmse_N": constant,

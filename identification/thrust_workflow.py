@@ -34,7 +34,7 @@ from fmu_models.quadrotor.params import QuadrotorParams
 from fmu_models.quadrotor.thrust import consequent_parameters
 from identification.anfis_train import r_squared, rmse
 from identification.jsonio import write_json
-from identification.metrics import SkillInterval, block_starts, skill_interval
+from identification.metrics import SkillInterval, block_starts, overall_outcome, skill_interval
 from identification.thrust_battery import HOVER_CLIMB_M_S
 from identification.thrust_dataset import (
     MOTOR_MIN_PWM_US,
@@ -454,11 +454,9 @@ def _pooled_rmse(folds: list[FoldResult], key: str) -> float:
 def verdict_of(comp: dict[str, dict[str, Any]]) -> str:
     """``lose`` if a baseline beats the model pooled or on any held-out set; ``win`` if the model beats every
     baseline pooled (intervals above zero); else ``tie``."""
-    outcomes = [c["pooled"]["outcome"] for c in comp.values()]
+    pooled = [c["pooled"]["outcome"] for c in comp.values()]
     per = [o["outcome"] for c in comp.values() for o in c["per_held_out"].values()]
-    if "lose" in outcomes or "lose" in per:
-        return "lose"
-    return "win" if all(o == "win" for o in outcomes) else "tie"
+    return "lose" if "lose" in per else overall_outcome(pooled)
 
 
 # --------------------------------------------------------------------------- the workflow
