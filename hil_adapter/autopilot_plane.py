@@ -14,10 +14,11 @@ from typing import Any
 import numpy as np
 
 from fmu_models.common.units import G0_M_S2 as G_M_S2
+from fmu_models.common.units import RAD_TO_DEG
 from fmu_models.fixed_wing.linear import rate_axes
 from fmu_models.signals.pwm_mapping import default_mapping
 
-DEG = 180.0 / math.pi
+DEG = RAD_TO_DEG  #: ArduPilot's rate loops work in deg/s
 TECS = "ArduPilot libraries/AP_TECS/AP_TECS.cpp range"
 
 

@@ -15,7 +15,6 @@ Pearson correlation is 0.38 with the ground run-up included and 0.75 without).
 
 from __future__ import annotations
 
-import math
 import warnings
 from collections.abc import Callable
 from dataclasses import MISSING, dataclass, field
@@ -24,6 +23,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy import signal
 
+from fmu_models.common.units import RPM_TO_RAD_S
 from fmu_models.config import bounded, range_problems
 from fmu_models.quadrotor.anfis import AnfisMap
 from fmu_models.quadrotor.constants import N_MOTORS, PWM_IDLE_US
@@ -33,7 +33,6 @@ PAPER_MIN_PEARSON = 0.85  #: paper 000 section 4: correlation needed "to proceed
 MOTOR_MIN_PWM_US = 1150.0
 GAP_FACTOR = 3.0  #: a PWM sample interval longer than this many median intervals starts a new segment
 LOWPASS_ORDER = 2  #: Butterworth order of the optional zero-phase low-pass filter
-RAD_S_PER_RPM = 2.0 * math.pi / 60.0
 MOTOR_SIGNAL = "motor_{k}_pwm_us"
 EXTRA_INPUTS = ("climb_rate_m_s", "battery_voltage_V")
 #: log signal names tried, in order, for each extra input (readers name the battery voltage battery_voltage_v)
@@ -557,7 +556,7 @@ class MotorSpeedModel:
     @property
     def omega_per_us(self) -> float:
         """dOmega/dpwm [rad/s per us] of one motor."""
-        return self.kv_rpm_per_V * self.battery_V * RAD_S_PER_RPM / (self.pwm_max_us - self.pwm_idle_us)
+        return self.kv_rpm_per_V * self.battery_V * RPM_TO_RAD_S / (self.pwm_max_us - self.pwm_idle_us)
 
 
 @dataclass(frozen=True)

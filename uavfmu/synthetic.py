@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from fmu_models.common.simulate import Simulator
+from fmu_models.common.units import RAD_TO_DEG
 from fmu_models.fixed_wing.model import FixedWingModel
 from fmu_models.fixed_wing.params import FixedWingParams
 from fmu_models.fixed_wing.trim import trim
@@ -205,7 +206,7 @@ def write_log(path: str | Path, rec: Recording, noise: bool = False, seed: int =
     sig = recording_signals(rec, noise=noise, seed=seed)
     t = np.asarray(rec.t_s, dtype=float)
     vehicle = "quadrotor" if "pwm_1_us" in rec.inputs else "fixed_wing"
-    deg = 180.0 / np.pi
+    deg = RAD_TO_DEG
     columns: dict[str, dict[str, Any]] = {
         "IMU": {"I": 0, "GyrX": sig["gyro_body_x_rad_s"], "GyrY": sig["gyro_body_y_rad_s"],
                 "GyrZ": sig["gyro_body_z_rad_s"], "AccX": sig["accel_body_x_m_s2"],

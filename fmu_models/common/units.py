@@ -10,6 +10,8 @@ import math
 
 G0_M_S2 = 9.80665  #: standard gravity (CGPM 1901; ISA, "g" and milli-g units) [m/s^2]
 DEG_TO_RAD = math.pi / 180.0
+RAD_TO_DEG = 180.0 / math.pi
+RPM_TO_RAD_S = 2.0 * math.pi / 60.0
 CDEG_TO_RAD = DEG_TO_RAD / 100.0  #: centidegrees (ArduPilot attitude fields)
 DEGE7_TO_DEG = 1e-7  #: latitude/longitude as int32 degrees * 1e7 (MAVLink, DataFlash, ULog)
 FT_TO_M = 0.3048

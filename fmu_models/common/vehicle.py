@@ -22,6 +22,7 @@ from fmu_models.common.rigid_body import (
     quat_to_dcm,
     rigid_body_derivatives,
 )
+from fmu_models.common.units import DEG_TO_RAD, RAD_TO_DEG
 
 _XYZ = {"x": "x", "y": "y", "z": "z"}
 
@@ -118,8 +119,8 @@ def nav_outputs(x: Any, force_body_N: Any, mass_kg: Any, on_ground: Any) -> list
     accel = force_body_N / mass_kg
     return [
         *[x[i] for i in range(13)],
-        geo[0] * 180.0 / math.pi,
-        geo[1] * 180.0 / math.pi,
+        geo[0] * RAD_TO_DEG,
+        geo[1] * RAD_TO_DEG,
         geo[2],
         -pos[2],
         vel_ned[0],
@@ -145,11 +146,11 @@ def initial_body_state(pv: Any) -> Any:
     (e.g. a logged ground state) is kept.
     """
     q0 = quat_from_euler(pv.init_roll_rad, pv.init_pitch_rad, pv.init_yaw_rad)
-    lat0 = pv.home_lat_deg * math.pi / 180.0
+    lat0 = pv.home_lat_deg * DEG_TO_RAD
     h_home = pv.home_height_m
     r_m, r_n = wgs84.radii_of_curvature(lat0)
     lat = lat0 + pv.init_pos_north_m / (r_m + h_home)
-    lon = pv.home_lon_deg * math.pi / 180.0 + pv.init_pos_east_m / ((r_n + h_home) * ca.cos(lat0))
+    lon = pv.home_lon_deg * DEG_TO_RAD + pv.init_pos_east_m / ((r_n + h_home) * ca.cos(lat0))
     settle = wgs84.normal_gravity(lat, h_home) / pv.ground_wn_rad_s**2
     # a start sunk at least ``settle`` (a logged ground state, replayed) is kept as given
     down = ca.if_else(pv.init_pos_down_m >= 0, ca.fmax(pv.init_pos_down_m, settle), pv.init_pos_down_m)

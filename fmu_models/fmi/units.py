@@ -6,8 +6,9 @@ factors joined by ``.`` (multiply) and one ``/`` (divide), each an atom with an 
 
 from __future__ import annotations
 
-import math
 import re
+
+from fmu_models.common.units import DEG_TO_RAD, RPM_TO_RAD_S
 
 BASES = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 
@@ -22,8 +23,8 @@ ATOMS: dict[str, tuple[dict[str, int], float]] = {
     "ms": ({"s": 1}, 1e-3),
     "us": ({"s": 1}, 1e-6),
     "rad": ({"rad": 1}, 1.0),
-    "deg": ({"rad": 1}, math.pi / 180.0),
-    "rpm": ({"rad": 1, "s": -1}, 2.0 * math.pi / 60.0),
+    "deg": ({"rad": 1}, DEG_TO_RAD),
+    "rpm": ({"rad": 1, "s": -1}, RPM_TO_RAD_S),
     "N": ({"kg": 1, "m": 1, "s": -2}, 1.0),
     "Pa": ({"kg": 1, "m": -1, "s": -2}, 1.0),
     "hPa": ({"kg": 1, "m": -1, "s": -2}, 100.0),

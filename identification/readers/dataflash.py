@@ -12,11 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
-from fmu_models.common.units import DEGE7_TO_DEG
+from fmu_models.common.units import DEG_TO_RAD, DEGE7_TO_DEG
 from fmu_models.quadrotor.constants import N_MOTORS
 from identification.flightlog import DataQuality, FlightLog, LogError, Signal, add_battery, sanitize_log
 
-DEG = math.pi / 180.0
+DEG = DEG_TO_RAD
 #: ArduPilot SERVOn_FUNCTION values
 MOTOR_FUNCTIONS = {33: 1, 34: 2, 35: 3, 36: 4, 37: 5, 38: 6, 39: 7, 40: 8}
 SURFACE_FUNCTIONS = {4: "aileron", 19: "elevator", 70: "throttle", 21: "rudder"}
