@@ -75,8 +75,9 @@ class VehicleModel(Protocol):
     def post_step(self, x: Any, u: Any, p: Any) -> Any: ...
 
 
-def step_function(model: VehicleModel, name: str = "step") -> ca.Function:
-    """``step(x, u, p, dt) -> (x_next, y_next)``: one fixed RK4 step and the outputs after it."""
+def step_function(model: VehicleModel, name: str = "step", with_outputs: bool = True) -> ca.Function:
+    """``step(x, u, p, dt) -> (x_next, y_next)``: one fixed RK4 step and the outputs after it (``x_next`` alone
+    without ``with_outputs``: a caller that sub-steps evaluates the outputs once, after the last step)."""
     x = model.states.sym("x")
     u = model.inputs.sym("u")
     p = model.params.sym("p")
@@ -86,6 +87,8 @@ def step_function(model: VehicleModel, name: str = "step") -> ca.Function:
         return model.derivatives(t, xx, u, p)
 
     x1 = model.post_step(rk4_step(f, 0.0, x, dt), u, p)
+    if not with_outputs:
+        return ca.Function(name, [x, u, p, dt], [ca.cse(x1)], ["x", "u", "p", "dt"], ["x_next"])
     y1 = model.outputs_fn(x1, u, p)
     # u and p are constant over the step, so the four RK4 stages share much work: eliminate it once.
     x1, y1 = ca.cse([x1, y1])

@@ -25,7 +25,8 @@ def _wrapper(model: VehicleModel, funcs: dict[str, ca.Function], prefix: str) ->
     """C entry points with plain arrays, so ctypes and the FMI layer call them without CasADi's work vectors.
 
     ``<id>_uavfmu_advance`` sub-steps a communication step ``h[0]`` in equal RK4 steps no larger than ``h[1]``
-    (at most ``MAX_INTERNAL_STEPS``; the FMI layer refuses larger steps first) and returns 0, or i+1 when
+    (at most ``MAX_INTERNAL_STEPS``; the FMI layer refuses larger steps first), evaluates the outputs once at the
+    end, and returns 0, or i+1 when
     state i leaves its limit or turns NaN, or -(i+1) when output i is not finite; x_out and y are written only
     on success. ``<id>_uavfmu_derivatives`` and ``<id>_uavfmu_outputs`` serve Model Exchange.
     """
@@ -33,10 +34,12 @@ def _wrapper(model: VehicleModel, funcs: dict[str, ca.Function], prefix: str) ->
     limits = ", ".join(repr(float(v)) for v in model.state_limits)
     names = entry_names(model.name)
 
-    def work(key: str) -> str:
-        f = funcs[key]
-        return (f"const casadi_real* arg[{max(1, f.sz_arg())}]; casadi_real* res[{max(1, f.sz_res())}]; "
-                f"casadi_int iw[{max(1, f.sz_iw())}]; casadi_real w[{max(1, f.sz_w())}];")
+    def work(*keys: str) -> str:
+        """Work vectors for the generated functions ``keys`` (sized for the largest)."""
+        fs = [funcs[k] for k in keys]
+        size = {a: max(1, *(getattr(f, f"sz_{a}")() for f in fs)) for a in ("arg", "res", "iw", "w")}
+        return (f"const casadi_real* arg[{size['arg']}]; casadi_real* res[{size['res']}]; "
+                f"casadi_int iw[{size['iw']}]; casadi_real w[{size['w']}];")
 
     return f"""
 /* ---- uavfmu entry points (plain arrays; see fmu_models/fmi/native/uavfmu_model.h) ---- */
@@ -53,7 +56,7 @@ int {names["initialize"]}(const double* u, const double* p, double* x0, double* 
 
 int {names["advance"]}(const double* x, const double* u, const double* p, const double* h,
                    double* x_out, double* y) {{
-  {work("step")}
+  {work("step", "outputs")}
   double xa[{nx}], xb[{nx}], yb[{ny}], dt, steps = ceil(h[0] / h[1] - 1e-9);
   long n;
   if (!(steps >= 1.0)) steps = 1.0;
@@ -61,13 +64,15 @@ int {names["advance"]}(const double* x, const double* u, const double* p, const 
   n = (long)steps;
   dt = h[0] / (double)n;
   memcpy(xa, x, sizeof(xa));
-  arg[0] = xa; arg[1] = u; arg[2] = p; arg[3] = &dt; res[0] = xb; res[1] = yb;
   for (long k = 0; k < n; ++k) {{
+    arg[0] = xa; arg[1] = u; arg[2] = p; arg[3] = &dt; res[0] = xb;
     if ({prefix}_step(arg, res, iw, w, 0)) return -1000000;
     for (int i = 0; i < {nx}; ++i)
       if (!(fabs(xb[i]) <= {prefix}_state_limits[i])) return i + 1;
     memcpy(xa, xb, sizeof(xa));
   }}
+  arg[0] = xa; arg[1] = u; arg[2] = p; res[0] = yb;
+  if ({prefix}_outputs(arg, res, iw, w, 0)) return -1000000;
   for (int i = 0; i < {ny}; ++i) if (!isfinite(yb[i])) return -(i + 1);
   memcpy(x_out, xa, sizeof(xa));
   memcpy(y, yb, sizeof(yb));
@@ -101,7 +106,7 @@ def _renamed(f: ca.Function, name: str) -> ca.Function:
 def generate(model: VehicleModel, out_dir: Path) -> dict[str, Path]:
     """Write ``<name>_model.c`` and the serialised ``<name>_step.casadi``/``<name>_init.casadi``."""
     prefix = f"uavfmu_{model.name}"
-    step = step_function(model, f"{prefix}_step")
+    step = step_function(model, f"{prefix}_step", with_outputs=False)
     init = init_function(model, f"{prefix}_init")
     funcs = {"step": step, "init": init, "derivatives": _renamed(derivative_function(model), f"{prefix}_derivatives"),
              "outputs": _renamed(output_function(model), f"{prefix}_outputs")}
