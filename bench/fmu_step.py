@@ -10,8 +10,8 @@ Per vehicle:
 (b) native FMU through FMPy's convenience API (``setReal``/``getReal`` with lists): target <= 1.3x the
     do-nothing native FMU through the same API;
 (c) the C host (tests/native_host.c, no Python): target <= 2 us per step;
-(d) a 20 ms step (20 internal RK4 steps, outputs evaluated once at its end) through the path of (a), per
-    internal step: target <= 0.6x a whole 1 ms step of (a) (it saves the FMI calls and 19 output evaluations);
+(d) a 20 ms step (20 internal RK4 steps, the outputs evaluated in the last one only) through the C host, per
+    internal step: target <= 0.8x a whole 1 ms step of (c) (it saves the FMI calls and 19 output evaluations);
 and, for comparison, the pythonfmu backend through the convenience API.
 
 Run: ``.venv/bin/python bench/fmu_step.py [--steps N]``. Exit status 1 when a target is missed.
@@ -42,7 +42,7 @@ from fmu_models.fmi.fmus import BuildOptions, build_fmus  # noqa: E402
 from fmu_models.fmi.native_build import Interface, build_native_fmu  # noqa: E402
 
 SUB_STEPS = 20  #: (d): one 20 ms communication step = 20 internal RK4 steps of 1 ms
-SUB_TARGET = 0.6  #: (d): per internal step, at most this share of a whole 1 ms FMI step (a)
+SUB_TARGET = 0.8  #: (d): per internal step, at most this share of a whole 1 ms step of the C host (c)
 CASES = {
     "quadrotor": {f"pwm_{i}_us": 1530.0 for i in range(1, 5)},
     "fixed_wing": {"aileron_rad": 0.0, "elevator_rad": -0.1, "rudder_rad": 0.0, "throttle": 0.6},
@@ -150,8 +150,9 @@ def time_fast(fmu: Path, inputs: dict[str, float], outputs: list[str], steps: in
     return _median_per_step(fmu, steps, repeats, prepare)
 
 
-def time_c_host(fmu: Path, inputs: dict[str, float], outputs: list[str], steps: int, work: Path) -> float:
-    """Median s per step of the C host (tests/native_host.c) over 7 runs after one untimed run."""
+def time_c_host(fmu: Path, inputs: dict[str, float], outputs: list[str], steps: int, work: Path,
+                h: float = 0.001) -> float:
+    """Median s per step of ``h`` [s] of the C host (tests/native_host.c) over 7 runs after one untimed run."""
     exe = work / "native_host"
     if not exe.exists():
         cmd = [*zigcc.zig_cc(), "-target", "x86_64-linux-gnu", "-O2", f"-I{native_build.FMI_INCLUDE}",
@@ -162,7 +163,7 @@ def time_c_host(fmu: Path, inputs: dict[str, float], outputs: list[str], steps: 
     d = Path(extract(str(fmu)))
     proc = subprocess.run(
         [str(exe), str(d / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"), md.guid,
-         d.as_uri(), str(steps), "0.001", ",".join(f"{vr[k]}={v}" for k, v in inputs.items()),
+         d.as_uri(), str(steps), repr(h), ",".join(f"{vr[k]}={v}" for k, v in inputs.items()),
          ",".join(str(vr[n]) for n in outputs), str(work / "host.csv"), "8"],
         capture_output=True, text=True, check=True)
     return float(proc.stdout.split()[-1]) * 1e-6
@@ -209,7 +210,8 @@ def measure(name: str, native: Path, python: Path, work: Path, steps: int) -> di
     return {
         "outputs": len(outputs),
         "fast": time_fast(native, inputs, outputs, steps, 5),
-        "sub20": time_fast(native, inputs, outputs, max(steps // SUB_STEPS, 20), 5, SUB_STEPS * 0.001) / SUB_STEPS,
+        "sub20": time_c_host(native, inputs, outputs, max(steps // SUB_STEPS, 20), work,
+                             SUB_STEPS * 0.001) / SUB_STEPS,
         "conv": time_convenience(native, inputs, outputs, steps, 5),
         "null_conv": time_convenience(null, null_in, null_out, steps, 5),
         "null_fast": time_fast(null, null_in, null_out, steps, 5),
@@ -222,20 +224,20 @@ def measure(name: str, native: Path, python: Path, work: Path, steps: int) -> di
 def report(results: dict[str, dict[str, float]]) -> int:
     us = 1e6
     print(f"{'FMU':<11} {'out':>4} {'(a) fast':>9} {'JSBSim':>8} {'a/JSB':>6} {'(b) conv':>9} {'null conv':>10} "
-          f"{'b/null':>7} {'(c) C host':>11} {'null fast':>10} {'pythonfmu':>10} {'(d) 20 ms':>10} {'d/a':>5}"
+          f"{'b/null':>7} {'(c) C host':>11} {'null fast':>10} {'pythonfmu':>10} {'(d) 20 ms':>10} {'d/c':>5}"
           "   (us per 1 ms step)")
     missed = []
     for name, r in results.items():
-        a, b, d = r["fast"] / r["jsbsim"], r["conv"] / r["null_conv"], r["sub20"] / r["fast"]
+        a, b, d = r["fast"] / r["jsbsim"], r["conv"] / r["null_conv"], r["sub20"] / r["host"]
         print(f"{name:<11} {r['outputs']:>4} {r['fast'] * us:>9.2f} {r['jsbsim'] * us:>8.2f} {a:>6.2f} "
               f"{r['conv'] * us:>9.2f} {r['null_conv'] * us:>10.2f} {b:>7.2f} {r['host'] * us:>11.3f} "
               f"{r['null_fast'] * us:>10.2f} {r['python'] * us:>10.2f} {r['sub20'] * us:>10.3f} {d:>5.2f}")
         missed += [f"{name} (a) {a:.2f}x JSBSim > 0.5x"] if not a <= 0.5 else []
         missed += [f"{name} (b) {b:.2f}x null > 1.3x"] if not b <= 1.3 else []
         missed += [f"{name} (c) {r['host'] * us:.2f} us > 2 us"] if not r["host"] * us <= 2.0 else []
-        missed += [f"{name} (d) {d:.2f}x (a) > {SUB_TARGET}x"] if not d <= SUB_TARGET else []
+        missed += [f"{name} (d) {d:.2f}x (c) > {SUB_TARGET}x"] if not d <= SUB_TARGET else []
     print("targets: (a) <= 0.5x JSBSim, (b) <= 1.3x the do-nothing native FMU, (c) <= 2 us per step, "
-          f"(d) a 1 ms internal step of a 20 ms doStep <= {SUB_TARGET}x a whole 1 ms step (a)")
+          f"(d) a 1 ms internal step of a 20 ms doStep <= {SUB_TARGET}x a whole 1 ms step (c)")
     print("MISSED: " + "; ".join(missed) if missed else "all targets met")
     return 1 if missed else 0
 

@@ -25,8 +25,8 @@ def _wrapper(model: VehicleModel, funcs: dict[str, ca.Function], prefix: str) ->
     """C entry points with plain arrays, so ctypes and the FMI layer call them without CasADi's work vectors.
 
     ``<id>_uavfmu_advance`` sub-steps a communication step ``h[0]`` in equal RK4 steps no larger than ``h[1]``
-    (at most ``MAX_INTERNAL_STEPS``; the FMI layer refuses larger steps first), evaluates the outputs once at the
-    end, and returns 0, or i+1 when
+    (at most ``MAX_INTERNAL_STEPS``; the FMI layer refuses larger steps first), the outputs only in the last one
+    (that step is fused with them, so a single-step call costs what it did before), and returns 0, or i+1 when
     state i leaves its limit or turns NaN, or -(i+1) when output i is not finite; x_out and y are written only
     on success. ``<id>_uavfmu_derivatives`` and ``<id>_uavfmu_outputs`` serve Model Exchange.
     """
@@ -56,7 +56,7 @@ int {names["initialize"]}(const double* u, const double* p, double* x0, double* 
 
 int {names["advance"]}(const double* x, const double* u, const double* p, const double* h,
                    double* x_out, double* y) {{
-  {work("step", "outputs")}
+  {work("step", "step_state")}
   double xa[{nx}], xb[{nx}], yb[{ny}], dt, steps = ceil(h[0] / h[1] - 1e-9);
   long n;
   if (!(steps >= 1.0)) steps = 1.0;
@@ -65,14 +65,12 @@ int {names["advance"]}(const double* x, const double* u, const double* p, const 
   dt = h[0] / (double)n;
   memcpy(xa, x, sizeof(xa));
   for (long k = 0; k < n; ++k) {{
-    arg[0] = xa; arg[1] = u; arg[2] = p; arg[3] = &dt; res[0] = xb;
-    if ({prefix}_step(arg, res, iw, w, 0)) return -1000000;
+    arg[0] = xa; arg[1] = u; arg[2] = p; arg[3] = &dt; res[0] = xb; res[1] = yb;
+    if (k + 1 < n ? {prefix}_step_state(arg, res, iw, w, 0) : {prefix}_step(arg, res, iw, w, 0)) return -1000000;
     for (int i = 0; i < {nx}; ++i)
       if (!(fabs(xb[i]) <= {prefix}_state_limits[i])) return i + 1;
     memcpy(xa, xb, sizeof(xa));
   }}
-  arg[0] = xa; arg[1] = u; arg[2] = p; res[0] = yb;
-  if ({prefix}_outputs(arg, res, iw, w, 0)) return -1000000;
   for (int i = 0; i < {ny}; ++i) if (!isfinite(yb[i])) return -(i + 1);
   memcpy(x_out, xa, sizeof(xa));
   memcpy(y, yb, sizeof(yb));
@@ -106,9 +104,10 @@ def _renamed(f: ca.Function, name: str) -> ca.Function:
 def generate(model: VehicleModel, out_dir: Path) -> dict[str, Path]:
     """Write ``<name>_model.c`` and the serialised ``<name>_step.casadi``/``<name>_init.casadi``."""
     prefix = f"uavfmu_{model.name}"
-    step = step_function(model, f"{prefix}_step", with_outputs=False)
+    step = step_function(model, f"{prefix}_step")
     init = init_function(model, f"{prefix}_init")
-    funcs = {"step": step, "init": init, "derivatives": _renamed(derivative_function(model), f"{prefix}_derivatives"),
+    funcs = {"step": step, "step_state": step_function(model, f"{prefix}_step_state", with_outputs=False),
+             "init": init, "derivatives": _renamed(derivative_function(model), f"{prefix}_derivatives"),
              "outputs": _renamed(output_function(model), f"{prefix}_outputs")}
     out_dir.mkdir(parents=True, exist_ok=True)
     c_name = f"{model.name}_model.c"

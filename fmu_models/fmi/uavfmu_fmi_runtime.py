@@ -83,16 +83,17 @@ class CasadiEngine:
         dt = h[0] / n
         xs, us, ps = list(x), list(u), list(p)
         for _ in range(n):
-            xs = [float(v) for v in self._step(xs, us, ps, dt).full().ravel()]  # x_next only
+            x1, y1 = self._step(xs, us, ps, dt)
+            xs = [float(v) for v in x1.full().ravel()]
             for i, v in enumerate(xs):
                 if not abs(v) <= self._limits[i]:
                     return i + 1
-        y_new = [0.0] * len(y)
-        status = self.outputs(xs, us, ps, y_new)  # once, after the last step
-        if status == 0:  # x_out and y are written only on success, as the compiled engine does
-            x_out[:] = xs
-            y[:] = y_new
-        return status
+        x_out[:] = xs
+        y[:] = [float(v) for v in y1.full().ravel()]
+        for i, v in enumerate(y):
+            if not math.isfinite(v):
+                return -(i + 1)
+        return 0
 
 
 def load_engine(resources: Path, spec: dict[str, Any]) -> tuple[Any, str]:
