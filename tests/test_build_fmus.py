@@ -69,8 +69,8 @@ def test_cli_builds_fmi3_model_exchange_for_one_platform_with_a_progress_line_pe
     (["--fmi", "4"], "invalid choice: 4"),
     (["--kind", "xx"], "invalid choice: 'xx'"),
     (["--platforms", "amiga"], "platforms = ['amiga']: each must be one of linux64, win64, darwin64"),
-    (["--jobs", "0"], "--jobs 0 is outside 1..8"),
-    (["--jobs", "9"], "--jobs 9 is outside 1..8"),
+    (["--jobs", "0"], "jobs = 0: parallel compiles must be an integer in 1..8"),
+    (["--jobs", "9"], "jobs = 9: parallel compiles must be an integer in 1..8"),
     (["--backend", "python", "--fmi", "3"], "the python backend builds FMI 2.0 Co-Simulation only"),
 ])
 def test_bad_build_options_are_refused_with_a_clear_error(args: list[str], why: str, tmp_path: Path,
@@ -80,3 +80,12 @@ def test_bad_build_options_are_refused_with_a_clear_error(args: list[str], why: 
     assert why in capsys.readouterr().err
     assert not list(tmp_path.glob("*.fmu"))
 
+
+
+@pytest.mark.parametrize("jobs", (0, 9, 100, -3, True, 2.5))
+def test_the_library_refuses_a_parallel_compile_count_out_of_range(jobs: object) -> None:
+    from fmu_models.fmi.fmus import MAX_JOBS, BuildOptions
+
+    with pytest.raises(ValueError, match=f"jobs = .*: parallel compiles must be an integer in 1..{MAX_JOBS}"):
+        BuildOptions(jobs=jobs)  # type: ignore[arg-type]
+    assert BuildOptions(jobs=MAX_JOBS).jobs == MAX_JOBS and BuildOptions().jobs is None

@@ -53,6 +53,12 @@ class BuildOptions:
     jobs: int | None = None
     progress: Callable[[str], None] | None = None
 
+    def __post_init__(self) -> None:
+        j = self.jobs
+        if j is not None and (isinstance(j, bool) or not isinstance(j, int) or not 1 <= j <= MAX_JOBS):
+            raise ValueError(f"jobs = {j!r}: parallel compiles must be an integer in 1..{MAX_JOBS} (None: the CPU "
+                             "count, at most that)")
+
 
 def split_params(data: dict[str, Any]) -> dict[str, dict[str, Any]]:
     """Sections per model from a parameter file; a bare thrust map or flat set goes to the model it fits."""
@@ -96,7 +102,7 @@ def _build_native(models: list[tuple[Any, Path]], out_dir: Path, params_file: Pa
     interface = Interface(options.fmi_version, tuple(options.kinds))
     plats = _platforms(options.platforms)
     say = options.progress or (lambda _msg: None)
-    jobs = max(1, min(MAX_JOBS, options.jobs or os.cpu_count() or 1))
+    jobs = options.jobs or max(1, min(MAX_JOBS, os.cpu_count() or 1))
     with tempfile.TemporaryDirectory(prefix="uavfmu_native_") as tmp:
         built = []
         for model, readme in models:
