@@ -18,7 +18,6 @@ from fmu_models.common.units import RAD_TO_DEG
 from fmu_models.fixed_wing.linear import rate_axes
 from fmu_models.signals.pwm_mapping import default_mapping
 
-DEG = RAD_TO_DEG  #: ArduPilot's rate loops work in deg/s
 TECS = "ArduPilot libraries/AP_TECS/AP_TECS.cpp range"
 
 
@@ -61,7 +60,7 @@ def step_metrics(axis: AxisModel, ff: float, p: float, i: float, servo_tau_s: fl
     ``1/(tau s + 1)``; exact discretisation of the closed loop (states: model, servo, integrator)."""
     from scipy.linalg import expm
 
-    k = axis.throw_rad * DEG / 45.0
+    k = axis.throw_rad * RAD_TO_DEG / 45.0
     n = len(axis.b)
     cl = np.zeros((n + 2, n + 2))
     cl[:n, :n] = axis.a
@@ -93,7 +92,7 @@ def rate_gains(axis: AxisModel, servo_tau_s: float, overshoot_max: float, integr
     (``step_metrics``) whose overshoot stays under ``overshoot_max``, over FF from 0.2 to 1 x the steady
     feed-forward ``1 / (steady_gain k)`` (which alone makes the steady rate exact) and P on a log grid around
     the servo-limited loop gain; ``I = P / integrator_time_s``."""
-    k = axis.throw_rad * DEG / 45.0
+    k = axis.throw_rad * RAD_TO_DEG / 45.0
     ff_steady = 1.0 / (axis.steady_gain * k)
     p_unit = 1.0 / (k * axis.b.max() * servo_tau_s)  # loop gain 1/tau: the servo's own bandwidth
     best: tuple[float, float, float, float] | None = None

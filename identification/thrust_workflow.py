@@ -12,8 +12,10 @@ feature set, rule count and battery-state time constant are chosen by an inner c
 training flights of each fold (nested CV). Beside the model, on the same held-out samples: the constant
 ``m g`` and least-squares polynomials in ``u`` per motor, raw and with a per-flight hover calibration (one
 scale per flight making the mean over its hover samples ``m g``; mass and PWM only). The verdict compares
-the model with every baseline by :func:`identification.metrics.skill_interval` (block bootstrap): ``win``
-only when the whole interval is above zero, ``tie`` when it straddles zero, ``lose`` below.
+the model with every baseline by :func:`identification.metrics.skill_interval` (block bootstrap; the rule of
+:class:`identification.metrics.SkillInterval`): ``lose`` when the baseline's RMSE is lower by more than 0.1 %
+pooled or on any held-out set, whatever the interval; ``win`` when every pooled interval lies above zero; else
+``tie``.
 """
 
 from __future__ import annotations

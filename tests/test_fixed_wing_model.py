@@ -120,7 +120,8 @@ def test_one_axis_rate_models_approximate_the_coupled_modes(sim: Simulator) -> N
     assert float(ax["roll"].a[0, 0]) == pytest.approx(roll.eigenvalues[0].real, rel=0.05)
     assert np.sqrt(np.linalg.det(ax["pitch"].a)) == pytest.approx(short.wn_rad_s, rel=0.05)
     assert np.sqrt(np.linalg.det(ax["yaw"].a)) == pytest.approx(dutch.wn_rad_s, rel=0.10)
-    assert ax["roll"].b[0] > 0 and ax["pitch"].b[1] < 0  # aileron rolls right, elevator up pitches down
+    # positive aileron rolls right; positive (trailing-edge-down) elevator pitches the nose down
+    assert ax["roll"].b[0] > 0 and ax["pitch"].b[1] < 0
 
 
 def test_moment_from_rates_inverts_the_rate_equation() -> None:

@@ -158,3 +158,24 @@ def test_the_identified_file_carries_an_uncertainty_validate_mc_reads(identified
     (plain,) = build(None, params.parent / "plain", ["quadrotor"])
     with pytest.raises(ValidationInputError, match="the FMU carries none"):
         mc_uncertainty(None, plain)
+
+
+def test_the_replay_state_leaves_out_take_off_and_touch_down(identified: tuple[Path, Path]) -> None:
+    """A log that starts and ends on the ground: the hover samples the replay's state counts are the airborne
+    ones without the 1 s after take-off and before touch-down (ground contact), as in identification."""
+    from types import SimpleNamespace
+
+    from identification.replay_battery import battery_input
+
+    model = read_battery_state(identified[0])
+    assert model is not None
+    t = np.arange(0.0, 30.0, 0.02)
+    flying = (t >= 5.0) & (t < 25.0)
+    pwm = np.where(flying, 1530.0, 1000.0)
+    inputs = {f"pwm_{k}_us": pwm for k in range(1, 5)}
+    log = SimpleNamespace(has=lambda name: False)  # no voltage, climb rate or attitude logged
+    volt, info = battery_input(model, log, t, inputs, 1.2)
+    expected = int(np.sum((t >= 6.0 - 1e-9) & (t < 24.0 - 1e-9)))
+    assert f"{expected} hover samples" in info["detail"], (expected, info["detail"])
+    assert int(flying.sum()) - expected == 100  # 2 s at 50 Hz left out
+    assert np.all(np.isfinite(volt))

@@ -101,3 +101,19 @@ def test_aero_verdicts_follow_the_same_rule() -> None:
     assert "segment_mean" in out["pitch_rad"]["loses_to"]
     same = _baselines((y, np.column_stack([flat, flat]), np.zeros(len(y))), data, ["roll_rad", "pitch_rad"])
     assert same["roll_rad"]["loses_to"] == [] and same["roll_rad"]["ties_with"] == ["segment_mean"]
+    # what the command makes of it: a loss exits 4, a tie alone exits 0 (named as a tie)
+    from identification.aero_identify import AeroResult
+    from uavfmu.commands.identify_aero import EXIT_BASELINE_WINS, EXIT_LATE_FAILURE, EXIT_OK, exit_status
+
+    def verdicts(baselines: dict) -> SimpleNamespace:  # the two properties read only the held-out table
+        ns = SimpleNamespace(baselines=baselines, failures=[])
+        ns.losing_outputs = AeroResult.losing_outputs.fget(ns)  # type: ignore[attr-defined]
+        ns.tied_outputs = AeroResult.tied_outputs.fget(ns)  # type: ignore[attr-defined]
+        return ns
+
+    lost, tied = verdicts(out), verdicts(same)
+    assert lost.losing_outputs == ["pitch_rad"] and exit_status(lost) == EXIT_BASELINE_WINS  # type: ignore[arg-type]
+    assert tied.losing_outputs == [] and tied.tied_outputs == ["roll_rad", "pitch_rad"]
+    assert exit_status(tied) == EXIT_OK  # type: ignore[arg-type]
+    tied.failures = ["plots: disk full"]
+    assert exit_status(tied) == EXIT_LATE_FAILURE  # type: ignore[arg-type]

@@ -166,9 +166,10 @@ class RateAxis:
 
 def rate_axes(pv: Any, va_m_s: float) -> dict[str, RateAxis]:
     """Roll subsidence ``[p]``, short period ``[alpha, q]`` and Dutch roll ``[beta, r]`` at airspeed ``va_m_s``
-    [m/s] from the dimensional derivatives (Beard & McLain ch. 5 with the Gamma inertia terms:
-    ``a_phi1 = q S b C_p_p b / (2 V)``, ``a_phi2 = q S b C_p_da``, ``M_q = q S c C_m_q c / (2 V Jy)``,
-    ``M_a = q S c C_m_a / Jy``, ``M_de = q S c C_m_de / Jy``, ``C_r_*`` for yaw; ``q = rho V^2 / 2``). ``pv``
+    [m/s] from the dimensional derivatives (Beard & McLain ch. 5 with the Gamma inertia terms: roll
+    ``p' = -a_phi1 p + a_phi2 da`` with ``a_phi1 = -q S b C_p_p b / (2 V)``, ``a_phi2 = q S b C_p_da``;
+    ``M_q = q S c C_m_q c / (2 V Jy)``, ``M_a = q S c C_m_a / Jy``, ``M_de = q S c C_m_de / Jy``, ``C_r_*`` for
+    yaw; ``q = rho V^2 / 2``). ``pv``
     is a parameter view (attribute access, e.g. ``FixedWingParams``); density ``rho_kg_m3``. The exact
     coupled linearisation is :func:`linearise`; these are what a rate-loop design uses."""
     qbar = 0.5 * pv.rho_kg_m3 * va_m_s ** 2

@@ -16,7 +16,6 @@ from fmu_models.common.units import DEG_TO_RAD, DEGE7_TO_DEG
 from fmu_models.quadrotor.constants import N_MOTORS
 from identification.flightlog import DataQuality, FlightLog, LogError, Signal, add_battery, sanitize_log
 
-DEG = DEG_TO_RAD
 #: ArduPilot SERVOn_FUNCTION values
 MOTOR_FUNCTIONS = {33: 1, 34: 2, 35: 3, 36: 4, 37: 5, 38: 6, 39: 7, 40: 8}
 SURFACE_FUNCTIONS = {4: "aileron", 19: "elevator", 70: "throttle", 21: "rudder"}
@@ -31,9 +30,9 @@ CANONICAL: list[tuple[str, str, str, float, str]] = [
     ("gyro_body_x_rad_s", "IMU", "GyrX", 1.0, "rad/s"),
     ("gyro_body_y_rad_s", "IMU", "GyrY", 1.0, "rad/s"),
     ("gyro_body_z_rad_s", "IMU", "GyrZ", 1.0, "rad/s"),
-    ("roll_rad", "ATT", "Roll", DEG, "rad"),
-    ("pitch_rad", "ATT", "Pitch", DEG, "rad"),
-    ("yaw_rad", "ATT", "Yaw", DEG, "rad"),
+    ("roll_rad", "ATT", "Roll", DEG_TO_RAD, "rad"),
+    ("pitch_rad", "ATT", "Pitch", DEG_TO_RAD, "rad"),
+    ("yaw_rad", "ATT", "Yaw", DEG_TO_RAD, "rad"),
     ("lat_deg", "GPS", "Lat", 1.0, "deg"),
     ("lon_deg", "GPS", "Lng", 1.0, "deg"),
     ("height_m", "GPS", "Alt", 1.0, "m"),
@@ -345,7 +344,7 @@ def _derived_signals(signals: dict[str, Signal]) -> None:
             signals[name] = Signal(name, s.t_s, s.values * scale, unit, f"from {key}")
     if all(f"GPS.{f}" in signals for f in ("Spd", "GCrs", "VZ")):  # ground speed, course [deg], VZ down (NED)
         spd, crs, vz = (signals[f"GPS.{f}"] for f in ("Spd", "GCrs", "VZ"))
-        course = crs.values * DEG
+        course = crs.values * DEG_TO_RAD
         for name, vals in (("vel_north_m_s", spd.values * np.cos(course)),
                            ("vel_east_m_s", spd.values * np.sin(course)), ("vel_down_m_s", vz.values)):
             signals[name] = Signal(name, spd.t_s, vals, "m/s", "from GPS.Spd/GCrs/VZ")

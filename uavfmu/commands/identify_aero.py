@@ -38,8 +38,12 @@ import logging
 import math
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from identification.flightlog import DEFAULT_MAX_DAMAGE
+
+if TYPE_CHECKING:
+    from identification.aero_identify import AeroResult
 
 EXIT_OK, EXIT_BAD_INPUT, EXIT_FAILED, EXIT_BASELINE_WINS, EXIT_LATE_FAILURE = 0, 2, 3, 4, 5
 
@@ -201,6 +205,12 @@ def run(args: argparse.Namespace) -> int:
     write_results(result, args.out, metrics, ", ".join(map(str, args.log)), args.rate, args.plots)
     print(result.summary())
     print(f"parameters: {args.out}\nmetrics: {metrics}")
+    return exit_status(result)
+
+
+def exit_status(result: AeroResult) -> int:
+    """5 after a late failure, 4 when a rival beats the model on a held-out output (a tie is not a failure),
+    else 0."""
     if result.failures:
         return EXIT_LATE_FAILURE
     return EXIT_BASELINE_WINS if result.losing_outputs else EXIT_OK
