@@ -6,7 +6,8 @@ fitted model's (model mismatch, :data:`MISMATCH`: C_n_p, C_n_delta_a, C_ell_delt
 C_L_alpha, C_m_0, C_D_p, each within its consider std), plus seeded white noise and coloured noise (AR(1),
 pole 0.9) per output. Twelve lateral-directional and pitch derivatives are estimated from a start 10 % off
 the truth, as ``identify aero`` does: printed bound = the larger of the coloured-residual Cramér-Rao bound
-and the block bootstrap over manoeuvres (times t(m-1)/z for m manoeuvres), plus the consider covariance of
+and the block bootstrap over manoeuvres (corrected for the manoeuvres' leverage, times Student's t over z at
+its degrees of freedom: ``identification.oem.segment_corrections``), plus the consider covariance of
 every fixed coefficient at its prior std (``identification.priors.fixed_sd``). Run twice: with the built-in
 geometry priors (MAP term) on, and off. An interval covers when |estimate - truth| <= 1.96 printed std.
 
