@@ -104,6 +104,8 @@ class Estimate:
     #: per model parameter, the degrees of freedom of the bootstrap spread (:func:`segment_corrections`); None:
     #: ``n_segments - 1``
     bootstrap_dof: np.ndarray | None = None
+    #: per model parameter, the leverage factor the bootstrap variance was multiplied by (:func:`segment_corrections`)
+    bootstrap_factor: np.ndarray | None = None
     #: manoeuvres whose output sensitivities exceed :data:`SENSITIVITY_GROWTH_MAX`: the fitted model diverges
     #: there, and the linearised bounds (Cramér-Rao, bootstrap, consider) are not credible
     unbounded: list[str] = field(default_factory=list)
@@ -767,13 +769,14 @@ class OutputErrorEstimator:
 
     def segment_bootstrap_std(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray, repeats: int = 400,
                               seed: int = 0, theta: np.ndarray | None = None
-                              ) -> tuple[np.ndarray, np.ndarray] | None:
+                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """Block bootstrap over manoeuvres (one linearised Gauss-Newton step per resample from the estimate,
-        Hu & Kalbfleisch's estimating-function bootstrap): (std, degrees of freedom) of the model parameters,
-        or None with fewer than :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres (too few distinct resamples). Whole
-        manoeuvres are resampled, so coloured noise, per-record disturbances and model mismatch that vary from
-        record to record show in the spread. The std is corrected for the segments' leverage and the degrees
-        of freedom follow from how the information is shared among them (:func:`segment_corrections`)."""
+        Hu & Kalbfleisch's estimating-function bootstrap): (std, variance factor, degrees of freedom) of the
+        model parameters, or None with fewer than :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres (too few distinct
+        resamples). Whole manoeuvres are resampled, so coloured noise, per-record disturbances and model
+        mismatch that vary from record to record show in the spread. The std is corrected for the segments'
+        leverage (times the square root of the factor) and the degrees of freedom follow from how the
+        information is shared among them (:func:`segment_corrections`)."""
         m = len(res)
         if m < BOOTSTRAP_MIN_SEGMENTS or not self.free:
             return None
@@ -788,7 +791,7 @@ class OutputErrorEstimator:
         # would dominate a plain std
         q75, q25 = np.percentile(np.array(reps), [75, 25], axis=0)
         factor, dof = segment_corrections(A, P)
-        return (q75 - q25) / 1.349 * np.sqrt(factor), dof
+        return (q75 - q25) / 1.349 * np.sqrt(factor), factor, dof
 
     def information(self, data: Sequence[Manoeuvre], theta: np.ndarray | None = None,
                     weight: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
@@ -829,7 +832,7 @@ class OutputErrorEstimator:
         std = np.sqrt(np.maximum(np.diag(cov), 0.0))
         corr = correlation(cov)  # zero-variance entries give 0 correlation, never NaN
         got = self.segment_bootstrap_std(res, jacs, W, theta=theta)
-        boot, dof = got if got is not None else (None, None)
+        boot, factor, dof = got if got is not None else (None, None, None)
         method = BOUND_METHODS[1] if boot is not None else BOUND_METHODS[0]
         exc = input_excitation([m.u for m in data], list(self.model.inputs.index))
         ident = analyse(M + np.diag(prior_info), names, len(self.free), exc, cov=cov)
@@ -859,7 +862,7 @@ class OutputErrorEstimator:
         return Estimate(names, theta, std, std_white, corr, resid_cov, history, warnings, converged,
                         n_global=ng, bootstrap_std=boot, bound_method=method, identifiability=ident,
                         prior_sd=self.prior_sd.copy(), covariance=cov[:ng, :ng].copy(), n_segments=len(data),
-                        bootstrap_dof=dof, unbounded=unbounded)
+                        bootstrap_dof=dof, bootstrap_factor=factor, unbounded=unbounded)
 
 
 def _cost(res: list[np.ndarray], W: np.ndarray) -> float:
