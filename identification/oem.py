@@ -217,6 +217,8 @@ class Estimate:
             params[n] = {"value": float(self.values[i]), "std": float(std[i]), "bound_method": self.bound_method,
                          "crb_std": float(self.crb_std[i]), "crb_std_white": float(self.crb_std_white[i]),
                          "bootstrap_std": None if boot is None or not np.isfinite(boot[i]) else float(boot[i]),
+                         "bootstrap_dof": None if boot is None or self.bootstrap_dof is None
+                         else float(self.bootstrap_dof[i]),
                          "consider_std": None if self.consider_std is None else float(self.consider_std[i]),
                          "prior_sd": None if self.prior_sd is None or not np.isfinite(self.prior_sd[i])
                          else float(self.prior_sd[i]),
