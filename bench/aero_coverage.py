@@ -6,12 +6,15 @@ fitted model's (model mismatch, :data:`MISMATCH`: C_n_p, C_n_delta_a, C_ell_delt
 C_L_alpha, C_m_0, C_D_p, each within its consider std), plus seeded white noise and coloured noise (AR(1),
 pole 0.9) per output. Twelve lateral-directional and pitch derivatives are estimated from a start 10 % off
 the truth, as ``identify aero`` does: printed bound = the larger of the coloured-residual Cramér-Rao bound
-and the block bootstrap over manoeuvres (times t(m-1)/z for m manoeuvres), plus the consider covariance of
+and the block bootstrap over manoeuvres (corrected for the manoeuvres' leverage, times Student's t over z at
+its degrees of freedom: ``identification.oem.segment_corrections``), plus the consider covariance of
 every fixed coefficient at its prior std (``identification.priors.fixed_sd``). Run twice: with the built-in
 geometry priors (MAP term) on, and off. An interval covers when |estimate - truth| <= 1.96 printed std.
 
 Printed per parameter and run: bias over scatter, the coverage of the Cramér-Rao bound alone, of the data
-bound (max with bootstrap), of the printed bound, and the printed bound over the actual scatter.
+bound with the equal-segment corrections m/(m-1) and t(m-1) (the code before 2026-11-26, on the same fits), of
+the data bound (max with bootstrap), of the printed bound, the printed bound over the actual scatter, and the
+mean leverage factor and degrees of freedom of the bootstrap.
 
 Run: ``.venv/bin/python bench/aero_coverage.py [--repeats 50]``. Target: printed coverage >= 0.90 for every
 free derivative, priors on and off; exit 1 on a miss.
@@ -32,7 +35,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fmu_models.common.simulate import Simulator
 from fmu_models.fixed_wing.model import FixedWingModel
-from identification.oem import Estimate, Manoeuvre, OutputErrorEstimator, consider_covariance, fixed_worth_freeing
+from identification.oem import (
+    Estimate,
+    Manoeuvre,
+    OutputErrorEstimator,
+    consider_covariance,
+    fixed_worth_freeing,
+    student_factor,
+)
 from identification.priors import CONSIDERED, fixed_sd, geometry_priors
 from uavfmu.synthetic import identification_manoeuvres
 
@@ -57,8 +67,18 @@ class Study:
     boot: np.ndarray
     data: np.ndarray  #: max(CR coloured, bootstrap)
     printed: np.ndarray  #: data bound with the consider covariance
+    factor: np.ndarray  #: the bootstrap variance's leverage factor (``oem.segment_corrections``)
+    dof: np.ndarray  #: its degrees of freedom
     seconds: float
     priors: bool
+    segments: int = 8
+
+    def equal_segment_data(self) -> np.ndarray:
+        """The data bound with the equal-segment corrections (m/(m-1), Student's t at m-1) in place of the
+        leverage factor and the degrees of freedom, on the same fits."""
+        m = self.segments
+        boot = self.boot / np.sqrt(self.factor) * np.sqrt(m / (m - 1.0)) * student_factor(m - 1.0)
+        return np.maximum(self.crb, boot)
 
     def coverage(self, std: np.ndarray) -> np.ndarray:
         return np.mean(np.abs(self.values - self.truth) <= 1.96 * std, axis=0)
@@ -92,7 +112,7 @@ def run_study(repeats: int, seed: int = 0, count: int = 8, seconds: float = 8.0,
     truth = p_plant[oe.i_free].copy()
     consider = {n: fixed_sd(n, float(start_values[n])) for n in CONSIDERED if n not in FREE}
     clean = identification_manoeuvres(plant, p_plant, seconds, rate, count, None)
-    rows: dict[str, list[np.ndarray]] = {k: [] for k in ("values", "crb", "boot", "data", "printed")}
+    rows: dict[str, list[np.ndarray]] = {k: [] for k in ("values", "crb", "boot", "data", "printed", "factor", "dof")}
     freed: dict[tuple[str, ...], int] = {}
     t0 = time.perf_counter()
     for k in range(repeats):
@@ -106,12 +126,14 @@ def run_study(repeats: int, seed: int = 0, count: int = 8, seconds: float = 8.0,
         rows["boot"].append(est.bootstrap_std[:n] if est.bootstrap_std is not None else np.full(n, np.nan))
         rows["data"].append(est.data_std[:n])
         rows["printed"].append(est.std[:n])
+        rows["factor"].append(est.bootstrap_factor[:n] if est.bootstrap_factor is not None else np.full(n, np.nan))
+        rows["dof"].append(est.bootstrap_dof[:n] if est.bootstrap_dof is not None else np.full(n, np.nan))
     arr = {key: np.array(v) for key, v in rows.items()}
     if freed:
         print("freed by the auto rule (repeats): " + "; ".join(f"{', '.join(c) or 'none'} ({r})"
                                                              for c, r in freed.items()))
-    return Study(FREE, truth, arr["values"], arr["crb"], arr["boot"], arr["data"], arr["printed"],
-                 time.perf_counter() - t0, priors)
+    return Study(FREE, truth, arr["values"], arr["crb"], arr["boot"], arr["data"], arr["printed"], arr["factor"],
+                 arr["dof"], time.perf_counter() - t0, priors, count)
 
 
 _ESTIMATORS: dict[tuple[str, ...], OutputErrorEstimator] = {}
@@ -144,13 +166,17 @@ def report(st: Study) -> float:
     r = len(st.values)
     scatter = np.std(st.values - st.truth, axis=0, ddof=1) if r > 1 else np.full(len(FREE), np.nan)
     cov_crb, cov_data, cov_pr = st.coverage(st.crb), st.coverage(st.data), st.coverage(st.printed)
+    cov_eq = st.coverage(st.equal_segment_data())
     print(f"priors {'ON (geometry, MAP)' if st.priors else 'OFF'}: {r} repeats in {st.seconds:.0f} s; coverage of "
-          "the 95 % intervals (target >= 0.90)")
-    print(f"{'parameter':<14} {'truth':>9} {'bias/sd':>8} {'CR col':>7} {'data':>7} {'printed':>8} {'printed/sd':>11}")
+          "the 95 % intervals (target >= 0.90); 'data m-1': the data bound with the equal-segment m/(m-1) and "
+          "t(m-1) in place of the bootstrap's leverage factor and degrees of freedom (mean of each shown)")
+    print(f"{'parameter':<14} {'truth':>9} {'bias/sd':>8} {'CR col':>7} {'data m-1':>9} {'data':>7} {'printed':>8} "
+          f"{'printed/sd':>11} {'factor':>7} {'dof':>5}")
     for i, n in enumerate(FREE):
         bias = (np.mean(st.values[:, i]) - st.truth[i]) / scatter[i]
-        print(f"{n:<14} {st.truth[i]:9.4f} {bias:8.2f} {cov_crb[i]:7.2f} {cov_data[i]:7.2f} {cov_pr[i]:8.2f} "
-              f"{np.mean(st.printed[:, i]) / scatter[i]:11.2f}")
+        print(f"{n:<14} {st.truth[i]:9.4f} {bias:8.2f} {cov_crb[i]:7.2f} {cov_eq[i]:9.2f} {cov_data[i]:7.2f} "
+              f"{cov_pr[i]:8.2f} {np.mean(st.printed[:, i]) / scatter[i]:11.2f} {np.mean(st.factor[:, i]):7.2f} "
+              f"{np.mean(st.dof[:, i]):5.1f}")
     worst = float(np.min(cov_pr))
     print(f"printed bound: max(Cramér-Rao coloured, block bootstrap) + consider covariance of the fixed "
           f"coefficients; worst coverage {worst:.2f} -> {'PASS' if worst >= 0.9 else 'FAIL'}\n")

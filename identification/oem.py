@@ -100,7 +100,12 @@ class Estimate:
     consider_cov: np.ndarray | None = None  #: covariance from parameters held fixed (consider covariance)
     considered: dict[str, float] = field(default_factory=dict)  #: fixed parameter -> the std it was given
     covariance: np.ndarray | None = None  #: covariance of the model parameters behind the printed bound
-    n_segments: int = 0  #: manoeuvres the bootstrap resampled (its small-sample factor)
+    n_segments: int = 0  #: manoeuvres the bootstrap resampled
+    #: per model parameter, the degrees of freedom of the bootstrap spread (:func:`segment_corrections`); None:
+    #: ``n_segments - 1``
+    bootstrap_dof: np.ndarray | None = None
+    #: per model parameter, the leverage factor the bootstrap variance was multiplied by (:func:`segment_corrections`)
+    bootstrap_factor: np.ndarray | None = None
     #: manoeuvres whose output sensitivities exceed :data:`SENSITIVITY_GROWTH_MAX`: the fitted model diverges
     #: there, and the linearised bounds (Cramér-Rao, bootstrap, consider) are not credible
     unbounded: list[str] = field(default_factory=list)
@@ -116,8 +121,9 @@ class Estimate:
     @property
     def std(self) -> np.ndarray:
         """The printed 1-sigma bound: the larger of the coloured-residual Cramér-Rao bound and the block
-        bootstrap over manoeuvres scaled by :func:`small_sample_factor` (derivatives; nuisance parameters keep
-        the Cramér-Rao bound), with the consider share of the parameters held fixed added in quadrature."""
+        bootstrap over manoeuvres scaled by :func:`student_factor` of its degrees of freedom (derivatives;
+        nuisance parameters keep the Cramér-Rao bound), with the consider share of the parameters held fixed
+        added in quadrature."""
         out = self.crb_std.copy()
         out[:self.n_global] = self.data_std
         if self.consider_std is not None:
@@ -130,7 +136,8 @@ class Estimate:
         consider share of the parameters held fixed."""
         out = self.crb_std[:self.n_global].copy()
         if self.bootstrap_std is not None and self.bound_method.startswith("max("):
-            out = np.maximum(out, self.bootstrap_std * small_sample_factor(self.n_segments))
+            dof = self.bootstrap_dof if self.bootstrap_dof is not None else self.n_segments - 1.0
+            out = np.maximum(out, self.bootstrap_std * student_factor(dof))
         return out
 
     def dominance(self) -> list[str]:
@@ -210,6 +217,8 @@ class Estimate:
             params[n] = {"value": float(self.values[i]), "std": float(std[i]), "bound_method": self.bound_method,
                          "crb_std": float(self.crb_std[i]), "crb_std_white": float(self.crb_std_white[i]),
                          "bootstrap_std": None if boot is None or not np.isfinite(boot[i]) else float(boot[i]),
+                         "bootstrap_dof": None if boot is None or self.bootstrap_dof is None
+                         else float(self.bootstrap_dof[i]),
                          "consider_std": None if self.consider_std is None else float(self.consider_std[i]),
                          "prior_sd": None if self.prior_sd is None or not np.isfinite(self.prior_sd[i])
                          else float(self.prior_sd[i]),
@@ -265,16 +274,50 @@ def bootstrap_repeats(A: np.ndarray, g: np.ndarray, P: np.ndarray, gp: np.ndarra
     return np.concatenate([got["reps"] for _, got in run.results() if got is not None])
 
 
-BOUND_METHODS = ("cramer-rao-coloured", "max(cramer-rao-coloured, segment-bootstrap x t(m-1)/z)")
+BOUND_METHODS = ("cramer-rao-coloured", "max(cramer-rao-coloured, segment-bootstrap x t(dof)/z)")
 
 
-def small_sample_factor(m: int) -> float:
-    """``t_{0.975, m-1} / z_{0.975}``: a std estimated from ``m`` resampled segments carries about ``m - 1``
-    degrees of freedom, so its 95 % interval is Student's, not the normal one (2.36 / 1.96 = 1.21 for 8
-    segments, 1.04 for 40)."""
+def student_factor(dof: float | np.ndarray) -> float | np.ndarray:
+    """``t_{0.975, dof} / z_{0.975}``: a std estimated with ``dof`` degrees of freedom gives a 95 % interval
+    of Student's width, not the normal one (2.36 / 1.96 = 1.21 for 7, 1.04 for 39); ``dof`` below 1 counts as 1."""
     from scipy.stats import norm, t
 
-    return float(t.ppf(0.975, max(m - 1, 1)) / norm.ppf(0.975))
+    out = t.ppf(0.975, np.maximum(dof, 1.0)) / norm.ppf(0.975)
+    return float(out) if np.ndim(out) == 0 else out
+
+
+def segment_corrections(A: np.ndarray, P: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Small-sample corrections of a spread over ``m`` segments, per model parameter (Bell & McCaffrey 2002;
+    Imbens & Kolesár 2016, who compute them under a working model): ``A`` (m x n x n) is each segment's
+    information, ``P`` the prior's (not resampled).
+
+    Working model: segment ``j``'s score at the truth has covariance ``A_j``, so the true variance of the
+    estimate is ``M⁻¹ (Σ A_j) M⁻¹`` with ``M = Σ A_j + P``. The spread over segments is made of scores at the
+    estimate, ``ĝ_j = g_j - A_j M⁻¹ Σ_k g_k``, whose covariances are ``C_jl = δ_jl A_j - 2 A_j M⁻¹ A_l +
+    A_j M⁻¹ (Σ A_k) M⁻¹ A_l``: a segment that carries a large share of a parameter's information (leverage)
+    pulls the estimate towards itself and shows a smaller score. Returns
+
+    - ``variance_factor``: true variance over the expected spread, ``bᵀ(Σ A_j)b / Σ_j c_jj`` with ``b = M⁻¹ e_i``
+      and ``c_jl = bᵀ C_jl b``; ``m / (m - 1)`` for equal segments without prior;
+    - ``dof``: Satterthwaite's degrees of freedom of that spread, ``(Σ_j c_jj)² / Σ_jl c_jl²`` (its variance
+      for Gaussian scores is ``2 Σ_jl c_jl²``); ``m - 1`` for equal segments, fewer when a few segments carry
+      the information.
+    """
+    m, n = A.shape[0], A.shape[1]
+    S = A.sum(axis=0)
+    Mi = np.linalg.pinv(S + (np.zeros((n, n)) if P is None else P))
+    factor, dof = np.ones(n), np.full(n, max(m - 1.0, 1.0))
+    for i in range(n):
+        b = Mi[:, i]
+        a = A @ b  # (m, n): A_j b
+        q = a @ Mi  # (m, n): (M⁻¹ A_j b)ᵀ
+        C = q @ S @ q.T - 2.0 * q @ a.T
+        C[np.diag_indices(m)] += a @ b
+        spread = float(np.trace(C))
+        if spread > 0.0:
+            factor[i] = float(b @ S @ b) / spread
+            dof[i] = spread ** 2 / float(np.sum(C ** 2))
+    return factor, dof
 
 
 #: largest credible output change per 100 % change of a model parameter, in units of the output's range over
@@ -727,12 +770,15 @@ class OutputErrorEstimator:
         return out
 
     def segment_bootstrap_std(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray, repeats: int = 400,
-                              seed: int = 0, theta: np.ndarray | None = None) -> np.ndarray | None:
+                              seed: int = 0, theta: np.ndarray | None = None
+                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """Block bootstrap over manoeuvres (one linearised Gauss-Newton step per resample from the estimate,
-        Hu & Kalbfleisch's estimating-function bootstrap): std of the model parameters, or None with fewer than
-        :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres (too few distinct resamples). Whole manoeuvres are
-        resampled, so coloured noise, per-record disturbances and model mismatch that vary from record to
-        record show in the spread."""
+        Hu & Kalbfleisch's estimating-function bootstrap): (std, variance factor, degrees of freedom) of the
+        model parameters, or None with fewer than :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres (too few distinct
+        resamples). Whole manoeuvres are resampled, so coloured noise, per-record disturbances and model
+        mismatch that vary from record to record show in the spread. The std is corrected for the segments'
+        leverage (times the square root of the factor) and the degrees of freedom follow from how the
+        information is shared among them (:func:`segment_corrections`)."""
         m = len(res)
         if m < BOOTSTRAP_MIN_SEGMENTS or not self.free:
             return None
@@ -746,7 +792,8 @@ class OutputErrorEstimator:
         # robust spread (IQR / 1.349): a resample that leaves a parameter unexcited gives a wild step, which
         # would dominate a plain std
         q75, q25 = np.percentile(np.array(reps), [75, 25], axis=0)
-        return (q75 - q25) / 1.349 * np.sqrt(m / (m - 1.0))
+        factor, dof = segment_corrections(A, P)
+        return (q75 - q25) / 1.349 * np.sqrt(factor), factor, dof
 
     def information(self, data: Sequence[Manoeuvre], theta: np.ndarray | None = None,
                     weight: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
@@ -786,13 +833,14 @@ class OutputErrorEstimator:
         cov = M_inv @ middle @ M_inv
         std = np.sqrt(np.maximum(np.diag(cov), 0.0))
         corr = correlation(cov)  # zero-variance entries give 0 correlation, never NaN
-        boot = self.segment_bootstrap_std(res, jacs, W, theta=theta)
+        got = self.segment_bootstrap_std(res, jacs, W, theta=theta)
+        boot, factor, dof = got if got is not None else (None, None, None)
         method = BOUND_METHODS[1] if boot is not None else BOUND_METHODS[0]
         exc = input_excitation([m.u for m in data], list(self.model.inputs.index))
         ident = analyse(M + np.diag(prior_info), names, len(self.free), exc, cov=cov)
         printed = std.copy()
         if boot is not None:
-            printed[:len(self.free)] = np.maximum(printed[:len(self.free)], boot * small_sample_factor(len(data)))
+            printed[:len(self.free)] = np.maximum(printed[:len(self.free)], boot * student_factor(dof))
         warnings = []
         for i, n in enumerate(names[:len(self.free)]):
             if printed[i] > RELATIVE_STD_WARN * abs(theta[i]):
@@ -816,7 +864,7 @@ class OutputErrorEstimator:
         return Estimate(names, theta, std, std_white, corr, resid_cov, history, warnings, converged,
                         n_global=ng, bootstrap_std=boot, bound_method=method, identifiability=ident,
                         prior_sd=self.prior_sd.copy(), covariance=cov[:ng, :ng].copy(), n_segments=len(data),
-                        unbounded=unbounded)
+                        bootstrap_dof=dof, bootstrap_factor=factor, unbounded=unbounded)
 
 
 def _cost(res: list[np.ndarray], W: np.ndarray) -> float:

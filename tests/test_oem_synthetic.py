@@ -10,7 +10,14 @@ from scipy.signal import lfilter
 from fmu_models.common.simulate import Simulator
 from fmu_models.fixed_wing.model import FixedWingModel
 from fmu_models.fixed_wing.trim import trim
-from identification.oem import EstimationError, Manoeuvre, OutputErrorEstimator, coloured_covariance
+from identification.oem import (
+    EstimationError,
+    Manoeuvre,
+    OutputErrorEstimator,
+    coloured_covariance,
+    segment_corrections,
+    student_factor,
+)
 from uavfmu.synthetic import OEM_FREE, OEM_OUTPUTS, OEM_SIGMA, identification_manoeuvres, multistep
 
 FREE = ["C_ell_p", "C_ell_delta_a", "C_ell_beta", "C_ell_r", "C_n_beta", "C_n_r", "C_n_delta_r", "C_Y_beta"]
@@ -192,6 +199,38 @@ def test_coloured_covariance_equals_the_double_sum_over_lags() -> None:
             R = (r[:n - tau].T @ r[tau:] if tau >= 0 else (r[:n + tau].T @ r[-tau:]).T) / n
             expected += (1 - abs(tau) / (lags + 1)) * G[i].T @ R @ G[j]
     np.testing.assert_allclose(coloured_covariance(G, r, lags), 0.5 * (expected + expected.T), rtol=1e-10)
+
+
+def test_segment_corrections_are_m_over_m_minus_1_and_m_minus_1_for_equal_segments() -> None:
+    """Eight segments of equal information: the textbook factor m/(m-1) and Student's t with m-1 degrees."""
+    rng = np.random.default_rng(2)
+    B = rng.normal(size=(4, 4))
+    factor, dof = segment_corrections(np.stack([B @ B.T] * 8))
+    np.testing.assert_allclose(factor, 8 / 7, rtol=1e-9)
+    np.testing.assert_allclose(dof, 7.0, rtol=1e-9)
+    assert student_factor(7.0) == pytest.approx(2.3646 / 1.9600, rel=1e-3)
+
+
+def test_segment_corrections_match_the_spread_of_unequal_segments() -> None:
+    """A linear model with eight segments of unequal information (one carries most of the first parameter's):
+    over 20000 noise draws the spread over segments at the estimate, Σ_j (M⁻¹ ĝ_j)², times the factor has the
+    mean of the estimate's actual variance, and 2 mean² / variance of that spread equals the degrees of
+    freedom given; both differ from the equal-segment m/(m-1) and m-1."""
+    rng = np.random.default_rng(3)
+    X = [rng.normal(size=(30, 3)) * np.array([6.0 if j == 0 else 1.0, 1.0, 0.5 + j]) for j in range(8)]
+    A = np.stack([x.T @ x for x in X])
+    Mi = np.linalg.inv(A.sum(axis=0))
+    factor, dof = segment_corrections(A)
+    draws = 20000
+    spread, est = np.zeros((draws, 3)), np.zeros((draws, 3))
+    for k in range(draws):
+        g = np.stack([x.T @ rng.normal(size=30) for x in X])
+        step = Mi @ g.sum(axis=0)
+        est[k] = step
+        spread[k] = np.sum((Mi @ (g - A @ step).T) ** 2, axis=1)
+    np.testing.assert_allclose(spread.mean(axis=0) * factor, est.var(axis=0), rtol=0.05)
+    np.testing.assert_allclose(2 * spread.mean(axis=0) ** 2 / spread.var(axis=0), dof, rtol=0.08)
+    assert factor[0] > 1.3 * 8 / 7 and dof[0] < 4.0
 
 
 @pytest.fixture(scope="module")
