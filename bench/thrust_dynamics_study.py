@@ -21,6 +21,7 @@ data are there, 2 when not.
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fmu_models.common.units import G0_M_S2 as G0
 from identification.readers import read_log
+from identification.thrust_battery import HOVER_TAUS_S, hover_thrust_scale
 from identification.thrust_dataset import ThrustDatasetConfig, build_thrust_dataset
 from identification.thrust_model import FlightData, command
 from identification.thrust_workflow import HOVER_CLIMB_M_S
@@ -131,6 +133,68 @@ def mode_split(flights: list[FlightData], volts: list[np.ndarray]) -> None:
     print(f"  held-out {np.sqrt(sse / n):.3f} / {np.sqrt(sse_cal / n):.3f}")
 
 
+def asymmetric_lag(x: np.ndarray, f: FlightData, up_s: float, down_s: float) -> np.ndarray:
+    """Per-motor first-order lag of ``x`` (N, 4) with a spin-up and a spin-down time constant [s] (a motor
+    without active braking slows down more slowly than it speeds up); 0 passes through."""
+    a_up = 1.0 - np.exp(-f.period_s / up_s) if up_s > 0 else 1.0
+    a_dn = 1.0 - np.exp(-f.period_s / down_s) if down_s > 0 else 1.0
+    starts = np.flatnonzero(np.diff(f.time_s, prepend=-np.inf) > 1.5 * f.period_s)
+    out = np.empty_like(x)
+    for lo, hi in zip(starts, [*starts[1:], len(x)], strict=True):
+        state = x[lo].copy()
+        out[lo] = state
+        for k in range(lo + 1, hi):  # a few thousand samples
+            d = x[k] - state
+            state = state + np.where(d > 0, a_up, a_dn) * d
+            out[k] = state
+    return out
+
+
+def lofo_with(flights: list[FlightData], design: Callable[[FlightData], np.ndarray],
+              state_tau_s: float | None = None) -> tuple[float, float]:
+    """Held-out pooled RMSE [N] raw / calibrated of the least-squares map ``design(f) @ theta`` fitted on the
+    other flights; with ``state_tau_s`` the prediction is scaled by the hover-condition battery state
+    (``identification.thrust_battery.hover_thrust_scale``), which is then its own calibration."""
+    sse = sse_cal = 0.0
+    n = 0
+    for i, test in enumerate(flights):
+        tr = [f for j, f in enumerate(flights) if j != i]
+        theta = np.linalg.lstsq(np.concatenate([design(f) for f in tr]),
+                                np.concatenate([f.thrust_N for f in tr]), rcond=None)[0]
+        pred = design(test) @ theta
+        if state_tau_s is None:
+            cal = pred * test.weight_N / np.mean(pred[test.hover])
+        else:
+            pred = cal = pred * hover_thrust_scale(test.time_s, pred, test.hover, test.weight_N, state_tau_s)
+        sse += float(np.sum((pred - test.thrust_N) ** 2))
+        sse_cal += float(np.sum((cal - test.thrust_N) ** 2))
+        n += len(pred)
+    return float(np.sqrt(sse / n)), float(np.sqrt(sse_cal / n))
+
+
+def other_forms(flights: list[FlightData]) -> None:
+    """Three more physical forms of the one-rule ``u_eff`` map on PX4 (per-flight delay): an asymmetric motor
+    lag, the voltage exponent ``x = u (V/V_nom)^g`` (motor speed ~ duty x voltage is ``g = 1``), and a hover
+    battery state on top of the logged voltage."""
+    nominal = float(np.median(np.concatenate([f.volt_V for f in flights])))  # type: ignore[misc]
+
+    def x_of(f: FlightData, g: float = 1.0) -> np.ndarray:
+        return command(f.pwm_us, IDLE_US, FULL_US) * ((f.volt_V / nominal) ** g)[:, None]  # type: ignore[operator]
+
+    def quad(x: np.ndarray) -> np.ndarray:
+        return np.stack([(x * x).sum(axis=1), x.sum(axis=1)], axis=1)
+
+    for up, down in ((0.0, 0.0), (0.0, 0.02), (0.0, 0.04), (0.0, 0.08), (0.02, 0.02), (0.02, 0.04)):
+        raw, cal = lofo_with(flights, lambda f, up=up, down=down: quad(asymmetric_lag(x_of(f), f, up, down)))
+        print(f"  motor lag up {up * 1e3:2.0f} ms, down {down * 1e3:2.0f} ms: {raw:.3f} / {cal:.3f}")
+    for g in (0.0, 0.5, 1.0, 1.5, 2.0):
+        raw, cal = lofo_with(flights, lambda f, g=g: quad(x_of(f, g)))
+        print(f"  voltage exponent {g:.1f}: {raw:.3f} / {cal:.3f}")
+    for tau in HOVER_TAUS_S:
+        raw, _ = lofo_with(flights, lambda f: quad(x_of(f)), state_tau_s=tau)
+        print(f"  hover battery state tau {tau:.0f} s on top of the voltage: {raw:.3f} (its own calibration)")
+
+
 def terminal_voltage(f: FlightData, log: object) -> tuple[np.ndarray, float]:
     """``V_oc - R I_hat`` [V] at the PWM samples and ``R`` [ohm]: ``V = c0 + c1 t - R I`` on the 2 Hz samples."""
     sig = log.signals  # type: ignore[attr-defined]
@@ -211,6 +275,8 @@ def main() -> int:
     print(f"  V_oc - R I_hat (R = {', '.join(f'{r * 1e3:.1f}' for _, r in sag)} mOhm): {raw:.3f} / {cal:.3f}")
     print("PX4 common-mode vs differential curvature (u V/V_nom; one-rule map: A = D)")
     mode_split(fl, [f.volt_V for f in fl])  # type: ignore[misc]
+    print("PX4 other physical forms of the one-rule u_eff map (target 0.95 x 1.054 = 1.001 calibrated)")
+    other_forms(fl)
     print("PX4 coherence of the held-out measured thrust with the model's (per-flight delay estimate)")
     coherence_floor(fl)
     print("Erle LOFO, one-rule map (no voltage), per-flight delay estimate")
