@@ -9,7 +9,9 @@ raw and with the per-flight hover calibration (hover = |climb| < 0.3 m/s, no til
 calibrated figures differ slightly from ``identify thrust``), and the in-sample RMSE of each fold. Then the same
 map with the battery voltage replaced by an estimate of the instantaneous terminal voltage ``V_oc - R I_hat`` (``R`` and
 ``V_oc`` from the 2 Hz voltage/current, ``I_hat = k sum u^3`` at the PWM rate). Then the common-mode vs
-differential curvature split of the one-rule voltage map (:func:`mode_split`). Last, per PX4 flight held out, the
+differential curvature split of the one-rule voltage map (:func:`mode_split`), then other physical forms of it
+(:func:`other_forms`: asymmetric motor lag, voltage exponent, hover battery state on top of the voltage). Last,
+per PX4 flight held out, the
 coherence between the model's thrust (fitted on the other flight) and the measured thrust by frequency band,
 with the transfer function ``H = S_xy / S_xx`` and the error no linear time-invariant map of the model's thrust
 (lag, delay, any filter) can remove: ``sqrt(int (1 - coh) S_yy df)``. A study, not a target: exit 0 when the
