@@ -84,10 +84,17 @@ class Study:
         return np.mean(np.abs(self.values - self.truth) <= 1.96 * std, axis=0)
 
 
+def white_plus_ar1(rng: np.random.Generator, shape: tuple[int, ...], white_sd: object, coloured_sd: object,
+                   pole: float = POLE) -> np.ndarray:
+    """White noise of std ``white_sd`` plus a stationary AR(1) part (``pole`` per sample, along axis 0) of std
+    ``coloured_sd`` (scalars or per-column arrays); the replica's noise too."""
+    white = rng.normal(0.0, 1.0, shape) * white_sd
+    drive = rng.normal(0.0, 1.0, shape) * coloured_sd * np.sqrt(1 - pole**2)
+    return white + lfilter([1.0], [1.0, -pole], drive, axis=0)
+
+
 def _noise(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
-    white = rng.normal(0.0, 1.0, shape) * WHITE
-    drive = rng.normal(0.0, 1.0, shape) * COLOURED * np.sqrt(1 - POLE**2)
-    return white + lfilter([1.0], [1.0, -POLE], drive, axis=0)
+    return white_plus_ar1(rng, shape, WHITE, COLOURED)
 
 
 def plant_params(model: FixedWingModel, p: np.ndarray) -> np.ndarray:

@@ -38,7 +38,6 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import lfilter
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -55,11 +54,13 @@ from identification.oem import Manoeuvre, OutputErrorEstimator
 from identification.readers import read_log
 from uavfmu.synthetic import NOISE
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from aero_coverage import white_plus_ar1  # the same noise as the coverage study
+
 LOG = Path(__file__).resolve().parents[2] / "shared" / "data" / "fixed_wing" / "arduplane_sitl_fmu_excitation.BIN"
 #: coefficients scaled in the truth: the primaries and the fixed ones that couple into them
 SCALED = (*PRIMARY, "C_m_delta_e", "C_Y_delta_r", "C_Y_p", "C_Y_r", "C_Y_delta_a", "C_ell_delta_r", "C_n_p",
           "C_n_delta_a", "C_L_q")
-POLE = 0.9
 
 
 def truth_params(model: FixedWingModel, p: np.ndarray, rng: np.random.Generator, data: list[Manoeuvre],
@@ -75,11 +76,6 @@ def truth_params(model: FixedWingModel, p: np.ndarray, rng: np.random.Generator,
     out[ix["C_m_0"]] = p[ix["C_m_0"]] + sum((p[ix[a]] - out[ix[a]]) * v for a, v in
                                             (("C_m_alpha", alpha), ("C_m_delta_e", elev)))
     return out
-
-
-def _noise(rng: np.random.Generator, n: int, sd: float) -> np.ndarray:
-    white = rng.normal(0.0, sd, n)
-    return white + lfilter([1.0], [1.0, -POLE], rng.normal(0.0, sd * np.sqrt(1 - POLE ** 2), n))
 
 
 #: signals the identification reads from a log besides the fitted outputs: the state at each segment start
@@ -112,7 +108,7 @@ def replica_log(log: FlightLog, model: FixedWingModel, p_truth: np.ndarray, segm
         sd = NOISE.get(col, STATE_NOISE.get(name, 0.01))
         for seg, (tg, y) in zip(segments, runs, strict=True):
             keep = (t <= seg.t0_s) | (t > seg.t1_s)
-            yv = y[:, i] + _noise(rng, len(tg), sd)
+            yv = y[:, i] + white_plus_ar1(rng, (len(tg),), sd, sd)
             if name == "yaw_rad":
                 yv = np.angle(np.exp(1j * yv))
             t = np.concatenate([t[keep], tg])
