@@ -207,14 +207,19 @@ def read_config_file(path: str | Path) -> dict[str, Any]:
         raise ConfigError(str(p), ["file not found"]) from None
     except (OSError, UnicodeDecodeError) as err:
         raise ConfigError(str(p), [f"cannot read: {err}"]) from None
+    return parse_config_text(text, str(p), toml=p.suffix.lower() == ".toml")
+
+
+def parse_config_text(text: str, source: str, toml: bool = False) -> dict[str, Any]:
+    """The dict of a TOML or JSON text (a file's, or an FMU member's); :class:`ConfigError` naming ``source``."""
     try:
-        data = tomllib.loads(text) if p.suffix.lower() == ".toml" else json.loads(text)
+        data = tomllib.loads(text) if toml else json.loads(text)
     except tomllib.TOMLDecodeError as err:
-        raise ConfigError(str(p), [f"not valid TOML: {err}"]) from None
+        raise ConfigError(source, [f"not valid TOML: {err}"]) from None
     except json.JSONDecodeError as err:
-        raise ConfigError(str(p), [f"not valid JSON: {err.msg} at line {err.lineno}, column {err.colno}"]) from None
+        raise ConfigError(source, [f"not valid JSON: {err.msg} at line {err.lineno}, column {err.colno}"]) from None
     if not isinstance(data, dict):
-        raise ConfigError(str(p), [f"expected an object at the top level, found {type(data).__name__}"])
+        raise ConfigError(source, [f"expected an object at the top level, found {type(data).__name__}"])
     return data
 
 

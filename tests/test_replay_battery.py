@@ -101,7 +101,8 @@ def test_a_logged_voltage_is_fed_as_logged(identified: tuple[Path, Path], tmp_pa
 
 
 def test_the_fmu_carries_the_file_it_was_built_from(identified: tuple[Path, Path], tmp_path: Path) -> None:
-    """``build --params`` embeds the file verbatim; a damaged or oversized embedded file is a named error."""
+    """``build --params`` embeds the file (JSON verbatim, TOML as its JSON); a damaged or oversized embedded file
+    is a named error."""
     import zipfile
 
     from fmu_models.common.errors import ParameterError
@@ -125,6 +126,13 @@ def test_the_fmu_carries_the_file_it_was_built_from(identified: tuple[Path, Path
 
     (plain,) = build(None, tmp_path / "plain", ["quadrotor"])
     assert embedded_battery_state(plain) is None  # built from defaults: nothing embedded
+    # a TOML parameter file (which build reads as well) is embedded as the JSON of what the build read
+    toml = tmp_path / "p.toml"
+    toml.write_text("[quadrotor]\nmass_kg = 1.3\n")
+    (from_toml,) = build(toml, tmp_path / "toml", ["quadrotor"])
+    data, source = fmuzip.embedded_params(from_toml)  # type: ignore[misc]
+    assert data == {"quadrotor": {"mass_kg": 1.3}} and fmuzip.EMBEDDED_PARAMS in source
+    assert embedded_battery_state(from_toml) is None  # no identified battery state in it
 
 
 def test_a_parameter_file_of_another_fmu_is_refused(identified: tuple[Path, Path], tmp_path: Path) -> None:

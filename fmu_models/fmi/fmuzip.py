@@ -16,7 +16,7 @@ from pathlib import Path
 
 #: the earliest time a zip member can carry (1980-01-01 00:00:00 UTC)
 ZIP_EPOCH = 315532800
-#: the parameter file an FMU was built from (``build --params``), carried verbatim in its resources
+#: the parameter file an FMU was built from (``build --params``), carried in its resources (JSON verbatim, TOML as JSON)
 EMBEDDED_PARAMS = "resources/uavfmu_parameters.json"
 #: largest parameter file embedded or read back [bytes] (identified files are a few kB)
 MAX_EMBEDDED_BYTES = 4 * 1024 * 1024
@@ -49,12 +49,20 @@ def iso_date(epoch: int) -> str:
 
 
 def embedded_params_bytes(params_file: Path) -> bytes:
-    """The bytes of ``params_file`` to embed as :data:`EMBEDDED_PARAMS`; ValueError naming it when too large."""
+    """The bytes to embed as :data:`EMBEDDED_PARAMS`: a JSON file verbatim, a TOML file as the JSON of what the
+    build read from it (the member is JSON either way); ValueError naming the file when too large."""
+    from fmu_models.config import read_config_file
+
     size = Path(params_file).stat().st_size
     if size > MAX_EMBEDDED_BYTES:
         raise ValueError(f"{params_file}: {size} bytes; a parameter file embedded in an FMU may have at most "
                          f"{MAX_EMBEDDED_BYTES} bytes")
-    return Path(params_file).read_bytes()
+    if Path(params_file).suffix.lower() != ".toml":
+        return Path(params_file).read_bytes()
+    data = json.dumps(read_config_file(params_file), indent=1, default=str).encode("utf-8")
+    if len(data) > MAX_EMBEDDED_BYTES:
+        raise ValueError(f"{params_file}: {len(data)} bytes as JSON; allowed at most {MAX_EMBEDDED_BYTES}")
+    return data
 
 
 def read_embedded_params(fmu: Path) -> bytes | None:
@@ -80,6 +88,7 @@ def embedded_params(fmu: Path) -> tuple[dict, str] | None:
     """The parsed parameter file embedded in ``fmu`` and the name to cite it by (``FMU (member)``), or None when
     the FMU carries none. :class:`ParameterError` naming the FMU and member when it cannot be read or parsed."""
     from fmu_models.common.errors import ParameterError
+    from fmu_models.config import ConfigError, parse_config_text
 
     source = f"{fmu} ({EMBEDDED_PARAMS})"
     try:
@@ -89,12 +98,11 @@ def embedded_params(fmu: Path) -> tuple[dict, str] | None:
     if raw is None:
         return None
     try:
-        data = json.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as err:
+        return parse_config_text(raw.decode("utf-8"), source), source  # the parser of every parameter file
+    except UnicodeDecodeError as err:
         raise ParameterError(source, [f"not a JSON parameter file: {err}"]) from None
-    if not isinstance(data, dict):
-        raise ParameterError(source, [f"top level is {type(data).__name__}; allowed: a JSON object"])
-    return data, source
+    except ConfigError as err:
+        raise ParameterError(source, [f"not a JSON parameter file: {'; '.join(err.problems)}"]) from None
 
 
 def write_fmu(path: Path, files: dict[str, bytes], epoch: int) -> Path:
