@@ -112,7 +112,7 @@ def mc_task(task: McTask) -> dict[str, Any]:
     from fmu_models.parallel import local_path, task_rng
     from fmu_models.signals.pwm_mapping import PwmMapping
     from identification.readers import read_log
-    from identification.replay_battery import read_battery_state
+    from identification.replay_battery import job_battery_state
     from identification.validation import replay_setup, simulate_setup, vehicle_of
     from identification.validation_workflow import _load_maps
 
@@ -124,7 +124,8 @@ def mc_task(task: McTask) -> dict[str, Any]:
         maps = _load_maps(replace(job, output_map=local_path(job.output_map) if job.output_map else None),
                           vehicle_of(host))
         mapping = PwmMapping.load(local_path(job.mapping)) if job.mapping else None
-        battery = read_battery_state(local_path(job.params_file)) if job.params_file is not None else None
+        battery = job_battery_state(local_path(job.fmu), local_path(job.params_file) if job.params_file else None,
+                                    job.embedded_params)
         setup = replay_setup(host, log, job.log, maps, job.options, dict(job.start_values), mapping, battery=battery)
         n = len(setup.t)
         out = {m.fmu: np.full((len(task.draws), n), np.nan) for m in maps}

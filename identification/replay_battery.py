@@ -70,6 +70,15 @@ def embedded_battery_state(fmu: str | Path) -> BatteryStateModel | None:
     return None if found is None else battery_state_of(*found)
 
 
+def job_battery_state(fmu: str | Path, params_file: str | Path | None, embedded: bool = True
+                      ) -> BatteryStateModel | None:
+    """The battery-state model a replay of ``fmu`` uses: ``params_file``'s, else (``embedded``) the one of the
+    file the FMU was built from, else None. The nominal run and every Monte Carlo draw call this one function."""
+    if params_file is not None:
+        return read_battery_state(params_file)
+    return embedded_battery_state(fmu) if embedded else None
+
+
 def battery_state_of(data: dict[str, Any], path: str) -> BatteryStateModel | None:
     """The battery-state model of parameter-file contents ``data`` read from ``path`` (named in errors)."""
     ident = data.get("_identification") if isinstance(data, dict) else None

@@ -146,15 +146,13 @@ def validate(job: ValidationJob, progress: Callable[[int, int], None] | None = N
     from fmu_models.fmi.host import FmuHost
     from fmu_models.signals.pwm_mapping import PwmMapping
     from identification.readers import read_log
-    from identification.replay_battery import embedded_battery_state, read_battery_state
+    from identification.replay_battery import job_battery_state
     from identification.validation import replay, vehicle_of
 
     log = read_log(job.log, channel_map=job.channel_map)
-    battery = read_battery_state(job.params_file) if job.params_file is not None else None
     o = job.options
     with FmuHost(job.fmu) as host:  # names a missing or broken FMU before its resources are read
-        if job.params_file is None and job.embedded_params:
-            battery = embedded_battery_state(job.fmu)
+        battery = job_battery_state(job.fmu, job.params_file, job.embedded_params)
         maps = _load_maps(job, vehicle_of(host))
         mapping = PwmMapping.load(job.mapping) if job.mapping else None
         res = replay(host, log, job.log, maps, rate_hz=o.rate_hz, window_s=o.window_s or None,

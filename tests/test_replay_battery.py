@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import identification.readers as readers
+from fmu_models.common.params import read_uncertainty
 from fmu_models.quadrotor.params import QuadrotorParams
 from identification.replay_battery import read_battery_state
 from identification.thrust_model import fmu_total_thrust
@@ -187,3 +188,28 @@ def test_the_replay_state_leaves_out_take_off_and_touch_down(identified: tuple[P
     assert f"{expected} hover samples" in info["detail"], (expected, info["detail"])
     assert int(flying.sum()) - expected == 100  # 2 s at 50 Hz left out
     assert np.all(np.isfinite(volt))
+
+
+def test_monte_carlo_draws_drive_the_battery_as_the_nominal_run(identified: tuple[Path, Path], tmp_path: Path) -> None:
+    """``validate --mc`` without ``--params``: every draw feeds ``battery_voltage_V`` from the file embedded in the
+    FMU, as the nominal run does (the same draws as with ``--params`` naming that file, unlike held voltage)."""
+    from identification.mc_bands import McTask, mc_task
+    from identification.replay_battery import embedded_battery_state
+
+    params, fmu = identified
+    assert embedded_battery_state(fmu) is not None
+    model = read_battery_state(params)
+    assert model is not None
+    log = write_log(tmp_path / "sag.bin", _sagging_flight(fmu, model.params))  # no voltage logged
+    unc = read_uncertainty(params)
+    still = unc.model_copy(update={"covariance": [[0.0] * len(unc.names) for _ in unc.names]})
+
+    def thrust(job: ValidationJob) -> np.ndarray:
+        got = mc_task(McTask(job, still, 0, (0, 1), {}, {}))
+        return got["y:thrust_total_N"]
+
+    embedded = thrust(ValidationJob(fmu, log))
+    named = thrust(ValidationJob(fmu, log, params_file=params))
+    held = thrust(ValidationJob(fmu, log, embedded_params=False))
+    assert np.array_equal(embedded, named, equal_nan=True)
+    assert np.nanmax(np.abs(embedded - held)) > 0.1  # the sag moves the thrust by far more than that
