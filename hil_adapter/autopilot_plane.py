@@ -168,6 +168,7 @@ RATE_GAIN_RANGES = {"FF": (0.0, 3.0), "P": (0.08, 0.35), "I": (0.01, 0.6)}
 RATE_METADATA = "ArduPilot libraries/APM_Control/AP_{Roll,Pitch,Yaw}Controller.cpp _RATE_* @Range"
 #: ArduPlane's documented RLL2SRV_TCONST / PTCH2SRV_TCONST range [s] (AP_RollController / AP_PitchController)
 TCONST_S = (0.4, 1.0)
+TCONST_SOURCE = "ArduPilot libraries/APM_Control/AP_{Roll,Pitch}Controller.cpp *2SRV_TCONST @Range"
 
 
 def _rate_loops(out: Any, pv: Any, va: float, servo_tau_s: float) -> dict[str, float]:
@@ -215,10 +216,10 @@ def arduplane(sim: Any, p: np.ndarray, out: Any, servo_tau_s: float) -> None:
     out("TKOFF_LVL_ALT", 10)
     out("TKOFF_LVL_PITCH", 10)
     rises = _rate_loops(out, pv, vc, servo_tau_s)
-    out("RLL2SRV_TCONST", min(TCONST_S[1], max(TCONST_S[0], round(3 * rises["roll"], 2))),
+    out("RLL2SRV_TCONST", out.clamp("RLL2SRV_TCONST", round(3 * rises["roll"], 2), *TCONST_S, TCONST_SOURCE),
         "3 x the designed roll-rate rise, inside ArduPlane's 0.4..1 s")
-    tconst = out("PTCH2SRV_TCONST", min(TCONST_S[1], max(TCONST_S[0], round(3 * rises["pitch"], 2))),
-                 "3 x the designed pitch-rate rise, inside ArduPlane's 0.4..1 s")
+    pitch_tconst = out.clamp("PTCH2SRV_TCONST", round(3 * rises["pitch"], 2), *TCONST_S, TCONST_SOURCE)
+    tconst = out("PTCH2SRV_TCONST", pitch_tconst, "3 x the designed pitch-rate rise, inside ArduPlane's 0.4..1 s")
     n_max = (vc / (1.15 * vs)) ** 2  # keep 15 % above the stall speed in the turn (Vs sqrt(n))
     roll = out("ROLL_LIMIT_DEG", round(min(45.0, max(20.0, math.degrees(math.acos(min(1.0, 1 / n_max)))))),
                f"load factor {n_max:.2f} at cruise keeps 1.15 x the stall speed (20..45)")
