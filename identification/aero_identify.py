@@ -481,11 +481,13 @@ def identify_aero(log: FlightLog | Sequence[AeroSource], mapping: PwmMapping | N
     data = pool.manoeuvres(model, p, pool.fit, outputs, opt.rate_hz)
     free = _choose_free(model, p, data, opt) if opt.free == "auto" else list(opt.free)
     p_default = p.copy()
-    rival = _equation_error_start(model, p, pool, free, opt, notes)
+    rival, used = _equation_error_start(model, p, pool, free, opt, notes)
     probe = _estimator(model, p, free, opt, (), ())
-    if rival is not None and not _fits_better(probe, data, p[probe.i_free], p_default[probe.i_free], notes):
+    if used and not _fits_better(probe, data, p[probe.i_free], p_default[probe.i_free], notes):
         p[:] = p_default
         probe = _estimator(model, p, free, opt, (), ())
+    elif rival is not None:
+        notes.append(f"output-error start from the equation-error estimate for {', '.join(used) or 'none'}")
     before = probe.identifiability(data, weight=weight)
     start = {n: float(p[i]) for n, i in zip(free, probe.i_free, strict=True)}
     try:
@@ -685,18 +687,19 @@ def _fits_better(oe: OutputErrorEstimator, data: list[Manoeuvre], theta_ee: np.n
 
 
 def _equation_error_start(model: FixedWingModel, p: np.ndarray, pool: Pool, free: Sequence[str],
-                          opt: AeroOptions, notes: list[str]) -> Any:
-    """The equation-error estimate (the rival); its values of free derivatives replace the start values in
-    ``p`` where they keep the stability signs (``identification.equation_error``)."""
+                          opt: AeroOptions, notes: list[str]) -> tuple[Any, list[str]]:
+    """The equation-error estimate (the rival) and the free derivatives whose values it wrote into ``p`` as
+    start values (where they keep the stability signs and are well determined; ``identification.equation_error``).
+    The caller keeps them only when they fit the records better (:func:`_fits_better`) and says which it used."""
     if not opt.equation_error:
-        return None
+        return None, []
     from identification.equation_error import EquationErrorError, equation_error
 
     try:
         ee = equation_error(model, p, pool.sources, pool.fit, opt.rate_hz)
     except (EquationErrorError, ValueError) as err:
         notes.append(f"equation-error start skipped: {err}")
-        return None
+        return None, []
     used = []
     for n in free:
         v = ee.values.get(n)
@@ -708,8 +711,7 @@ def _equation_error_start(model: FixedWingModel, p: np.ndarray, pool: Pool, free
             continue  # poorly determined, or far from the start: the start value is the safer guess
         p[model.params.index[n]] = v
         used.append(n)
-    notes.append(f"output-error start from the equation-error estimate for {', '.join(used) or 'none'}")
-    return ee
+    return ee, used
 
 
 def _plots(result: AeroResult, folder: Path, rate_hz: float) -> None:
