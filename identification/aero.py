@@ -60,23 +60,6 @@ def parse_segments(text: str, option: str = "--segments") -> list[Segment]:
     return out
 
 
-def airborne_segments(log: FlightLog, length_s: float = 2.0, min_altitude_m: float = 10.0,
-                      min_airspeed_m_s: float = 12.0) -> list[Segment]:
-    """Consecutive windows of ``length_s`` where the aircraft is above ``min_altitude_m`` and flying."""
-    alt, vas = log.signal("altitude_m"), log.signal("airspeed_m_s")
-    t = np.arange(max(alt.t_s[0], vas.t_s[0]), min(alt.t_s[-1], vas.t_s[-1]), 0.1)
-    ok = (alt.resample(t) > min_altitude_m) & (vas.resample(t) > min_airspeed_m_s)
-    out, start = [], None
-    for ti, flag in zip(t, ok, strict=True):
-        if flag and start is None:
-            start = ti
-        if start is not None and (not flag or ti == t[-1]):
-            n = int((ti - start) // length_s)
-            out += [Segment(start + k * length_s, start + (k + 1) * length_s) for k in range(n)]
-            start = None
-    return out
-
-
 def grid(segment: Segment, rate_hz: float) -> np.ndarray:
     """Sample times of a segment: ``t0, t0 + dt, ...`` up to ``t1``."""
     n = math.floor((segment.t1_s - segment.t0_s) * rate_hz + 1e-9)

@@ -286,9 +286,7 @@ def _source_segments(src: AeroSource, model: FixedWingModel, opt: AeroOptions, n
     t = np.arange(0.0, log.duration_s, 0.04)
     surfaces = [n for n in model.inputs.index if n != "throttle"]
     u = aero.log_inputs(model, log, src.mapping, t)[:, [list(model.inputs.index).index(n) for n in surfaces]]
-    alt, vas = log.signal("altitude_m").resample(t), log.signal("airspeed_m_s").resample(t)
-    airborne = (alt - np.nanmin(alt) > 10.0) & (vas > 12.0)
-    active = aero_segments.active_segments(t, u, airborne)
+    active = aero_segments.active_segments(t, u, aero_segments.airborne(log, t))
     if len(active) >= 2:
         notes.append(f"{Path(log.source).name}: {len(active)} segments where a control surface moves (no "
                      "timeline); every third held out")

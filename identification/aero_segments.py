@@ -23,9 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from fmu_models.config import ConfigError
-from identification.aero import Segment, SegmentError, airborne_segments
+from identification.aero import Segment, SegmentError
 from identification.flightlog import FlightLog
-from identification.log_state import WING_GROUND_AIRSPEED_M_S
+from identification.log_state import ground_level, ground_samples
 from identification.timeline import load_timeline
 
 #: recovery time kept after a block's end [s]: the response to the last pulse is still informative
@@ -143,19 +143,15 @@ def active_segments(t_s: np.ndarray, u: np.ndarray, airborne: np.ndarray, pad_s:
 
 
 def ground_level_m(log: FlightLog) -> float | None:
-    """The log's ground level [m, its altitude scale]: the median altitude while parked (the ``landed`` flag,
-    else airspeed below ``log_state.WING_GROUND_AIRSPEED_M_S``); None when the log never shows the aircraft on
+    """The log's ground level [m, its altitude scale], as the ground test of every replay computes it
+    (``log_state.ground_level`` over the samples ``log_state.ground_samples`` finds parked: the ``landed`` flag
+    or airspeed below ``log_state.WING_GROUND_AIRSPEED_M_S``); None when the log never shows the aircraft on
     the ground (a log that starts in the air: no height criterion then)."""
     if not log.has("altitude_m"):
         return None
-    alt = log.signal("altitude_m")
-    if log.has("landed"):
-        parked = log.signal("landed").resample(alt.t_s) > 0.5
-    elif log.has("airspeed_m_s"):
-        parked = log.signal("airspeed_m_s").resample(alt.t_s) < WING_GROUND_AIRSPEED_M_S
-    else:
-        return None
-    return float(np.median(alt.values[parked])) if parked.any() else None
+    t = log.signal("altitude_m").t_s
+    crit = [m for name, m in ground_samples(log, "fixed_wing", t, 0.0).items() if "ground level" not in name]
+    return ground_level(log, "fixed_wing", t, np.any(crit, axis=0) if crit else np.zeros(len(t), dtype=bool))
 
 
 def airborne(log: FlightLog, t_s: np.ndarray) -> np.ndarray:
@@ -206,9 +202,25 @@ def split_segments(segs: Sequence[Segment], length_s: float) -> list[Segment]:
     return out
 
 
+def airborne_windows(log: FlightLog, length_s: float = 2.0) -> list[Segment]:
+    """Consecutive windows of ``length_s`` [s] (0.1 s grid) where the aircraft is :func:`airborne`."""
+    alt, vas = log.signal("altitude_m"), log.signal("airspeed_m_s")
+    t = np.arange(max(alt.t_s[0], vas.t_s[0]), min(alt.t_s[-1], vas.t_s[-1]), 0.1)
+    ok = airborne(log, t)
+    out, start = [], None
+    for ti, flag in zip(t, ok, strict=True):
+        if flag and start is None:
+            start = ti
+        if start is not None and (not flag or ti == t[-1]):
+            n = int((ti - start) // length_s)
+            out += [Segment(start + k * length_s, start + (k + 1) * length_s) for k in range(n)]
+            start = None
+    return out
+
+
 def fallback_windows(log: FlightLog, window_s: float) -> tuple[list[Segment], list[Segment]]:
     """Alternating airborne windows (fit, held out): the old default when no manoeuvre is found."""
-    auto = airborne_segments(log, window_s)
+    auto = airborne_windows(log, window_s)
     if len(auto) < 2:
         raise SegmentError(f"{log.source}: fewer than two airborne windows of {window_s:g} s; give segments")
     return auto[0::2], auto[1::2]

@@ -54,18 +54,26 @@ def ground_samples(log: FlightLog, vehicle: str, t_s: np.ndarray, idle_pwm_us: f
         out[f"airspeed below {WING_GROUND_AIRSPEED_M_S:g} m/s"] = \
             log.signal("airspeed_m_s").resample(t_s) < WING_GROUND_AIRSPEED_M_S
     parked = np.any(list(out.values()), axis=0) if out else np.zeros(len(t_s), dtype=bool)
-    if log.has("altitude_m") and len(t_s):
-        alt = log.signal("altitude_m").resample(t_s)
+    level = ground_level(log, vehicle, t_s, parked)
+    if level is not None:
         limit = GROUND_HEIGHT_M.get(vehicle, 0.3)
-        if parked.any():
-            level: float | None = float(np.median(alt[parked]))
-        elif vehicle == "quadrotor" and alt[0] - np.min(alt) < limit and np.max(alt) - alt[0] > TAKEOFF_RISE_M:
-            level = float(alt[0])  # a multirotor log starting at its lowest point, then rising: a take-off
-        else:
-            level = None
-        if level is not None:
-            out[f"below {limit:g} m above the ground level"] = alt - level < limit
+        out[f"below {limit:g} m above the ground level"] = log.signal("altitude_m").resample(t_s) - level < limit
     return out
+
+
+def ground_level(log: FlightLog, vehicle: str, t_s: np.ndarray, parked: np.ndarray) -> float | None:
+    """The log's ground level [m, its altitude scale]: the median altitude over the ``parked`` samples of
+    ``t_s``, else, for a multirotor, the first altitude of a log that starts at its lowest point and then rises
+    by more than ``TAKEOFF_RISE_M``; None without altitude or such evidence."""
+    if not (log.has("altitude_m") and len(t_s)):
+        return None
+    alt = log.signal("altitude_m").resample(t_s)
+    if parked.any():
+        return float(np.median(alt[parked]))
+    if vehicle == "quadrotor" and alt[0] - np.min(alt) < GROUND_HEIGHT_M["quadrotor"] and \
+            np.max(alt) - alt[0] > TAKEOFF_RISE_M:
+        return float(alt[0])  # a multirotor log starting at its lowest point, then rising: a take-off
+    return None
 
 
 def hold(sig: Signal, t_s: np.ndarray) -> np.ndarray:
