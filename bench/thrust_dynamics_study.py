@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -35,7 +36,7 @@ from fmu_models.common.units import G0_M_S2 as G0
 from identification.readers import read_log
 from identification.thrust_battery import HOVER_TAUS_S, hover_thrust_scale
 from identification.thrust_dataset import ThrustDatasetConfig, build_thrust_dataset
-from identification.thrust_model import FlightData, command
+from identification.thrust_model import FlightData, command, hover_scale
 from identification.thrust_workflow import HOVER_CLIMB_M_S
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
@@ -58,14 +59,24 @@ def flight(path: Path, mass_kg: float, delay_s: float | None) -> tuple[FlightDat
     return f, log
 
 
+def gap_free(f: FlightData) -> list[tuple[int, int]]:
+    """Index ranges ``[lo, hi)`` of ``f`` between log gaps (where a lag restarts)."""
+    starts = np.flatnonzero(np.diff(f.time_s, prepend=-np.inf) > 1.5 * f.period_s)
+    return list(zip(starts.tolist(), [*starts[1:].tolist(), len(f.time_s)], strict=True))
+
+
+def nominal_V(volts: list[np.ndarray]) -> float:
+    """The nominal voltage [V] of ``identify thrust``: the median over all flights."""
+    return float(np.median(np.concatenate(volts)))
+
+
 def lagged(x: np.ndarray, f: FlightData, tau_s: float) -> np.ndarray:
     """First-order lag (time constant ``tau_s``) of ``x`` sampled on ``f``, restarted at each log gap."""
     if tau_s <= 0.0:
         return x
     a = 1.0 - np.exp(-f.period_s / tau_s)
-    starts = np.flatnonzero(np.diff(f.time_s, prepend=-np.inf) > 1.5 * f.period_s)
     out = np.empty_like(x)
-    for lo, hi in zip(starts, [*starts[1:], len(x)], strict=True):
+    for lo, hi in gap_free(f):
         seg = x[lo:hi]
         out[lo:hi] = signal.lfilter([a], [1.0, a - 1.0], seg, zi=[seg[0] * (1.0 - a)])[0]
     return out
@@ -82,24 +93,12 @@ def features(f: FlightData, ratio: np.ndarray | None, tau_s: float) -> np.ndarra
 def lofo(flights: list[FlightData], volts: list[np.ndarray | None], tau_s: float) -> tuple[float, float, list[float]]:
     """Held-out pooled RMSE [N] raw and hover-calibrated, and the in-sample RMSE of each fold (voltage [V] per
     flight, or None; nominal voltage: the median over all flights, as ``identify thrust``)."""
+    ratio = {id(f): None for f in flights}
     if volts[0] is not None:
-        nominal = float(np.median(np.concatenate(volts)))  # type: ignore[arg-type]
-        volts = [v / nominal for v in volts]  # type: ignore[operator]
-    sse = sse_cal = 0.0
-    n = 0
-    inside = []
-    for i, test in enumerate(flights):
-        tr = [j for j in range(len(flights)) if j != i]
-        a = np.concatenate([features(flights[j], volts[j], tau_s) for j in tr])
-        y = np.concatenate([flights[j].thrust_N for j in tr])
-        theta = np.linalg.lstsq(a, y, rcond=None)[0]
-        inside.append(float(np.sqrt(np.mean((a @ theta - y) ** 2))))
-        pred = features(test, volts[i], tau_s) @ theta
-        cal = pred * test.weight_N / np.mean(pred[test.hover])
-        sse += float(np.sum((pred - test.thrust_N) ** 2))
-        sse_cal += float(np.sum((cal - test.thrust_N) ** 2))
-        n += len(pred)
-    return float(np.sqrt(sse / n)), float(np.sqrt(sse_cal / n)), inside
+        nominal = nominal_V(volts)  # type: ignore[arg-type]
+        ratio = {id(f): v / nominal for f, v in zip(flights, volts, strict=True)}  # type: ignore[operator]
+    got = lofo_with(flights, lambda f: features(f, ratio[id(f)], tau_s))
+    return got.raw, got.cal, got.inside
 
 
 def mode_split(flights: list[FlightData], volts: list[np.ndarray]) -> None:
@@ -108,31 +107,23 @@ def mode_split(flights: list[FlightData], volts: list[np.ndarray]) -> None:
     RMSE raw / calibrated, the coefficients of each fold, and the slope of the total thrust in one motor's
     command at the band corner (that motor at the band's low end, the others at its top): ``2 A xbar + B +
     2 D (x_k - xbar)``; a negative slope means the total thrust falls as that motor's command rises."""
-    nominal = float(np.median(np.concatenate(volts)))
-    xs = [command(f.pwm_us, IDLE_US, FULL_US) * (v / nominal)[:, None] for f, v in zip(flights, volts, strict=True)]
+    nominal = nominal_V(volts)
+    xs = {id(f): command(f.pwm_us, IDLE_US, FULL_US) * (v / nominal)[:, None]
+          for f, v in zip(flights, volts, strict=True)}
 
-    def design(x: np.ndarray) -> np.ndarray:
+    def design(f: FlightData) -> np.ndarray:
+        x = xs[id(f)]
         xbar = x.mean(axis=1, keepdims=True)
         return np.stack([x.shape[1] * xbar[:, 0] ** 2, ((x - xbar) ** 2).sum(axis=1), x.sum(axis=1)], axis=1)
 
-    sse = sse_cal = 0.0
-    n = 0
-    for i, test in enumerate(flights):
-        tr = [j for j in range(len(flights)) if j != i]
-        theta = np.linalg.lstsq(np.concatenate([design(xs[j]) for j in tr]),
-                                np.concatenate([flights[j].thrust_N for j in tr]), rcond=None)[0]
-        pred = design(xs[i]) @ theta
-        cal = pred * test.weight_N / np.mean(pred[test.hover])
-        sse += float(np.sum((pred - test.thrust_N) ** 2))
-        sse_cal += float(np.sum((cal - test.thrust_N) ** 2))
-        n += len(pred)
-        a, d, b = theta
-        lo, hi = float(xs[i].min()), float(xs[i].max())
+    got = lofo_with(flights, design)
+    for test, (a, d, b) in zip(flights, got.thetas, strict=True):
+        lo, hi = float(xs[id(test)].min()), float(xs[id(test)].max())
         xbar = (lo + 3.0 * hi) / 4.0
         corner = 2 * a * xbar + b + 2 * d * (lo - xbar)
         print(f"  fold without {test.name}: A {a:.2f} N, D {d:.2f} N, B {b:.2f} N; total-thrust slope at the corner "
               f"{corner:+.2f} N per unit command")
-    print(f"  held-out {np.sqrt(sse / n):.3f} / {np.sqrt(sse_cal / n):.3f}")
+    print(f"  held-out {got.raw:.3f} / {got.cal:.3f}")
 
 
 def asymmetric_lag(x: np.ndarray, f: FlightData, up_s: float, down_s: float) -> np.ndarray:
@@ -140,9 +131,8 @@ def asymmetric_lag(x: np.ndarray, f: FlightData, up_s: float, down_s: float) -> 
     without active braking slows down more slowly than it speeds up); 0 passes through."""
     a_up = 1.0 - np.exp(-f.period_s / up_s) if up_s > 0 else 1.0
     a_dn = 1.0 - np.exp(-f.period_s / down_s) if down_s > 0 else 1.0
-    starts = np.flatnonzero(np.diff(f.time_s, prepend=-np.inf) > 1.5 * f.period_s)
     out = np.empty_like(x)
-    for lo, hi in zip(starts, [*starts[1:], len(x)], strict=True):
+    for lo, hi in gap_free(f):
         state = x[lo].copy()
         out[lo] = state
         for k in range(lo + 1, hi):  # a few thousand samples
@@ -152,33 +142,47 @@ def asymmetric_lag(x: np.ndarray, f: FlightData, up_s: float, down_s: float) -> 
     return out
 
 
+@dataclass
+class Lofo:
+    """Held-out pooled RMSE [N] raw and calibrated, each fold's coefficients and in-sample RMSE [N]."""
+
+    raw: float
+    cal: float
+    thetas: list[np.ndarray]
+    inside: list[float]
+
+
 def lofo_with(flights: list[FlightData], design: Callable[[FlightData], np.ndarray],
-              state_tau_s: float | None = None) -> tuple[float, float]:
-    """Held-out pooled RMSE [N] raw / calibrated of the least-squares map ``design(f) @ theta`` fitted on the
-    other flights; with ``state_tau_s`` the prediction is scaled by the hover-condition battery state
+              state_tau_s: float | None = None) -> Lofo:
+    """Leave-one-flight-out of the least-squares map ``design(f) @ theta`` fitted on the other flights, scored
+    raw and with the per-flight hover calibration (``identification.thrust_model.hover_scale``); with
+    ``state_tau_s`` the prediction is scaled by the hover-condition battery state
     (``identification.thrust_battery.hover_thrust_scale``), which is then its own calibration."""
     sse = sse_cal = 0.0
     n = 0
+    thetas, inside = [], []
     for i, test in enumerate(flights):
         tr = [f for j, f in enumerate(flights) if j != i]
-        theta = np.linalg.lstsq(np.concatenate([design(f) for f in tr]),
-                                np.concatenate([f.thrust_N for f in tr]), rcond=None)[0]
+        a, y = np.concatenate([design(f) for f in tr]), np.concatenate([f.thrust_N for f in tr])
+        theta = np.linalg.lstsq(a, y, rcond=None)[0]
+        thetas.append(theta)
+        inside.append(float(np.sqrt(np.mean((a @ theta - y) ** 2))))
         pred = design(test) @ theta
         if state_tau_s is None:
-            cal = pred * test.weight_N / np.mean(pred[test.hover])
+            cal = pred * hover_scale(pred, test)
         else:
             pred = cal = pred * hover_thrust_scale(test.time_s, pred, test.hover, test.weight_N, state_tau_s)
         sse += float(np.sum((pred - test.thrust_N) ** 2))
         sse_cal += float(np.sum((cal - test.thrust_N) ** 2))
         n += len(pred)
-    return float(np.sqrt(sse / n)), float(np.sqrt(sse_cal / n))
+    return Lofo(float(np.sqrt(sse / n)), float(np.sqrt(sse_cal / n)), thetas, inside)
 
 
 def other_forms(flights: list[FlightData]) -> None:
     """Three more physical forms of the one-rule ``u_eff`` map on PX4 (per-flight delay): an asymmetric motor
     lag, the voltage exponent ``x = u (V/V_nom)^g`` (motor speed ~ duty x voltage is ``g = 1``), and a hover
     battery state on top of the logged voltage."""
-    nominal = float(np.median(np.concatenate([f.volt_V for f in flights])))  # type: ignore[misc]
+    nominal = nominal_V([f.volt_V for f in flights])  # type: ignore[misc]
 
     def x_of(f: FlightData, g: float = 1.0) -> np.ndarray:
         return command(f.pwm_us, IDLE_US, FULL_US) * ((f.volt_V / nominal) ** g)[:, None]  # type: ignore[operator]
@@ -187,13 +191,15 @@ def other_forms(flights: list[FlightData]) -> None:
         return np.stack([(x * x).sum(axis=1), x.sum(axis=1)], axis=1)
 
     for up, down in ((0.0, 0.0), (0.0, 0.02), (0.0, 0.04), (0.0, 0.08), (0.02, 0.02), (0.02, 0.04)):
-        raw, cal = lofo_with(flights, lambda f, up=up, down=down: quad(asymmetric_lag(x_of(f), f, up, down)))
+        got = lofo_with(flights, lambda f, up=up, down=down: quad(asymmetric_lag(x_of(f), f, up, down)))
+        raw, cal = got.raw, got.cal
         print(f"  motor lag up {up * 1e3:2.0f} ms, down {down * 1e3:2.0f} ms: {raw:.3f} / {cal:.3f}")
     for g in (0.0, 0.5, 1.0, 1.5, 2.0):
-        raw, cal = lofo_with(flights, lambda f, g=g: quad(x_of(f, g)))
+        got = lofo_with(flights, lambda f, g=g: quad(x_of(f, g)))
+        raw, cal = got.raw, got.cal
         print(f"  voltage exponent {g:.1f}: {raw:.3f} / {cal:.3f}")
     for tau in HOVER_TAUS_S:
-        raw, _ = lofo_with(flights, lambda f: quad(x_of(f)), state_tau_s=tau)
+        raw = lofo_with(flights, lambda f: quad(x_of(f)), state_tau_s=tau).raw
         print(f"  hover battery state tau {tau:.0f} s on top of the voltage: {raw:.3f} (its own calibration)")
 
 
@@ -236,7 +242,7 @@ def spectra(x: np.ndarray, y: np.ndarray, f: FlightData) -> tuple[np.ndarray, np
 
 def coherence_floor(flights: list[FlightData]) -> None:
     """Print, per held-out flight, coherence / transfer function / LTI-irreducible error by band."""
-    nominal = float(np.median(np.concatenate([f.volt_V for f in flights])))  # type: ignore[arg-type]
+    nominal = nominal_V([f.volt_V for f in flights])  # type: ignore[arg-type]
     for i, test in enumerate(flights):
         tr = flights[1 - i]
         theta = np.linalg.lstsq(features(tr, tr.volt_V / nominal, 0.0), tr.thrust_N, rcond=None)[0]
