@@ -16,7 +16,6 @@ from __future__ import annotations
 import ctypes as C  # noqa: N812 (the usual short name in ctypes code)
 import json
 import math
-import platform
 import sys
 from pathlib import Path
 from typing import Any, ClassVar
@@ -29,6 +28,9 @@ from fmpy.fmi2 import (
     fmi2CallbackLoggerTYPE,
     fmi2StepFinishedTYPE,
 )
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # run as a script: the repository's packages
+from fmu_models.fmi.zigcc import host_platform  # the platform folders and library suffix of our builds
 
 MODELS = ("quadrotor", "fixed_wing")
 SLOTS = 2
@@ -95,7 +97,7 @@ class Model:
     def __init__(self, unzipped: Path) -> None:
         md = read_model_description(str(unzipped))
         ident = (md.coSimulation or md.modelExchange).modelIdentifier
-        suffix = {"linux": ".so", "darwin": ".dylib", "win32": ".dll"}[sys.platform]
+        suffix = host_platform().suffix
         self.lib = C.CDLL(str(unzipped / "binaries" / self.platform_folder() / f"{ident}{suffix}"))
         self.state_fn = {k: names[self.version - 2] for k, (_sig, *names) in STATE_FUNCTIONS.items()}
         state_sigs = {self.state_fn[k]: sig for k, (sig, *_names) in STATE_FUNCTIONS.items()}
@@ -109,7 +111,7 @@ class Model:
 
     @staticmethod
     def platform_folder() -> str:
-        return {"linux": "linux64", "darwin": "darwin64", "win32": "win64"}[sys.platform]
+        return host_platform().fmi_name
 
     def call(self, name: str, *args: Any) -> Any:
         return getattr(self.lib, name)(*args)
@@ -258,8 +260,7 @@ class Fmi3(Model):
 
     @staticmethod
     def platform_folder() -> str:
-        return f"{platform.machine().lower().replace('arm64', 'aarch64').replace('amd64', 'x86_64')}-" + {
-            "linux": "linux", "darwin": "darwin", "win32": "windows"}[sys.platform]
+        return host_platform().fmi3_name
 
     def instantiate(self, variant: int, name: bytes | None = b"seq") -> int | None:
         """0 valid Co-Simulation, 1 empty name, 2 eventModeUsed (the FMU has no event mode), 3 wrong token,
