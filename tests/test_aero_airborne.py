@@ -16,7 +16,6 @@ from fmu_models.common.simulate import Simulator
 from fmu_models.fixed_wing.model import FixedWingModel
 from fmu_models.fixed_wing.params import FixedWingParams
 from fmu_models.fixed_wing.trim import trim
-from fmu_models.signals.names import OUTPUT_TO_LOG
 from identification import aero, aero_segments
 from identification.aero_identify import AeroOptions, identify_aero
 from identification.flightlog import FlightLog
@@ -43,22 +42,15 @@ def _dive_log(path) -> tuple[FlightLog, float]:
     u[:, 0] += multistep(t, 1.0, 0.4, 0.05)
     u[:, 1] += multistep(t, 4.5, 0.3, 0.03) + np.where(t > 10.0, 0.15, 0.0)
     u[:, 2] += multistep(t, 7.5, 0.4, 0.05)
-    x, rows = tr.x.copy(), [np.asarray(sim.h(tr.x, u[0], p)).ravel()]
-    for k in range(n):
-        x1, y1 = sim.step(x, u[k], p, dt)
-        x = np.asarray(x1).ravel()
-        rows.append(np.asarray(y1).ravel())
-    y, idx = np.array(rows), sim.model.outputs.index
-    sig = {col: y[:, idx[name]] for name, col in OUTPUT_TO_LOG.items()}
-    for ch in MAPPING.channels:
-        sig[f"servo_{ch.source}_pwm_us"] = np.array([ch.to_pwm(v) for v in u[:, sim.model.inputs.index[ch.target]]])
+    sig = synthetic.open_loop_signals(sim, p, tr.x, u, dt)
+    strike = float(t[np.argmax(sig["altitude_m"] < 0.05)])
     m = round(PARKED_S * RATE_HZ)
     at_rest = ("altitude_m", "airspeed_m_s", "roll_rad", "pitch_rad", "gyro_body_x_rad_s", "gyro_body_y_rad_s",
                "gyro_body_z_rad_s", "vel_north_m_s", "vel_east_m_s", "vel_down_m_s")
     sig = {c: np.concatenate([np.zeros(m) if c in at_rest else np.full(m, v[0]), v]) for c, v in sig.items()}
     # log times a microsecond before the grid: a servo sample is held from its own time stamp on
     t_log = np.arange(m + n + 1) * dt - 1e-6
-    ground = PARKED_S + float(t[np.argmax(y[:, idx["altitude_m"]] < 0.05)])
+    ground = PARKED_S + strike
     return read_log(synthetic.write_csv_log(path, t_log, sig)), ground
 
 

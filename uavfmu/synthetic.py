@@ -63,23 +63,31 @@ def fixed_wing_flight(params: FixedWingParams | None = None, seconds: float = 40
         u[:, 2] += multistep(t, block + 6.0, 0.5, 0.05)
         u[:, 1] += multistep(t, block + 11.0, 0.4, 0.03)
         u[:, 3] += np.where((t > block + 10.0) & (t < block + 18.0), 0.1, 0.0)
-    idx = sim.model.outputs.index
-    x = tr.x.copy()
-    rows = [np.asarray(sim.h(x, u[0], p)).ravel()]
-    for k in range(n):
-        x1, y1 = sim.step(x, u[k], p, dt)
-        x = np.asarray(x1).ravel()
-        rows.append(np.asarray(y1).ravel())
-    y = np.array(rows)
-    signals = {col: y[:, idx[name]].copy() for name, col in OUTPUT_TO_LOG.items()}
+    signals = open_loop_signals(sim, p, tr.x, u, dt)
     if noise:
         rng = np.random.default_rng(seed)
         for col, sigma in NOISE.items():
             signals[col] += rng.normal(0.0, sigma, n + 1)
+    return t, signals
+
+
+def open_loop_signals(sim: Simulator, p: np.ndarray, x0: np.ndarray, u: np.ndarray, dt_s: float
+                      ) -> dict[str, np.ndarray]:
+    """The fixed wing flown open loop from state ``x0`` with the inputs ``u`` (one row per sample, ``dt_s``
+    [s] apart): its outputs under their log names and the inputs as the servo PWM of ``MAPPING``, noise-free."""
+    idx = sim.model.outputs.index
+    x = np.asarray(x0, dtype=float).copy()
+    rows = [np.asarray(sim.h(x, u[0], p)).ravel()]
+    for k in range(len(u) - 1):
+        x1, y1 = sim.step(x, u[k], p, dt_s)
+        x = np.asarray(x1).ravel()
+        rows.append(np.asarray(y1).ravel())
+    y = np.array(rows)
+    signals = {col: y[:, idx[name]].copy() for name, col in OUTPUT_TO_LOG.items()}
     for ch in MAPPING.channels:
         values = u[:, sim.model.inputs.index[ch.target]]
         signals[f"servo_{ch.source}_pwm_us"] = np.array([ch.to_pwm(v) for v in values])
-    return t, signals
+    return signals
 
 
 def recording_signals(rec: Recording, noise: bool = False, seed: int = 0) -> dict[str, np.ndarray]:
