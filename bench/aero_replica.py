@@ -81,9 +81,8 @@ def truth_params(model: FixedWingModel, p: np.ndarray, rng: np.random.Generator,
 #: signals the identification reads from a log besides the fitted outputs: the state at each segment start
 #: (``identification.log_state.initial_values``: yaw, GPS velocity, altitude) and the airborne test
 STATE_OUTPUTS = ("yaw_rad", "vel_north_m_s", "vel_east_m_s", "vel_down_m_s", "altitude_m")
-#: white noise of those (GPS velocity and baro altitude)
-STATE_NOISE = {"yaw_rad": 0.003, "vel_north_m_s": 0.05, "vel_east_m_s": 0.05, "vel_down_m_s": 0.05,
-               "altitude_m": 0.1}
+#: white noise of those that ``uavfmu.synthetic.NOISE`` does not give (GPS velocity and baro altitude)
+STATE_NOISE = {"vel_north_m_s": 0.05, "vel_east_m_s": 0.05, "vel_down_m_s": 0.05, "altitude_m": 0.1}
 
 
 def replica_log(log: FlightLog, model: FixedWingModel, p_truth: np.ndarray, segments: list[aero.Segment],
