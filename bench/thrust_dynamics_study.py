@@ -10,7 +10,9 @@ calibrated figures differ slightly from ``identify thrust``), and the in-sample 
 map with the battery voltage replaced by an estimate of the instantaneous terminal voltage ``V_oc - R I_hat`` (``R`` and
 ``V_oc`` from the 2 Hz voltage/current, ``I_hat = k sum u^3`` at the PWM rate). Then the common-mode vs
 differential curvature split of the one-rule voltage map (:func:`mode_split`), then other physical forms of it
-(:func:`other_forms`: asymmetric motor lag, voltage exponent, hover battery state on top of the voltage). Last,
+(:func:`other_forms`: asymmetric motor lag, voltage exponent, hover battery state on top of the voltage). Then
+how far static per-motor maps fitted on the held-out flight itself get (:func:`static_floor`) and whether
+a fitted filter or an interpolated command transfers between the flights (:func:`filters_and_alignment`). Last,
 per PX4 flight held out, the
 coherence between the model's thrust (fitted on the other flight) and the measured thrust by frequency band,
 with the transfer function ``H = S_xy / S_xx`` and the error no linear time-invariant map of the model's thrust
@@ -203,6 +205,93 @@ def other_forms(flights: list[FlightData]) -> None:
         print(f"  hover battery state tau {tau:.0f} s on top of the voltage: {raw:.3f} (its own calibration)")
 
 
+def knots_design(x: np.ndarray, knots: np.ndarray) -> np.ndarray:
+    """Per-motor piecewise-linear map of ``x`` (N, 4) through zero, summed over the motors: ``sum x_i`` and
+    ``sum max(x_i - k, 0)`` per knot (any static per-motor shape on the band, monotone or not)."""
+    return np.stack([x.sum(axis=1), *(np.maximum(x - k, 0.0).sum(axis=1) for k in knots)], axis=1)
+
+
+def static_floor(flights: list[FlightData]) -> None:
+    """Pooled calibrated RMSE [N] of static per-motor maps fitted on each held-out flight itself (in-sample: a
+    floor for any map fitted on the other flight), beside the calibrated target ``0.95 x`` the held-out
+    calibrated voltage polynomial (the ``identify thrust`` baseline ``sum u^2, sum u, sum u^2 V``)."""
+    nominal = nominal_V([f.volt_V for f in flights])  # type: ignore[misc]
+
+    def u_r(f: FlightData) -> tuple[np.ndarray, np.ndarray]:
+        return command(f.pwm_us, IDLE_US, FULL_US), (f.volt_V / nominal)[:, None]  # type: ignore[operator]
+
+    def vpoly(f: FlightData) -> np.ndarray:
+        u, r = u_r(f)
+        return np.stack([(u * u).sum(axis=1), u.sum(axis=1), (u * u * r).sum(axis=1)], axis=1)
+
+    def ueff(f: FlightData) -> np.ndarray:
+        u, r = u_r(f)
+        return np.stack([((u * r) ** 2).sum(axis=1), (u * r).sum(axis=1)], axis=1)
+
+    def knots(f: FlightData) -> np.ndarray:
+        u, r = u_r(f)
+        return knots_design(u * r, np.linspace(0.1, 0.9, 9))
+
+    target = 0.95 * lofo_with(flights, vpoly).cal
+    print(f"  calibrated target: 0.95 x held-out voltage polynomial = {target:.3f}")
+    for name, design in (("voltage polynomial sum u^2, sum u, sum u^2 V", vpoly), ("one-rule u_eff map", ueff),
+                         ("per-motor piecewise-linear x = u V/V_nom, 9 knots", knots)):
+        sse, n = 0.0, 0
+        for f in flights:
+            a = design(f)
+            pred = a @ np.linalg.lstsq(a, f.thrust_N, rcond=None)[0]
+            sse += float(np.sum((pred * hover_scale(pred, f) - f.thrust_N) ** 2))
+            n += len(pred)
+        print(f"  {name}, fitted on the held-out flight itself: {np.sqrt(sse / n):.3f} calibrated")
+
+
+def shifted(a: np.ndarray, f: FlightData, k: int) -> np.ndarray:
+    """``a`` (N, m) moved ``k`` samples later (``k`` < 0: earlier) within each gap-free segment, edges held."""
+    out = a.copy()
+    for lo, hi in gap_free(f):
+        if hi - lo <= abs(k):
+            continue
+        if k > 0:
+            out[lo + k:hi], out[lo:lo + k] = a[lo:hi - k], a[lo]
+        elif k < 0:
+            out[lo:hi + k], out[hi + k:hi] = a[lo - k:hi], a[hi - 1]
+    return out
+
+
+def filters_and_alignment(flights_of: Callable[[float | None], list[FlightData]]) -> None:
+    """Leave-one-flight-out of the one-rule ``u_eff`` map with its features filtered by a fitted FIR (taps at
+    the listed sample lags; negative = later PWM samples, not causal), at the per-flight delay estimate and at
+    0 ms; then with every predictor's command interpolated halfway to the next PWM sample (the mean over the
+    sample interval if the PWM moved linearly), scored beside the voltage polynomial on the same commands."""
+    for delay in (None, 0.0):
+        fl = flights_of(delay)
+        nominal = nominal_V([f.volt_V for f in fl])  # type: ignore[misc]
+        for lags in ((0,), (0, 1, 2), tuple(range(8)), (-1, 0, 1)):
+            def design(f: FlightData, lags: tuple[int, ...] = lags, nominal: float = nominal) -> np.ndarray:
+                base = features(f, f.volt_V / nominal, 0.0)  # type: ignore[operator]
+                return np.concatenate([shifted(base, f, k) for k in lags], axis=1)
+            got = lofo_with(fl, design)
+            d = "per-flight delay" if delay is None else f"delay {delay * 1e3:.0f} ms"
+            print(f"  {d:<16} FIR taps {lags}: {got.raw:.3f} / {got.cal:.3f}")
+    fl = flights_of(None)
+    nominal = nominal_V([f.volt_V for f in fl])  # type: ignore[misc]
+    for w in (0.0, 0.5):
+        def u_r(f: FlightData, w: float = w) -> tuple[np.ndarray, np.ndarray]:
+            u = command(f.pwm_us, IDLE_US, FULL_US)
+            return (1.0 - w) * u + w * shifted(u, f, -1), (f.volt_V / nominal)[:, None]  # type: ignore[operator]
+
+        def ueff(f: FlightData) -> np.ndarray:
+            u, r = u_r(f)
+            return np.stack([((u * r) ** 2).sum(axis=1), (u * r).sum(axis=1)], axis=1)
+
+        def vpoly(f: FlightData) -> np.ndarray:
+            u, r = u_r(f)
+            return np.stack([(u * u).sum(axis=1), u.sum(axis=1), (u * u * r).sum(axis=1)], axis=1)
+        m, b = lofo_with(fl, ueff), lofo_with(fl, vpoly)
+        print(f"  command {w:.1f} of the way to the next PWM sample: map {m.raw:.3f} / {m.cal:.3f}, voltage "
+              f"polynomial {b.raw:.3f} / {b.cal:.3f}, calibrated ratio {m.cal / b.cal:.3f}")
+
+
 def terminal_voltage(f: FlightData, log: object) -> tuple[np.ndarray, float]:
     """``V_oc - R I_hat`` [V] at the PWM samples and ``R`` [ohm]: ``V = c0 + c1 t - R I`` on the 2 Hz samples."""
     sig = log.signals  # type: ignore[attr-defined]
@@ -285,6 +374,10 @@ def main() -> int:
     mode_split(fl, [f.volt_V for f in fl])  # type: ignore[misc]
     print("PX4 other physical forms of the one-rule u_eff map (target 0.95 x 1.054 = 1.001 calibrated)")
     other_forms(fl)
+    print("PX4 floor of static per-motor maps (calibrated pooled RMSE [N])")
+    static_floor(fl)
+    print("PX4 fitted filters and command interpolation, LOFO raw / calibrated")
+    filters_and_alignment(lambda delay: [flight(p, m, delay)[0] for p, m in PX4])
     print("PX4 coherence of the held-out measured thrust with the model's (per-flight delay estimate)")
     coherence_floor(fl)
     print("Erle LOFO, one-rule map (no voltage), per-flight delay estimate")

@@ -254,8 +254,9 @@ def test_px4_lofo_beats_every_baseline_raw_and_the_fmu_evaluates_it(tmp_path: Pa
 
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason="measured: PX4 LOFO with per-flight hover calibration, pooled RMSE "
-                   "1.014 N vs 1.054 N of the calibrated voltage polynomial = 0.962, above the 0.95 target; a motor "
-                   "lag or terminal-voltage estimate does not close it (bench/thrust_dynamics_study.py)")
+                   "1.014 N vs 1.054 N of the calibrated voltage polynomial = 0.962, above the 0.95 target, which "
+                   "lies below the rival family's own fit on the held-out flight (study: 1.003 vs 0.999); no motor "
+                   "lag, terminal voltage or fitted filter closes it (bench/thrust_dynamics_study.py)")
 def test_px4_lofo_calibrated_within_095_of_the_best_calibrated_baseline() -> None:
     r = identify_thrust(ThrustConfig(flights=_px4_flights(), fmu_mass_kg=1.2, calibrate="on"))
     cal = [c for k, c in r.comparisons.items() if k.startswith("model (calibrated) vs")]
