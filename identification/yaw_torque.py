@@ -118,25 +118,6 @@ def replay_rmse(ms: list[Any], c_m: float, jzz: float, kd_N_m_s: float = 0.0) ->
     return float(np.sqrt(np.mean((pred - logged) ** 2)))
 
 
-def best_start(ms: list[Any], jzz: float, bounds: dict[str, tuple[float, float]]) -> list[float]:
-    """Start values of ``(c, kd)`` for the output-error iterations: the replay is linear in ``c``, so for each
-    ``kd`` the best ``c`` is a least-squares step; ``kd`` is then a bounded one-dimensional search (variable
-    projection on the exact discrete replay of :func:`replay`)."""
-    from scipy.optimize import minimize_scalar
-
-    logged = np.concatenate([m.y[:, 0] for m in ms])
-
-    def c_and_cost(kd: float) -> tuple[float, float]:
-        base = replay(ms, 0.0, jzz, kd)[0]
-        g = replay(ms, 1.0, jzz, kd)[0] - base
-        c = float(np.clip(g @ (logged - base) / max(float(g @ g), 1e-300), *bounds["torque_per_thrust_m"]))
-        return c, float(np.sum((base + c * g - logged) ** 2))
-
-    kd = float(minimize_scalar(lambda k: c_and_cost(k)[1], bounds=bounds["kd_yaw_N_m_s"], method="bounded",
-                               options={"xatol": 1e-6 * jzz}).x)
-    return [c_and_cost(kd)[0], kd]
-
-
 def identify_yaw_torque(ms: list[Any], params: QuadrotorParams) -> YawResult:
     """Output-error estimate of ``c = b/k`` and ``kd`` on the windows ``ms``; ``params`` give Jz, k and the
     defaults of b and kd."""
@@ -150,7 +131,7 @@ def identify_yaw_torque(ms: list[Any], params: QuadrotorParams) -> YawResult:
     bounds = {"torque_per_thrust_m": C_BOUNDS_M, "kd_yaw_N_m_s": (0.0, KD_MAX_PER_JZ_1_S * jzz)}
     est = OutputErrorEstimator(model, model.params.starts(), list(bounds), ["rate_z_rad_s"], bounds=bounds,
                                compile=False)
-    e = est.estimate(ms, theta0=best_start(ms, jzz, bounds), weight=np.eye(1))
+    e = est.estimate(ms, weight=np.eye(1))
     c, kd = float(e.values[0]), float(e.values[1])
     c_fmu = max(c, 0.0)  # b >= 0 in the FMU: a negative c (wrong-way response) degrades to the damping alone
     return YawResult(c, float(e.std[0]), c_fmu * params.k_thrust_N_s2, kd, float(e.std[1]),
