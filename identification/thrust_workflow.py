@@ -483,7 +483,7 @@ def identify_thrust(cfg: ThrustConfig) -> ThrustResult:
     cal = {d.name: hover_scale(predict(final, spec, d, state=False), d) for d in data} if calibrate else {}
     yaw, yaw_note, yaw_held = _yaw(flights, data, final, spec, cal)
     if yaw is not None:
-        final = dataclasses.replace(final, b_drag_N_m_s2=yaw.b_drag_N_m_s2, kd_yaw_N_m_s=yaw.kd_yaw_N_m_s)
+        final = dataclasses.replace(final, b_drag_N_m_s2=yaw.b_drag_N_m_s2)
     pooled = {k: _pooled_rmse(results, k) for k in results[0].series if k != "measured"}
     warnings = list(notes) + ([yaw_note] if yaw_note else [])
     if verdict == "lose":
@@ -545,8 +545,7 @@ def _yaw(flights: list[Flight], data: list[FlightData], p: QuadrotorParams, spec
     losses = [f"{name} (skill {h['skill']:+.2f} [{h['lo']:+.2f}, {h['hi']:+.2f}])" for name, h in held.items()
               if h["outcome"] == "lose"]
     note = (f"yaw torque LOSES to holding the logged yaw rate on held-out flight(s) {', '.join(losses)}: "
-            "b_drag_N_m_s2 and kd_yaw_N_m_s are written from all flights, but the yaw axis is not validated"
-            if losses else "")
+            "b_drag_N_m_s2 is written from all flights, but the yaw axis is not validated" if losses else "")
     return fitted, note, held
 
 
@@ -561,9 +560,8 @@ def _yaw_held_out(flights: list[Flight], per_flight: list[list[Any]], p: Quadrot
         train = [m for j, ms in enumerate(per_flight) if j != i for m in ms]
         if not train or len(per_flight[i]) < 2:
             continue
-        fitted = identify_yaw_torque(train, p)
-        model, logged, starts = replay(per_flight[i], fitted.b_drag_N_m_s2 / p.k_thrust_N_s2, p.Jz_kg_m2,
-                                       fitted.kd_yaw_N_m_s)
+        c = identify_yaw_torque(train, p).b_drag_N_m_s2 / p.k_thrust_N_s2
+        model, logged, starts = replay(per_flight[i], c, p.Jz_kg_m2)
         hold = replay(per_flight[i], 0.0, p.Jz_kg_m2)[0]
         si = skill_interval(logged, model, hold, starts)
         out[f.spec.name] = {"skill": si.skill, "lo": si.lo, "hi": si.hi, "outcome": si.outcome,

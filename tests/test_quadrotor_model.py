@@ -178,17 +178,6 @@ def test_gyroscopic_moment_is_minus_omega_cross_rotor_momentum(sim: Simulator) -
     np.testing.assert_allclose(m_gyro, [0.0, 2.0 * h, 0.0], atol=1e-12)
 
 
-def test_yaw_rate_damping_decays_the_yaw_rate_exponentially(sim: Simulator) -> None:
-    """Motors off in free fall: no thrust, fan or gyroscopic moment, so Jz dr/dt = -kd_yaw r, r = r0 e^(-kd t/Jz);
-    with kd_yaw = 0 (paper 000) the yaw rate is kept."""
-    u = sim.inputs(pwm_1_us=0, pwm_2_us=0, pwm_3_us=0, pwm_4_us=0)
-    i = sim.model.states.index["rate_body_z_rad_s"]
-    for kd in (0.0, 0.026):
-        p = sim.params(init_pos_down_m=-50.0, init_rate_body_z_rad_s=3.0, kd_yaw_N_m_s=kd)
-        _t, X, _Y = sim.run(u, p, 1.0, 0.01)
-        assert X[-1, i] == pytest.approx(3.0 * math.exp(-kd / QuadrotorParams().Jz_kg_m2 * 1.0), rel=1e-6)
-
-
 def test_free_fall_accelerometer_reads_zero(sim: Simulator) -> None:
     p = sim.params(init_pos_down_m=-50.0, kd_x_N_s_m=0.0, kd_y_N_s_m=0.0, kd_z_N_s_m=0.0,
                    init_roll_rad=0.3, init_pitch_rad=-0.2)

@@ -305,7 +305,6 @@ def test_erle_yaw_torque_replay_no_worse_than_holding_yaw_rate() -> None:
     assert yaw["n_windows"] > 50 and 0.0 < yaw["crb_std_m"] < abs(yaw["torque_per_thrust_m"])
     assert yaw["rmse_identified_rad_s"] <= yaw["rmse_hold_rad_s"] < yaw["rmse_default_rad_s"]
     assert r.params.b_drag_N_m_s2 == pytest.approx(yaw["b_drag_N_m_s2"])
-    assert r.params.kd_yaw_N_m_s == pytest.approx(yaw["kd_yaw_N_m_s"]) and yaw["kd_yaw_N_m_s"] > 0.0
     # leave-one-flight-out against holding the rate, per flight; a loss is said in the warnings (standards)
     held = yaw["held_out_vs_holding_the_rate"]
     assert set(held) == {f.name for f in _erle_flights()} and all(h["windows"] > 10 for h in held.values())
@@ -315,9 +314,10 @@ def test_erle_yaw_torque_replay_no_worse_than_holding_yaw_rate() -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="measured: with the 1 s take-off/touch-down guard (ground contact out of "
+                   "the data) the yaw torque fitted on 218 and 104 loses to holding the yaw rate on 105, skill "
+                   "-0.09 [-0.15, -0.03]; the earlier win came from touch-down samples")
 def test_erle_yaw_torque_on_a_held_out_flight_is_not_beaten_by_holding_the_rate() -> None:
-    """Fitted on 218 and 104, replayed on 105 against holding the logged yaw rate. Without the yaw-rate damping
-    (kd = 0, the model before it) the same windows lose: skill -0.09 [-0.15, -0.03]."""
     from identification.metrics import skill_interval
     from identification.thrust_model import battery_input_V
     from identification.thrust_workflow import load_flight
@@ -334,24 +334,10 @@ def test_erle_yaw_torque_on_a_held_out_flight_is_not_beaten_by_holding_the_rate(
         return windows(f.data.time_s, f.data.segment, spin_thrust(per_motor), f.yaw_rate, f.data.sample_period_s)
 
     fit = identify_yaw_torque(wins(flights[0]) + wins(flights[1]), r.params)
-    assert fit.kd_yaw_N_m_s > 2.0 * fit.crb_std_kd_N_m_s  # the damping is seen in the data, not a bound
     held = wins(flights[2])
-    c = max(fit.torque_per_thrust_m, 0.0)
+    model, logged, starts = replay(held, max(fit.torque_per_thrust_m, 0.0), r.params.Jz_kg_m2)
     hold = replay(held, 0.0, r.params.Jz_kg_m2)[0]
-    model, logged, starts = replay(held, c, r.params.Jz_kg_m2, fit.kd_yaw_N_m_s)
-    assert skill_interval(logged, model, hold, starts).outcome == "win"
-    undamped = identify_yaw_torque_undamped(wins(flights[0]) + wins(flights[1]), r.params)
-    model0 = replay(held, undamped, r.params.Jz_kg_m2)[0]
-    assert skill_interval(logged, model0, hold, starts).outcome == "lose"
-
-
-def identify_yaw_torque_undamped(ms: list, p: QuadrotorParams) -> float:
-    """The least-squares ``c`` [m] of the undamped yaw model (the FMU before kd_yaw): the replay is linear in c."""
-    from identification.yaw_torque import replay
-
-    base, logged = replay(ms, 0.0, p.Jz_kg_m2)[:2]
-    g = replay(ms, 1.0, p.Jz_kg_m2)[0] - base
-    return max(float(g @ (logged - base) / (g @ g)), 0.0)
+    assert skill_interval(logged, model, hold, starts).outcome != "lose"
 
 
 class _Damaged:

@@ -4,8 +4,7 @@ Frames: NED world, FRD body (paper 000 writes thrust along +z of a z-up body; he
 Forces (body): thrust ``(0, 0, -sum T_i)`` (eq. 6), linear drag ``-kd * v_body`` (eq. 7), ground contact.
 Moments (body): arm moments ``sum r_i x (0, 0, -T_i) = (-l sin(g_i) T_i, l cos(g_i) T_i, 0)`` (eq. 8, FRD),
 gyroscopic ``-omega x h_rotors`` with ``h_rotors = (0, 0, sum J_m s_i Omega_i)`` (eq. 9), fan torque
-``(0, 0, -sum s_i b Omega_i^2)`` (eq. 10) with spin s_i = +1 clockwise seen from above, and yaw-rate damping
-``(0, 0, -kd_yaw r)`` (rotor and airframe drag; not in paper 000, default 0, identified by ``identify thrust``).
+``(0, 0, -sum s_i b Omega_i^2)`` (eq. 10) with spin s_i = +1 clockwise seen from above.
 Thrust: per motor ``T_i = ANFIS(n * pwm_i) / n`` - the map was trained on the sum of n equal-ish PWMs, so
 a motor commanded ``pwm_i`` makes 1/n of what the whole vehicle makes with every motor at ``pwm_i``.
 ``Omega_i = sqrt(T_i / k)`` feeds the gyroscopic and fan terms. An optional first-order lag with time
@@ -139,7 +138,7 @@ class QuadrotorModel(vehicle.BodyVehicleModel):
             h_rotor = h_rotor + pv.J_rotor_kg_m2 * self.spin[i] * omega[i]
             m_fan = m_fan - self.spin[i] * pv.b_drag_N_m_s2 * omega[i] ** 2
         m_gyro = ca.vertcat(-rates[1] * h_rotor, rates[0] * h_rotor, 0)
-        moment = ca.vertcat(m_arm_x, m_arm_y, m_fan - pv.kd_yaw_N_m_s * rates[2]) + m_gyro + m_ground
+        moment = ca.vertcat(m_arm_x, m_arm_y, m_fan) + m_gyro + m_ground
         extras = {"thrust": thrust, "omega": omega, "total": total, "on_ground": on_ground}
         return force, moment, extras
 

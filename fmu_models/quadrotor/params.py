@@ -44,9 +44,6 @@ class QuadrotorParams:
     kd_x_N_s_m: float = param(0.25, "N.s/m", 0.0, 100.0, "linear drag along body x (eq. 7)")
     kd_y_N_s_m: float = param(0.25, "N.s/m", 0.0, 100.0, "linear drag along body y (eq. 7)")
     kd_z_N_s_m: float = param(0.25, "N.s/m", 0.0, 100.0, "linear drag along body z (eq. 7)")
-    kd_yaw_N_m_s: float = param(
-        0.0, "N.m.s", 0.0, 10.0, "yaw-rate damping, moment -kd_yaw r about body z [N m per rad/s] (0: none, paper 000)"
-    )
     tau_motor_s: float = param(0.0, "s", 0.0, 2.0, "first-order motor thrust time constant (0: none)")
     pwm_idle_us: float = param(PWM_IDLE_US, "us", 800.0, 1500.0, "per-motor PWM at and below which thrust is 0")
     pwm_full_us: float = param(PWM_FULL_US, "us", 1000.0, 2500.0, "per-motor PWM of full command u = 1 (feature maps)")

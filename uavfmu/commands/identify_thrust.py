@@ -307,12 +307,5 @@ def format_report(r: Any) -> str:
     if r.calibration:
         lines.append("per-flight calibration scale (thrust_scale for replays that do not drive the battery state): "
                      + ", ".join(f"{k} {v:.4f}" for k, v in r.calibration.items()))
-    yaw = r.metrics.get("yaw", {})
-    if "kd_yaw_N_m_s" in yaw:
-        held = ", ".join(f"{k} {h['skill']:+.2f} [{h['lo']:+.2f}, {h['hi']:+.2f}] {h['outcome']}"
-                         for k, h in yaw["held_out_vs_holding_the_rate"].items())
-        lines.append(f"yaw: b/k {yaw['torque_per_thrust_m']:.4f} +- {yaw['crb_std_m']:.4f} m, kd_yaw "
-                     f"{yaw['kd_yaw_N_m_s']:.4f} +- {yaw['crb_std_kd_N_m_s']:.4f} N m s"
-                     + (f"; held-out skill vs holding the yaw rate: {held}" if held else ""))
     lines.append(f"verdict: {r.metrics.get('verdict_text')}")
     return "\n".join(lines)
