@@ -9,6 +9,7 @@ import ctypes
 import math
 import os
 import subprocess
+import sys
 import time
 import zipfile
 from pathlib import Path
@@ -390,6 +391,41 @@ class Raw3:
 
     def last(self) -> str:
         return self.messages[-1] if self.messages else ""
+
+
+#: calls through pointers the FMU never handed out, in a child process: a crash there is a failed assertion
+UNMAPPED_CALLS = """
+import ctypes, sys
+lib = ctypes.CDLL(sys.argv[1])
+prefix = sys.argv[2]
+one_arg = [getattr(lib, prefix + f) for f in ("Terminate", "Reset", "ExitInitializationMode")]
+for f in one_arg:
+    f.argtypes = [ctypes.c_void_p]
+free = getattr(lib, prefix + "FreeInstance")
+free.argtypes = [ctypes.c_void_p]
+if prefix == "fmi2":
+    lib.fmi2DoStep.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int]
+codes = []
+for address in (0x10, 0x1000, 0xDEAD0000, 2**47 - 8):
+    p = ctypes.c_void_p(address)
+    if prefix == "fmi2":
+        codes.append(lib.fmi2DoStep(p, 0.0, 0.01, 1))
+    codes += [f(p) for f in one_arg]
+    free(p)
+print(sorted(set(codes)))
+"""
+
+
+def test_fmi3_pointers_never_handed_out_are_refused_without_being_read(fmi3_fmus: dict[str, Path],
+                                                                       tmp_path: Path) -> None:
+    fmu = fmi3_fmus["quadrotor"]
+    Raw3(fmu, tmp_path / "q")  # extracts it
+    plat = zigcc.host_platform()
+    so = tmp_path / "q" / "binaries" / plat.fmi3_name / f"{fmu.stem}{plat.suffix}"
+    got = subprocess.run([sys.executable, "-c", UNMAPPED_CALLS, str(so), "fmi3"], capture_output=True, text=True,
+                         timeout=60)
+    assert got.returncode == 0, got.stderr[-2000:]
+    assert got.stdout.strip() == "[3]"
 
 
 def test_fmi3_bad_calls_are_errors_with_a_message_and_the_instance_stays_usable(fmi3_fmus: dict[str, Path],

@@ -7,6 +7,7 @@ import ctypes
 import math
 import os
 import subprocess
+import sys
 import zipfile
 from pathlib import Path
 
@@ -19,7 +20,7 @@ from fmpy.validation import validate_fmu
 from fmu_models.fmi import zigcc
 from fmu_models.fmi.fmus import build_fmus
 from tests.binexports import IMAGE_FILE_MACHINE_AMD64, macho_exports, pe_exports
-from tests.test_fmu_interfaces import compile_host
+from tests.test_fmu_interfaces import UNMAPPED_CALLS, compile_host
 
 HERE = Path(__file__).resolve().parent
 VEHICLES = ("quadrotor", "fixed_wing")
@@ -407,6 +408,34 @@ def test_bad_calls_are_fmi2error_with_a_message_and_the_instance_stays_usable(bu
     assert lib.fmi2DoStep(c, 0.0, 0.01, 1) == 0
     lib.fmi2FreeInstance(c)  # frees the states it handed out too
     fw.lib.fmi2FreeInstance(other)
+
+
+def test_pointers_never_handed_out_are_refused_without_being_read(built_fmus: dict[str, Path],
+                                                                  tmp_path: Path) -> None:
+    """Unmapped addresses (never an instance) and a freed instance: fmi2Error, and the process lives (each call
+    compares the pointer with the live instances before reading through it)."""
+    q = Raw(built_fmus["quadrotor"], tmp_path / "q")
+    so = tmp_path / "q" / "binaries" / "linux64" / f"{q.md.coSimulation.modelIdentifier}.so"
+    got = subprocess.run([sys.executable, "-c", UNMAPPED_CALLS, str(so), "fmi2"], capture_output=True, text=True,
+                         timeout=60)
+    assert got.returncode == 0, got.stderr[-2000:]
+    assert got.stdout.strip() == "[3]"
+    c = ctypes.c_void_p(q.new())
+    q.init(c.value)
+    q.lib.fmi2FreeInstance(c)
+    assert q.lib.fmi2DoStep(c, 0.0, 0.01, 1) == 3 and q.lib.fmi2Terminate(c) == 3  # freed: refused
+    q.lib.fmi2FreeInstance(c)  # a second free is ignored
+
+
+def test_at_most_4096_live_instances_then_a_clear_error(built_fmus: dict[str, Path], tmp_path: Path) -> None:
+    q = Raw(built_fmus["quadrotor"], tmp_path / "q")
+    live = [q.new() for _ in range(4096)]
+    assert q.lib.fmi2Instantiate(b"one too many", 1, q.md.guid.encode(), b"", ctypes.byref(q.cb), 0, 0) is None
+    assert "4096 instances" in q.last() and "live already" in q.last()
+    q.lib.fmi2FreeInstance(ctypes.c_void_p(live.pop()))
+    live.append(q.new())  # a freed slot is taken again
+    for c in live:
+        q.lib.fmi2FreeInstance(ctypes.c_void_p(c))
 
 
 def read_rss_kb() -> int:

@@ -72,8 +72,8 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
 }
 
 void fmi2FreeInstance(fmi2Component comp) {
-    Instance* c = (Instance*)comp;
-    if (!c || c->magic != INSTANCE_MAGIC || c->model != &uavfmu_model) return;
+    Instance* c = uav_ours(comp);
+    if (!c) return;
     void* keep = (void*)c->callbacks;
     uav_free(c);
     free(keep);

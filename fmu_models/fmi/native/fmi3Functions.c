@@ -91,8 +91,8 @@ fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3Stri
 }
 
 void fmi3FreeInstance(fmi3Instance comp) {
-    Instance* c = (Instance*)comp;
-    if (!c || c->magic != INSTANCE_MAGIC || c->model != &uavfmu_model) return;
+    Instance* c = uav_ours(comp);
+    if (!c) return;
     void* keep = (void*)c->callbacks;
     uav_free(c);
     free(keep);

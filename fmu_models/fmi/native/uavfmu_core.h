@@ -16,6 +16,7 @@
 
 #include <math.h>
 #include <stdarg.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -103,11 +104,55 @@ static int uav_wrong_interface(Instance* c, int interface, const char* fn) {
     return 1;
 }
 
+/* ------------------------------------------------------------------ live instances */
+
+/* Every live instance of this binary, so that a pointer the importer passes is compared by address before
+   anything is read through it: a pointer never returned by instantiate, or one already freed, is refused
+   without being dereferenced. Slots are claimed and released with atomic compare-and-swap (instances may live
+   in different threads, FMI 2.0.4 section 2.1.3); at most UAV_MAX_INSTANCES live at once. */
+#define UAV_MAX_INSTANCES 4096
+static _Atomic(void*) uav_live[UAV_MAX_INSTANCES];
+static atomic_int uav_live_top; /* slots at and above this were never used */
+
+static int uav_register(Instance* c) {
+    for (int i = 0; i < UAV_MAX_INSTANCES; ++i) {
+        void* expected = NULL;
+        if (atomic_compare_exchange_strong(&uav_live[i], &expected, (void*)c)) {
+            int top = atomic_load(&uav_live_top);
+            while (top < i + 1 && !atomic_compare_exchange_weak(&uav_live_top, &top, i + 1)) {
+            }
+            return 1;
+        }
+    }
+    return 0;
+}
+
+static void uav_unregister(Instance* c) {
+    int top = atomic_load(&uav_live_top);
+    for (int i = 0; i < top; ++i) {
+        void* expected = (void*)c;
+        if (atomic_compare_exchange_strong(&uav_live[i], &expected, NULL)) return;
+    }
+}
+
+/* The instance if `comp` is a live instance of this binary, else NULL (compared by address first). */
+static Instance* uav_ours(const void* comp) {
+    if (!comp) return NULL;
+    int top = atomic_load(&uav_live_top);
+    for (int i = 0; i < top; ++i) {
+        if (atomic_load(&uav_live[i]) == comp) {
+            Instance* c = (Instance*)comp;
+            return c->magic == INSTANCE_MAGIC && c->model == &uavfmu_model ? c : NULL;
+        }
+    }
+    return NULL;
+}
+
 /* The instance, if it is one of ours and fn is allowed in its state, else NULL (a foreign pointer is never
-   written through; a state error is logged). */
+   read or written through; a state error is logged). */
 static Instance* uav_enter(void* comp, int mask, const char* fn) {
-    Instance* c = (Instance*)comp;
-    if (!c || c->magic != INSTANCE_MAGIC || c->model != &uavfmu_model) return NULL;
+    Instance* c = uav_ours(comp);
+    if (!c) return NULL;
     if (!(c->state & mask)) {
         uav_fail(c, UAV_ERROR, "%s: not allowed in state '%s' (FMI %s state machine)", fn,
                  uavfmu_state_name(c->state), c->model_exchange ? "Model Exchange" : "Co-Simulation");
@@ -142,7 +187,8 @@ static void uav_free_state(FmuState* s) {
 }
 
 static void uav_free(Instance* c) {
-    if (!c || c->magic != INSTANCE_MAGIC || c->model != &uavfmu_model) return;
+    if (!uav_ours(c)) return;
+    uav_unregister(c);
     FmuState* s = c->states;
     while (s) {
         FmuState* n = s->next;
@@ -212,6 +258,13 @@ static Instance* uav_new(Instance* tmp, const char* name, const char* token, int
     c->logging_on = tmp->logging_on;
     c->state = Instantiated;
     uav_set_starts(c);
+    if (!uav_register(c)) {
+        uav_fail(tmp, UAV_ERROR, "instantiate: %d instances of %s are live already, the most one binary holds",
+                 UAV_MAX_INSTANCES, m->name);
+        c->magic = 0;
+        free(c->x); free(c->warned); free(c->kinds); free(c->name); free(c);
+        return NULL;
+    }
     return c;
 }
 
