@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -38,7 +38,7 @@ from fmu_models.common.units import G0_M_S2 as G0
 from identification.readers import read_log
 from identification.thrust_battery import HOVER_TAUS_S, hover_thrust_scale
 from identification.thrust_dataset import ThrustDatasetConfig, build_thrust_dataset
-from identification.thrust_model import FlightData, command, hover_scale
+from identification.thrust_model import FlightData, ModelSpec, command, hover_scale, poly_features
 from identification.thrust_workflow import HOVER_CLIMB_M_S
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
@@ -90,6 +90,21 @@ def features(f: FlightData, ratio: np.ndarray | None, tau_s: float) -> np.ndarra
     if ratio is not None:
         u = u * ratio[:, None]
     return np.stack([lagged((u * u).sum(axis=1), f, tau_s), lagged(u.sum(axis=1), f, tau_s)], axis=1)
+
+
+def quad(x: np.ndarray) -> np.ndarray:
+    """The one-rule map's regressors ``sum x^2, sum x`` of a per-motor input (N, 4)."""
+    return np.stack([(x * x).sum(axis=1), x.sum(axis=1)], axis=1)
+
+
+def u_eff(f: FlightData, nominal: float) -> np.ndarray:
+    """Per-motor ``u V/V_nom`` (N, 4) of a flight with a voltage log."""
+    return command(f.pwm_us, IDLE_US, FULL_US) * (f.volt_V / nominal)[:, None]  # type: ignore[operator]
+
+
+def voltage_poly(f: FlightData, nominal: float) -> np.ndarray:
+    """Regressors of ``identify thrust``'s voltage baseline ``sum u^2, sum u, sum u^2 V/V_nom``."""
+    return poly_features(f, ModelSpec(IDLE_US, FULL_US, nominal, True), True)
 
 
 def lofo(flights: list[FlightData], volts: list[np.ndarray | None], tau_s: float) -> tuple[float, float, list[float]]:
@@ -189,9 +204,6 @@ def other_forms(flights: list[FlightData]) -> None:
     def x_of(f: FlightData, g: float = 1.0) -> np.ndarray:
         return command(f.pwm_us, IDLE_US, FULL_US) * ((f.volt_V / nominal) ** g)[:, None]  # type: ignore[operator]
 
-    def quad(x: np.ndarray) -> np.ndarray:
-        return np.stack([(x * x).sum(axis=1), x.sum(axis=1)], axis=1)
-
     for up, down in ((0.0, 0.0), (0.0, 0.02), (0.0, 0.04), (0.0, 0.08), (0.02, 0.02), (0.02, 0.04)):
         got = lofo_with(flights, lambda f, up=up, down=down: quad(asymmetric_lag(x_of(f), f, up, down)))
         raw, cal = got.raw, got.cal
@@ -218,20 +230,14 @@ def static_floor(flights: list[FlightData]) -> None:
     the most flexible of them, piecewise-linear per motor, fitted on the other flight (leave-one-flight-out)."""
     nominal = nominal_V([f.volt_V for f in flights])  # type: ignore[misc]
 
-    def u_r(f: FlightData) -> tuple[np.ndarray, np.ndarray]:
-        return command(f.pwm_us, IDLE_US, FULL_US), (f.volt_V / nominal)[:, None]  # type: ignore[operator]
-
     def vpoly(f: FlightData) -> np.ndarray:
-        u, r = u_r(f)
-        return np.stack([(u * u).sum(axis=1), u.sum(axis=1), (u * u * r).sum(axis=1)], axis=1)
+        return voltage_poly(f, nominal)
 
     def ueff(f: FlightData) -> np.ndarray:
-        u, r = u_r(f)
-        return np.stack([((u * r) ** 2).sum(axis=1), (u * r).sum(axis=1)], axis=1)
+        return quad(u_eff(f, nominal))
 
-    def knots(f: FlightData) -> np.ndarray:
-        u, r = u_r(f)
-        return knots_design(u * r, np.linspace(0.1, 0.9, 9))
+    def knots(f: FlightData, n_knots: int = 9) -> np.ndarray:
+        return knots_design(u_eff(f, nominal), np.linspace(0.1, 0.9, n_knots))
 
     target = 0.95 * lofo_with(flights, vpoly).cal
     print(f"  calibrated target: 0.95 x held-out voltage polynomial = {target:.3f}")
@@ -245,8 +251,7 @@ def static_floor(flights: list[FlightData]) -> None:
             n += len(pred)
         print(f"  {name}, fitted on the held-out flight itself: {np.sqrt(sse / n):.3f} calibrated")
     for n_knots in (5, 9):
-        got = lofo_with(flights, lambda f, n_knots=n_knots: knots_design(
-            u_r(f)[0] * u_r(f)[1], np.linspace(0.1, 0.9, n_knots)))
+        got = lofo_with(flights, lambda f, n_knots=n_knots: knots(f, n_knots))
         print(f"  per-motor piecewise-linear, {n_knots} knots, fitted on the other flight: raw / calibrated "
               f"{got.raw:.3f} / {got.cal:.3f}")
 
@@ -282,17 +287,14 @@ def filters_and_alignment(flights_of: Callable[[float | None], list[FlightData]]
     fl = flights_of(None)
     nominal = nominal_V([f.volt_V for f in fl])  # type: ignore[misc]
     for w in (0.0, 0.5):
-        def u_r(f: FlightData, w: float = w) -> tuple[np.ndarray, np.ndarray]:
-            u = command(f.pwm_us, IDLE_US, FULL_US)
-            return (1.0 - w) * u + w * shifted(u, f, -1), (f.volt_V / nominal)[:, None]  # type: ignore[operator]
+        moved = {id(f): replace(f, pwm_us=(1.0 - w) * f.pwm_us + w * shifted(f.pwm_us, f, -1)) for f in fl}
 
-        def ueff(f: FlightData) -> np.ndarray:
-            u, r = u_r(f)
-            return np.stack([((u * r) ** 2).sum(axis=1), (u * r).sum(axis=1)], axis=1)
+        def ueff(f: FlightData, moved: dict[int, FlightData] = moved) -> np.ndarray:
+            return quad(u_eff(moved[id(f)], nominal))
 
-        def vpoly(f: FlightData) -> np.ndarray:
-            u, r = u_r(f)
-            return np.stack([(u * u).sum(axis=1), u.sum(axis=1), (u * u * r).sum(axis=1)], axis=1)
+        def vpoly(f: FlightData, moved: dict[int, FlightData] = moved) -> np.ndarray:
+            return voltage_poly(moved[id(f)], nominal)
+
         m, b = lofo_with(fl, ueff), lofo_with(fl, vpoly)
         print(f"  command {w:.1f} of the way to the next PWM sample: map {m.raw:.3f} / {m.cal:.3f}, voltage "
               f"polynomial {b.raw:.3f} / {b.cal:.3f}, calibrated ratio {m.cal / b.cal:.3f}")
