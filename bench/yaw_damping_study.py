@@ -27,8 +27,7 @@ from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.params import QuadrotorParams
 from identification.metrics import skill_interval
 from identification.thrust_model import battery_input_V, fmu_total_thrust
-from identification.thrust_workflow import FlightSpec, ThrustConfig, identify_thrust, load_flight
-from identification.yaw_torque import spin_thrust, windows
+from identification.thrust_workflow import FlightSpec, ThrustConfig, identify_thrust, load_flight, yaw_windows
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 ERLE = tuple(FlightSpec(DATA / "quadrotor" / f"arducopter_x_quad_real_{n}.BIN", 1.14) for n in (218, 104, 105))
@@ -68,13 +67,10 @@ def study(name: str, cfg: ThrustConfig) -> None:
     per_flight, omega = [], []
     for spec in cfg.flights:
         f = load_flight(spec, cfg)
-        volt = battery_input_V(p, r.spec, f.model_data(r.spec.voltage))
-        per_motor = np.stack([fmu_total_thrust(p, f.pwm_us[:, [i] * N_MOTORS], volt) / N_MOTORS
-                              for i in range(N_MOTORS)], axis=1)
+        d = f.model_data(r.spec.voltage)
+        per_motor = fmu_total_thrust(p, f.pwm_us, battery_input_V(p, r.spec, d)) / N_MOTORS  # mean motor
         omega.append(np.sqrt(np.maximum(per_motor, 0.0) / p.k_thrust_N_s2).mean())
-        ms = windows(f.data.time_s, f.data.segment, spin_thrust(per_motor), np.nan_to_num(f.yaw_rate),
-                     f.data.sample_period_s)
-        per_flight.append([m for m in ms if np.all(np.isfinite(m.y))])
+        per_flight.append(yaw_windows(f, d, p, r.spec))
     w = float(np.mean(omega))
     print(f"{name}: rotor yaw damping 8 b Omega / Jz = {8.0 * p.b_drag_N_m_s2 * w / p.Jz_kg_m2:.3f} 1/s with b as "
           f"identified ({p.b_drag_N_m_s2:.3g} N m s^2), {8.0 * B_DEFAULT * w / p.Jz_kg_m2:.3f} 1/s with the default "

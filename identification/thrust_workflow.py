@@ -522,21 +522,12 @@ def _yaw(flights: list[Flight], data: list[FlightData], p: QuadrotorParams, spec
     """Yaw torque per thrust from the flights' yaw response (None and a note when it cannot be done), and with
     two or more flights its leave-one-flight-out skill against holding the logged yaw rate per held-out flight
     (the note says when the fit loses on one)."""
-    from identification.yaw_torque import identify_yaw_torque, spin_thrust, windows
+    from identification.yaw_torque import identify_yaw_torque
 
     if any(f.yaw_rate is None for f in flights):
         return None, "yaw torque not identified: a flight has no gyro_body_z_rad_s", {}
-    per_flight = []
-    for f, d in zip(flights, data, strict=True):
-        volt = battery_input_V(p, spec, d)  # with the battery state when the model has one, else calibrated
-        scale = 1.0 if spec.tau_s is not None else cal.get(f.spec.name, 1.0)
-        per_motor = np.stack([fmu_total_thrust(p, f.pwm_us[:, [i] * N_MOTORS], volt) / N_MOTORS
-                              for i in range(N_MOTORS)], axis=1) * scale
-        ok = np.isfinite(f.yaw_rate)  # type: ignore[arg-type]
-        seg = np.where(ok, f.data.segment, -1)
-        ms = windows(f.data.time_s, seg, spin_thrust(per_motor), np.nan_to_num(f.yaw_rate),  # type: ignore[arg-type]
-                     f.data.sample_period_s)
-        per_flight.append([m for m in ms if np.all(np.isfinite(m.y))])
+    per_flight = [yaw_windows(f, d, p, spec, 1.0 if spec.tau_s is not None else cal.get(f.spec.name, 1.0))
+                  for f, d in zip(flights, data, strict=True)]
     try:
         fitted = identify_yaw_torque([m for ms in per_flight for m in ms], p)
     except ValueError as err:
@@ -547,6 +538,22 @@ def _yaw(flights: list[Flight], data: list[FlightData], p: QuadrotorParams, spec
     note = (f"yaw torque LOSES to holding the logged yaw rate on held-out flight(s) {', '.join(losses)}: "
             "b_drag_N_m_s2 is written from all flights, but the yaw axis is not validated" if losses else "")
     return fitted, note, held
+
+
+def yaw_windows(f: Flight, d: FlightData, p: QuadrotorParams, spec: ModelSpec, scale: float = 1.0) -> list[Any]:
+    """The yaw-replay windows of one flight (``identification.yaw_torque.windows``): the FMU's per-motor thrust
+    with the model's battery input (the hover state when it has one), times ``scale``, as ``sum_i s_i T_i``;
+    samples without a logged yaw rate cut the windows."""
+    from identification.yaw_torque import spin_thrust, windows
+
+    volt = battery_input_V(p, spec, d)
+    per_motor = np.stack([fmu_total_thrust(p, f.pwm_us[:, [i] * N_MOTORS], volt) / N_MOTORS
+                          for i in range(N_MOTORS)], axis=1) * scale
+    ok = np.isfinite(f.yaw_rate)  # type: ignore[arg-type]
+    seg = np.where(ok, f.data.segment, -1)
+    ms = windows(f.data.time_s, seg, spin_thrust(per_motor), np.nan_to_num(f.yaw_rate),  # type: ignore[arg-type]
+                 f.data.sample_period_s)
+    return [m for m in ms if np.all(np.isfinite(m.y))]
 
 
 def _yaw_held_out(flights: list[Flight], per_flight: list[list[Any]], p: QuadrotorParams

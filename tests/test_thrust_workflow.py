@@ -318,26 +318,9 @@ def test_erle_yaw_torque_replay_no_worse_than_holding_yaw_rate() -> None:
                    "the data) the yaw torque fitted on 218 and 104 loses to holding the yaw rate on 105, skill "
                    "-0.09 [-0.15, -0.03]; the earlier win came from touch-down samples")
 def test_erle_yaw_torque_on_a_held_out_flight_is_not_beaten_by_holding_the_rate() -> None:
-    from identification.metrics import skill_interval
-    from identification.thrust_model import battery_input_V
-    from identification.thrust_workflow import load_flight
-    from identification.yaw_torque import identify_yaw_torque, replay, spin_thrust, windows
-
-    cfg = ThrustConfig(flights=_erle_flights())
-    r = identify_thrust(cfg)
-    flights = [load_flight(f, cfg) for f in cfg.flights]
-
-    def wins(f: object) -> list:
-        volt = battery_input_V(r.params, r.spec, f.model_data(False))
-        per_motor = np.stack([fmu_total_thrust(r.params, f.pwm_us[:, [i] * N_MOTORS], volt) / N_MOTORS
-                              for i in range(N_MOTORS)], axis=1)
-        return windows(f.data.time_s, f.data.segment, spin_thrust(per_motor), f.yaw_rate, f.data.sample_period_s)
-
-    fit = identify_yaw_torque(wins(flights[0]) + wins(flights[1]), r.params)
-    held = wins(flights[2])
-    model, logged, starts = replay(held, max(fit.torque_per_thrust_m, 0.0), r.params.Jz_kg_m2)
-    hold = replay(held, 0.0, r.params.Jz_kg_m2)[0]
-    assert skill_interval(logged, model, hold, starts).outcome != "lose"
+    r = identify_thrust(ThrustConfig(flights=_erle_flights()))
+    held = r.metrics["yaw"]["held_out_vs_holding_the_rate"]
+    assert held["arducopter_x_quad_real_105.BIN"]["outcome"] != "lose"
 
 
 class _Damaged:
