@@ -125,7 +125,7 @@ def mc_task(task: McTask) -> dict[str, Any]:
                           vehicle_of(host))
         mapping = PwmMapping.load(local_path(job.mapping)) if job.mapping else None
         battery = job_battery_state(local_path(job.fmu), local_path(job.params_file) if job.params_file else None,
-                                    job.embedded_params)
+                                    job.embedded_params, vehicle_of(host))
         setup = replay_setup(host, log, job.log, maps, job.options, dict(job.start_values), mapping, battery=battery)
         n = len(setup.t)
         out = {m.fmu: np.full((len(task.draws), n), np.nan) for m in maps}

@@ -70,13 +70,16 @@ def embedded_battery_state(fmu: str | Path) -> BatteryStateModel | None:
     return None if found is None else battery_state_of(*found)
 
 
-def job_battery_state(fmu: str | Path, params_file: str | Path | None, embedded: bool = True
+def job_battery_state(fmu: str | Path, params_file: str | Path | None, embedded: bool, vehicle: str
                       ) -> BatteryStateModel | None:
-    """The battery-state model a replay of ``fmu`` uses: ``params_file``'s, else (``embedded``) the one of the
-    file the FMU was built from, else None. The nominal run and every Monte Carlo draw call this one function."""
+    """The battery-state model a replay of ``fmu`` (a ``vehicle`` FMU) uses: ``params_file``'s, else (``embedded``)
+    the one of the file the FMU was built from, else None. The embedded file is a default: ``build --params``
+    embeds it in every FMU it builds, and its battery state is the quadrotor's, so a fixed-wing FMU ignores it
+    (a ``params_file`` named for one is refused by :func:`feed`). The nominal run and every Monte Carlo draw
+    call this one function."""
     if params_file is not None:
         return read_battery_state(params_file)
-    return embedded_battery_state(fmu) if embedded else None
+    return embedded_battery_state(fmu) if embedded and vehicle == "quadrotor" else None
 
 
 def battery_state_of(data: dict[str, Any], path: str) -> BatteryStateModel | None:

@@ -152,8 +152,9 @@ def validate(job: ValidationJob, progress: Callable[[int, int], None] | None = N
     log = read_log(job.log, channel_map=job.channel_map)
     o = job.options
     with FmuHost(job.fmu) as host:  # names a missing or broken FMU before its resources are read
-        battery = job_battery_state(job.fmu, job.params_file, job.embedded_params)
-        maps = _load_maps(job, vehicle_of(host))
+        vehicle = vehicle_of(host)
+        battery = job_battery_state(job.fmu, job.params_file, job.embedded_params, vehicle)
+        maps = _load_maps(job, vehicle)
         mapping = PwmMapping.load(job.mapping) if job.mapping else None
         res = replay(host, log, job.log, maps, rate_hz=o.rate_hz, window_s=o.window_s or None,
                      start_values=dict(job.start_values), mapping=mapping, progress=progress,
@@ -228,7 +229,16 @@ def mc_uncertainty(params_file: Path | None, fmu: Path | None = None) -> Uncerta
         raise ValidationInputError("--mc needs --uncertainty PARAMS (a parameter file with an 'uncertainty' key); "
                                    "the FMU carries none (build it with `uavfmu build --params` from an identified "
                                    "file)")
-    return uncertainty_of(*found)
+    unc = uncertainty_of(*found)
+    from fmpy import read_model_description
+
+    names = {v.name for v in read_model_description(str(fmu)).modelVariables}
+    foreign = [n for n in unc.names if n not in names]
+    if foreign:  # build --params embeds one file in every FMU: its uncertainty belongs to one model
+        raise ValidationInputError(f"{found[1]}: its uncertainty is over parameters this FMU does not have "
+                                   f"({', '.join(foreign[:3])}{' ...' if len(foreign) > 3 else ''}); give --mc an "
+                                   "--uncertainty file for this model")
+    return unc
 
 
 def validate_mc(job: ValidationJob, uncertainty: Uncertainty, draws: int, seed: int = 0, *,

@@ -169,6 +169,23 @@ def test_the_identified_file_carries_an_uncertainty_validate_mc_reads(identified
         mc_uncertainty(None, plain)
 
 
+def test_a_fixed_wing_fmu_built_from_a_thrust_file_ignores_its_quadrotor_parts(identified: tuple[Path, Path]) -> None:
+    """``build --params`` embeds the file in every FMU it builds: the fixed wing's replay takes no battery state
+    from it, and ``--mc`` does not draw the quadrotor's map coefficients for it (a clear error instead)."""
+    from build_fmus import build
+    from identification.replay_battery import job_battery_state
+    from identification.validation import ValidationInputError
+    from identification.validation_workflow import mc_uncertainty
+
+    params, quad = identified
+    (wing,) = build(params, params.parent / "wing", ["fixed_wing"])
+    assert job_battery_state(quad, None, True, "quadrotor") is not None  # the quadrotor's own file: used
+    assert job_battery_state(wing, None, True, "fixed_wing") is None
+    assert job_battery_state(wing, None, False, "quadrotor") is None  # --no-embedded-params
+    with pytest.raises(ValidationInputError, match="parameters this FMU does not have"):
+        mc_uncertainty(None, wing)
+
+
 def test_the_replay_state_leaves_out_take_off_and_touch_down(identified: tuple[Path, Path]) -> None:
     """A log that starts and ends on the ground: the hover samples the replay's state counts are the airborne
     ones without the 1 s after take-off and before touch-down (ground contact), as in identification."""
