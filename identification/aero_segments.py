@@ -25,7 +25,7 @@ import numpy as np
 from fmu_models.config import ConfigError
 from identification.aero import Segment, SegmentError
 from identification.flightlog import FlightLog
-from identification.log_state import ground_level, ground_samples
+from identification.log_state import any_of, ground_level, parked_samples
 from identification.timeline import load_timeline
 
 #: recovery time kept after a block's end [s]: the response to the last pulse is still informative
@@ -144,14 +144,13 @@ def active_segments(t_s: np.ndarray, u: np.ndarray, airborne: np.ndarray, pad_s:
 
 def ground_level_m(log: FlightLog) -> float | None:
     """The log's ground level [m, its altitude scale], as the ground test of every replay computes it
-    (``log_state.ground_level`` over the samples ``log_state.ground_samples`` finds parked: the ``landed`` flag
+    (``log_state.ground_level`` over the samples ``log_state.parked_samples`` finds parked: the ``landed`` flag
     or airspeed below ``log_state.WING_GROUND_AIRSPEED_M_S``); None when the log never shows the aircraft on
     the ground (a log that starts in the air: no height criterion then)."""
     if not log.has("altitude_m"):
         return None
     t = log.signal("altitude_m").t_s
-    crit = [m for name, m in ground_samples(log, "fixed_wing", t, 0.0).items() if "ground level" not in name]
-    return ground_level(log, "fixed_wing", t, np.any(crit, axis=0) if crit else np.zeros(len(t), dtype=bool))
+    return ground_level(log, "fixed_wing", t, any_of(parked_samples(log, "fixed_wing", t, 0.0), len(t)))
 
 
 def airborne(log: FlightLog, t_s: np.ndarray) -> np.ndarray:

@@ -35,15 +35,10 @@ TAKEOFF_RISE_M = 1.0
 WING_GROUND_AIRSPEED_M_S = 8.0
 
 
-def ground_samples(log: FlightLog, vehicle: str, t_s: np.ndarray, idle_pwm_us: float) -> dict[str, np.ndarray]:
-    """Samples of ``t_s`` where the vehicle is on the ground, by criterion (plain-words name -> bool mask).
-
-    Criteria: the log's ``landed`` flag where logged; quadrotor motors all at idle (at most ``idle_pwm_us`` +
-    ``IDLE_MARGIN_US``); fixed wing below ``WING_GROUND_AIRSPEED_M_S``; height above the ground level below
-    ``GROUND_HEIGHT_M``, the ground level being the median altitude while on the ground by the other criteria,
-    else, for a multirotor, the first altitude of a log that starts at its lowest point and then rises by more
-    than ``TAKEOFF_RISE_M`` (a take-off with no idle phase logged); else no height criterion.
-    """
+def parked_samples(log: FlightLog, vehicle: str, t_s: np.ndarray, idle_pwm_us: float) -> dict[str, np.ndarray]:
+    """Samples of ``t_s`` where the vehicle is parked, by criterion (plain-words name -> bool mask): the log's
+    ``landed`` flag where logged; quadrotor motors all at idle (at most ``idle_pwm_us`` + ``IDLE_MARGIN_US``);
+    fixed wing below ``WING_GROUND_AIRSPEED_M_S``. The samples the ground level is taken over."""
     out: dict[str, np.ndarray] = {}
     if log.has("landed"):
         out["landed flag set"] = hold(log.signal("landed"), t_s) > 0.5
@@ -53,8 +48,24 @@ def ground_samples(log: FlightLog, vehicle: str, t_s: np.ndarray, idle_pwm_us: f
     elif log.has("airspeed_m_s"):
         out[f"airspeed below {WING_GROUND_AIRSPEED_M_S:g} m/s"] = \
             log.signal("airspeed_m_s").resample(t_s) < WING_GROUND_AIRSPEED_M_S
-    parked = np.any(list(out.values()), axis=0) if out else np.zeros(len(t_s), dtype=bool)
-    level = ground_level(log, vehicle, t_s, parked)
+    return out
+
+
+def any_of(masks: dict[str, np.ndarray], n: int) -> np.ndarray:
+    """Samples where any of ``masks`` holds (none: no sample of ``n``)."""
+    return np.any(list(masks.values()), axis=0) if masks else np.zeros(n, dtype=bool)
+
+
+def ground_samples(log: FlightLog, vehicle: str, t_s: np.ndarray, idle_pwm_us: float) -> dict[str, np.ndarray]:
+    """Samples of ``t_s`` where the vehicle is on the ground, by criterion (plain-words name -> bool mask).
+
+    Criteria: those of :func:`parked_samples`; height above the ground level below ``GROUND_HEIGHT_M``, the
+    ground level being the median altitude while parked, else, for a multirotor, the first altitude of a log
+    that starts at its lowest point and then rises by more than ``TAKEOFF_RISE_M`` (a take-off with no idle
+    phase logged); else no height criterion.
+    """
+    out = parked_samples(log, vehicle, t_s, idle_pwm_us)
+    level = ground_level(log, vehicle, t_s, any_of(out, len(t_s)))
     if level is not None:
         limit = GROUND_HEIGHT_M.get(vehicle, 0.3)
         out[f"below {limit:g} m above the ground level"] = log.signal("altitude_m").resample(t_s) - level < limit
