@@ -157,8 +157,9 @@ def test_validator_zero_findings_and_three_platforms_with_sources(name: str, bui
         members = set(z.namelist())
         for plat in zigcc.PLATFORMS:
             assert f"binaries/{plat.fmi_name}/{name}{plat.suffix}" in members
-        for src in ("fmi2Functions.c", "uavfmu_core.h", "uavfmu_states.h", "uavfmu_config.h", f"{name}_model.c",
-                    f"{name}_description.c", "uavfmu_model.h", "fmi2Functions.h", "buildDescription.xml"):
+        for src in ("fmi2Functions.c", "uavfmu_core.h", "uavfmu_live.h", "uavfmu_states.h", "uavfmu_config.h",
+                    f"{name}_model.c", f"{name}_description.c", "uavfmu_model.h", "fmi2Functions.h",
+                    "buildDescription.xml"):
             assert f"sources/{src}" in members
         assert b'<fmiBuildDescription fmiVersion="2.0">' in z.read("sources/buildDescription.xml")
         assert not any(m.startswith("resources/") and m.endswith(".py") for m in members)  # no Python inside

@@ -302,8 +302,8 @@ def build_description(model: VehicleModel, interface: Interface) -> bytes:
     files = "\n".join(f'      <SourceFile name="{n}"/>' for n in c_sources(model, interface))
     return f"""<?xml version="1.0" encoding="UTF-8"?>
 <fmiBuildDescription fmiVersion="{interface.fmi_version}.0">
-  <BuildConfiguration modelIdentifier="{model.name}" description="C99; link with the math library (-lm)">
-    <SourceFileSet language="C99">
+  <BuildConfiguration modelIdentifier="{model.name}" description="C11 (atomics); link with the math library (-lm)">
+    <SourceFileSet language="C11">
 {files}
       <PreprocessorDefinition name="CASADI_SYMBOL_EXPORT" value=""/>
     </SourceFileSet>
@@ -321,7 +321,8 @@ def native_sources(model: VehicleModel, work: Path, warnings: dict[str, str],
     model_c = files["c"].read_bytes()
     spec = [(r.kind, r.index, r.var.name, r.var.unit, r.var.start, r.var.min, r.var.max, r.var.boolean,
              r.var.description, r.tunable) for r in variables(model, interface)]
-    shared = {n: (NATIVE / n).read_bytes() for n in (interface.front_end, "uavfmu_core.h", "uavfmu_model.h")}
+    shared = {n: (NATIVE / n).read_bytes() for n in (interface.front_end, "uavfmu_core.h", "uavfmu_live.h",
+                                                   "uavfmu_model.h")}
     digest = hashlib.sha256(model_c + json.dumps([spec, warnings, fmuzip.package_version(),
                                                   interface.fmi_version, interface.kinds]).encode())
     for name in sorted(shared):

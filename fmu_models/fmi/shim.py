@@ -94,6 +94,7 @@ C_CORE = r"""
 #include <string.h>
 #include "fmi2Functions.h"
 #include "uavfmu_states.h" /* the one state machine table (fmu_models/fmi/statemachine.py) */
+#include "uavfmu_live.h"   /* the live handles, as the native layer keeps them */
 
 typedef struct { fmi2ValueReference vr; char type; char settable; const char* name; } VarInfo;
 @TABLE@
@@ -118,10 +119,9 @@ typedef struct State { uint64_t magic; struct Inst* owner; fmi2FMUstate real; do
 typedef struct Slot { fmi2Component real; struct Inst* owner; fmi2CallbackFunctions cb; char key[4096];
                       struct Slot* next; } Slot;
 /* dt: the model's internal step (s), tracked from SetReal so a step needing too many is refused up front */
-typedef struct Inst { uint64_t magic; struct Inst* next; fmi2Component real; Slot* slot; int state; double time;
+typedef struct Inst { uint64_t magic; int live_slot; fmi2Component real; Slot* slot; int state; double time;
                       fmi2CallbackFunctions cb; char name[128]; State* states; int logged_error; double dt; } Inst;
 
-static Inst* live = NULL;
 static Slot* pool = NULL;  /* freed instances kept for reuse: pythonfmu leaks ~1 KB per fmi2Instantiate */
 static int pooled = 0;
 #define POOL_MAX 4
@@ -139,7 +139,7 @@ static void on_unload(void) {
   pooled = 0;
   void (*fin)(void) = real_lib ? (void (*)(void))dlsym(real_lib, "finalizePythonInterpreter") : NULL;
   if (fin) fin();
-  if (py && real_lib && !live && !pool) { dlclose(real_lib); real_lib = NULL; }
+  if (py && real_lib && uav_live_none() && !pool) { dlclose(real_lib); real_lib = NULL; }
 }
 
 static void* sym(const char* name) {
@@ -176,8 +176,9 @@ static void say(const Inst* in, fmi2Status s, const char* fmt, ...) {
 }
 
 static Inst* find(fmi2Component c) {
-  for (Inst* in = live; in; in = in->next) if ((void*)in == c && in->magic == INST_MAGIC) return in;
-  return NULL;
+  if (uav_live_find(c) < 0) return NULL;  /* compared by address: a foreign handle is never read */
+  Inst* in = (Inst*)c;
+  return in->magic == INST_MAGIC ? in : NULL;
 }
 
 /* The live instance c if fn is allowed in its state, else NULL after logging why. */
@@ -309,11 +310,16 @@ fmi2Component fmi2Instantiate(fmi2String n, fmi2Type t, fmi2String g, fmi2String
   if (!in) return NULL;
   in->cb = *cb;
   snprintf(in->name, sizeof in->name, "%s", n);
+  in->live_slot = uav_live_add(in);
+  if (in->live_slot < 0) {
+    cb->logger(cb->componentEnvironment, n, fmi2Error, "logStatusError",
+               "%d instances of this FMU are live already, the most one binary holds", UAV_MAX_INSTANCES);
+    free(in); return NULL;
+  }
   in->slot = take_slot(in, f, n, g, r, v);
-  if (!in->slot) { free(in); return NULL; }
+  if (!in->slot) { uav_live_remove(in->live_slot, in); free(in); return NULL; }
   in->real = in->slot->real;
   in->magic = INST_MAGIC; in->state = S_INSTANTIATED; in->time = 0.0; in->dt = DT_START;
-  in->next = live; live = in;
   return in;
 }
 
@@ -342,7 +348,7 @@ void fmi2FreeInstance(fmi2Component c) {
     if (f) f(in->real);
     free(s);
   }
-  for (Inst** p = &live; *p; p = &(*p)->next) if (*p == in) { *p = in->next; break; }
+  uav_live_remove(in->live_slot, in);
   in->magic = 0;
   free(in);
 }
@@ -634,6 +640,7 @@ def build_shim(model_identifier: str, out_dir: Path, compiler: str, rows: list[V
                guid: str = "") -> Path:
     """Compile ``<id>.so`` guarding and forwarding to ``<id>_pythonfmu.so``; return its path."""
     (out_dir / "uavfmu_states.h").write_text(statemachine.header())
+    (out_dir / "uavfmu_live.h").write_bytes((Path(__file__).parent / "native" / "uavfmu_live.h").read_bytes())
     src = out_dir / f"{model_identifier}_shim.c"
     src.write_text(shim_source(f"{model_identifier}_pythonfmu.so", rows, model_identifier, guid))
     lib = out_dir / f"{model_identifier}.so"

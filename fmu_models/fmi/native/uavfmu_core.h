@@ -16,12 +16,12 @@
 
 #include <math.h>
 #include <stdarg.h>
-#include <stdatomic.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "uavfmu_live.h"
 #include "uavfmu_model.h"
 #include "uavfmu_states.h"
 
@@ -66,6 +66,7 @@ typedef struct Instance {
     unsigned char* warned; /* per output: warning already logged this run */
     int* kinds;            /* variable indices: inputs, then parameters, then outputs with a warning */
     int n_in, n_par, n_warn;
+    int live_slot;           /* its slot in uavfmu_live.h */
     struct FmuState* states; /* every FMU state this instance handed out, freed with it */
     char message[512];
     char why[256];           /* an argument rule's message, before it is logged */
@@ -106,46 +107,12 @@ static int uav_wrong_interface(Instance* c, int interface, const char* fn) {
 
 /* ------------------------------------------------------------------ live instances */
 
-/* Every live instance of this binary, so that a pointer the importer passes is compared by address before
-   anything is read through it: a pointer never returned by instantiate, or one already freed, is refused
-   without being dereferenced. Slots are claimed and released with atomic compare-and-swap (instances may live
-   in different threads, FMI 2.0.4 section 2.1.3); at most UAV_MAX_INSTANCES live at once. */
-#define UAV_MAX_INSTANCES 4096
-static _Atomic(void*) uav_live[UAV_MAX_INSTANCES];
-static atomic_int uav_live_top; /* slots at and above this were never used */
-
-static int uav_register(Instance* c) {
-    for (int i = 0; i < UAV_MAX_INSTANCES; ++i) {
-        void* expected = NULL;
-        if (atomic_compare_exchange_strong(&uav_live[i], &expected, (void*)c)) {
-            int top = atomic_load(&uav_live_top);
-            while (top < i + 1 && !atomic_compare_exchange_weak(&uav_live_top, &top, i + 1)) {
-            }
-            return 1;
-        }
-    }
-    return 0;
-}
-
-static void uav_unregister(Instance* c) {
-    int top = atomic_load(&uav_live_top);
-    for (int i = 0; i < top; ++i) {
-        void* expected = (void*)c;
-        if (atomic_compare_exchange_strong(&uav_live[i], &expected, NULL)) return;
-    }
-}
-
-/* The instance if `comp` is a live instance of this binary, else NULL (compared by address first). */
+/* The instance if `comp` is a live instance of this binary (uavfmu_live.h: compared by address before anything
+   is read through it), else NULL. */
 static Instance* uav_ours(const void* comp) {
-    if (!comp) return NULL;
-    int top = atomic_load(&uav_live_top);
-    for (int i = 0; i < top; ++i) {
-        if (atomic_load(&uav_live[i]) == comp) {
-            Instance* c = (Instance*)comp;
-            return c->magic == INSTANCE_MAGIC && c->model == &uavfmu_model ? c : NULL;
-        }
-    }
-    return NULL;
+    if (uav_live_find(comp) < 0) return NULL;
+    Instance* c = (Instance*)comp;
+    return c->magic == INSTANCE_MAGIC && c->model == &uavfmu_model ? c : NULL;
 }
 
 /* The instance, if it is one of ours and fn is allowed in its state, else NULL (a foreign pointer is never
@@ -186,9 +153,19 @@ static void uav_free_state(FmuState* s) {
     free(s);
 }
 
+/* Frees the memory of an instance (not or no longer live) (NULL: nothing). */
+static void uav_release(Instance* c) {
+    if (!c) return;
+    free(c->x);
+    free(c->warned);
+    free(c->kinds);
+    free(c->name);
+    free(c);
+}
+
+/* Frees a live instance (the caller has it from uav_ours) with every FMU state it handed out. */
 static void uav_free(Instance* c) {
-    if (!uav_ours(c)) return;
-    uav_unregister(c);
+    uav_live_remove(c->live_slot, c);
     FmuState* s = c->states;
     while (s) {
         FmuState* n = s->next;
@@ -196,11 +173,7 @@ static void uav_free(Instance* c) {
         s = n;
     }
     c->magic = 0;
-    free(c->x);
-    free(c->kinds);
-    free(c->warned);
-    free(c->name);
-    free(c);
+    uav_release(c);
 }
 
 /* A new instance in state Instantiated, or NULL after logging why through `tmp` (a stack instance). */
@@ -226,7 +199,7 @@ static Instance* uav_new(Instance* tmp, const char* name, const char* token, int
         c->name = (char*)malloc(strlen(name) + 1);
     }
     if (!c || !c->x || !c->warned || !c->kinds || !c->name) {
-        if (c) { free(c->x); free(c->warned); free(c->kinds); free(c->name); free(c); }
+        uav_release(c);
         uav_fail(tmp, UAV_ERROR, "instantiate: out of memory");
         return NULL;
     }
@@ -258,11 +231,12 @@ static Instance* uav_new(Instance* tmp, const char* name, const char* token, int
     c->logging_on = tmp->logging_on;
     c->state = Instantiated;
     uav_set_starts(c);
-    if (!uav_register(c)) {
+    c->live_slot = uav_live_add(c);
+    if (c->live_slot < 0) {
         uav_fail(tmp, UAV_ERROR, "instantiate: %d instances of %s are live already, the most one binary holds",
                  UAV_MAX_INSTANCES, m->name);
         c->magic = 0;
-        free(c->x); free(c->warned); free(c->kinds); free(c->name); free(c);
+        uav_release(c);
         return NULL;
     }
     return c;
