@@ -428,6 +428,33 @@ def test_fmi3_pointers_never_handed_out_are_refused_without_being_read(fmi3_fmus
     assert got.stdout.strip() == "[3]"
 
 
+def test_fmi3_rows_that_differ_from_fmi2_as_the_standard_writes_them(fmi3_fmus: dict[str, Path],
+                                                                      tmp_path: Path) -> None:
+    """FMI 3.0 sections 2.3.2 and 3.2.1, hard-coded here rather than taken from statemachine.FMI3_MASKS: in
+    Instantiated the start values of parameters can be read but not outputs; in Event Mode of a Model Exchange
+    instance fmi3EnterEventMode and fmi3SetTime are refused, in Continuous-Time Mode both are allowed."""
+    q = Raw3(fmi3_fmus["quadrotor"], tmp_path / "q")
+    lib, v = q.lib, ctypes.c_void_p
+    lib.fmi3InstantiateModelExchange.restype = v
+    lib.fmi3InstantiateModelExchange.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_bool,
+                                                 ctypes.c_bool, v, LOG3]
+    c = v(lib.fmi3InstantiateModelExchange(b"me3", q.md.instantiationToken.encode(), None, False, False, None,
+                                           q.log))
+    assert c.value
+    var = {x.name: x for x in q.md.modelVariables}
+    mass, thrust = var["mass_kg"], var["thrust_total_N"]
+    out = (ctypes.c_double * 1)()
+    assert lib.fmi3GetFloat64(c, (ctypes.c_uint * 1)(mass.valueReference), 1, out, 1) == 0
+    assert out[0] == float(mass.start)
+    assert lib.fmi3GetFloat64(c, (ctypes.c_uint * 1)(thrust.valueReference), 1, out, 1) == 3
+    assert lib.fmi3EnterInitializationMode(c, False, 0.0, 0.0, False, 0.0) == 0
+    assert lib.fmi3ExitInitializationMode(c) == 0  # Model Exchange: now in Event Mode
+    assert lib.fmi3EnterEventMode(c) == 3 and lib.fmi3SetTime(c, 0.1) == 3
+    assert lib.fmi3EnterContinuousTimeMode(c) == 0
+    assert lib.fmi3SetTime(c, 0.1) == 0 and lib.fmi3EnterEventMode(c) == 0
+    lib.fmi3FreeInstance(c)
+
+
 def test_fmi3_bad_calls_are_errors_with_a_message_and_the_instance_stays_usable(fmi3_fmus: dict[str, Path],
                                                                                tmp_path: Path) -> None:
     q = Raw3(fmi3_fmus["quadrotor"], tmp_path / "q")
