@@ -72,6 +72,11 @@ def test_bad_inputs_exit_2_with_a_message(quadrotor_fmu: Path, tmp_path: Path, c
     assert "NAME=NUMBER" in capsys.readouterr().err
     assert main(["validate", str(quadrotor_fmu)]) == 2
     assert "--batch" in capsys.readouterr().err
+    manifest = tmp_path / "b.toml"
+    manifest.write_text(f"[[job]]\nfmu = '{quadrotor_fmu}'\nlog = '{csv}'\n")
+    assert main(["validate", "--batch", str(manifest), "--mc", "20"]) == 2
+    err = capsys.readouterr().err
+    assert "--batch with --mc needs --uncertainty" in err and "carries none" not in err
 
 
 def test_batch_runs_every_pair_and_lists_failures(quadrotor_fmu: Path, fixed_wing_fmu: Path, logs, tmp_path: Path,

@@ -139,6 +139,9 @@ def _uncertainty(args: argparse.Namespace) -> object:
         raise ValueError(f"--mc = {args.mc}: allowed {MIN_DRAWS}..{MAX_DRAWS}")
     if not 0 <= args.seed < 2**63:
         raise ValueError(f"--seed = {args.seed}: allowed 0..2**63-1")
+    if args.batch and args.uncertainty is None:
+        raise ValueError("--batch with --mc needs --uncertainty PARAMS (one parameter file with an 'uncertainty' "
+                         "key for every run): the FMUs' embedded files are read only for a single FMU LOG run")
     return mc_uncertainty(args.uncertainty, None if args.batch else args.fmu)
 
 
