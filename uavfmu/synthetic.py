@@ -76,13 +76,7 @@ def open_loop_signals(sim: Simulator, p: np.ndarray, x0: np.ndarray, u: np.ndarr
     """The fixed wing flown open loop from state ``x0`` with the inputs ``u`` (one row per sample, ``dt_s``
     [s] apart): its outputs under their log names and the inputs as the servo PWM of ``MAPPING``, noise-free."""
     idx = sim.model.outputs.index
-    x = np.asarray(x0, dtype=float).copy()
-    rows = [np.asarray(sim.h(x, u[0], p)).ravel()]
-    for k in range(len(u) - 1):
-        x1, y1 = sim.step(x, u[k], p, dt_s)
-        x = np.asarray(x1).ravel()
-        rows.append(np.asarray(y1).ravel())
-    y = np.array(rows)
+    _, _, y = sim.run(lambda t: u[round(t / dt_s)], p, (len(u) - 1) * dt_s, dt_s, x0=np.asarray(x0, dtype=float))
     signals = {col: y[:, idx[name]].copy() for name, col in OUTPUT_TO_LOG.items()}
     for ch in MAPPING.channels:
         values = u[:, sim.model.inputs.index[ch.target]]
