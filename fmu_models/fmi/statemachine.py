@@ -71,6 +71,7 @@ MASKS: dict[str, tuple[str, ...]] = {
     "Terminate": ("EventMode", "ContinuousTimeMode", "StepComplete", "StepFailed", "Error"),
     "Reset": LIVE,
     "GetValue": ("InitializationMode", *INITIALIZED, "Error"),
+    "GetStart": ("InitializationMode", *INITIALIZED, "Error"),  # inputs and parameters: FMI 2.0 reads them alike
     "SetInput": ("Instantiated", "InitializationMode", "EventMode", "ContinuousTimeMode", "StepComplete"),
     "SetTunable": ("Instantiated", "InitializationMode", "EventMode", "StepComplete"),
     "SetFixed": ("Instantiated", "InitializationMode"),
@@ -99,12 +100,13 @@ MASKS: dict[str, tuple[str, ...]] = {
     "Clock": ("EventMode",),
 }
 
-#: where the FMI 3.0 state machine differs from the FMI 2.0 one (FMI 3.0 sections 2.3.1, 3.2.1): Get also answers
-#: in Instantiated, with the start values of inputs and parameters (uavfmu_core.h refuses the variables without
-#: one); Event Mode offers neither fmi3EnterEventMode nor fmi3SetTime (Model Exchange sets the time in
-#: Continuous-Time Mode; a Co-Simulation FMU without event mode never enters Event Mode)
+#: where the FMI 3.0 state machine differs from the FMI 2.0 one (FMI 3.0 sections 2.3.1, 3.2.1): Get of inputs
+#: and parameters (``GetStart``) also answers in Instantiated, with their start values, while every other variable
+#: (``GetValue``) is read from initialization mode on, as in FMI 2.0; the value layers pick the row by the
+#: variable's causality, as Set does; Event Mode offers neither fmi3EnterEventMode nor fmi3SetTime (Model Exchange
+#: sets the time in Continuous-Time Mode; a Co-Simulation FMU without event mode never enters Event Mode)
 FMI3_MASKS: dict[str, tuple[str, ...]] = {
-    "GetValue": ("Instantiated", *MASKS["GetValue"]),
+    "GetStart": ("Instantiated", *MASKS["GetStart"]),
     "EnterEventMode": ("ContinuousTimeMode",),
     "SetTime": ("ContinuousTimeMode",),
 }

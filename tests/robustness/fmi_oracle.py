@@ -243,7 +243,7 @@ class Oracle:
                 op = {"input": "SetInput", "parameter": "SetTunable" if v.variability == "tunable" else "SetFixed"}
                 if v.causality not in op or life.state not in self.MASKS[op[v.causality]]:
                     return (ERROR,)
-            elif life.state == "Instantiated" and v.causality not in ("input", "parameter"):
+            elif life.state not in self.MASKS["GetStart" if v.causality in ("input", "parameter") else "GetValue"]:
                 return (ERROR,)  # FMI 3.0: only start values before initialisation
         if name == "get" and life.suspect:
             outputs = any(table[r].causality == "output" for r in refs)

@@ -140,7 +140,7 @@ class Oracle3(Oracle):
     OP_MASK: ClassVar[dict[str, str]] = {
         "enter": "EnterInitializationMode", "exit": "ExitInitializationMode", "terminate": "Terminate",
         "reset": "Reset", "getState": "FMUState", "setState": "FMUState", "freeState": "FMUState",
-        "serial": "FMUState", "step": "DoStep", "get": "GetValue", "set": "SetInput", "debug": "SetDebugLogging",
+        "serial": "FMUState", "step": "DoStep", "get": "GetStart", "set": "SetInput", "debug": "SetDebugLogging",
         "stepMode": "EnterStepMode", "eventMode": "EnterEventMode", "config": "EnterConfigurationMode",
         "exitConfig": "ExitConfigurationMode", "partition": "Clock", "dependencies": "GetNumber",
         "update": "NewDiscreteStates", "evaluate": "NewDiscreteStates", "ctMode": "EnterContinuousTimeMode",
@@ -157,7 +157,7 @@ class Oracle3(Oracle):
 
     def mask(self, name: str, args: list[Any], life: Life) -> str:
         if name == "clock":  # 0..7 the interval/shift functions, 8 GetClock, 9 SetClock
-            return ("GetValue", "SetInput")[args[0] - 8] if args[0] >= 8 else "Clock"
+            return ("GetStart", "SetInput")[args[0] - 8] if args[0] >= 8 else "Clock"
         if name == "me":
             return ME_MASK[args[0]]
         return super().mask(name, args, life)

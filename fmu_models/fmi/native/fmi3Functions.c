@@ -151,7 +151,7 @@ static int scalars(Instance* c, size_t nvr, size_t n_values, const char* fn) {
 
 fmi3Status fmi3GetFloat64(fmi3Instance comp, const fmi3ValueReference vr[], size_t nvr, fmi3Float64 values[],
                           size_t nValues) {
-    BEGIN("fmi3GetFloat64", GetValue)
+    BEGIN("fmi3GetFloat64", GetStart)
     if (scalars(c, nvr, nValues, "fmi3GetFloat64")) return fmi3Error;
     return (fmi3Status)uav_get(c, vr, nvr, values, 0, "fmi3GetFloat64");
 }
@@ -165,7 +165,7 @@ fmi3Status fmi3SetFloat64(fmi3Instance comp, const fmi3ValueReference vr[], size
 
 fmi3Status fmi3GetBoolean(fmi3Instance comp, const fmi3ValueReference vr[], size_t nvr, fmi3Boolean values[],
                           size_t nValues) {
-    BEGIN("fmi3GetBoolean", GetValue)
+    BEGIN("fmi3GetBoolean", GetStart)
     if (scalars(c, nvr, nValues, "fmi3GetBoolean")) return fmi3Error;
     if (nvr && !values) return (fmi3Status)uav_fail(c, UAV_ERROR, "fmi3GetBoolean: values is NULL");
     for (size_t i = 0; i < nvr; ++i) {
@@ -189,7 +189,7 @@ fmi3Status fmi3SetBoolean(fmi3Instance comp, const fmi3ValueReference vr[], size
     fmi3Status fmi3Get##T(fmi3Instance comp, const fmi3ValueReference vr[], size_t nvr, CT values[],        \
                           size_t nValues) {                                                                  \
         (void)values;                                                                                        \
-        BEGIN("fmi3Get" #T, GetValue)                                                                        \
+        BEGIN("fmi3Get" #T, GetStart)                                                                        \
         if (scalars(c, nvr, nValues, "fmi3Get" #T)) return fmi3Error;                                        \
         return (fmi3Status)uav_no_such_type(c, vr, nvr, "fmi3Get" #T);                                       \
     }                                                                                                        \
@@ -215,7 +215,7 @@ NO_GET(String, fmi3String)
 fmi3Status fmi3GetBinary(fmi3Instance comp, const fmi3ValueReference vr[], size_t nvr, size_t valueSizes[],
                          fmi3Binary values[], size_t nValues) {
     (void)valueSizes; (void)values;
-    BEGIN("fmi3GetBinary", GetValue)
+    BEGIN("fmi3GetBinary", GetStart)
     if (scalars(c, nvr, nValues, "fmi3GetBinary")) return fmi3Error;
     return (fmi3Status)uav_no_such_type(c, vr, nvr, "fmi3GetBinary");
 }
@@ -230,7 +230,7 @@ fmi3Status fmi3SetBinary(fmi3Instance comp, const fmi3ValueReference vr[], size_
 
 fmi3Status fmi3GetClock(fmi3Instance comp, const fmi3ValueReference vr[], size_t nvr, fmi3Clock values[]) {
     (void)values;
-    CALL("fmi3GetClock", GetValue, uav_no_such_type(c, vr, nvr, "fmi3GetClock"))
+    CALL("fmi3GetClock", GetStart, uav_no_such_type(c, vr, nvr, "fmi3GetClock"))
 }
 
 fmi3Status fmi3SetClock(fmi3Instance comp, const fmi3ValueReference vr[], size_t nvr, const fmi3Clock values[]) {

@@ -428,9 +428,11 @@ static int uav_get(Instance* c, const unsigned* vr, size_t n, double* out, int b
     for (size_t i = 0; i < n; ++i) {
         const uavfmu_variable* v = uav_lookup(c, vr[i], fn, boolean);
         if (!v) return UAV_ERROR;
-        if (c->state == Instantiated && v->causality != UAVFMU_INPUT && v->causality != UAVFMU_PARAMETER)
-            return uav_fail(c, UAV_ERROR, "%s: %s has no start value; before initialization mode only inputs and "
-                            "parameters can be read (FMI 3.0)", fn, v->name);
+        int start = v->causality == UAVFMU_INPUT || v->causality == UAVFMU_PARAMETER;
+        if (!(c->state & (start ? UAV_MASK(GetStart) : UAV_MASK(GetValue))))
+            return uav_fail(c, UAV_ERROR, "%s: %s cannot be read in state '%s'%s", fn, v->name,
+                            uavfmu_state_name(c->state), c->state == Instantiated ? " (it has no start value; before "
+                            "initialization mode only inputs and parameters can be read)" : "");
         need_outputs |= v->causality == UAVFMU_OUTPUT;
         need_derivatives |= v->causality == UAVFMU_DERIVATIVE;
     }
