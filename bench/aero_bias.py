@@ -1,7 +1,7 @@
-"""Where the bias of the output-error estimate comes from (issue 23, C_ell_r in ``bench/aero_coverage.py``).
+"""Where the bias of the output-error estimate comes from (C_ell_r in ``bench/aero_coverage.py``).
 
 Three sources are separated on the coverage study's generator (eight 8 s manoeuvres at 50 Hz from
-``uavfmu.synthetic.identification_manoeuvres``, the same twelve free derivatives and outputs):
+``identification.flights.synthetic.identification_manoeuvres``, the same twelve free derivatives and outputs):
 
 1. ``mismatch``: the plant's FIXED coefficients differ (``aero_coverage.MISMATCH``), NO noise, the tool's
    ``--free auto`` round (``aero_coverage._auto_fit``): the error left is what the fixed coefficients leak
@@ -33,9 +33,9 @@ import aero_coverage as ac
 
 from fmu_models.common.simulate import Simulator
 from fmu_models.fixed_wing.model import FixedWingModel
-from identification.oem import Manoeuvre, OutputErrorEstimator
-from identification.priors import CONSIDERED, fixed_sd
-from uavfmu.synthetic import identification_manoeuvres
+from identification.aero.priors import CONSIDERED, fixed_sd
+from identification.estimation.oem import Manoeuvre, OutputErrorEstimator
+from identification.flights.synthetic import identification_manoeuvres
 
 
 def _mismatch_error(sim: Simulator, p: np.ndarray) -> np.ndarray:

@@ -1,5 +1,5 @@
 """Why a printed interval of the coverage study is short: every component of the data bound against the actual
-scatter, on the fits of ``bench/aero_coverage.py`` (issue 23, C_ell_r).
+scatter, on the fits of ``bench/aero_coverage.py`` (C_ell_r).
 
 Per repeat the final fit's bootstrap inputs are kept (each manoeuvre's information ``A_j`` and score ``g_j``
 with the nuisance parameters profiled out, the resamples), and per derivative over the repeats are printed,
@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import aero_coverage as ac
 
-import identification.oem as oem
+import identification.estimation.oem as oem
 
 _KEPT: list[dict[str, np.ndarray]] = []
 _LAST: dict[str, np.ndarray] = {}

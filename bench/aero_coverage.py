@@ -1,14 +1,14 @@
-"""Coverage of the 95 % intervals of ``identify aero`` on the demo's synthetic generator (issues 18, 23).
+"""Coverage of the 95 % intervals of ``identify aero`` on the demo's synthetic generator.
 
-Each repeat: eight 8 s manoeuvres at 50 Hz from ``uavfmu.synthetic.identification_manoeuvres`` (3-2-1-1
+Each repeat: eight 8 s manoeuvres at 50 Hz from ``identification.flights.synthetic.identification_manoeuvres`` (3-2-1-1
 multisteps from trims between 22 and 28 m/s), simulated by a plant whose FIXED parameters differ from the
 fitted model's (model mismatch, :data:`MISMATCH`: C_n_p, C_n_delta_a, C_ell_delta_r, C_Y_delta_a, C_L_q,
 C_L_alpha, C_m_0, C_D_p, each within its consider std), plus seeded white noise and coloured noise (AR(1),
 pole 0.9) per output. Twelve lateral-directional and pitch derivatives are estimated from a start 10 % off
 the truth, as ``identify aero`` does: printed bound = the larger of the coloured-residual Cramér-Rao bound
 and the block bootstrap over manoeuvres (corrected for the manoeuvres' leverage, times Student's t over z at
-its degrees of freedom: ``identification.oem.segment_corrections``), plus the consider covariance of
-every fixed coefficient at its prior std (``identification.priors.fixed_sd``). Run twice: with the built-in
+its degrees of freedom: ``identification.estimation.oem.segment_corrections``), plus the consider covariance of
+every fixed coefficient at its prior std (``identification.aero.priors.fixed_sd``). Run twice: with the built-in
 geometry priors (MAP term) on, and off. An interval covers when |estimate - truth| <= 1.96 printed std.
 
 Printed per parameter and run: bias over scatter, the coverage of the Cramér-Rao bound alone, of the data
@@ -35,7 +35,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fmu_models.common.simulate import Simulator
 from fmu_models.fixed_wing.model import FixedWingModel
-from identification.oem import (
+from identification.aero.priors import CONSIDERED, fixed_sd, geometry_priors
+from identification.estimation.oem import (
     Estimate,
     Manoeuvre,
     OutputErrorEstimator,
@@ -43,8 +44,7 @@ from identification.oem import (
     fixed_worth_freeing,
     student_factor,
 )
-from identification.priors import CONSIDERED, fixed_sd, geometry_priors
-from uavfmu.synthetic import identification_manoeuvres
+from identification.flights.synthetic import identification_manoeuvres
 
 FREE = ["C_ell_p", "C_ell_delta_a", "C_ell_beta", "C_ell_r", "C_n_beta", "C_n_r", "C_n_delta_r", "C_Y_beta",
         "C_Y_delta_r", "C_m_alpha", "C_m_q", "C_m_delta_e"]

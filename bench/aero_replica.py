@@ -1,4 +1,4 @@
-"""A truth-known replica of the excitation log: does ``identify aero`` get within 10 % and cover (issue 23)?
+"""A truth-known replica of the excitation log: does ``identify aero`` get within 10 % and cover?
 
 The FMU behind ``fixed_wing/arduplane_sitl_fmu_excitation.BIN`` has derivatives that are not handed over, so
 the Done-when ("every primary derivative within 10 % with a covering 95 % interval") cannot be checked on it.
@@ -11,7 +11,7 @@ Aerosonde's with the primaries and the fixed lateral/pitch coefficients (:data:`
 factor in
 [0.6, 1.6] (one draw per seed), ``C_m_0`` re-balanced so the logged trim (median elevator and angle of attack
 at the segment starts) stays a trim. Noise per output: the demo's white sensor noise
-(``uavfmu.synthetic.NOISE``) plus an AR(1) part of the same std (pole 0.9 at 50 Hz).
+(``identification.flights.synthetic.NOISE``) plus an AR(1) part of the same std (pole 0.9 at 50 Hz).
 
 The truth is flown open loop with the logged servo PWM (the log's FBWA recoveries included): a draw with an
 unstable spiral can dive into the ground inside a segment, which a real flight, recovered by its autopilot,
@@ -47,12 +47,12 @@ from fmu_models.fixed_wing.params import FixedWingParams
 from fmu_models.fixed_wing.trim import trim
 from fmu_models.signals.names import OUTPUT_TO_LOG
 from fmu_models.signals.pwm_mapping import PwmMapping
-from identification import aero
-from identification.aero_identify import PRIMARY, AeroOptions, AeroSource, _pool, identify_aero
-from identification.flightlog import FlightLog, Signal
-from identification.oem import Manoeuvre, OutputErrorEstimator
-from identification.readers import read_log
-from uavfmu.synthetic import NOISE
+from identification.aero import model as aero
+from identification.aero.identify import PRIMARY, AeroOptions, AeroSource, _pool, identify_aero
+from identification.estimation.oem import Manoeuvre, OutputErrorEstimator
+from identification.flights.synthetic import NOISE
+from identification.logs.flightlog import FlightLog, Signal
+from identification.logs.readers import read_log
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from aero_coverage import white_plus_ar1  # the same noise as the coverage study
@@ -79,9 +79,9 @@ def truth_params(model: FixedWingModel, p: np.ndarray, rng: np.random.Generator,
 
 
 #: signals the identification reads from a log besides the fitted outputs: the state at each segment start
-#: (``identification.log_state.initial_values``: yaw, GPS velocity, altitude) and the airborne test
+#: (``identification.logs.log_state.initial_values``: yaw, GPS velocity, altitude) and the airborne test
 STATE_OUTPUTS = ("yaw_rad", "vel_north_m_s", "vel_east_m_s", "vel_down_m_s", "altitude_m")
-#: white noise of those that ``uavfmu.synthetic.NOISE`` does not give (GPS velocity and baro altitude)
+#: white noise of those that ``identification.flights.synthetic.NOISE`` does not give (GPS velocity and baro altitude)
 STATE_NOISE = {"vel_north_m_s": 0.05, "vel_east_m_s": 0.05, "vel_down_m_s": 0.05, "altitude_m": 0.1}
 
 

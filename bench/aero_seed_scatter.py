@@ -1,5 +1,5 @@
 """Is the scatter of ``bench/aero_coverage.py``'s 50 seeds the estimator's? The linearised estimate error
-under the study's noise, exactly and over many draws (issue 23, C_ell_r).
+under the study's noise, exactly and over many draws (C_ell_r).
 
 One repeat of the coverage study (seed 0, the tool's ``--free auto`` round) gives the final estimator (its
 free set) and the output weighting; that estimator is fitted to the noise-free records of the mismatched
@@ -32,9 +32,9 @@ import aero_coverage as ac
 
 from fmu_models.common.simulate import Simulator
 from fmu_models.fixed_wing.model import FixedWingModel
-from identification.oem import Manoeuvre, OutputErrorEstimator
-from identification.priors import CONSIDERED, fixed_sd, geometry_priors
-from uavfmu.synthetic import identification_manoeuvres
+from identification.aero.priors import CONSIDERED, fixed_sd, geometry_priors
+from identification.estimation.oem import Manoeuvre, OutputErrorEstimator
+from identification.flights.synthetic import identification_manoeuvres
 
 
 @dataclass

@@ -1,6 +1,6 @@
 """Benchmark: our hybrid ANFIS training against anfis-toolbox's (PyPI), same data, one run each.
 
-Problem (issue 3): x ~ U(4800, 7200) us, y = 11.18 (x/6000)^2 + 0.2 N(0, 1) N, 5000 training and 2000 test
+Problem: x ~ U(4800, 7200) us, y = 11.18 (x/6000)^2 + 0.2 N(0, 1) N, 5000 training and 2000 test
 samples, seed 0, 6 Gaussian MFs, 100 epochs, hybrid learning (least squares + gradient descent).
 anfis-toolbox's hybrid trainer has first-order consequents only, so it is compared with our first-order
 run; our zero-order run (the paper's) is listed too. Prints wall times, the ratio against anfis-toolbox
@@ -20,7 +20,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from identification.anfis_train import AnfisTrainConfig, predict, rmse, train_anfis
+from identification.thrust.anfis_train import AnfisTrainConfig, predict, rmse, train_anfis
 
 SEED = 0
 N_TRAIN, N_TEST = 5000, 2000

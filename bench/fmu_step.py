@@ -9,7 +9,7 @@ Per vehicle:
     (how a tuned host and our HIL loop drive it): target <= 0.5x JSBSim;
 (b) native FMU through FMPy's convenience API (``setReal``/``getReal`` with lists): target <= 1.3x the
     do-nothing native FMU through the same API;
-(c) the C host (tests/native_host.c, no Python): target <= 2 us per step;
+(c) the C host (tests/fakes/native_host.c, no Python): target <= 2 us per step;
 (d) a 20 ms step (20 internal RK4 steps, the outputs evaluated in the last one only) through the C host, per
     internal step: target <= 0.8x a whole 1 ms step of (c) (it saves the FMI calls and 19 output evaluations);
 and, for comparison, the pythonfmu backend through the convenience API.
@@ -152,7 +152,7 @@ def time_fast(fmu: Path, inputs: dict[str, float], outputs: list[str], steps: in
 
 def time_c_host(fmu: Path, inputs: dict[str, float], outputs: list[str], steps: int, work: Path,
                 h: float = 0.001) -> float:
-    """Median s per step of ``h`` [s] of the C host (tests/native_host.c) over 7 runs after one untimed run."""
+    """Median s per step of ``h`` [s] of the C host (tests/fakes/native_host.c) over 7 runs after one untimed run."""
     exe = work / "native_host"
     if not exe.exists():
         cmd = [*zigcc.zig_cc(), "-target", "x86_64-linux-gnu", "-O2", f"-I{native_build.FMI_INCLUDE}",

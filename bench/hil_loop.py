@@ -4,7 +4,7 @@ same run. The adapter runs in its own process (as it would beside a real autopil
 autopilot in this process measures each round trip from sending its actuator message to receiving the next
 sensor message; the adapter reports its busy time per step (autopilot input received -> our reply sent).
 
-The target (issue 26): the adapter's own work per step - packet decode, input mapping, sensor models, packet
+The target: the adapter's own work per step - packet decode, input mapping, sensor models, packet
 encode - at or below the FMU step (setReal + doStep + getReal through FMPy). It is measured in one process on
 the servers' own code paths, each step timing the adapter's work and the FMU step back to back (so a machine
 loaded by others slows both alike); the ratio of the medians is taken within each run, the median over runs
@@ -305,7 +305,8 @@ def _trimmed_mean_ratio(own: np.ndarray, fmu_t: np.ndarray, cut: float = 0.01) -
 
 def reconnect_ms(fmu: Path, cycles: int = 20, steps: int = 20) -> np.ndarray:
     """PX4 leaves and comes back ``cycles`` times: wall time [ms] from the client's connect() to the first
-    HIL_SENSOR on the new connection (the FMU restarts in between; issue 16 asks for < 100 ms)."""
+    HIL_SENSOR on the new connection (the FMU restarts in between; the target is < 100 ms, well inside a ground
+    station's link timeout)."""
     import threading
 
     from hil_adapter.core import Plant, Watchdog

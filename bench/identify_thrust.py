@@ -1,10 +1,10 @@
 """Benchmark: `identify thrust` on the shared flights: speed on the three Erle logs, and the held-out targets.
 
-Speed (issue 13): the three Erle flights end to end under ``GOAL_S`` on the CI machine; phases timed (read,
+Speed: the three Erle flights end to end under ``GOAL_S`` on the CI machine; phases timed (read,
 align, nested cross-validation, final fit); the reference measured in the same run is the read phase alone
 (the floor any tool pays). Median of ``REPEATS`` runs.
 
-Accuracy (issue 22), leave-one-flight-out on the three Erle flights (no voltage) and on the two PX4 flights
+Accuracy, leave-one-flight-out on the three Erle flights (no voltage) and on the two PX4 flights
 (voltage, masses 1.32 / 1.085 kg, FMU mass 1.2 kg), both with the per-flight hover calibration on: the
 model's pooled RMSE over the best baseline's (ratio measured in the same run) at most ``MAX_RATIO``, raw and
 calibrated, and no baseline beating the model (skill interval) on any held-out flight. Prints the LOFO table.
@@ -21,10 +21,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from identification.readers import read_log
-from identification.thrust_dataset import ThrustDatasetConfig, build_thrust_dataset
-from identification.thrust_model import fit_physical
-from identification.thrust_workflow import (
+from identification.logs.readers import read_log
+from identification.thrust.dataset import ThrustDatasetConfig, build_thrust_dataset
+from identification.thrust.model import fit_physical
+from identification.thrust.workflow import (
     FlightSpec,
     ThrustConfig,
     ThrustResult,

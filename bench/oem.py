@@ -5,7 +5,7 @@ Six 10 s manoeuvres at 100 Hz (60 s in all), each from its own trim: 3-2-1-1 mul
 elevator and rudder and a throttle step, seeded sensor noise; 25 free derivatives start perturbed by
 +/-30 %. Prints wall times, their ratio, and the final parameter error of each (rms of the error relative to
 the truth, and the largest error in Cramér-Rao standard deviations).
-Target (issue 4): ours >= 3x faster at equal or better error (rms relative error over the identifiable
+Target: ours >= 3x faster at equal or better error (rms relative error over the identifiable
 derivatives at most 1.1x scipy's); exit 1 on a miss.
 
 Run: ``.venv/bin/python bench/oem.py [--seconds-each 10] [--count 6] [--rate 100]``.
@@ -25,8 +25,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fmu_models.common.simulate import Simulator
 from fmu_models.fixed_wing.model import FixedWingModel
-from identification.oem import Manoeuvre, OutputErrorEstimator
-from uavfmu.synthetic import OEM_FREE, OEM_OUTPUTS, OEM_SIGMA, identification_manoeuvres
+from identification.estimation.oem import Manoeuvre, OutputErrorEstimator
+from identification.flights.synthetic import OEM_FREE, OEM_OUTPUTS, OEM_SIGMA, identification_manoeuvres
 
 
 def main() -> int:

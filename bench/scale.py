@@ -1,8 +1,8 @@
-"""Scale-out of batch validation and Monte Carlo replays on ``fmu_models.parallel`` (dask.distributed).
+"""Scale-out of batch validation and Monte Carlo replays on ``identification.common.parallel`` (dask.distributed).
 
 1. Batch: ``--pairs`` native fixed-wing FMU x log pairs (``--seconds`` s noisy logs, 2 s windows, metrics only)
    on a local cluster of 1 and of 2 worker processes; pairs per second each and the scaling efficiency
-   (rate at 2 workers / (2 x rate at 1 worker)). Target (issue 24): >= 80 % at 2 workers.
+   (rate at 2 workers / (2 x rate at 1 worker)). Target: >= 80 % at 2 workers.
 2. Monte Carlo: ``--draws`` draws of one replay on 1 worker, against the bare FMU stepping time of the same
    draws (``simulate_fmu`` over every window, in this process, no dask). Target: MC time <= 1.25 x bare.
 
@@ -31,13 +31,13 @@ import numpy as np
 from build_fmus import build
 from fmu_models.common.params import Uncertainty
 from fmu_models.fmi.host import FmuHost
-from fmu_models.parallel import Executor
 from fmu_models.signals.pwm_mapping import PwmMapping
-from identification import mc_bands, output_map
-from identification.readers import read_log
-from identification.validation import options, replay_setup, simulate_setup
-from identification.validation_workflow import ValidationJob, validate, validate_batch
-from uavfmu import synthetic
+from identification.common.parallel import Executor
+from identification.flights import synthetic
+from identification.logs.readers import read_log
+from identification.validation import mc_bands, output_map
+from identification.validation.replay import options, replay_setup, simulate_setup
+from identification.validation.workflow import ValidationJob, validate, validate_batch
 
 EFFICIENCY_TARGET = 0.80
 MC_TARGET = 1.25

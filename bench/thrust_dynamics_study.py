@@ -1,4 +1,4 @@
-"""Study (issue 22): do motor dynamics, the PWM/IMU delay or voltage sag under load explain the PX4 thrust error?
+"""Study: do motor dynamics, the PWM/IMU delay or voltage sag under load explain the PX4 thrust error?
 
 Leave-one-flight-out on the two shared PX4 flights (and the delay-free check on the three Erle flights), with
 the one-rule map ``T = a sum (u V/V_nom)^2 + b sum u V/V_nom`` (PX4) or ``a sum u^2 + b sum u`` (Erle) fitted by
@@ -35,17 +35,18 @@ from scipy import signal
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fmu_models.common.units import G0_M_S2 as G0
-from identification.readers import read_log
-from identification.thrust_battery import HOVER_TAUS_S, hover_thrust_scale
-from identification.thrust_dataset import ThrustDatasetConfig, build_thrust_dataset
-from identification.thrust_model import FlightData, ModelSpec, command, hover_scale, poly_features
-from identification.thrust_workflow import HOVER_CLIMB_M_S
+from identification.logs.readers import read_log
+from identification.thrust.battery import HOVER_TAUS_S, hover_thrust_scale
+from identification.thrust.dataset import ThrustDatasetConfig, build_thrust_dataset
+from identification.thrust.model import FlightData, ModelSpec, command, hover_scale, poly_features
+from identification.thrust.workflow import HOVER_CLIMB_M_S
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 PX4 = ((DATA / "quadrotor_px4_csv" / "drone1-8", 1.32), (DATA / "quadrotor_px4_csv" / "drone1-10", 1.085))
 ERLE = tuple((DATA / "quadrotor" / f"arducopter_x_quad_real_{n}.BIN", 1.14) for n in (218, 104, 105))
 IDLE_US, FULL_US = 1000.0, 2000.0
-TARGET_RATIO = 0.95  #: issue 22: the model's pooled RMSE at most this times the best baseline's
+#: the thrust identification's target: the model's pooled RMSE at most this times the best baseline's
+TARGET_RATIO = 0.95
 DELAYS_S = (0.0, 0.01, 0.02, 0.03, 0.04)
 TAUS_S = (0.0, 0.01, 0.02, 0.03, 0.05)
 
@@ -173,9 +174,9 @@ class Lofo:
 def lofo_with(flights: list[FlightData], design: Callable[[FlightData], np.ndarray],
               state_tau_s: float | None = None) -> Lofo:
     """Leave-one-flight-out of the least-squares map ``design(f) @ theta`` fitted on the other flights, scored
-    raw and with the per-flight hover calibration (``identification.thrust_model.hover_scale``); with
+    raw and with the per-flight hover calibration (``identification.thrust.model.hover_scale``); with
     ``state_tau_s`` the prediction is scaled by the hover-condition battery state
-    (``identification.thrust_battery.hover_thrust_scale``), which is then its own calibration."""
+    (``identification.thrust.battery.hover_thrust_scale``), which is then its own calibration."""
     sse = sse_cal = 0.0
     n = 0
     thetas, inside = [], []

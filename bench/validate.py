@@ -1,7 +1,7 @@
 """Cost of validating one FMU on a 300 s log at 100 Hz: FMU stepping (FMPy's simulate_fmu loop and the FMU)
 against our own overhead (reading the log, mapping inputs, initial states, metrics, report with plots).
 
-Target (issue 14): the validation overhead (read the log, map inputs, initial states, score against the
+Target: the validation overhead (read the log, map inputs, initial states, score against the
 baselines, horizons, one-step check) below 25 % of the time spent stepping the FMU; printed as overhead /
 stepping for the metrics-only run, and for the run that also draws the HTML report (matplotlib figures: a
 separate, reported cost, the one part that does not scale with the FMU). Module imports (matplotlib, ~0.5 s)
@@ -27,10 +27,10 @@ import numpy as np
 
 from build_fmus import build
 from fmu_models.fmi import host as fmu_host
-from identification.validation import options
-from identification.validation_workflow import ValidationJob, validate_job
-from uavfmu import synthetic
-from uavfmu.scenarios import QuadrotorAutopilot, fly, published_thrust_inverse, quadrotor_profile
+from identification.flights import synthetic
+from identification.flights.scenarios import QuadrotorAutopilot, fly, published_thrust_inverse, quadrotor_profile
+from identification.validation.replay import options
+from identification.validation.workflow import ValidationJob, validate_job
 
 TARGET_RATIO = 0.25  #: our overhead / FMU stepping time, metrics-only run
 
@@ -49,7 +49,7 @@ def main() -> int:
         rec = fly(fmu, ap, args.seconds, 1.0 / args.rate)
         log = synthetic.write_log(d / "flight.bin", rec, noise=True, seed=1)
 
-        import identification.report  # noqa: F401  (imports matplotlib: process start-up, paid once per batch)
+        import identification.validation.report  # noqa: F401  (imports matplotlib: process start-up, paid once per batch)
 
         original = fmu_host.FmuHost.simulate
         runs = (("metrics only", None), ("with HTML report", str(d / "report")))

@@ -1,4 +1,4 @@
-"""Study (issue 22): would a yaw-rate damping term make the quadrotor's yaw replay physical, or only beat persistence?
+"""Study: would a yaw-rate damping term make the quadrotor's yaw replay physical, or only beat persistence?
 
 The FMU's yaw axis is ``Jz dr/dt = -(b/k) sum_i s_i T_i``; ``identify thrust`` fits ``c = b/k`` by output error
 over 2 s windows of the logged PWM and scores it, leave-one-flight-out, against holding the logged yaw rate.
@@ -25,9 +25,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.params import QuadrotorParams
-from identification.metrics import skill_interval
-from identification.thrust_model import battery_input_V, fmu_total_thrust
-from identification.thrust_workflow import FlightSpec, ThrustConfig, identify_thrust, load_flight, yaw_windows
+from identification.common.metrics import skill_interval
+from identification.thrust.model import battery_input_V, fmu_total_thrust
+from identification.thrust.workflow import FlightSpec, ThrustConfig, identify_thrust, load_flight, yaw_windows
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 ERLE = tuple(FlightSpec(DATA / "quadrotor" / f"arducopter_x_quad_real_{n}.BIN", 1.14) for n in (218, 104, 105))

@@ -30,8 +30,6 @@ VEHICLE_OF = {"arduplane": "fixed_wing", "arducopter": "quadrotor", "px4": "quad
 #: ArduPilot's rate controllers saturate their output at 45 (degrees of the nominal full throw)
 FULL_THROW_DEG = 45.0
 SERVO_TAU_S = 0.05  #: surface servo time constant assumed by the design [s] (hobby servo, 0.1 s per 60 deg)
-OVERSHOOT_MAX = 0.05  #: rate-step overshoot the linear design allows (the FMU test allows 15 %)
-INTEGRATOR_TIME_S = 0.5  #: P / I of the rate loops [s]
 
 
 @dataclass(frozen=True)

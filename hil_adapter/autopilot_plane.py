@@ -20,6 +20,9 @@ from fmu_models.signals.pwm_mapping import default_mapping
 
 TECS = "ArduPilot libraries/AP_TECS/AP_TECS.cpp range"
 
+OVERSHOOT_MAX = 0.05  #: rate-step overshoot the linear design allows (the FMU test allows 15 %)
+INTEGRATOR_TIME_S = 0.5  #: P / I of the rate loops [s]
+
 
 @dataclass(frozen=True)
 class AxisModel:
@@ -173,7 +176,6 @@ TCONST_SOURCE = "ArduPilot libraries/APM_Control/AP_{Roll,Pitch}Controller.cpp *
 
 def _rate_loops(out: Any, pv: Any, va: float, servo_tau_s: float) -> dict[str, float]:
     """RLL/PTCH/YAW_RATE_* at the cruise trim; returns the designed 10-90 % rise [s] by axis."""
-    from hil_adapter.autopilot_params import INTEGRATOR_TIME_S, OVERSHOOT_MAX
 
     rises = {}
     for axis, prefix, model in zip(("roll", "pitch", "yaw"), ("RLL", "PTCH", "YAW"),

@@ -21,8 +21,9 @@ SURVIVED = {0: "survived", 5: "no tests", 33: "no tests"}
 TARGET = 0.80
 #: modules scored on part of their functions (mutmut names ``x_<function>`` / ``xǁ<Class>ǁ<method>``): of
 #: validation.py the verdict code; its replay plumbing needs the FMU replay tests, too slow per mutant, and is
-#: left to them (tests/test_validation_truth.py, tests/test_validation_replay.py)
-SCOPE = {"identification/validation.py": ("x_score__", "xǁReplayResultǁ", "x__one_step__", "x_check_options__",
+#: left to them (tests/identification/validation/test_validation_truth.py,
+#: tests/identification/validation/test_validation_replay.py)
+SCOPE = {"identification/validation/replay.py": ("x_score__", "xǁReplayResultǁ", "x__one_step__", "x_check_options__",
                                           "x_options__", "xǁHorizonRowǁ")}
 
 

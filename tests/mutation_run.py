@@ -22,16 +22,19 @@ REPO = Path(__file__).resolve().parents[1]
 WORK = REPO / ".mutation"
 #: group -> (modules to mutate, test files, extra pytest arguments)
 GROUPS: dict[str, tuple[list[str], list[str], list[str]]] = {
-    "verdicts": (["identification/metrics.py", "identification/validation.py"],
-                 ["tests/test_validation_metrics.py", "tests/test_skill_interval.py"], []),
-    "config": (["fmu_models/config.py"], ["tests/robustness/test_config_schemas.py", "tests/test_params_schema.py"],
+    "verdicts": (["identification/common/metrics.py", "identification/validation/replay.py"],
+                 ["tests/identification/common/test_metrics.py",
+                  "tests/identification/common/test_skill_interval.py"], []),
+    "config": (["fmu_models/config.py"],
+               ["tests/fmu_models/test_config_schemas.py", "tests/fmu_models/test_params_schema.py"],
                ["-k", "not wrong_values"]),
     "codecs": (["hil_adapter/packets.py", "hil_adapter/mavlink_fast.py"],
-               ["tests/test_packet_codecs.py", "tests/test_hil_mavlink_fast.py", "tests/test_hil_ardupilot_json.py",
-                "tests/robustness/test_hil_packets.py"], []),
-    "pwm": (["fmu_models/signals/pwm_mapping.py"], ["tests/test_hil_pwm_mapping.py"], []),
-    "sanitiser": (["identification/flightlog.py"],
-                  ["tests/test_logs_readers.py", "tests/robustness/test_damaged_logs.py"], []),
+               ["tests/hil_adapter/test_packet_codecs.py", "tests/hil_adapter/test_hil_mavlink_fast.py",
+                "tests/hil_adapter/test_hil_ardupilot_json.py",
+                "tests/hil_adapter/test_hil_packets.py"], []),
+    "pwm": (["fmu_models/signals/pwm_mapping.py"], ["tests/fmu_models/test_pwm_mapping.py"], []),
+    "sanitiser": (["identification/logs/flightlog.py"],
+                  ["tests/identification/logs/test_readers.py", "tests/identification/logs/test_damaged_logs.py"], []),
 }
 
 

@@ -63,7 +63,7 @@ def trim_check(fmu: Path) -> dict[str, float]:
     """Trim at 25 m/s (uavbook method) and fly 20 s from it through FMPy."""
     from fmpy import simulate_fmu
 
-    from uavfmu.scenarios import fixed_wing_start
+    from identification.flights.scenarios import fixed_wing_start
 
     start, inputs, pitch = fixed_wing_start()
     res = simulate_fmu(str(fmu), stop_time=20.0, output_interval=0.01, start_values=start,
@@ -96,8 +96,8 @@ def held_out_bank(t: float) -> float:
 def record_flights(fmus: dict[str, Path], logs_dir: Path, seed: int, held_out: bool = False) -> dict[str, Path]:
     """Closed-loop flights of both FMUs at 100 Hz, written as DataFlash logs with seeded sensor noise;
     ``held_out``: shorter flights with other references, excitation times and noise, for validation only."""
-    from uavfmu import synthetic
-    from uavfmu.scenarios import (
+    from identification.flights import synthetic
+    from identification.flights.scenarios import (
         FixedWingAutopilot,
         QuadrotorAutopilot,
         SampleHold,
@@ -127,12 +127,12 @@ def record_flights(fmus: dict[str, Path], logs_dir: Path, seed: int, held_out: b
 def identify(logs: dict[str, list[Path]], work: Path, keep_going: bool = False) -> tuple[Path, dict[str, Any]]:
     """Thrust model and roll derivatives from the logs, merged into one parameter file for ``build_fmus``;
     ``keep_going``: a thrust model that loses to a baseline is still built (the summary says it lost)."""
-    from identification.jsonio import write_json
+    from identification.common.jsonio import write_json
 
     merged: dict[str, Any] = {}
     found: dict[str, Any] = {}
     if "quadrotor" in logs:
-        from identification.thrust_workflow import FlightSpec, ThrustConfig, identify_thrust
+        from identification.thrust.workflow import FlightSpec, ThrustConfig, identify_thrust
 
         out = work / "quadrotor_identified.json"
         flights = tuple(FlightSpec(Path(p), ERLE_MASS_KG) for p in logs["quadrotor"])
@@ -145,8 +145,8 @@ def identify(logs: dict[str, list[Path]], work: Path, keep_going: bool = False) 
         out = work / "fixed_wing_identified.json"
         from fmu_models.fixed_wing.params import FixedWingParams
         from fmu_models.signals.pwm_mapping import PwmMapping
-        from identification.aero_identify import AeroOptions, identify_aero, write_results
-        from identification.readers import read_log
+        from identification.aero.identify import AeroOptions, identify_aero, write_results
+        from identification.logs.readers import read_log
 
         flog = read_log(logs["fixed_wing"][0])
         res = identify_aero(flog, PwmMapping.from_ardupilot(flog.params), FixedWingParams(), AeroOptions(
@@ -241,8 +241,8 @@ def validate_rebuilt(rebuilt: dict[str, Path], logs: dict[str, list[Path]], repo
                      calibration: dict[str, float] | None = None) -> list[Any]:
     """Each rebuilt FMU against each of its logs (library batch: worker processes), with the HTML report; a
     flight with a thrust calibration scale is replayed with it (``thrust_scale``, a tunable parameter)."""
-    from identification.validation import options
-    from identification.validation_workflow import ValidationJob, validate_batch, write_batch_report
+    from identification.validation.replay import options
+    from identification.validation.workflow import ValidationJob, validate_batch, write_batch_report
 
     opts = options(window_s=2.0, rate_hz=50.0)
     pairs = [(v, Path(log)) for v in rebuilt for log in logs[v]]
@@ -259,7 +259,7 @@ def validate_rebuilt(rebuilt: dict[str, Path], logs: dict[str, list[Path]], repo
 def print_validation(results: list[Any], report_dir: Path, held_out: bool = True) -> list[str]:
     """The validation verdicts, then what failed in plain words; returns those failure lines. ``held_out``:
     the logs were not used by the identification (else the header says they were)."""
-    from identification.validation_workflow import failure_lines
+    from identification.validation.workflow import failure_lines
 
     logs = "held-out logs" if held_out else \
         "the identification flights themselves (held-out figures: the leave-one-flight-out ones above)"

@@ -3,7 +3,7 @@
 Each page lists every key of one file type with its type, default, allowed range and meaning, taken from the
 pydantic schema that reads the file (``fmu_models.config.Schema`` subclasses) and the ``#:`` or trailing
 comments beside its fields, so the page cannot drift from what the loader accepts. ``--check`` exits 1 when a
-committed page differs from what the schemas give (``tests/test_docs.py`` runs it).
+committed page differs from what the schemas give (``tests/uavfmu/test_docs.py`` runs it).
 """
 
 from __future__ import annotations
@@ -48,17 +48,18 @@ def load_schema(spec: str) -> type[BaseModel]:
 
 
 PAGES = (
-    Page("output-map", "Output map (`uavfmu validate --map FILE.toml`)", "identification.output_map:OutputMapFile",
+    Page("output-map", "Output map (`uavfmu validate --map FILE.toml`)",
+         "identification.validation.output_map:OutputMapFile",
          "`uavfmu validate`: which FMU output is scored against which logged signal, with its pass rules. "
          "Verdicts: [validation](../validation.md).",
          '[thresholds]\nmax_theil = 0.3\n\n[signals_extra.airspeed_m_s]\nlog = "airspeed_m_s"\nmax_rmse = 0.5\n'),
     Page("pwm-mapping", "PWM mapping (`--mapping FILE.toml`)", "fmu_models.signals.pwm_mapping:MappingConfig",
          "`uavfmu identify aero`, `uavfmu validate` and `uavfmu hil`: autopilot servo/motor PWM to FMU inputs "
          "(without it, the log's ArduPilot `SERVOn_*` parameters or the vehicle default)."),
-    Page("channel-map", "Channel map (`--channel-map FILE.toml`)", "identification.channel_map:ChannelMapFile",
+    Page("channel-map", "Channel map (`--channel-map FILE.toml`)", "identification.logs.channel_map:ChannelMapFile",
          "Every log reader: overrides the motor/servo outputs found in the log."),
     Page("validation-manifest", "Validation batch manifest (`uavfmu validate --batch FILE.toml`)",
-         "identification.validation_workflow:Manifest",
+         "identification.validation.workflow:Manifest",
          "`uavfmu validate --batch`: many FMU x log runs; paths are relative to the manifest.",
          '[defaults]\nwindow_s = 2.0\n\n[[job]]\nfmu = "dist/quadrotor.fmu"\nlog = ["flight1.bin", "flight2.bin"]\n'),
     Page("hil-config", "HIL bench config (`uavfmu hil --config FILE.toml`)", "hil_adapter.config:HilConfig",

@@ -18,9 +18,9 @@ SIGNALS = ("roll_rad", "rate_body_x_rad_s")
 
 def draw(demo_dir: Path, out: Path, t_range_s: tuple[float, float] = (2.0, 22.0)) -> Path:
     """Write the overlay PNG to ``out`` from ``demo_dir`` (``dist/demo`` after ``make demo``)."""
-    from identification.plots import figure, save
-    from identification.validation import options
-    from identification.validation_workflow import ValidationJob, validate
+    from identification.common.plots import figure, save
+    from identification.validation.replay import options
+    from identification.validation.workflow import ValidationJob, validate
 
     fmu = demo_dir / "identified_fmus" / "fixed_wing.fmu"
     log = demo_dir / "logs" / "fixed_wing_flight_held_out.bin"

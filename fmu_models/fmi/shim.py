@@ -3,7 +3,7 @@ before pythonfmu sees a call, so a wrong call is an fmi2Error with a logged mess
 
 ``<id>.so`` (this shim) loads pythonfmu's library (shipped beside it as ``<id>_pythonfmu.so``) and forwards
 the calls that pass its checks. Why a C layer, and what it protects against in pythonfmu 0.7's export library
-(``PySlaveInstance.cpp``, ``fmi2.cpp``; all reproduced here, see tests/robustness/test_fmi_sequences.py):
+(``PySlaveInstance.cpp``, ``fmi2.cpp``; all reproduced here, see tests/fmu_models/fmi/test_fmi_sequences.py):
 
 * Any Python exception in the slave (a bad value reference, a value of the wrong type, setting an output, a
   foreign FMU state) makes pythonfmu return fmi2Fatal after *releasing the slave's Python objects* in
@@ -20,7 +20,7 @@ the calls that pass its checks. Why a C layer, and what it protects against in p
   handler), then ``_dl_fini`` runs the library destructor on the destroyed ``shared_ptr``: a decrement in
   freed memory (the malloc chunk's list pointer when the block sits in a bin), and a virtual call plus a
   second ``delete`` when the stale count reads 1. That is the intermittent ``corrupted double-linked list``
-  abort at the exit of a process that loaded a pythonfmu FMU (issue 14). The shim registers an exit handler
+  abort at the exit of a process that loaded a pythonfmu FMU. The shim registers an exit handler
   *after* loading pythonfmu's library (exit handlers run in reverse order of registration, so it runs
   before pythonfmu's static destructor) that releases the guard through pythonfmu's own
   ``finalizePythonInterpreter``; both later releases then see an empty pointer.
@@ -28,7 +28,7 @@ the calls that pass its checks. Why a C layer, and what it protects against in p
   step cannot be computed (NaN input, divergence) but the instance may be reset or freed: mapped here.
 * One state machine with the native layer: the allowed-state masks and argument rules come from the same
   generated ``uavfmu_states.h`` (``fmu_models/fmi/statemachine.py``), so both backends answer every call alike
-  (tests/robustness/test_fmi_sequences.py requires identical statuses). The slave never raises into pythonfmu:
+  (tests/fmu_models/fmi/test_fmi_sequences.py requires identical statuses). The slave never raises into pythonfmu:
   it reports a model failure (a refused parameter at initialisation, an output recomputed from a refused input)
   by logging an error, which the shim turns into fmi2Error and the Error state, as the native layer does. The
   shim tracks ``step_internal_s`` from the values set, to refuse a step needing too many internal steps before

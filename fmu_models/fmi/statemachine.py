@@ -2,7 +2,7 @@
 
 From this table ``header()`` generates ``uavfmu_states.h``, which the native FMI 2.0 / 3.0 layers
 (``native/fmi2Functions.c``, ``native/fmi3Functions.c`` over ``native/uavfmu_core.h``) and the pythonfmu guard
-(``shim.py``) include; the call-sequence tests (tests/robustness/test_fmi_sequences.py, FMI 2.0 on every backend,
+(``shim.py``) include; the call-sequence tests (tests/fmu_models/fmi/test_fmi_sequences.py, FMI 2.0 on every backend,
 and test_fmi3_sequences.py, FMI 3.0) judge by the same table (``MASKS``, ``FMI3_MASKS``, ``RULES``,
 ``INTERFACE``). States follow the FMI 2.0.4 (sections 3.2.3, 4.2.4) and FMI 3.0 state machines; FMI 3.0's Step
 Mode is FMI 2.0's stepComplete. Deliberate, documented choices beyond the figures:

@@ -6,7 +6,7 @@
 ``exc.rc_override.json``/``.csv`` (RC-override steps for a ground-station script, ArduPilot or PX4),
 ``exc.timeline.json`` (blocks for ``identify aero``) and ``exc.plan.json``. ``--check`` flies the plan in closed
 loop on the model (PD attitude hold, plan on top) and prints the condition number and largest correlation
-of the lateral and longitudinal derivative sets. The work is ``identification.excite_workflow``.
+of the lateral and longitudinal derivative sets. The work is ``identification.excite.workflow``.
 
 Exit status: 0 done, 2 bad input, 3 ``--check`` found a set not well conditioned (files still written).
 """
@@ -51,8 +51,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
-    from identification.excite import ExciteOptions
-    from identification.excite_writers import OutputOptions
+    from identification.excite.design import ExciteOptions
+    from identification.excite.writers import OutputOptions
 
     opt = ExciteOptions(airspeed_m_s=args.airspeed, inputs=_names(args.inputs), surfaces=_names(args.surfaces),
                         roll_limit_deg=args.roll_limit, pitch_limit_deg=args.pitch_limit,
@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     from fmu_models.common.errors import ParameterError
     from fmu_models.fixed_wing.params import FixedWingParams
     from fmu_models.signals.pwm_mapping import PwmMapping
-    from identification.excite_workflow import excite, write_files, write_plots
+    from identification.excite.workflow import excite, write_files, write_plots
 
     try:
         opt, out = _options(args)

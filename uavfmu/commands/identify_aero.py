@@ -20,13 +20,13 @@ equation-error estimate (smoothed states, stepwise regression of the measured ac
 output-error fit and is printed beside it. Per-segment initial rates and gyro/accelerometer biases are
 estimated when they lower the Akaike criterion (``--nuisance auto``; ``--estimate-initial``/``--biases``
 give them by hand), and a command -> surface delay is scanned up to ``--max-delay``. The work is
-``identification.aero_identify``; this module parses and prints.
+``identification.aero.identify``; this module parses and prints.
 
 Exit status: 0 done, 2 bad input (unreadable log, a log damaged beyond ``--max-damage`` without ``--force``,
 unknown parameter or output, bad segment or mapping),
 3 the estimation failed (diverging start, no descent), 4 done but a rival (persistence, segment mean)
 beats the model on a held-out output (its RMSE lower by more than 0.1 %; the rule of
-``identification.metrics.SkillInterval``, as for ``identify thrust``), 5 estimates written but a late step
+``identification.common.metrics.SkillInterval``, as for ``identify thrust``), 5 estimates written but a late step
 (scoring, plots) failed. A tie (no loss, but a skill interval that reaches zero) is printed as a tie and is
 not a failure.
 """
@@ -40,10 +40,10 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from identification.flightlog import DEFAULT_MAX_DAMAGE
+from identification.logs.flightlog import DEFAULT_MAX_DAMAGE
 
 if TYPE_CHECKING:
-    from identification.aero_identify import AeroResult
+    from identification.aero.identify import AeroResult
 
 EXIT_OK, EXIT_BAD_INPUT, EXIT_FAILED, EXIT_BASELINE_WINS, EXIT_LATE_FAILURE = 0, 2, 3, 4, 5
 
@@ -128,8 +128,8 @@ def _pairs(text: str | None, option: str) -> dict[str, str]:
 
 
 def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
-    from identification import aero
-    from identification.aero_identify import AeroOptions
+    from identification.aero import model as aero
+    from identification.aero.identify import AeroOptions
 
     bounds = {}
     for n, rng in _pairs(args.bounds, "--bounds").items():
@@ -155,7 +155,7 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         raise ValueError("--segments, --validate-segments and --timeline take one log; with several logs "
                          "put LOG.timeline.json beside each log")
     from fmu_models.fixed_wing.params import FixedWingParams
-    from identification.priors import load_priors, parse_priors
+    from identification.aero.priors import load_priors, parse_priors
 
     known = set(FixedWingParams().to_dict())
     priors = load_priors(args.prior_file, known) if args.prior_file else {}
@@ -178,9 +178,9 @@ def run(args: argparse.Namespace) -> int:
     from fmu_models.common.errors import ParameterError
     from fmu_models.fixed_wing.params import FixedWingParams
     from fmu_models.signals.pwm_mapping import PwmMapping
-    from identification.aero_identify import AeroInputError, AeroSource, identify_aero, write_results
-    from identification.oem import EstimationError
-    from identification.readers import read_log
+    from identification.aero.identify import AeroInputError, AeroSource, identify_aero, write_results
+    from identification.estimation.oem import EstimationError
+    from identification.logs.readers import read_log
 
     if not args.quiet:
         logging.basicConfig(level=logging.ERROR, format="%(levelname)s %(name)s: %(message)s")

@@ -1,10 +1,10 @@
-"""``uavfmu identify thrust LOG[=MASS_KG] ...``: parse, call :func:`identification.thrust_workflow.identify_thrust`,
+"""``uavfmu identify thrust LOG[=MASS_KG] ...``: parse, call :func:`identification.thrust.workflow.identify_thrust`,
 print the per-flight summaries and the held-out table.
 
 Exit status: 0 no baseline beats the model on held-out data (the verdict says win or tie), 2 bad input, 3 a
 baseline beats the model (the parameter file is then written only with ``--write-losing-model``; the exit
 status stays 3). ``--method paper`` runs paper 000's single-log workflow instead (Pearson gate, ANFIS of summed
-PWM; :func:`identification.thrust_paper.identify_thrust_paper`), exit 3 there = gate refused (unless
+PWM; :func:`identification.thrust.paper.identify_thrust_paper`), exit 3 there = gate refused (unless
 ``--skip-pearson-gate``), or a baseline beats the model on the validation data. ``--accept-damaged-log`` uses
 a log damaged beyond the limit. Every override is printed (``override: ...``) and listed in the metrics.
 """
@@ -20,8 +20,8 @@ from typing import TYPE_CHECKING, Any
 from fmu_models.quadrotor.constants import PWM_IDLE_US
 
 if TYPE_CHECKING:
-    from identification.thrust_dataset import ThrustDataset
-    from identification.thrust_paper import PaperThrustConfig, PaperThrustResult
+    from identification.thrust.dataset import ThrustDataset
+    from identification.thrust.paper import PaperThrustConfig, PaperThrustResult
 
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2
@@ -80,7 +80,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _paper_arguments(a: Any) -> None:
-    from identification.thrust_dataset import PAPER_MIN_PEARSON
+    from identification.thrust.dataset import PAPER_MIN_PEARSON
 
     a.add_argument("--validate", type=Path, help="second log for validation (default: the last part of LOG)")
     a.add_argument("--plots", type=Path, help="folder for the PNG figures (paper 000 Figs. 3-6)")
@@ -145,10 +145,10 @@ def run(args: argparse.Namespace) -> int:
 
 def _run_paper(args: argparse.Namespace, flights: list[tuple[Path, float]]) -> int:
     from fmu_models.common.errors import ParameterError
-    from identification.anfis_train import AnfisTrainingError
-    from identification.flightlog import LogError
-    from identification.thrust_dataset import CorrelationGateError, ThrustDataError
-    from identification.thrust_paper import identify_thrust_paper, load_paper_data
+    from identification.logs.flightlog import LogError
+    from identification.thrust.anfis_train import AnfisTrainingError
+    from identification.thrust.dataset import CorrelationGateError, ThrustDataError
+    from identification.thrust.paper import identify_thrust_paper, load_paper_data
 
     if len(flights) != 1:
         return _error(f"--method paper takes one log, got {len(flights)}; use --validate for a second one")
@@ -181,10 +181,10 @@ def _print_overrides(overrides: Any) -> None:
 
 
 def paper_config(args: argparse.Namespace, log: Path, mass_kg: float) -> PaperThrustConfig:
-    """The :class:`identification.thrust_paper.PaperThrustConfig` of the parsed options (errors as raised)."""
-    from identification.anfis_train import AnfisTrainConfig
-    from identification.thrust_dataset import ThrustDatasetConfig
-    from identification.thrust_paper import PaperThrustConfig
+    """The :class:`identification.thrust.paper.PaperThrustConfig` of the parsed options (errors as raised)."""
+    from identification.thrust.anfis_train import AnfisTrainConfig
+    from identification.thrust.dataset import ThrustDatasetConfig
+    from identification.thrust.paper import PaperThrustConfig
 
     dataset = ThrustDatasetConfig(
         mass_kg=mass_kg, motor_min_pwm_us=args.motor_min_pwm_us, min_altitude_m=args.min_altitude_m,
@@ -218,7 +218,7 @@ def correlation_table(corr: dict[str, float], gate: float, ds: ThrustDataset) ->
 
 
 def paper_summary(result: PaperThrustResult) -> str:
-    """Two-column summary of a :class:`identification.thrust_paper.PaperThrustResult`."""
+    """Two-column summary of a :class:`identification.thrust.paper.PaperThrustResult`."""
     m = result.metrics
     polys = ", ".join(f"deg {d}: {v:.3f}" for d, v in m["polynomial_validation_rmse_N"].items())
     rows = [
@@ -240,11 +240,11 @@ def paper_summary(result: PaperThrustResult) -> str:
 
 def _run_voltage(args: argparse.Namespace, flights: list[tuple[Path, float]]) -> int:
     from fmu_models.common.errors import ParameterError
-    from fmu_models.parallel import ParallelError
-    from identification.anfis_train import AnfisTrainingError
-    from identification.flightlog import LogError
-    from identification.thrust_dataset import ThrustDataError
-    from identification.thrust_workflow import FlightSpec, ThrustConfig, identify_thrust
+    from identification.common.parallel import ParallelError
+    from identification.logs.flightlog import LogError
+    from identification.thrust.anfis_train import AnfisTrainingError
+    from identification.thrust.dataset import ThrustDataError
+    from identification.thrust.workflow import FlightSpec, ThrustConfig, identify_thrust
 
     cfg = ThrustConfig(
         flights=tuple(FlightSpec(p, m) for p, m in flights), out=args.out, metrics=args.metrics,

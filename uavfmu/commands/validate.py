@@ -5,19 +5,20 @@ the simplest rivals (persistence, the window mean).
 
 Inputs: quadrotor motor PWM, or fixed-wing surface and throttle commands through the PWM mapping
 (``--mapping FILE.toml``, else the log's ArduPilot ``SERVOn_*`` parameters). Compared signals and their pass
-rules come from the output map (``--map``; defaults per vehicle in ``identification.output_map``). Windows
+rules come from the output map (``--map``; defaults per vehicle in ``identification.validation.output_map``). Windows
 of ``--window-s`` seconds are each re-initialised from the logged state (0: one full-length replay);
 windows with the vehicle on the ground are left out unless ``--include-ground``. The work is done by
-``identification.validation_workflow``; this module parses and prints.
+``identification.validation.workflow``; this module parses and prints.
 
-Runs go through ``fmu_models.parallel`` (dask.distributed): local worker processes (``--jobs``), or a running
+Runs go through ``identification.common.parallel`` (dask.distributed): local worker processes (``--jobs``), or a running
 cluster (``--scheduler tcp://HOST:PORT`` or ``UAVFMU_SCHEDULER``; docs/scale-out.md). ``--mc N --uncertainty
 PARAMS`` adds Monte Carlo bands: N replays with parameters drawn from the parameter file's ``uncertainty``
 block (default: the file the FMU was built from), restart states and sensor noise from the log; each signal's
 band coverage is printed beside its skill.
 ``--params PARAMS`` (an ``identify thrust`` parameter file; manifest key ``params``) drives the quadrotor's
 ``battery_voltage_V`` from its battery-state model: the logged voltage, else the hover state computed from the
-log (``identification.replay_battery``); the source is printed and in ``metrics.json``. Without ``--params`` the
+log (``identification.validation.replay_battery``); the source is printed and in ``metrics.json``. Without ``--params``
+the
 parameter file the FMU was built from (``build --params`` embeds it) does the same; ``--no-embedded-params``
 holds the input at its start value instead.
 
@@ -98,8 +99,8 @@ def _option_values(args: argparse.Namespace) -> dict[str, object]:
 
 def run(args: argparse.Namespace) -> int:
     from fmu_models.config import ConfigError
-    from identification.validation import check_options
-    from identification.validation_workflow import ValidationJob, load_manifest
+    from identification.validation.replay import check_options
+    from identification.validation.workflow import ValidationJob, load_manifest
 
     try:
         if args.jobs is not None and not 1 <= args.jobs <= 64:
@@ -128,8 +129,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _uncertainty(args: argparse.Namespace) -> object:
     """The parameter file's uncertainty block for ``--mc`` (None without ``--mc``)."""
-    from identification.mc_bands import MAX_DRAWS, MIN_DRAWS
-    from identification.validation_workflow import mc_uncertainty
+    from identification.validation.mc_bands import MAX_DRAWS, MIN_DRAWS
+    from identification.validation.workflow import mc_uncertainty
 
     if args.mc is None:
         if args.uncertainty is not None:
@@ -147,8 +148,8 @@ def _uncertainty(args: argparse.Namespace) -> object:
 
 def _run_one(job: object, args: argparse.Namespace, uncertainty: object = None) -> int:
     from fmu_models.fmi.host import FmuRunError
-    from fmu_models.parallel import ParallelError
-    from identification.validation_workflow import validate, validate_mc
+    from identification.common.parallel import ParallelError
+    from identification.validation.workflow import validate, validate_mc
 
     try:
         if uncertainty is None:
@@ -166,8 +167,8 @@ def _run_one(job: object, args: argparse.Namespace, uncertainty: object = None) 
 
 
 def _run_batch(jobs: list, args: argparse.Namespace, uncertainty: object = None) -> int:
-    from fmu_models.parallel import ParallelError
-    from identification.validation_workflow import batch_summary, validate_batch, validate_mc_batch, write_batch_report
+    from identification.common.parallel import ParallelError
+    from identification.validation.workflow import batch_summary, validate_batch, validate_mc_batch, write_batch_report
 
     try:
         if uncertainty is None:

@@ -1,0 +1,119 @@
+"""From a fixed-wing flight log to output-error manoeuvres, and back to scored model outputs.
+
+Inputs come from the log's servo PWM through :mod:`fmu_models.signals.pwm_mapping` (the same mapping the HIL
+adapter drives the FMU with; ArduPilot ``SERVOn_*`` parameters in the log fill it). Measured outputs are
+the log's canonical signals (``identification.logs.flightlog``), resampled onto a uniform grid. Each segment
+starts from the log's own state at its first sample: attitude, body rates, altitude, and the body velocity
+from GPS velocity where logged, else the airspeed along body x.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from fmu_models.common.model import VehicleModel, init_function
+from fmu_models.signals.names import FIXED_WING_FIT_OUTPUTS, OUTPUT_TO_LOG
+from fmu_models.signals.pwm_mapping import PwmMapping
+from identification.common.metrics import FitMetrics, fit_metrics
+from identification.estimation.oem import Manoeuvre
+from identification.logs.flightlog import FlightLog, LogError
+from identification.logs.log_state import initial_values, mapped_inputs
+
+#: outputs fitted by default: attitude, body rates, specific force, airspeed
+DEFAULT_OUTPUTS = FIXED_WING_FIT_OUTPUTS
+#: the roll-axis subset of paper 001's Fig. 1
+ROLL_OUTPUTS = ("roll_rad", "rate_body_x_rad_s")
+
+
+class SegmentError(ValueError):
+    """A segment specification that does not parse or lies outside the log."""
+
+
+@dataclass(frozen=True)
+class Segment:
+    t0_s: float
+    t1_s: float
+
+    def __str__(self) -> str:
+        return f"{self.t0_s:g}:{self.t1_s:g}"
+
+
+def parse_segments(text: str, option: str = "--segments") -> list[Segment]:
+    """``"t0:t1,t0:t1"`` (seconds from log start) into segments; errors name the option and the item."""
+    out = []
+    for item in filter(None, (s.strip() for s in text.split(","))):
+        try:
+            a, b = (float(v) for v in item.split(":"))
+        except ValueError:
+            raise SegmentError(f"{option}: {item!r} is not t0:t1 in seconds") from None
+        if not (math.isfinite(a) and math.isfinite(b) and b > a >= 0):
+            raise SegmentError(f"{option}: {item!r} needs 0 <= t0 < t1")
+        out.append(Segment(a, b))
+    if not out:
+        raise SegmentError(f"{option}: no segment in {text!r}")
+    return out
+
+
+def grid(segment: Segment, rate_hz: float) -> np.ndarray:
+    """Sample times of a segment: ``t0, t0 + dt, ...`` up to ``t1``."""
+    n = math.floor((segment.t1_s - segment.t0_s) * rate_hz + 1e-9)
+    return segment.t0_s + np.arange(n + 1) / rate_hz
+
+
+def log_inputs(model: VehicleModel, log: FlightLog, mapping: PwmMapping, t_s: np.ndarray) -> np.ndarray:
+    """Model inputs (len(t) x nu) from the servo PWM at times ``t_s`` (zero-order hold)."""
+    return mapped_inputs(list(model.inputs.index), log, mapping, t_s)
+
+
+def log_outputs(log: FlightLog, outputs: Sequence[str], t_s: np.ndarray) -> np.ndarray:
+    """Measured outputs (len(t) x ny) at ``t_s``, linearly interpolated."""
+    unknown = [n for n in outputs if n not in OUTPUT_TO_LOG]
+    if unknown:
+        raise LogError(f"no log signal is known for the outputs {', '.join(unknown)}; "
+                       f"choose from {', '.join(OUTPUT_TO_LOG)}")
+    return np.column_stack([log.signal(OUTPUT_TO_LOG[n]).resample(t_s) for n in outputs])
+
+
+def initial_state(model: VehicleModel, p: np.ndarray, log: FlightLog, t0_s: float, u0: np.ndarray,
+                  init: ca.Function | None = None) -> np.ndarray:
+    """The model state at ``t0_s`` from the log, through the model's own initial-state function (``init``:
+    ``init_function(model)``, built once by the caller when it needs many states)."""
+    p = p.copy()
+    for name, value in initial_values(log, t0_s, forward_from_airspeed=True).items():
+        p[model.params.index[name]] = value
+    x0, _ = (init or init_function(model))(u0, p)
+    return np.asarray(x0).ravel()
+
+
+def manoeuvres(model: VehicleModel, p: np.ndarray, log: FlightLog, mapping: PwmMapping,
+               segments: Sequence[Segment], outputs: Sequence[str], rate_hz: float,
+               input_delay_s: float = 0.0) -> list[Manoeuvre]:
+    """One :class:`Manoeuvre` per segment: inputs at ``t_k``, measurements at ``t_{k+1}``; with
+    ``input_delay_s`` the surfaces act the logged command of ``t_k - delay`` (command -> surface lag)."""
+    out = []
+    end = log.duration_s
+    init = init_function(model)
+    for seg in segments:
+        if seg.t1_s > end + 1e-6:
+            raise SegmentError(f"{log.source}: segment {seg} ends after the log ({end:.2f} s)")
+        t = grid(seg, rate_hz)
+        if len(t) < 3:
+            raise SegmentError(f"segment {seg} holds fewer than 3 samples at {rate_hz:g} Hz")
+        u = log_inputs(model, log, mapping, np.maximum(t[:-1] - input_delay_s, 0.0))
+        y = log_outputs(log, outputs, t[1:])
+        if not np.all(np.isfinite(y)):
+            bad = [outputs[i] for i in range(len(outputs)) if not np.all(np.isfinite(y[:, i]))]
+            raise LogError(f"{log.source}: segment {seg}: {', '.join(bad)} not finite (gap in the log?)")
+        x0 = initial_state(model, p, log, seg.t0_s, u[0], init)
+        out.append(Manoeuvre(x0, u, y, 1.0 / rate_hz, str(seg)))
+    return out
+
+
+def score(measured: np.ndarray, model: np.ndarray, outputs: Sequence[str]) -> dict[str, FitMetrics]:
+    """Fit metrics per output over all given samples."""
+    return {n: fit_metrics(measured[:, i], model[:, i]) for i, n in enumerate(outputs)}

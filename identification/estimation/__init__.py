@@ -1,0 +1,3 @@
+"""The estimator machinery every identified model uses: output-error estimation with exact CasADi
+sensitivities, Cramer-Rao and segment-bootstrap bounds (``oem``), and identifiability and correlation analysis
+(``identifiability``). Imports ``logs``, ``common`` and ``fmu_models``."""

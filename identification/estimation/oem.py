@@ -1,0 +1,955 @@
+"""Output-error estimation of model parameters (Maine & Iliff, NASA RP-1168; Jategaonkar; Morelli's ``oe.m``).
+
+The model is simulated with the recorded inputs over each manoeuvre, and its outputs are fitted to the
+measured ones by Gauss-Newton with Levenberg-Marquardt damping. Output sensitivities are exact derivatives,
+by CasADi, of the same model equations the FMU compiles: the classical RK4 scheme applied to the state and
+to its forward-sensitivity equations, which for an explicit Runge-Kutta method is exactly the derivative of
+the discrete step the FMU takes. No second copy of the physics, no finite differences. The weighting is the
+inverse residual covariance re-estimated every iteration (maximum likelihood) or a given matrix B (paper 001
+eq. 9). Cramér-Rao bounds carry Morelli & Klein's correction for coloured residuals.
+
+Parameter vector: the free model parameters, then per manoeuvre the estimated initial states and output
+biases (``m<j>.x0.<state>``, ``m<j>.bias.<output>``).
+
+A-priori values with standard deviations turn the fit into a maximum-a-posteriori estimate: the prior enters
+the cost as ``1/2 Σ ((θ - θ_p)/σ_p)²`` (a priori information as in Klein & Morelli 2006 and Jategaonkar 2015),
+and the bounds include it (its information enters the sandwich beside the coloured-residual term).
+Parameters kept fixed at uncertain values enter the bounds as a consider covariance
+(:func:`consider_covariance`).
+
+Longer than 700 lines because the cost, its exact gradient, the Gauss-Newton steps, priors and the three bounds
+(coloured-residual Cramer-Rao, consider covariance, segment bootstrap) share one compiled CasADi problem.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import casadi as ca
+import numpy as np
+from tqdm import tqdm
+
+from fmu_models.common.model import VehicleModel, step_function
+from fmu_models.fmi.jit import compiled
+from identification.estimation.identifiability import Identifiability, analyse, correlation, input_excitation
+
+log = logging.getLogger(__name__)
+
+#: |correlation| above which two estimates are reported as not separable by the data
+CORRELATION_WARN = 0.9
+#: Cramér-Rao std above this fraction of |estimate| is reported as poorly identified
+RELATIVE_STD_WARN = 0.5
+
+
+class EstimationError(ValueError):
+    """The problem is ill-posed (unknown names, mismatched shapes, a diverging start)."""
+
+
+class HorizonDivergedError(EstimationError):
+    """A continuation step to a longer record diverged; ``last_ok_s`` is the longest span fitted without."""
+
+    def __init__(self, message: str, last_ok_s: float) -> None:
+        super().__init__(message)
+        self.last_ok_s = last_ok_s
+
+
+@dataclass(frozen=True)
+class Manoeuvre:
+    """One record at a fixed sample time: initial state x0 (nx), inputs u (N x nu), measured outputs y (N x ny).
+
+    ``y[k]`` is the measurement at ``t0 + (k+1) dt_s``, after the input ``u[k]`` has acted for one step.
+    """
+
+    x0: np.ndarray
+    u: np.ndarray
+    y: np.ndarray
+    dt_s: float
+    name: str = ""
+
+
+@dataclass(frozen=True)
+class Iteration:
+    cost: float
+    step_norm: float
+    damping: float
+
+
+@dataclass
+class Estimate:
+    """Result: estimates, bounds, correlations, identifiability, convergence history.
+
+    ``values``/``crb_std``/... cover the whole parameter vector: the ``n_global`` model parameters first, then
+    the per-manoeuvre nuisance parameters (``m<j>.x0.<state>``, ``m<j>.bias.<output>``). ``std`` is the
+    printed 1-sigma bound of each and ``bound_method`` says which it is (see :data:`BOUND_METHODS`).
+    """
+
+    names: list[str]
+    values: np.ndarray
+    crb_std: np.ndarray
+    crb_std_white: np.ndarray
+    correlation: np.ndarray
+    residual_cov: np.ndarray
+    history: list[Iteration] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    converged: bool = False
+    n_global: int = -1
+    bootstrap_std: np.ndarray | None = None
+    bound_method: str = "cramer-rao-coloured"
+    identifiability: Identifiability | None = None
+    prior_sd: np.ndarray | None = None  #: a-priori std of each model parameter (inf: no prior)
+    consider_cov: np.ndarray | None = None  #: covariance from parameters held fixed (consider covariance)
+    considered: dict[str, float] = field(default_factory=dict)  #: fixed parameter -> the std it was given
+    covariance: np.ndarray | None = None  #: covariance of the model parameters behind the printed bound
+    n_segments: int = 0  #: manoeuvres the bootstrap resampled
+    #: per model parameter, the degrees of freedom of the bootstrap spread (:func:`segment_corrections`); None:
+    #: ``n_segments - 1``
+    bootstrap_dof: np.ndarray | None = None
+    #: per model parameter, the leverage factor the bootstrap variance was multiplied by (:func:`segment_corrections`)
+    bootstrap_factor: np.ndarray | None = None
+    #: manoeuvres whose output sensitivities exceed :data:`SENSITIVITY_GROWTH_MAX`: the fitted model diverges
+    #: there, and the linearised bounds (Cramér-Rao, bootstrap, consider) are not credible
+    unbounded: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        if self.n_global < 0:
+            self.n_global = len(self.names)
+
+    @property
+    def consider_std(self) -> np.ndarray | None:
+        return None if self.consider_cov is None else np.sqrt(np.maximum(np.diag(self.consider_cov), 0.0))
+
+    @property
+    def std(self) -> np.ndarray:
+        """The printed 1-sigma bound: the larger of the coloured-residual Cramér-Rao bound and the block
+        bootstrap over manoeuvres scaled by :func:`student_factor` of its degrees of freedom (derivatives;
+        nuisance parameters keep the Cramér-Rao bound), with the consider share of the parameters held fixed
+        added in quadrature."""
+        out = self.crb_std.copy()
+        out[:self.n_global] = self.data_std
+        if self.consider_std is not None:
+            out[:self.n_global] = np.hypot(out[:self.n_global], self.consider_std)
+        return out
+
+    @property
+    def data_std(self) -> np.ndarray:
+        """The posterior std from the data and the prior (coloured Cramér-Rao or bootstrap), without the
+        consider share of the parameters held fixed."""
+        out = self.crb_std[:self.n_global].copy()
+        if self.bootstrap_std is not None and self.bound_method.startswith("max("):
+            dof = self.bootstrap_dof if self.bootstrap_dof is not None else self.n_segments - 1.0
+            out = np.maximum(out, self.bootstrap_std * student_factor(dof))
+        return out
+
+    def dominance(self) -> list[str]:
+        """Per model parameter: "fixed" when the consider share of the parameters held fixed exceeds the data's
+        std; else "data" when the posterior std (data and prior, without the consider share) is below half the
+        prior's, "prior" when above 0.8 of it, "data+prior" between, "data (no prior)" without a prior."""
+        out = []
+        std, cons = self.data_std, self.consider_std
+        for i in range(self.n_global):
+            sp = np.inf if self.prior_sd is None else self.prior_sd[i]
+            if cons is not None and cons[i] > std[i]:
+                out.append("fixed")  # the values held fixed move it more than the data pin it down
+            elif not np.isfinite(sp):
+                out.append("data (no prior)")
+            else:
+                ratio = std[i] / sp
+                out.append("data" if ratio < 0.5 else "prior" if ratio > 0.8 else "data+prior")
+        return out
+
+    def prior_dominated(self) -> list[str]:
+        """Model parameters that only the prior determines (posterior std above 0.8 of the prior's)."""
+        return [n for n, d in zip(self.names, self.dominance(), strict=False) if d == "prior"]
+
+    def not_data_dominated(self) -> list[str]:
+        """Model parameters the prior determines alone or with the data (posterior std above half the
+        prior's: the data carry at most three times the prior's information), or that the values held fixed
+        (their priors) move more than the data pin them down."""
+        return [n for n, d in zip(self.names, self.dominance(), strict=False)
+                if d in ("prior", "data+prior", "fixed")]
+
+    def covariance_printed(self) -> np.ndarray:
+        """Covariance of the model parameters whose diagonal is the printed bound squared: the data's
+        (coloured Cramér-Rao correlations, scaled up where the bootstrap is wider) plus the consider term."""
+        data_std = self.data_std
+        cov = np.diag(data_std ** 2) if self.covariance is None else self.covariance
+        d = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+        scale = data_std / d
+        out = cov * np.outer(scale, scale)
+        return out + self.consider_cov if self.consider_cov is not None else out
+
+    def derivatives(self) -> dict[str, float]:
+        return {n: float(v) for n, v in zip(self.names[:self.n_global], self.values[:self.n_global], strict=True)}
+
+    def nuisance(self) -> dict[str, dict[str, float]]:
+        return {n: {"value": float(v), "crb_std": float(s)} for n, v, s in
+                zip(self.names[self.n_global:], self.values[self.n_global:], self.crb_std[self.n_global:],
+                    strict=True)}
+
+    def table(self) -> str:
+        """The derivatives: value, printed bound, its method, the other bounds, correlation warnings."""
+        boot = self.bootstrap_std if self.bootstrap_std is not None else np.full(self.n_global, np.nan)
+        cons = self.consider_std if self.consider_std is not None else np.zeros(self.n_global)
+        prior = self.prior_sd if self.prior_sd is not None else np.full(self.n_global, np.inf)
+        rows = [f"{'parameter':<16} {'estimate':>11} {'95% interval':>23} {'bound(1s)':>9} {'CR col':>9} "
+                f"{'CR white':>9} {'bootstrap':>9} {'consider':>9} {'prior sd':>9} {'%':>6}  {'determined by':<15} "
+                "correlated with (|r| > 0.9)"]
+        std, dom = self.std, self.dominance()
+        for i in range(self.n_global):
+            n, v = self.names[i], self.values[i]
+            corr = [f"{self.names[k]} {self.correlation[i, k]:+.2f}" for k in range(len(self.names))
+                    if k != i and abs(self.correlation[i, k]) > 0.9]
+            ci = f"[{v - 1.96 * std[i]:.4g}, {v + 1.96 * std[i]:.4g}]"
+            rows.append(f"{n:<16} {v:11.5g} {ci:>23} {std[i]:9.3g} {self.crb_std[i]:9.3g} "
+                        f"{self.crb_std_white[i]:9.3g} {boot[i]:9.3g} {cons[i]:9.3g} {prior[i]:9.3g} "
+                        f"{100 * std[i] / max(abs(v), 1e-12):6.1f}  {dom[i]:<15} {', '.join(corr) or '-'}")
+        rows.append(f"bound: {self.bound_method}")
+        if len(self.names) > self.n_global:
+            rows.append(f"{len(self.names) - self.n_global} nuisance parameters (initial states, biases) estimated "
+                        "per manoeuvre: see 'nuisance' in the metrics JSON")
+        return "\n".join(rows)
+
+    def as_dict(self) -> dict[str, Any]:
+        std = self.std
+        boot = self.bootstrap_std
+        params = {}
+        for i, n in enumerate(self.names[:self.n_global]):
+            params[n] = {"value": float(self.values[i]), "std": float(std[i]), "bound_method": self.bound_method,
+                         "crb_std": float(self.crb_std[i]), "crb_std_white": float(self.crb_std_white[i]),
+                         "bootstrap_std": None if boot is None or not np.isfinite(boot[i]) else float(boot[i]),
+                         "bootstrap_dof": None if boot is None or self.bootstrap_dof is None
+                         else float(self.bootstrap_dof[i]),
+                         "consider_std": None if self.consider_std is None else float(self.consider_std[i]),
+                         "prior_sd": None if self.prior_sd is None or not np.isfinite(self.prior_sd[i])
+                         else float(self.prior_sd[i]),
+                         "determined_by": self.dominance()[i],
+                         "ci95": [float(self.values[i] - 1.96 * std[i]), float(self.values[i] + 1.96 * std[i])]}
+        return {
+            "parameters": params,
+            "nuisance": self.nuisance(),
+            "bound_method": self.bound_method,
+            "names": self.names,
+            "correlation": np.round(self.correlation, 6).tolist(),
+            "identifiability": self.identifiability.as_dict() if self.identifiability else None,
+            "iterations": [vars(h) for h in self.history],
+            "converged": self.converged,
+            "warnings": self.warnings,
+            "prior_dominated": self.prior_dominated(),
+            "not_data_dominated": self.not_data_dominated(),
+        }
+
+
+#: how the printed bound is made (``Estimate.bound_method``)
+#: bootstrap resamples per task of ``identification.common.parallel`` (fixed: the draws never depend on the worker
+#: count)
+BOOTSTRAP_CHUNK = 50
+
+
+def bootstrap_task(task: dict[str, Any]) -> dict[str, Any]:
+    """Resamples ``task["first"]..`` of the block bootstrap: manoeuvre weights from the task's own generator
+    (``identification.common.parallel.task_rng``), one linearised Gauss-Newton step each; plain arrays in and out."""
+    from identification.common.parallel import task_rng
+
+    A, g, P, gp = (np.asarray(task[k], float) for k in ("A", "g", "P", "gp"))
+    m = A.shape[0]
+    rng = task_rng(task["seed"], task["index"])
+    reps = []
+    for _ in range(task["count"]):
+        w = np.bincount(rng.integers(0, m, m), minlength=m).astype(float)
+        reps.append(np.linalg.lstsq(np.einsum("j,jab->ab", w, A) + P, w @ g + gp, rcond=None)[0])
+    return {"reps": np.array(reps)}
+
+
+def bootstrap_repeats(A: np.ndarray, g: np.ndarray, P: np.ndarray, gp: np.ndarray, repeats: int, seed: int,
+                      workers: int = 0, scheduler: str | None = None) -> np.ndarray:
+    """``repeats`` bootstrap steps (rows) as tasks of ``identification.common.parallel``, in task order: in this
+    process by
+    default (a few hundred small solves do not repay a cluster start-up), the same bits on any cluster."""
+    from identification.common.parallel import map_tasks
+
+    firsts = range(0, repeats, BOOTSTRAP_CHUNK)
+    tasks = [{"A": A, "g": g, "P": P, "gp": gp, "seed": seed, "index": i,
+              "count": min(BOOTSTRAP_CHUNK, repeats - first)} for i, first in enumerate(firsts)]
+    run = map_tasks(bootstrap_task, tasks, workers=workers, scheduler=scheduler, progress=False, desc="bootstrap")
+    if run.failures:
+        raise RuntimeError("bootstrap: " + "; ".join(run.failure_lines()))
+    return np.concatenate([got["reps"] for _, got in run.results() if got is not None])
+
+
+BOUND_METHODS = ("cramer-rao-coloured", "max(cramer-rao-coloured, segment-bootstrap x t(dof)/z)")
+
+
+def student_factor(dof: float | np.ndarray) -> float | np.ndarray:
+    """``t_{0.975, dof} / z_{0.975}``: a std estimated with ``dof`` degrees of freedom gives a 95 % interval
+    of Student's width, not the normal one (2.36 / 1.96 = 1.21 for 7, 1.04 for 39); ``dof`` below 1 counts as 1."""
+    from scipy.stats import norm, t
+
+    out = t.ppf(0.975, np.maximum(dof, 1.0)) / norm.ppf(0.975)
+    return float(out) if np.ndim(out) == 0 else out
+
+
+def segment_corrections(A: np.ndarray, P: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Small-sample corrections of a spread over ``m`` segments, per model parameter (Bell & McCaffrey 2002;
+    Imbens & Kolesár 2016, who compute them under a working model): ``A`` (m x n x n) is each segment's
+    information, ``P`` the prior's (not resampled).
+
+    Working model: segment ``j``'s score at the truth has covariance ``A_j``, so the true variance of the
+    estimate is ``M⁻¹ (Σ A_j) M⁻¹`` with ``M = Σ A_j + P``. The spread over segments is made of scores at the
+    estimate, ``ĝ_j = g_j - A_j M⁻¹ Σ_k g_k``, whose covariances are ``C_jl = δ_jl A_j - 2 A_j M⁻¹ A_l +
+    A_j M⁻¹ (Σ A_k) M⁻¹ A_l``: a segment that carries a large share of a parameter's information (leverage)
+    pulls the estimate towards itself and shows a smaller score. Returns
+
+    - ``variance_factor``: true variance over the expected spread, ``bᵀ(Σ A_j)b / Σ_j c_jj`` with ``b = M⁻¹ e_i``
+      and ``c_jl = bᵀ C_jl b``; ``m / (m - 1)`` for equal segments without prior;
+    - ``dof``: Satterthwaite's degrees of freedom of that spread, ``(Σ_j c_jj)² / Σ_jl c_jl²`` (its variance
+      for Gaussian scores is ``2 Σ_jl c_jl²``); ``m - 1`` for equal segments, fewer when a few segments carry
+      the information.
+    """
+    m, n = A.shape[0], A.shape[1]
+    S = A.sum(axis=0)
+    Mi = np.linalg.pinv(S + (np.zeros((n, n)) if P is None else P))
+    factor, dof = np.ones(n), np.full(n, max(m - 1.0, 1.0))
+    for i in range(n):
+        b = Mi[:, i]
+        a = A @ b  # (m, n): A_j b
+        q = a @ Mi  # (m, n): (M⁻¹ A_j b)ᵀ
+        C = q @ S @ q.T - 2.0 * q @ a.T
+        C[np.diag_indices(m)] += a @ b
+        spread = float(np.trace(C))
+        if spread > 0.0:
+            factor[i] = float(b @ S @ b) / spread
+            dof[i] = spread ** 2 / float(np.sum(C ** 2))
+    return factor, dof
+
+
+#: largest credible output change per 100 % change of a model parameter, in units of the output's range over
+#: the manoeuvre; beyond it the simulated trajectory runs away (tumbles, spirals) and the sensitivities, hence
+#: every linearised bound, are meaningless. Measured: 3-13 on the coverage generator, 2.3-6.7 on the excitation
+#: log; 1.3e3-5.4e3 and 1e28 on replica fits whose bounds came out 1e-4 and 1e-26 of the estimate
+SENSITIVITY_GROWTH_MAX = 1e3
+
+
+def sensitivity_growth(data: Sequence[Manoeuvre], jacs: Sequence[np.ndarray], theta: np.ndarray, n_global: int
+                       ) -> list[float]:
+    """Per manoeuvre: the largest ``|dy/dθ| |θ|`` over samples, outputs and model parameters, over that output's
+    measured range (peak to peak)."""
+    scale = np.maximum(np.abs(theta[:n_global]), 1e-6)
+    out = []
+    for m, J in zip(data, jacs, strict=True):
+        span = np.maximum(np.ptp(m.y, axis=0), 1e-9)
+        out.append(float(np.max(np.abs(J[:, :, :n_global]) * scale[None, None, :] / span[None, :, None])))
+    return out
+
+
+#: fewest manoeuvres for which the block bootstrap over manoeuvres is computed
+BOOTSTRAP_MIN_SEGMENTS = 6
+
+
+def correlation_lags(r: np.ndarray) -> int:
+    """Lag window length for :func:`coloured_covariance`: twice the longest lag at which any output's residual
+    autocorrelation is still above the 95 % band of white noise (2/sqrt(N)), at most N/2."""
+    n = r.shape[0]
+    size = 1 << (2 * n - 1).bit_length()
+    rf = np.fft.rfft(r - r.mean(axis=0), n=size, axis=0)
+    acf = np.fft.irfft(np.abs(rf) ** 2, n=size, axis=0)[:n]
+    rho = acf / np.maximum(acf[0], 1e-300)
+    below = np.abs(rho) < 2.0 / np.sqrt(n)
+    first = [int(np.argmax(below[:, i])) if below[:, i].any() else n for i in range(r.shape[1])]
+    return int(min(2 * max(first), n // 2))
+
+
+def coloured_covariance(G: np.ndarray, r: np.ndarray, lags: int | None = None) -> np.ndarray:
+    """One manoeuvre's middle term of Morelli & Klein's (1997) covariance for coloured residuals.
+
+    ``G`` (N x ny x np) holds the weighted sensitivities ``W dy/dθ`` per sample, ``r`` (N x ny) the residuals.
+    Returns ``Σ_i Σ_j G_iᵀ R(j-i) G_j`` with the residual autocorrelation ``R`` (biased estimate) tapered by a
+    Bartlett window of ``lags`` lags (default :func:`correlation_lags`); the covariance is
+    ``M⁻¹ (Σ over manoeuvres) M⁻¹``. The taper keeps the estimate positive semi-definite and stops the
+    noisy far lags from shaking the bounds of white residuals. Evaluated in the frequency domain with the
+    residual cross-spectrum: O(N log N) instead of O(N L) sums of np x np products.
+    """
+    n = r.shape[0]
+    lags = correlation_lags(r) if lags is None else int(lags)
+    size = 1 << (2 * n - 1).bit_length()
+    rf = np.fft.rfft(r, n=size, axis=0)  # (F, ny)
+    R = np.fft.irfft(np.conj(rf)[:, :, None] * rf[:, None, :], n=size, axis=0) / n  # R[τ] = E[r_t r_{t+τ}ᵀ]
+    tau = np.minimum(np.arange(size), size - np.arange(size))
+    R *= np.clip(1.0 - tau / (lags + 1.0), 0.0, None)[:, None, None]
+    P = np.fft.rfft(R, axis=0)  # cross-spectral density, (F, ny, ny)
+    Gf = np.fft.rfft(G, n=size, axis=0)  # (F, ny, np)
+    w = np.full(P.shape[0], 2.0)  # rfft bins other than DC and Nyquist stand for a conjugate pair
+    w[0] = 1.0
+    if size % 2 == 0:
+        w[-1] = 1.0
+    S = np.einsum("f,fya,fyz,fzb->ab", w, Gf, P, np.conj(Gf), optimize=True).real / size
+    return 0.5 * (S + S.T)
+
+
+class OutputErrorEstimator:
+    """Output-error problem for ``model``: free parameters ``free`` fitted to the outputs ``outputs``.
+
+    ``estimate_states`` names states whose initial value is estimated per manoeuvre; ``estimate_biases``
+    names outputs that get a constant bias per manoeuvre. ``constraints`` are predicates on the dict of
+    free parameters; a trial step that breaks one, or makes the simulation diverge, is rejected.
+    """
+
+    def __init__(self, model: VehicleModel, p_nominal: Sequence[float], free: Sequence[str],
+                 outputs: Sequence[str], bounds: dict[str, tuple[float, float]] | None = None,
+                 constraints: Sequence[Callable[[dict[str, float]], bool]] = (),
+                 estimate_states: Sequence[str] = (), estimate_biases: Sequence[str] = (),
+                 compile: bool = True, prior: dict[str, tuple[float, float]] | None = None) -> None:
+        unknown = [f"parameter {n!r}" for n in free if n not in model.params.index]
+        unknown += [f"output {n!r}" for n in outputs if n not in model.outputs.index]
+        unknown += [f"state {n!r}" for n in estimate_states if n not in model.states.index]
+        unknown += [f"biased output {n!r} (not among the fitted outputs)" for n in estimate_biases
+                    if n not in outputs]
+        if unknown:
+            raise EstimationError(f"not known to the {model.name} model: {', '.join(unknown)}")
+        if len(set(free)) != len(free):
+            raise EstimationError(f"free parameters listed twice: {sorted(n for n in free if list(free).count(n) > 1)}")
+        bad_bounds = [n for n in (bounds or {}) if n not in free]
+        if bad_bounds:
+            raise EstimationError(f"bounds given for parameters that are not free: {', '.join(bad_bounds)}")
+        self.model = model
+        self.p_nominal = np.asarray(p_nominal, dtype=float)
+        self.free = list(free)
+        self.outputs = list(outputs)
+        self.states_est = list(estimate_states)
+        self.biases = list(estimate_biases)
+        self.i_free = [model.params.index[n] for n in free]
+        self.i_out = [model.outputs.index[n] for n in outputs]
+        self.i_x0 = [model.states.index[n] for n in estimate_states]
+        self.i_bias = [self.outputs.index(n) for n in estimate_biases]
+        b = bounds or {}
+        self.lower = np.array([b.get(n, (-np.inf, np.inf))[0] for n in free])
+        self.upper = np.array([b.get(n, (-np.inf, np.inf))[1] for n in free])
+        if np.any(self.lower > self.upper):
+            raise EstimationError("a lower bound exceeds its upper bound")
+        self.constraints = list(constraints)
+        bad_prior = [n for n, (_, sd) in (prior or {}).items() if n not in free or not sd > 0]
+        if bad_prior:
+            raise EstimationError(f"priors need a free parameter and a positive std: {', '.join(bad_prior)}")
+        pr = prior or {}
+        self.prior_mean = np.array([pr.get(n, (0.0, np.inf))[0] for n in free], dtype=float)
+        self.prior_sd = np.array([pr.get(n, (0.0, np.inf))[1] for n in free], dtype=float)
+        self.state_limits = np.asarray(model.state_limits, dtype=float)
+        plain = self._plain_step()
+        sens = self._sensitivity_step()
+        if compile:
+            plain, sens = compiled([plain, sens], f"oem_{model.name}")
+        self._step, self._sens = plain, sens
+        self._maps: dict[tuple[str, int], ca.Function] = {}
+
+    # ---------------------------------------------------------------- symbolic functions
+    @property
+    def n_local(self) -> int:
+        """Per-manoeuvre parameters: estimated initial states, then output biases."""
+        return len(self.i_x0) + len(self.i_bias)
+
+    def prior_information(self, n_total: int) -> np.ndarray:
+        """Diagonal a-priori information ``1/σ_p²`` over the full parameter vector (0 where no prior)."""
+        out = np.zeros(n_total)
+        out[:len(self.free)] = 1.0 / self.prior_sd ** 2
+        return out
+
+    def prior_cost(self, theta: np.ndarray) -> float:
+        """``1/2 Σ ((θ - θ_p)/σ_p)²`` over the parameters that have a prior."""
+        return 0.5 * float(np.sum(((theta[:len(self.free)] - self.prior_mean) / self.prior_sd) ** 2))
+
+    def _add_prior(self, M: np.ndarray, g: np.ndarray, theta: np.ndarray) -> None:
+        """Add the prior's information and gradient in place (Gauss-Newton normal equations)."""
+        n = len(self.free)
+        info = self.prior_information(len(theta))
+        M[np.diag_indices_from(M)] += info
+        g[:n] += info[:n] * (self.prior_mean - theta[:n])
+
+    def _plain_step(self) -> ca.Function:
+        step = step_function(self.model)
+        x, u = self.model.states.sym("x"), self.model.inputs.sym("u")
+        p, dt = self.model.params.sym("p"), ca.SX.sym("dt")
+        x1, y1 = step(x, u, p, dt)
+        return ca.Function("oem_step", [x, u, p, dt], [x1, y1[self.i_out]])
+
+    def _sensitivity_step(self) -> ca.Function:
+        """``(xa, u, p, dt) -> (xa_next, [y; vec(dy/dθ)])`` with ``xa = [x; vec(S)]``, ``S = dx/dθ``.
+
+        θ is the free parameters followed by the estimated initial states (whose sensitivity enters only
+        through ``S0``). RK4 on ``ẋ = f``, ``Ṡ = f_x S + f_θ`` with shared stages equals the Jacobian of the
+        RK4 map, at a fraction of the cost of differentiating the composed step symbolically.
+        """
+        m = self.model
+        nx, nth, ns = len(m.states), len(self.free), len(self.free) + len(self.i_x0)
+        x, u = m.states.sym("x"), m.inputs.sym("u")
+        p, dt = m.params.sym("p"), ca.SX.sym("dt")
+        S = ca.SX.sym("S", nx, ns)
+        th = ca.vertcat(*[p[i] for i in self.i_free]) if nth else ca.SX(0, 1)
+        xs = ca.SX.sym("xs", nx)
+        fx = m.derivatives(0.0, xs, u, p)
+        jac = ca.Function("fjac", [xs, u, p], [fx, ca.jacobian(fx, xs), ca.jacobian(fx, th)])
+        pad = ca.SX(nx, ns - nth)
+
+        def stage(xx: Any, SS: Any) -> tuple[Any, Any]:
+            k, A, B = jac(xx, u, p)
+            return k, A @ SS + ca.horzcat(B, pad)
+
+        k1, K1 = stage(x, S)
+        k2, K2 = stage(x + dt / 2 * k1, S + dt / 2 * K1)
+        k3, K3 = stage(x + dt / 2 * k2, S + dt / 2 * K2)
+        k4, K4 = stage(x + dt * k3, S + dt * K3)
+        xr = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        Sr = S + dt / 6 * (K1 + 2 * K2 + 2 * K3 + K4)
+        post = m.post_step(xs, u, p)
+        post_f = ca.Function("post", [xs, u, p], [post, ca.jacobian(post, xs), ca.jacobian(post, th)])
+        x1, Px, Pth = post_f(xr, u, p)
+        S1 = Px @ Sr + ca.horzcat(Pth, pad)
+        y = m.outputs_fn(xs, u, p)[self.i_out]
+        out_f = ca.Function("out", [xs, u, p], [y, ca.jacobian(y, xs), ca.jacobian(y, th)])
+        y1, Hx, Hth = out_f(x1, u, p)
+        dy = Hx @ S1 + ca.horzcat(Hth, ca.SX(len(self.i_out), ns - nth))
+        xa1, ya = ca.cse([ca.vertcat(x1, ca.vec(S1)), ca.vertcat(y1, ca.vec(dy))])
+        return ca.Function("oem_sens", [ca.vertcat(x, ca.vec(S)), u, p, dt], [xa1, ya])
+
+    def _run(self, kind: str, xa0: np.ndarray, u: np.ndarray, p: np.ndarray, dt: float
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """Evaluate the plain or sensitivity step over the record; returns states and outputs, one row per step.
+
+        CasADi's buffer interface writes straight into numpy arrays: converting a DM result element by
+        element costs more than the compiled simulation itself.
+        """
+        n = u.shape[0]
+        key = (kind, n)
+        if key not in self._maps:
+            step = self._step if kind == "plain" else self._sens
+            acc = step.mapaccum(f"{kind}_{n}_acc", n)
+            # wrap so p and dt are single columns (mapaccum maps every non-accumulated input)
+            sym = [ca.MX.sym(step.name_in(i), step.size1_in(i), n if i == 1 else 1) for i in range(4)]
+            self._maps[key] = ca.Function(f"{kind}_{n}", sym, acc(*sym))
+        f = self._maps[key]
+        # C-order (n, rows) arrays are CasADi's column-major (rows, n) matrices
+        args = [np.ascontiguousarray(xa0, dtype=float), np.ascontiguousarray(u, dtype=float),
+                np.ascontiguousarray(p, dtype=float), np.array([dt], dtype=float)]
+        X = np.empty((n, f.size1_out(0)))
+        Y = np.empty((n, f.size1_out(1)))
+        buf, evaluate = f.buffer()
+        for i, a in enumerate(args):
+            buf.set_arg(i, memoryview(a))
+        buf.set_res(0, memoryview(X))
+        buf.set_res(1, memoryview(Y))
+        evaluate()
+        return X, Y
+
+    # ---------------------------------------------------------------- simulation
+    def names(self, data: Sequence[Manoeuvre]) -> list[str]:
+        """Names of all estimated quantities, in the order of the parameter vector."""
+        out = list(self.free)
+        for j in range(len(data)):
+            out += [f"m{j}.x0.{n}" for n in self.states_est]
+            out += [f"m{j}.bias.{n}" for n in self.biases]
+        return out
+
+    def _split(self, theta: np.ndarray, j: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Model parameters, x0 overrides and biases of manoeuvre ``j`` from the full vector."""
+        nth, nl = len(self.free), self.n_local
+        if len(theta) == nth:  # model parameters only: the manoeuvre's own x0, no biases
+            return theta, np.empty(0), np.zeros(len(self.i_bias))
+        local = theta[nth + j * nl: nth + (j + 1) * nl]
+        return theta[:nth], local[:len(self.i_x0)], local[len(self.i_x0):]
+
+    def _setup(self, theta: np.ndarray, j: int, m: Manoeuvre) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        glob, x0e, bias = self._split(theta, j)
+        p = self.p_nominal.copy()
+        p[self.i_free] = glob
+        x0 = np.array(m.x0, dtype=float)
+        if len(x0e):
+            x0[self.i_x0] = x0e
+        b = np.zeros(len(self.outputs))
+        b[self.i_bias] = bias
+        return p, x0, b
+
+    def simulate(self, theta: np.ndarray, m: Manoeuvre, j: int = 0, sensitivities: bool = True
+                 ) -> tuple[np.ndarray, np.ndarray | None, bool]:
+        """Outputs (N x ny), sensitivities (N x ny x n_global+n_local or None) and a divergence flag.
+
+        Row k is the output after k+1 steps, matched to ``m.y[k]``. ``j`` is the manoeuvre's index in the
+        parameter vector (selects its initial states and biases).
+        """
+        n, ny = m.u.shape[0], len(self.outputs)
+        nth, nxe = len(self.free), len(self.i_x0)
+        p, x0, b = self._setup(theta, j, m)
+        if not sensitivities:
+            X, Y = self._run("plain", x0, m.u, p, m.dt_s)
+            y = Y + b
+            return y, None, self._diverged(X, y)
+        nx = len(x0)
+        S0 = np.zeros((nx, nth + nxe))
+        S0[self.i_x0, nth + np.arange(nxe)] = 1.0
+        Xa, out = self._run("sens", np.concatenate([x0, S0.ravel(order="F")]), m.u, p, m.dt_s)
+        # out: N x (ny + ny*ns), dy/dθ column-major (ny x ns)
+        y = out[:, :ny] + b
+        dy = out[:, ny:].reshape(n, nth + nxe, ny).transpose(0, 2, 1)
+        jac = np.zeros((n, ny, nth + self.n_local))
+        jac[:, :, :nth + nxe] = dy
+        for k, i in enumerate(self.i_bias):
+            jac[:, i, nth + nxe + k] = 1.0
+        return y, jac, self._diverged(Xa[:, :nx], y)
+
+    def _diverged(self, X: np.ndarray, y: np.ndarray) -> bool:
+        if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
+            return True
+        return bool(np.any(np.abs(X) > self.state_limits))
+
+    def _local_index(self, j: int) -> np.ndarray:
+        """Columns of the full parameter vector that manoeuvre ``j``'s sensitivities fill."""
+        nth, nl = len(self.free), self.n_local
+        return np.concatenate([np.arange(nth), nth + j * nl + np.arange(nl)]).astype(int)
+
+    # ---------------------------------------------------------------- estimation
+    def estimate(self, data: Sequence[Manoeuvre], theta0: Sequence[float] | None = None,
+                 weight: np.ndarray | None = None, max_iter: int = 30, tol: float = 1e-9,
+                 progress: bool = False, horizon_s: float | None = None) -> Estimate:
+        """Levenberg-Marquardt on the weighted output error; returns the estimate with its CR bounds.
+
+        ``theta0`` covers the free parameters only (default: their nominal values) or the full vector.
+        Initial states start from each manoeuvre's ``x0`` and biases from zero. ``horizon_s`` turns on
+        continuation in record length: fit the first ``horizon_s`` seconds of every manoeuvre, then twice
+        that, and so on up to the whole record. A start far from the truth makes long records strongly
+        nonlinear in the parameters (slow modes drift apart); the short fits walk it into the basin first.
+        """
+        data = list(data)
+        self._check(data, weight)
+        names = self.names(data)
+        theta = self._start(data, theta0)
+        history: list[Iteration] = []
+        n_max = max(m.u.shape[0] for m in data)
+        horizons = []
+        if horizon_s is not None:
+            n_h = max(round(horizon_s / data[0].dt_s), 10)
+            while n_h < n_max:
+                horizons.append(n_h)
+                n_h *= 2
+        bar = tqdm(desc="output error", unit="it", disable=not progress, leave=False)
+        last_ok = 0
+        for n_h in horizons:
+            short = [Manoeuvre(m.x0, m.u[:n_h], m.y[:n_h], m.dt_s, m.name) for m in data]
+            bar.set_description(f"output error, first {n_h * data[0].dt_s:g} s")
+            theta = self._horizon_step(short, theta, weight, max_iter, 1e-4, history, bar, last_ok, data[0].dt_s)[0]
+            last_ok = n_h
+        bar.set_description("output error")
+        theta, res, jacs, W, converged = self._horizon_step(data, theta, weight, max_iter, tol, history, bar, last_ok,
+                                                            data[0].dt_s)
+        bar.close()
+        return self._statistics(data, names, theta, res, jacs, W, history, converged)
+
+    def _horizon_step(self, data: list[Manoeuvre], theta: np.ndarray, weight: np.ndarray | None, max_iter: int,
+                      tol: float, history: list[Iteration], bar: tqdm, last_ok: int, dt_s: float,
+                      ) -> tuple[np.ndarray, list[np.ndarray], list[Any], np.ndarray, bool]:
+        """One continuation step; a divergence after a shorter span was fitted raises :class:`HorizonDivergedError`."""
+        try:
+            return self._solve(data, theta, weight, max_iter, tol, history, bar)
+        except EstimationError as err:
+            if last_ok == 0:
+                raise
+            n = max(m.u.shape[0] for m in data)
+            raise HorizonDivergedError(f"the model fitted over the first {last_ok * dt_s:g} s diverges over "
+                                  f"{n * dt_s:g} s ({err})", last_ok * dt_s) from None
+
+    def _solve(self, data: list[Manoeuvre], theta: np.ndarray, weight: np.ndarray | None, max_iter: int,
+               tol: float, history: list[Iteration], bar: tqdm) -> tuple[np.ndarray, list[np.ndarray],
+                                                                          list[Any], np.ndarray, bool]:
+        """The LM iterations on one set of records; appends to ``history``."""
+        sims = [self.simulate(theta, m, j) for j, m in enumerate(data)]
+        if any(s[2] for s in sims):
+            raise EstimationError("the model diverges at the start values: start closer or fix more parameters")
+        res, jacs, W, cost = _linearised(data, sims, weight)
+        cost += self.prior_cost(theta)
+        lam = 1e-3
+        converged = False
+        n_extra = len(theta) - len(self.free)
+        bounds = (np.concatenate([self.lower, np.full(n_extra, -np.inf)]),
+                  np.concatenate([self.upper, np.full(n_extra, np.inf)]))
+        for _ in range(max_iter):
+            M, g = self._normal_equations(res, jacs, W, len(theta))
+            self._add_prior(M, g, theta)
+            trial, cost_t, lam = self._damped_step(data, theta, M, g, W, cost, lam, bounds)
+            if trial is None:
+                converged = True  # no descent direction left at machine precision: a minimum
+                break
+            rel = (cost - cost_t) / max(cost, 1e-300)
+            step_norm = float(np.linalg.norm(trial - theta) / max(np.linalg.norm(theta), 1e-12))
+            theta = trial
+            sims = [self.simulate(theta, m, j) for j, m in enumerate(data)]
+            # with ML weighting the new cost is N*ny/2 by construction: report the fitted cost
+            res, jacs, W, cost = _linearised(data, sims, weight)
+            cost += self.prior_cost(theta)
+            history.append(Iteration(cost_t, step_norm, lam))
+            log.info("iteration %d: cost %.6g, relative step %.3g, damping %.1e", len(history), cost_t, step_norm, lam)
+            bar.update(1)
+            bar.set_postfix(cost=f"{cost_t:.6g}", step=f"{step_norm:.2g}", damping=f"{lam:.0e}")
+            lam = max(lam / 10.0, 1e-9)
+            # cost settled, or parameters settled (flat valleys of unidentifiable sets crawl on otherwise)
+            if rel < tol or step_norm < 1e-8:
+                converged = True
+                break
+        return theta, res, jacs, W, converged
+
+    def _damped_step(self, data: list[Manoeuvre], theta: np.ndarray, M: np.ndarray, g: np.ndarray, W: np.ndarray,
+                     cost: float, lam: float, bounds: tuple[np.ndarray, np.ndarray],
+                     ) -> tuple[np.ndarray | None, float, float]:
+        """Raise the damping ``lam`` tenfold until a bounded, constraint-keeping, non-diverging step lowers the
+        cost; returns (trial parameters, their cost, lam), or (None, nan, lam) when none does below 1e12."""
+        scale = np.maximum(np.diag(M), 1e-12 * max(np.max(np.diag(M)), 1e-300))
+        while lam < 1e12:
+            step = np.linalg.solve(M + lam * np.diag(scale), g)
+            trial = np.clip(theta + step, *bounds)
+            named = dict(zip(self.free, trial[:len(self.free)], strict=True))
+            if all(c(named) for c in self.constraints):
+                plain = [self.simulate(trial, m, j, sensitivities=False) for j, m in enumerate(data)]
+                if not any(s[2] for s in plain):
+                    cost_t = _cost([m.y - s[0] for m, s in zip(data, plain, strict=True)], W) + \
+                        self.prior_cost(trial)
+                    if cost_t <= cost:
+                        return trial, cost_t, lam
+            lam *= 10.0
+        return None, float("nan"), lam
+
+    def _check(self, data: list[Manoeuvre], weight: np.ndarray | None) -> None:
+        if not data:
+            raise EstimationError("no manoeuvres given")
+        nu, ny, nx = len(self.model.inputs), len(self.outputs), len(self.model.states)
+        for j, m in enumerate(data):
+            label = m.name or f"manoeuvre {j}"
+            if m.u.ndim != 2 or m.u.shape[1] != nu:
+                raise EstimationError(f"{label}: inputs must be N x {nu}, got {m.u.shape}")
+            if m.y.shape != (m.u.shape[0], ny):
+                raise EstimationError(f"{label}: outputs must be {m.u.shape[0]} x {ny}, got {m.y.shape}")
+            if np.shape(m.x0) != (nx,):
+                raise EstimationError(f"{label}: x0 must have {nx} states, got {np.shape(m.x0)}")
+            if not (np.all(np.isfinite(m.u)) and np.all(np.isfinite(m.y))):
+                raise EstimationError(f"{label}: inputs or outputs contain NaN or inf")
+            if not m.dt_s > 0:
+                raise EstimationError(f"{label}: sample time {m.dt_s} s must be positive")
+        if weight is not None and np.shape(weight) != (ny, ny):
+            raise EstimationError(f"weight matrix must be {ny} x {ny}, got {np.shape(weight)}")
+
+    def _start(self, data: list[Manoeuvre], theta0: Sequence[float] | None) -> np.ndarray:
+        n_total = len(self.free) + len(data) * self.n_local
+        if theta0 is not None and len(theta0) == n_total:
+            return np.array(theta0, dtype=float)
+        glob = np.array(theta0 if theta0 is not None else self.p_nominal[self.i_free], dtype=float)
+        if glob.shape != (len(self.free),):
+            raise EstimationError(f"theta0 must have {len(self.free)} or {n_total} entries, got {glob.shape}")
+        local = [np.concatenate([np.asarray(m.x0, dtype=float)[self.i_x0], np.zeros(len(self.i_bias))])
+                 for m in data]
+        return np.concatenate([glob, *local]) if local else glob
+
+    def _normal_equations(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray,
+                          n_total: int) -> tuple[np.ndarray, np.ndarray]:
+        M = np.zeros((n_total, n_total))
+        g = np.zeros(n_total)
+        L = np.linalg.cholesky(W).T  # W = Lᵀ L: whiten, then one BLAS product per manoeuvre
+        for j, (r, J) in enumerate(zip(res, jacs, strict=True)):
+            idx = self._local_index(j)
+            Jw = np.matmul(L, J).reshape(-1, J.shape[2])
+            M[np.ix_(idx, idx)] += Jw.T @ Jw
+            g[idx] += Jw.T @ (r @ L.T).ravel()
+        return M, g
+
+    def _segment_terms(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray
+                       ) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Per manoeuvre, the information ``A_j`` and gradient ``g_j`` of the model parameters with that
+        manoeuvre's nuisance parameters profiled out (Schur complement)."""
+        L = np.linalg.cholesky(W).T
+        ng, out = len(self.free), []
+        for r, J in zip(res, jacs, strict=True):
+            Jw = np.matmul(L, J).reshape(-1, J.shape[2])
+            M = Jw.T @ Jw
+            g = Jw.T @ (r @ L.T).ravel()
+            if M.shape[0] > ng:
+                K = M[:ng, ng:] @ np.linalg.pinv(M[ng:, ng:])
+                out.append((M[:ng, :ng] - K @ M[ng:, :ng], g[:ng] - K @ g[ng:]))
+            else:
+                out.append((M, g))
+        return out
+
+    def segment_bootstrap_std(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray, repeats: int = 400,
+                              seed: int = 0, theta: np.ndarray | None = None
+                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Block bootstrap over manoeuvres (one linearised Gauss-Newton step per resample from the estimate,
+        Hu & Kalbfleisch's estimating-function bootstrap): (std, variance factor, degrees of freedom) of the
+        model parameters, or None with fewer than :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres (too few distinct
+        resamples). Whole manoeuvres are resampled, so coloured noise, per-record disturbances and model
+        mismatch that vary from record to record show in the spread. The std is corrected for the segments'
+        leverage (times the square root of the factor) and the degrees of freedom follow from how the
+        information is shared among them (:func:`segment_corrections`)."""
+        m = len(res)
+        if m < BOOTSTRAP_MIN_SEGMENTS or not self.free:
+            return None
+        terms = self._segment_terms(res, jacs, W)
+        A = np.stack([t[0] for t in terms])
+        g = np.stack([t[1] for t in terms])
+        ng = len(self.free)
+        P = np.diag(self.prior_information(ng))  # the prior is not resampled: it is not data
+        gp = P @ (self.prior_mean - theta[:ng]) if theta is not None else np.zeros(ng)
+        reps = bootstrap_repeats(A, g, P, gp, repeats, seed)
+        # robust spread (IQR / 1.349): a resample that leaves a parameter unexcited gives a wild step, which
+        # would dominate a plain std
+        q75, q25 = np.percentile(np.array(reps), [75, 25], axis=0)
+        factor, dof = segment_corrections(A, P)
+        return (q75 - q25) / 1.349 * np.sqrt(factor), factor, dof
+
+    def information(self, data: Sequence[Manoeuvre], theta: np.ndarray | None = None,
+                    weight: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
+        """Information matrix ``M`` of all estimated quantities at ``theta`` (default: the start), with the
+        given weighting or the inverse residual variance; for identifiability before the solve."""
+        data = list(data)
+        self._check(data, weight)
+        th = self._start(data, theta)
+        sims = [self.simulate(th, m, j) for j, m in enumerate(data)]
+        res = [m.y - s[0] for m, s in zip(data, sims, strict=True)]
+        if weight is None:
+            var = np.mean(np.vstack(res) ** 2, axis=0)
+            weight = np.diag(1.0 / np.maximum(var, 1e-300))
+        M, _ = self._normal_equations(res, [s[1] for s in sims], np.asarray(weight, float), len(th))
+        return M, self.names(data)
+
+    def identifiability(self, data: Sequence[Manoeuvre], theta: np.ndarray | None = None,
+                        weight: np.ndarray | None = None) -> Identifiability:
+        """Condition number, correlated pairs, input excitation and advice before the solve."""
+        M, names = self.information(data, theta, weight)
+        exc = input_excitation([m.u for m in data], list(self.model.inputs.index))
+        return analyse(M, names, len(self.free), exc)
+
+    def _statistics(self, data: list[Manoeuvre], names: list[str], theta: np.ndarray, res: list[np.ndarray],
+                    jacs: list[Any], W: np.ndarray, history: list[Iteration], converged: bool) -> Estimate:
+        """Cramér-Rao bounds (white and coloured-residual), block bootstrap, correlations, identifiability."""
+        n_total = len(theta)
+        M, _ = self._normal_equations(res, jacs, W, n_total)
+        prior_info = self.prior_information(n_total)
+        M_inv = np.linalg.pinv(M + np.diag(prior_info))
+        std_white = np.sqrt(np.maximum(np.diag(M_inv), 0.0))
+        middle = np.diag(prior_info)  # sandwich: the prior's information beside the data's coloured term
+        for j, (r, J) in enumerate(zip(res, jacs, strict=True)):
+            idx = self._local_index(j)
+            G = np.einsum("ij,kia->kja", W, J)
+            middle[np.ix_(idx, idx)] += coloured_covariance(G, r)
+        cov = M_inv @ middle @ M_inv
+        std = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        corr = correlation(cov)  # zero-variance entries give 0 correlation, never NaN
+        got = self.segment_bootstrap_std(res, jacs, W, theta=theta)
+        boot, factor, dof = got if got is not None else (None, None, None)
+        method = BOUND_METHODS[1] if boot is not None else BOUND_METHODS[0]
+        exc = input_excitation([m.u for m in data], list(self.model.inputs.index))
+        ident = analyse(M + np.diag(prior_info), names, len(self.free), exc, cov=cov)
+        printed = std.copy()
+        if boot is not None:
+            printed[:len(self.free)] = np.maximum(printed[:len(self.free)], boot * student_factor(dof))
+        warnings = []
+        for i, n in enumerate(names[:len(self.free)]):
+            if printed[i] > RELATIVE_STD_WARN * abs(theta[i]):
+                warnings.append(f"{n}: std {printed[i]:.3g} exceeds {RELATIVE_STD_WARN:.0%} of the estimate "
+                                f"{theta[i]:.4g} - the data hardly identify it")
+            for k in range(i + 1, n_total):
+                if abs(corr[i, k]) > CORRELATION_WARN:
+                    warnings.append(f"{n} and {names[k]} are correlated ({corr[i, k]:+.3f}): the data cannot "
+                                    "separate them")
+        growth = sensitivity_growth(data, jacs, theta, len(self.free))
+        unbounded = [m.name or f"manoeuvre {j}" for j, (m, g) in enumerate(zip(data, growth, strict=True))
+                     if not g <= SENSITIVITY_GROWTH_MAX]
+        if unbounded:
+            warnings.append(f"the fitted model runs away in {', '.join(unbounded)} (output sensitivities up to "
+                            f"{max(growth):.1e} x the measured range): its bounds are not credible")
+        warnings += [a for a in ident.advice if a not in warnings]
+        for w in warnings:
+            log.info(w)  # the caller prints Estimate.warnings once (several fits run per identify call)
+        resid_cov = np.cov(np.vstack(res).T, bias=True).reshape(len(self.outputs), len(self.outputs))
+        ng = len(self.free)
+        return Estimate(names, theta, std, std_white, corr, resid_cov, history, warnings, converged,
+                        n_global=ng, bootstrap_std=boot, bound_method=method, identifiability=ident,
+                        prior_sd=self.prior_sd.copy(), covariance=cov[:ng, :ng].copy(), n_segments=len(data),
+                        bootstrap_dof=dof, bootstrap_factor=factor, unbounded=unbounded)
+
+
+def _cost(res: list[np.ndarray], W: np.ndarray) -> float:
+    """Output-error cost ``1/2 sum_k r_k^T W r_k`` over every record's residuals."""
+    return 0.5 * sum(float(np.sum((r @ W) * r)) for r in res)
+
+
+def _linearised(data: list[Manoeuvre], sims: list[Any], weight: np.ndarray | None,
+                ) -> tuple[list[np.ndarray], list[Any], np.ndarray, float]:
+    """Residuals, output sensitivities, weighting (``weight``, else maximum likelihood 1/variance) and cost."""
+    res = [m.y - s[0] for m, s in zip(data, sims, strict=True)]
+    if weight is not None:
+        W = np.asarray(weight, dtype=float)
+    else:
+        W = np.diag(1.0 / np.maximum(np.mean(np.vstack(res) ** 2, axis=0), 1e-300))
+    return res, [s[1] for s in sims], W, _cost(res, W)
+
+
+@dataclass
+class Consider:
+    """Parameters held fixed and what their uncertainty does to the estimate (see :func:`consider_covariance`)."""
+
+    names: list[str]
+    sd: np.ndarray  #: the std each fixed parameter was given
+    cov: np.ndarray  #: consider covariance of the model parameters (n_global x n_global)
+    influence: np.ndarray  #: ``A``: shift of each model parameter per unit error of each fixed one
+    informed: np.ndarray  #: posterior std / given std of each fixed parameter were it freed (1: data silent)
+
+
+def consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Sequence[Manoeuvre],
+                        consider: dict[str, float], weight: np.ndarray | None = None, compile: bool = False
+                        ) -> Consider:
+    """Consider covariance of the model parameters from parameters held fixed at values known to ``consider``
+    (name -> std) only (Tapley, Schutz & Born 2004, sec. 6.3; Bierman 1977): with ``A = M_θθ⁻¹ M_θc``, the
+    linearised shift of the estimate per unit error of the fixed parameters, the covariance is
+    ``A diag(σ_c²) Aᵀ``. ``informed`` is each fixed parameter's std, were all of them freed with their std as
+    a prior, over that std (white-residual information): below ~0.5 the data could estimate it. ``compile``:
+    compile the sensitivity step to C (worth it when the same sets recur, as in a Monte Carlo study)."""
+    names = [n for n in consider if n not in oe.free]
+    ng = len(oe.free)
+    if not names:
+        return Consider([], np.zeros(0), np.zeros((ng, ng)), np.zeros((ng, 0)), np.zeros(0))
+    p = oe.p_nominal.copy()
+    p[oe.i_free] = est.values[:ng]
+    # one pass with sensitivities: by default CasADi's virtual machine, not a C compile of a function used once
+    big = OutputErrorEstimator(oe.model, p, oe.free + names, oe.outputs, estimate_states=oe.states_est,
+                               estimate_biases=oe.biases, compile=compile)
+    nc = len(names)
+    theta = np.concatenate([est.values[:ng], p[big.i_free[ng:]], est.values[ng:]])
+    sims = [big.simulate(theta, m, j) for j, m in enumerate(data)]
+    if any(s[2] for s in sims):
+        raise EstimationError("consider covariance: the model diverges at the estimate")
+    res, jacs, W, _ = _linearised(list(data), sims, weight)
+    M, _ = big._normal_equations(res, jacs, W, len(theta))
+    keep = np.r_[np.arange(ng), ng + nc + np.arange(len(theta) - ng - nc)].astype(int)
+    cons = ng + np.arange(nc)
+    Mtt = M[np.ix_(keep, keep)] + np.diag(oe.prior_information(len(keep)))
+    A = np.linalg.lstsq(Mtt, M[np.ix_(keep, cons)], rcond=None)[0][:ng]
+    sd = np.array([consider[n] for n in names])
+    info = np.zeros(len(theta))
+    info[keep] = oe.prior_information(len(keep))
+    info[cons] = 1.0 / sd ** 2
+    aug = np.linalg.pinv(M + np.diag(info))
+    informed = np.sqrt(np.maximum(np.diag(aug)[cons], 0.0)) / sd
+    return Consider(names, sd, (A * sd ** 2) @ A.T, A, informed)
+
+
+#: a fixed parameter is worth freeing when its consider share shifts a free one by more than this many of
+#: its data-only std ...
+FREE_IMPACT = 1.0
+#: ... and the data would pin it down (its std, were it freed, below this fraction of the std it was given)
+FREE_INFORMED = 0.5
+
+
+def fixed_worth_freeing(est: Estimate, con: Consider) -> list[str]:
+    """The fixed parameters of ``con`` that matter (shift a free estimate by more than :data:`FREE_IMPACT`
+    data-only std) and that the data inform (``informed`` below :data:`FREE_INFORMED`), as ``--free auto``
+    frees them."""
+    if not con.names:
+        return []
+    data_std = est.data_std
+    impact = np.abs(con.influence) * con.sd[None, :] / np.maximum(data_std[:, None], 1e-300)
+    return [c for j, c in enumerate(con.names) if impact[:, j].max() > FREE_IMPACT and con.informed[j] < FREE_INFORMED]

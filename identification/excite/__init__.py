@@ -1,0 +1,3 @@
+"""Experiment design for the fixed wing: the excitation plan (``design``), its closed-loop check on the model
+(``check``), the files a flight needs (``writers``: Lua script, RC override, timeline), plots and the workflow.
+Imports ``estimation``, ``logs``, ``common``; never ``thrust``, ``aero``, ``flights`` or ``validation``."""

@@ -1,0 +1,235 @@
+"""Monte Carlo bands of a replay: how far it can be trusted given the identified parameters' uncertainty.
+
+Each of N draws replays the log's windows with
+
+* parameters drawn from the identified estimate and covariance (the parameter file's ``uncertainty`` block,
+  :class:`fmu_models.common.params.Uncertainty`),
+* each window's restart state drawn around the logged state with that signal's sensor noise (a restart from a
+  noisy logged attitude or rate is uncertain by that noise), and
+* the compared output plus white noise of the logged signal's sensor noise (the log is measured, the model
+  predicts the truth),
+
+and the 5-95 % band per sample is taken over the draws. Sensor noise (1 sigma) is estimated from each logged
+signal alone, model-free: the median absolute deviation of its second differences, / sqrt(6) (white noise on
+a signal smooth at the sample rate). A band's *coverage* is the fraction of the scored logged samples inside
+it: about 90 % when the model and its stated uncertainty explain the log, well below when they do not.
+
+Draw ``k`` is seeded by (seed, k) alone (``identification.common.parallel.task_rng``): the bands are the same bit for
+bit
+whichever worker runs which draw. Draws run in chunks as tasks of ``identification.common.parallel``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from fmu_models.common.params import Uncertainty
+from identification.validation.replay import ReplayResult, ValidationInputError
+
+if TYPE_CHECKING:
+    from identification.common.parallel import Executor
+    from identification.logs.flightlog import FlightLog
+    from identification.validation.job import ValidationJob
+    from identification.validation.output_map import SignalMap
+
+MAX_DRAWS = 10_000
+#: fewest draws whose order statistics bound a 5-95 % band (:func:`band_ranks`)
+MIN_DRAWS = 19
+BAND = (0.05, 0.95)
+#: a 90 % band covering less than this of the logged samples: the model, or its stated uncertainty, does not
+#: explain the log (a sample-fraction has scatter: with autocorrelated residuals a few points below 90 % are
+#: normal)
+MIN_COVERAGE = 0.80
+#: covering more than this: the band is wider than the log's scatter (the uncertainty is overstated)
+MAX_COVERAGE = 0.98
+#: restart-state variables and the logged signal whose noise they carry (velocity: see ``_state_noise``)
+STATE_SIGNALS = {"init_roll_rad": "roll_rad", "init_pitch_rad": "pitch_rad", "init_yaw_rad": "yaw_rad",
+                 "init_rate_body_x_rad_s": "gyro_body_x_rad_s", "init_rate_body_y_rad_s": "gyro_body_y_rad_s",
+                 "init_rate_body_z_rad_s": "gyro_body_z_rad_s", "init_pos_down_m": "altitude_m"}
+#: bytes per draw, grid sample and compared signal held at the peak (draws on the client, one signal at a time,
+#: plus a chunk on each worker: counted as all signals at once, an upper bound)
+BYTES_PER_DRAW_SAMPLE = 8
+
+
+def noise_std(values: np.ndarray, wrap: bool = False) -> float:
+    """White-noise standard deviation of a sampled signal: 1.4826 MAD of its second differences / sqrt(6)."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if len(v) < 5:
+        return 0.0
+    d = np.diff(np.unwrap(v) if wrap else v, 2)
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(6.0))
+
+
+def _state_noise(log: FlightLog) -> dict[str, float]:
+    """Sensor noise (1 sigma) of each restart-state variable, from the logged signal it is taken from; body
+    velocities from the GPS velocity's noise (rms over north, east, down), else x from the airspeed's."""
+    out = {k: noise_std(log.signal(s).values, wrap=s == "yaw_rad") for k, s in STATE_SIGNALS.items() if log.has(s)}
+    vel = [f"vel_{a}_m_s" for a in ("north", "east", "down")]
+    if all(log.has(v) for v in vel):
+        s = math.sqrt(sum(noise_std(log.signal(v).values) ** 2 for v in vel) / 3.0)
+        out |= {f"init_vel_body_{a}_m_s": s for a in "xyz"}
+    elif log.has("airspeed_m_s"):
+        out["init_vel_body_x_m_s"] = noise_std(log.signal("airspeed_m_s").values)
+    return out
+
+
+def output_noise(log: FlightLog, maps: tuple[SignalMap, ...], units: dict[str, str | None],
+                 params: dict[str, float]) -> dict[str, float]:
+    """Sensor noise (1 sigma) of each compared signal in the FMU output's units."""
+    out = {}
+    for m in maps:
+        v = m.convert(log.signal(m.log).values, units.get(m.fmu), params)
+        out[m.fmu] = noise_std(v, wrap=m.wrap)
+    return out
+
+
+@dataclass(frozen=True)
+class McTask:
+    """A chunk of draws of one replay (plain data: paths, options, the uncertainty, the noise levels)."""
+
+    job: ValidationJob
+    uncertainty: Uncertainty
+    seed: int
+    draws: tuple[int, ...]
+    state_std: dict[str, float]
+    output_std: dict[str, float]
+
+
+def _factor(cov: np.ndarray) -> np.ndarray:
+    """A square root L of a positive semi-definite covariance (L L^T = C), by eigendecomposition."""
+    w, v = np.linalg.eigh(cov)
+    return v * np.sqrt(np.clip(w, 0.0, None))
+
+
+def mc_task(task: McTask) -> dict[str, Any]:
+    """Worker side: simulate the task's draws; per compared signal an array (draws x grid samples), NaN where
+    not scored or where a draw's FMU run failed (listed with its error)."""
+    from fmu_models.fmi.host import FmuHost, FmuRunError
+    from fmu_models.signals.pwm_mapping import PwmMapping
+    from identification.common.parallel import local_path, task_rng
+    from identification.logs.readers import read_log
+    from identification.validation.job import load_maps
+    from identification.validation.replay import replay_setup, simulate_setup, vehicle_of
+    from identification.validation.replay_battery import job_battery_state
+
+    job = task.job
+    log = read_log(local_path(job.log), channel_map=local_path(job.channel_map) if job.channel_map else None)
+    unc = task.uncertainty
+    mean, chol = np.asarray(unc.mean), _factor(np.asarray(unc.covariance, dtype=float))
+    with FmuHost(local_path(job.fmu)) as host:
+        maps = load_maps(replace(job, output_map=local_path(job.output_map) if job.output_map else None),
+                          vehicle_of(host))
+        mapping = PwmMapping.load(local_path(job.mapping)) if job.mapping else None
+        battery = job_battery_state(local_path(job.fmu), local_path(job.params_file) if job.params_file else None,
+                                    job.embedded_params, vehicle_of(host))
+        setup = replay_setup(host, log, job.log, maps, job.options, dict(job.start_values), mapping, battery=battery)
+        n = len(setup.t)
+        out = {m.fmu: np.full((len(task.draws), n), np.nan) for m in maps}
+        failed = []
+        for r, k in enumerate(task.draws):
+            rng = task_rng(task.seed, k)  # fixed order of use: parameters, restart states, output noise
+            params = dict(zip(unc.names, (mean + chol @ rng.standard_normal(len(mean))).tolist(), strict=True))
+            keys = [key for key in setup.starts[0] if key in task.state_std]
+            kicks = rng.standard_normal((len(setup.starts), len(keys)))
+            starts = [{**s, **params, **{key: s[key] + task.state_std[key] * kicks[w, j]
+                                         for j, key in enumerate(keys)}} for w, s in enumerate(setup.starts)]
+            noise = {m.fmu: rng.normal(0.0, task.output_std.get(m.fmu, 0.0), n) for m in maps}
+            try:
+                model, _ = simulate_setup(host, setup, maps, starts)
+            except FmuRunError as err:
+                failed.append([k, str(err)])
+                continue
+            for m in maps:
+                out[m.fmu][r] = model[m.fmu] + noise[m.fmu]
+    return {"draws": np.asarray(task.draws), "failed": failed, **{f"y:{k}": v for k, v in out.items()}}
+
+
+@dataclass
+class Bands:
+    """5-95 % bands (on the replay's scored grid) and their coverage of the logged samples, per signal."""
+
+    lo: dict[str, np.ndarray]
+    hi: dict[str, np.ndarray]
+    coverage: dict[str, float]
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def verdict(self, name: str) -> tuple[str, str]:
+        """``consistent`` | ``not explained`` | ``wide``, and the reason in words."""
+        c = self.coverage.get(name, float("nan"))
+        nominal = f"{BAND[1] - BAND[0]:.0%} band covers {c:.0%} of the logged samples"
+        if not math.isfinite(c):
+            return "n/a", "no scored sample"
+        if c < MIN_COVERAGE:
+            return "not explained", (f"{nominal} (below {MIN_COVERAGE:.0%}): the model, or its stated "
+                                     "uncertainty, does not explain the log")
+        if c > MAX_COVERAGE:
+            return "wide", f"{nominal} (above {MAX_COVERAGE:.0%}): the stated uncertainty may be overstated"
+        return "consistent", nominal
+
+
+def band_ranks(n: int) -> tuple[int, int]:
+    """0-based ranks (j, k) of the draws bounding the 5-95 % band of ``n`` draws: j = floor(0.05 (n+1)),
+    k = ceil(0.95 (n+1)) (1-based), so a new sample exchangeable with the draws falls inside with probability
+    (k - j) / (n + 1) >= 0.90 (``numpy.quantile`` would give about 0.9 (n-1)/(n+1): 86 % at 40 draws)."""
+    j = max(1, math.floor(BAND[0] * (n + 1) + 1e-9))
+    k = min(n, math.ceil(BAND[1] * (n + 1) - 1e-9))
+    return j - 1, k - 1
+
+
+def prediction_band(ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper band per column of ``ys`` (draws x samples; NaN columns give NaN)."""
+    j, k = band_ranks(len(ys))
+    srt = np.sort(ys, axis=0)
+    return srt[j], srt[k]
+
+
+def check_draws(draws: int, n_samples: int, n_signals: int, max_memory_mb: float) -> None:
+    """``ValidationInputError`` before anything is allocated when ``draws`` is out of range or the draws
+    would not fit in ``max_memory_mb``."""
+    if not MIN_DRAWS <= draws <= MAX_DRAWS:
+        raise ValidationInputError(f"--mc = {draws}: allowed {MIN_DRAWS}..{MAX_DRAWS} (a 5-95 % band needs at least "
+                                   f"{MIN_DRAWS} draws)")
+    need = draws * n_samples * max(1, n_signals) * BYTES_PER_DRAW_SAMPLE
+    if need > max_memory_mb * 2**20:
+        raise ValidationInputError(f"--mc = {draws}: the draws would need about {need / 2**20:,.0f} MB ({n_samples:,} "
+                                   f"samples x {n_signals} signals), above --max-memory-mb {max_memory_mb:g}; use "
+                                   "fewer draws, a lower --rate-hz or raise --max-memory-mb")
+
+
+def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: FlightLog, draws: int, seed: int,
+                executor: Executor, units: dict[str, str | None], progress: Any = False) -> Bands:
+    """Run ``draws`` draws of ``job`` (whose nominal replay is ``res``) on ``executor``; the bands."""
+    from identification.validation.job import job_files
+
+    check_draws(draws, len(res.t_s) + 1, len(res.maps), res.options["max_memory_mb"])
+    params = {**{k: float(v) for k, v in res.fmu["parameters"].items()}, **dict(job.start_values)}
+    state_std, out_std = _state_noise(log), output_noise(log, res.maps, units, params)
+    chunk = max(1, math.ceil(draws / (2 * executor.threads())))  # each chunk reads the log and sets up once
+    tasks = [McTask(job, unc, seed, tuple(range(a, min(draws, a + chunk))), state_std, out_std)
+             for a in range(0, draws, chunk)]
+    run = executor.map_tasks(mc_task, tasks, files=lambda t: job_files(t.job), progress=progress, desc="mc")
+    failed = [*([f"draws {t.draws[0]}..{t.draws[-1]}: {e}" for i, e in run.failures.items() for t in [tasks[i]]]),
+              *(f"draw {k}: {e}" for _, r in run.results(arrays=()) if r for k, e in r["failed"])]
+    lo, hi, cov = {}, {}, {}
+    for m in res.maps:  # one signal of all draws in memory at a time
+        rows = [r[f"y:{m.fmu}"] for _, r in run.results(arrays=[f"y:{m.fmu}"]) if r is not None]
+        ys = np.concatenate(rows)[:, 1:] if rows else np.full((0, len(res.t_s)), np.nan)
+        ys = ys[np.isfinite(ys).any(axis=1)]
+        if len(ys) < MIN_DRAWS:
+            raise ValidationInputError(f"Monte Carlo: fewer than {MIN_DRAWS} of {draws} draws ran "
+                                       f"({'; '.join(failed[:3])})")
+        lo[m.fmu], hi[m.fmu] = prediction_band(ys)
+        y = res.measured[m.fmu]
+        ok = np.isfinite(y) & np.isfinite(lo[m.fmu]) & np.isfinite(res.model[m.fmu])
+        inside = (y[ok] >= lo[m.fmu][ok]) & (y[ok] <= hi[m.fmu][ok])
+        cov[m.fmu] = float(inside.mean()) if ok.any() else float("nan")
+    info = {"draws": draws, "draws_run": len(ys), "seed": seed, "band": list(BAND), "parameters": unc.names,
+            "mean": unc.mean, "std": list(unc.std.values()), "output_noise_std": out_std, "state_noise_std": state_std,
+            "failed": failed, "retried_tasks": len(run.retried),
+            "min_coverage": MIN_COVERAGE, "max_coverage": MAX_COVERAGE}
+    return Bands(lo, hi, cov, info)

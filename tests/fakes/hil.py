@@ -1,0 +1,165 @@
+"""Fake autopilots for the HIL tests: a quadrotor altitude/attitude controller on top of what an autopilot
+receives (state estimates), and helpers to turn interface messages into the controller's inputs."""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import numpy as np
+
+from identification.flights.scenarios import QuadrotorAutopilot, published_thrust_inverse
+
+
+def euler_from_quat(w: float, x: float, y: float, z: float) -> tuple[float, float, float]:
+    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
+    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return roll, pitch, yaw
+
+
+def body_velocity(q: tuple[float, float, float, float], v_ned: tuple[float, float, float]) -> np.ndarray:
+    w, x, y, z = q
+    r_b2n = np.array([
+        [w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z],
+    ])
+    return r_b2n.T @ np.asarray(v_ned)
+
+
+def controller_inputs(q: tuple[float, float, float, float], rates: tuple[float, float, float],
+                      altitude_m: float, v_ned: tuple[float, float, float]) -> dict[str, float]:
+    roll, pitch, yaw = euler_from_quat(*q)
+    vb = body_velocity(q, v_ned)
+    return {"altitude_m": altitude_m, "vel_down_m_s": v_ned[2], "roll_rad": roll, "pitch_rad": pitch,
+            "yaw_rad": yaw, "rate_body_x_rad_s": rates[0], "rate_body_y_rad_s": rates[1],
+            "rate_body_z_rad_s": rates[2], "vel_body_x_m_s": vb[0], "vel_body_y_m_s": vb[1]}
+
+
+def hold_10m_autopilot() -> QuadrotorAutopilot:
+    return QuadrotorAutopilot(lambda t: 10.0, published_thrust_inverse())
+
+
+def recorded(server: Any, timeout_s: float = 5.0) -> Any:
+    """The server's recorder once it has written a row for every step (the row of the frame just answered is
+    written after the reply, off the autopilot's critical path); bounded wait."""
+    deadline = time.monotonic() + timeout_s
+    while server.recorder.rows < server.stats.steps and time.monotonic() < deadline:
+        time.sleep(0.001)
+    return server.recorder
+
+
+@contextmanager
+def serving(server: Any, **serve_kwargs: Any) -> Iterator[Any]:
+    """Run ``server.serve(stop=...)`` in a thread for the duration of the block; always stop and join it."""
+    stop = threading.Event()
+    th = threading.Thread(target=server.serve, kwargs={"stop": stop, **serve_kwargs}, daemon=True)
+    th.start()
+    try:
+        yield server
+    finally:
+        stop.set()
+        th.join(timeout=10)
+
+
+class LockstepPx4Client:
+    """A minimal PX4 SITL stand-in over TCP: answers each HIL_SENSOR with HIL_ACTUATOR_CONTROLS and checks that
+    the time it is sent never goes backwards. Runs until the adapter closes the connection (or ``max_s``)."""
+
+    def __init__(self, port: int, controls: float = 0.0, max_s: float = 30.0) -> None:
+        self.port, self.controls, self.max_s = port, controls, max_s
+        self.steps = 0
+        self.backwards = 0
+        self.times_us: list[int] = []
+        self.connected = threading.Event()
+        self.error = ""
+
+    def run(self) -> None:
+        import socket
+        import time
+
+        from pymavlink.dialects.v20 import common as mavlink2
+
+        deadline = time.monotonic() + self.max_s
+        sock = None
+        while sock is None and time.monotonic() < deadline:
+            try:
+                sock = socket.create_connection(("127.0.0.1", self.port), timeout=0.2)
+            except OSError:
+                time.sleep(0.02)
+        if sock is None:
+            self.error = "could not connect"
+            return
+        self.connected.set()
+        sock.settimeout(2.0)
+        mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+        last = -1
+        try:
+            while time.monotonic() < deadline:
+                data = sock.recv(65536)
+                if not data:
+                    return  # the adapter stopped
+                for m in mav.parse_buffer(data) or []:
+                    if m.get_type() != "HIL_SENSOR":
+                        continue
+                    self.backwards += m.time_usec <= last
+                    last = m.time_usec
+                    self.times_us.append(last)
+                    self.steps += 1
+                    sock.sendall(mav.hil_actuator_controls_encode(
+                        m.time_usec, [self.controls] * 16, mavlink2.MAV_MODE_FLAG_SAFETY_ARMED, 1).pack(mav))
+        except OSError as err:  # reset by the adapter on its way out: fine
+            self.error = str(err) if not isinstance(err, ConnectionError) else ""
+        finally:
+            sock.close()
+
+
+def free_tcp_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def sigint_sessions(fmu: str, sessions: int, seed: int) -> int:
+    """Run ``sessions`` lockstep PX4 sessions through ``hil_adapter.session.serve`` in this process's main
+    thread, each stopped by a SIGINT at a random moment; prints one line per session and a total. Exit
+    status 0 when every session ended with a summary and no client saw time go backwards."""
+    import os
+    import random
+    import signal
+    import time
+
+    from hil_adapter.session import serve
+
+    rng = random.Random(seed)
+    bad = 0
+    for k in range(sessions):
+        port = free_tcp_port()
+        client = LockstepPx4Client(port, controls=rng.choice([0.0, 0.3, 0.6]))
+        delay = rng.uniform(0.0, 0.25)
+
+        def interrupt(c: LockstepPx4Client = client, d: float = delay) -> None:
+            if c.connected.wait(10.0):
+                time.sleep(d)
+            os.kill(os.getpid(), signal.SIGINT)
+
+        threads = [threading.Thread(target=client.run), threading.Thread(target=interrupt)]
+        for th in threads:
+            th.start()
+        result = serve(fmu, "px4", port=port)
+        for th in threads:
+            th.join(timeout=10)
+        ok = (result.stopped_by == "signal SIGINT" and "steps" in result.summary and client.backwards == 0
+              and not client.error and result.summary["sim_time_s"] > 0)
+        bad += not ok
+        print(f"session {k}: {'ok' if ok else 'FAILED'} stopped_by={result.stopped_by} steps={client.steps} "
+              f"backwards={client.backwards} delay={delay:.3f}s {client.error}", flush=True)
+    print(f"sigint sessions: {sessions}, failed: {bad}", flush=True)
+    return 0 if bad == 0 else 1

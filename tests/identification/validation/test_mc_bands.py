@@ -1,0 +1,180 @@
+"""Monte Carlo bands (``uavfmu validate --mc N``): calibrated on a synthetic log of the true model with the demo's
+sensor noise, revealing on a deliberately wrong model, independent of how draws are split over workers, and
+bounded, checked input."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fmu_models.common.errors import ParameterError
+from fmu_models.common.params import Uncertainty, read_uncertainty
+from identification.flights import synthetic
+from identification.validation.mc_bands import McTask, band_ranks, mc_task, noise_std, prediction_band
+from identification.validation.replay import options
+from identification.validation.workflow import ValidationJob, validate_mc
+from uavfmu.cli import main
+
+#: the Aerosonde derivatives an aero identification estimates (a subset), at their true (FMU default) values
+NAMES = ["C_ell_p", "C_m_q", "C_n_r", "C_m_alpha", "C_ell_delta_a", "C_m_delta_e"]
+TRUTH = np.array([-0.51, -38.21, -0.095, -2.74, 0.17, -0.99])
+#: the compared signals the demo logs with sensor noise (synthetic.NOISE); altitude is logged noise-free
+IDENTIFIED = ["roll_rad", "pitch_rad", "yaw_rad", "rate_body_x_rad_s", "rate_body_y_rad_s", "rate_body_z_rad_s",
+              "airspeed_m_s", "accel_body_x_m_s2", "accel_body_y_m_s2", "accel_body_z_m_s2"]
+DRAWS = 40
+
+
+def identified(scale: float = 1.0, rel_std: float = 0.01, seed: int = 1) -> Uncertainty:
+    """An identification result: the estimate off the truth by one draw of its own covariance (as an unbiased
+    estimator's would be), times ``scale`` (1: a right model; else deliberately wrong)."""
+    std = rel_std * np.abs(TRUTH)
+    est = TRUTH + std * np.random.default_rng(seed).standard_normal(len(TRUTH))
+    return Uncertainty(names=NAMES, mean=list(est * scale), covariance=np.diag(std**2).tolist())
+
+
+@pytest.fixture(scope="module")
+def wing(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    d = tmp_path_factory.mktemp("mc")
+    t, sig = synthetic.fixed_wing_flight(seconds=20.0, rate_hz=50.0, noise=True, seed=2)
+    return {"dir": d, "log": synthetic.write_csv_log(d / "wing.csv", t, sig),
+            "mapping": synthetic.write_mapping_toml(d / "mapping.toml")}
+
+
+def _job(fmu: Path, wing: dict[str, Path], report: Path | None) -> ValidationJob:
+    return ValidationJob(fmu, wing["log"], options(window_s=2.0, rate_hz=50.0), mapping=wing["mapping"],
+                         report_dir=report)
+
+
+def _pooled(signals: dict) -> float:
+    return float(np.mean([signals[s]["band_coverage"] for s in IDENTIFIED]))
+
+
+def test_true_model_bands_cover_about_ninety_percent(fixed_wing_fmu: Path, wing, tmp_path: Path) -> None:
+    out = validate_mc(_job(fixed_wing_fmu, wing, tmp_path), identified(), DRAWS, seed=3, workers=2)
+    pooled = _pooled(out.signals)
+    assert 0.85 <= pooled <= 0.95, {s: round(out.signals[s]["band_coverage"], 3) for s in IDENTIFIED}
+    assert all(out.signals[s]["band_verdict"] != "not explained" for s in IDENTIFIED)
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["signals"]["roll_rad"]["band_coverage"] == out.signals["roll_rad"]["band_coverage"]
+    assert "skill_persistence" in metrics["signals"]["roll_rad"]
+    mc = metrics["monte_carlo"]
+    assert mc["draws"] == mc["draws_run"] == DRAWS and mc["parameters"] == NAMES and not mc["failed"]
+    # the noise the bands carry is estimated from the log: the demo's sensor noise, recovered within 15 %
+    assert mc["output_noise_std"]["roll_rad"] == pytest.approx(synthetic.NOISE["roll_rad"], rel=0.15)
+    assert mc["output_noise_std"]["airspeed_m_s"] == pytest.approx(synthetic.NOISE["airspeed_m_s"], rel=0.15)
+    page = (tmp_path / "report.html").read_text()
+    assert "5-95 % band coverage" in page and "Not explained" not in page
+
+
+def test_wrong_model_coverage_drops_and_the_report_says_so(fixed_wing_fmu: Path, wing, tmp_path: Path) -> None:
+    """Derivatives 30 % off with the right model's confidence: the replay still beats persistence on every
+    signal, but its bands miss the log, and the console, metrics.json and report say so."""
+    out = validate_mc(_job(fixed_wing_fmu, wing, tmp_path), identified(scale=1.3), DRAWS, seed=3, workers=2)
+    assert _pooled(out.signals) < 0.75
+    bad = [s for s in IDENTIFIED if out.signals[s]["band_verdict"] == "not explained"]
+    assert len(bad) >= len(IDENTIFIED) // 2
+    text = "\n".join(out.lines())
+    assert all(f"NOT EXPLAINED {s}" in text for s in bad)
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert {s for s, v in metrics["signals"].items() if v["band_verdict"] == "not explained"} >= set(bad)
+    assert "Not explained by the model and its uncertainty" in (tmp_path / "report.html").read_text()
+
+
+def test_draws_do_not_depend_on_how_they_are_split(fixed_wing_fmu: Path, wing) -> None:
+    """Draw k is seeded by (seed, k): one task of 4 draws equals two tasks of 2, bit for bit."""
+    job = replace(_job(fixed_wing_fmu, wing, None), start_values={})
+    base = McTask(job, identified(), 9, (0, 1, 2, 3), {"init_roll_rad": 0.003}, {"roll_rad": 0.003})
+    whole = mc_task(base)
+    halves = [mc_task(replace(base, draws=d)) for d in ((0, 1), (2, 3))]
+    for key in (k for k in whole if k.startswith("y:")):
+        np.testing.assert_array_equal(whole[key], np.concatenate([h[key] for h in halves]))
+    assert not whole["failed"]
+    assert not np.array_equal(whole["y:roll_rad"][0], whole["y:roll_rad"][1])  # the draws differ
+
+
+def test_band_ranks_give_a_ninety_percent_prediction_interval() -> None:
+    for n in (19, 40, 100, 1000):
+        j, k = band_ranks(n)
+        assert 0.90 <= (k - j) / (n + 1) < 0.90 + 2.0 / (n + 1)
+    # exchangeable draws: a new sample from the same distribution falls inside about 90 % of the time
+    rng = np.random.default_rng(0)
+    ys = rng.standard_normal((40, 20000))
+    lo, hi = prediction_band(ys)
+    new = rng.standard_normal(20000)
+    assert 0.88 < float(np.mean((new >= lo) & (new <= hi))) < 0.92
+
+
+def test_noise_estimate_is_model_free() -> None:
+    t = np.arange(0.0, 20.0, 0.01)
+    rng = np.random.default_rng(1)
+    smooth = np.sin(1.3 * t) + 0.2 * t
+    assert noise_std(smooth + rng.normal(0.0, 0.05, len(t))) == pytest.approx(0.05, rel=0.1)
+    assert noise_std(smooth) < 1e-3
+
+
+def test_uncertainty_schema_names_each_problem(tmp_path: Path) -> None:
+    def problems(block: object) -> str:
+        path = tmp_path / "p.json"
+        path.write_text(json.dumps({"mass_kg": 1.2, "uncertainty": block}))
+        with pytest.raises(ParameterError) as err:
+            read_uncertainty(path)
+        return str(err.value)
+
+    assert "mean has 1 values for 2 names" in problems({"names": ["a", "b"], "mean": [1.0], "covariance": [[1, 0],
+                                                                                                         [0, 1]]})
+    assert "not symmetric" in problems({"names": ["a", "b"], "mean": [1, 2], "covariance": [[1, 0.5], [0, 1]]})
+    assert "negative eigenvalue" in problems({"names": ["a", "b"], "mean": [1, 2], "covariance": [[1, 2], [2, 1]]})
+    assert "mean.1" in problems({"names": ["a", "b"], "mean": [1, "x"], "covariance": [[1, 0], [0, 1]]})
+    assert "2 x 2" in problems({"names": ["a", "b"], "mean": [1, 2], "covariance": [[1, 0]]})
+    (tmp_path / "none.json").write_text('{"mass_kg": 1.2}')
+    with pytest.raises(ParameterError, match="no \"uncertainty\" key"):
+        read_uncertainty(tmp_path / "none.json")
+
+
+def test_cli_bounds_mc_before_running(fixed_wing_fmu: Path, wing, tmp_path: Path, capsys) -> None:
+    params = tmp_path / "params.json"
+    unc = identified()
+    params.write_text(json.dumps({"uncertainty": unc.model_dump()}))
+    base = ["validate", str(fixed_wing_fmu), str(wing["log"]), "--mapping", str(wing["mapping"]), "--quiet"]
+    assert main([*base, "--mc", "5", "--uncertainty", str(params)]) == 2
+    assert "--mc = 5: allowed 19..10000" in capsys.readouterr().err
+    assert main([*base, "--mc", "40"]) == 2
+    assert "--uncertainty" in capsys.readouterr().err
+    assert main([*base, "--mc", "10000", "--uncertainty", str(params), "--max-memory-mb", "1", "--jobs", "1"]) == 2
+    assert "would need about" in capsys.readouterr().err
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"uncertainty": {**unc.model_dump(), "names": ["C_ell_p", "C_m_q", "C_n_r",
+                                                                           "C_m_alpha", "C_ell_delta_a", "wingspan"]}}))
+    assert main([*base, "--mc", "20", "--uncertainty", str(bad), "--jobs", "1"]) == 2
+    assert "wingspan" in capsys.readouterr().err
+
+
+def test_cli_mc_prints_coverage_beside_skill(fixed_wing_fmu: Path, wing, tmp_path: Path, capsys) -> None:
+    params = tmp_path / "params.json"
+    params.write_text(json.dumps({"uncertainty": identified(scale=1.3).model_dump()}))
+    rc = main(["validate", str(fixed_wing_fmu), str(wing["log"]), "--mapping", str(wing["mapping"]), "--quiet",
+               "--mc", "19", "--uncertainty", str(params), "--jobs", "1", "--report", str(tmp_path / "r")])
+    out = capsys.readouterr().out
+    metrics = json.loads((tmp_path / "r" / "metrics.json").read_text())
+    assert rc == (1 if metrics["failed"] else 0)  # coverage is reported, the exit status is the skill verdicts'
+    assert "band cover" in out and "NOT EXPLAINED" in out
+    assert metrics["monte_carlo"]["draws"] == 19
+
+
+def test_mc_batch_runs_every_job_on_one_cluster_and_lists_a_bad_one(fixed_wing_fmu: Path, wing,
+                                                                      tmp_path: Path) -> None:
+    from identification.validation.workflow import validate_mc_batch
+
+    good = _job(fixed_wing_fmu, wing, None)
+    bad = replace(good, log=tmp_path / "missing.csv")
+    alone = validate_mc(good, identified(), 19, seed=5, workers=1)
+    out = validate_mc_batch([bad, good], identified(), 19, seed=5, workers=1)
+    assert [r.status == "error" for r in out] == [True, False]
+    assert "missing.csv" in out[0].error
+    # the same draws as the run alone: coverage identical to the bit
+    assert {s: v["band_coverage"] for s, v in out[1].signals.items()} == \
+        {s: v["band_coverage"] for s, v in alone.signals.items()}
