@@ -2,9 +2,11 @@
 
 ``python build_fmus.py [--params FILE.json] [--out DIR] [--only quadrotor|fixed_wing] [--backend native|python]
 [--fmi 2|3] [--kind cs|me|both] [--platforms linux64,win64,darwin64] [--jobs N]`` (same as ``uavfmu build``).
-A parameter file may hold a ``quadrotor`` and/or a ``fixed_wing`` section;
-missing sections and keys keep the published defaults (paper 000 Tables 1-3, the Aerosonde set of Beard &
-McLain). The workflow is ``fmu_models.fmi.fmus.build_fmus``; the CLI is ``uavfmu/commands/build.py``.
+A parameter file may hold a ``quadrotor`` and/or a ``fixed_wing`` section, or one vehicle's keys flat at the
+top level (the keys tell the vehicle; a file that does not tell it, or has nothing for the models built, is
+refused naming its keys); missing sections and keys keep the published defaults (paper 000 Tables 1-3,
+the Aerosonde set of Beard & McLain). The workflow is ``fmu_models.fmi.fmus.build_fmus``; the CLI is
+``uavfmu/commands/build.py``.
 """
 
 from __future__ import annotations

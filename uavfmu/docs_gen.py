@@ -70,11 +70,13 @@ PAGES = (
     Page("quadrotor-params", "Quadrotor parameter file (`uavfmu build --params FILE.json`, `quadrotor` section)",
          "fmu_models.quadrotor.params:QuadrotorParams",
          "`uavfmu build --params`; written by `uavfmu identify thrust`. Every parameter is also a tunable FMU "
-         "parameter of the same name."),
+         "parameter of the same name. The keys sit in a `quadrotor` section, or at the top level when they tell "
+         "the vehicle (a file whose keys fit both vehicles alike, or neither, is refused naming them)."),
     Page("fixed-wing-params", "Fixed-wing parameter file (`uavfmu build --params FILE.json`, `fixed_wing` section)",
          "fmu_models.fixed_wing.params:FixedWingParams",
          "`uavfmu build --params`; written by `uavfmu identify aero`. Every parameter is also a tunable FMU "
-         "parameter of the same name."),
+         "parameter of the same name. The keys sit in a `fixed_wing` section, or at the top level when they tell "
+         "the vehicle (a file whose keys fit both vehicles alike, or neither, is refused naming them)."),
     Page("anfis-map", "ANFIS thrust map (`thrust_map` of a quadrotor parameter file)",
          "fmu_models.quadrotor.anfis:AnfisMapFile",
          "The quadrotor FMU's thrust map; written by `uavfmu identify thrust`."),

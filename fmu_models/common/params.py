@@ -150,6 +150,76 @@ def validate_params(
     return {k: getattr(model, k) for k in model.model_fields_set}
 
 
+def file_keys(cls: type, extra: ExtraFields | None = None, sections: tuple[str, ...] = (),
+              retired: Mapping[str, str] | None = None) -> frozenset[str]:
+    """Every key a flat parameter file of dataclass ``cls`` may hold (retired keys included: they belong to it and
+    get their own message): the scalar parameters, the ``extra`` keys and the sub-table names ``sections``."""
+    return frozenset({f.name for f in numeric_fields(cls)} | set(extra or {}) | set(sections) | set(retired or {}))
+
+
+#: top-level keys of a parameter file that belong to no vehicle's parameters (read by ``validate --mc``)
+FILE_LEVEL_KEYS = ("uncertainty",)
+
+
+def _listed(keys: Any, limit: int = 8) -> str:
+    keys = sorted(map(str, keys))
+    return ", ".join(keys[:limit]) + (f" and {len(keys) - limit} more" if len(keys) > limit else "")
+
+
+def vehicle_sections(data: Any, known: Mapping[str, frozenset[str]], source: str) -> dict[str, dict[str, Any]]:
+    """The parameters of each vehicle in parameter-file contents ``data``: vehicle name -> its table.
+
+    ``known`` maps each vehicle name to the keys its flat file may hold (:func:`file_keys`). A file holds either
+    one table per vehicle under its name (``{"quadrotor": {...}}``), or one vehicle's keys at the top level
+    (a flat file), whose vehicle the keys tell: the one whose keys hold them all, else the only one with keys
+    no other vehicle has (its own check then names the rest). ``_``-keys are comments and
+    :data:`FILE_LEVEL_KEYS` belong to the file. :class:`ParameterError` naming ``source`` and the keys when a
+    sectioned file has other keys beside its sections, a flat file holds no parameters, keys that fit every
+    vehicle (ambiguous: the file must name its vehicle) or keys of several vehicles, or keys of none.
+    """
+    if not isinstance(data, Mapping):
+        raise ParameterError(source, [f"expected a table of parameters, found {type(data).__name__}"])
+    own = {k: v for k, v in data.items() if not (isinstance(k, str) and k.startswith("_")) and k not in FILE_LEVEL_KEYS}
+    names = " or ".join(f'"{v}"' for v in known)
+    wrap = f'put them under the vehicle\'s key ({names}: {{"{next(iter(known))}": {{...}}}})'
+    found = [v for v in known if v in own]
+    if found:
+        stray = [k for k in own if k not in known]
+        if stray:
+            raise ParameterError(source, [f"keys {_listed(stray)} sit beside the vehicle sections {', '.join(found)} "
+                                          "and would be ignored: move each into its vehicle's section"])
+        return {v: own[v] for v in found}
+    if not own:
+        raise ParameterError(source, [f"no parameters (keys: {_listed(data) or 'none'}); a parameter file holds a "
+                                      f"vehicle's section ({names}) or one vehicle's parameters at the top level"])
+    keys = set(map(str, own))
+    fits = [v for v, ks in known.items() if keys <= ks]
+    if len(fits) == 1:
+        return {fits[0]: dict(own)}
+    if len(fits) > 1:
+        raise ParameterError(source, [f"keys {_listed(keys)} are parameters of {' and '.join(fits)} alike, so the "
+                                      f"file does not tell which vehicle they are for: {wrap}"])
+    specific = {v: {k for k in keys if k in ks and not any(k in o for w, o in known.items() if w != v)}
+                for v, ks in known.items()}
+    voters = [v for v, ks in specific.items() if ks]
+    if len(voters) == 1:
+        return {voters[0]: dict(own)}
+    if len(voters) > 1:
+        raise ParameterError(source, ["keys of several vehicles in one flat file: " + "; ".join(
+            f"{_listed(specific[v])} only of {v}" for v in voters) + f"; {wrap}, one section per vehicle"])
+    every = set().union(*known.values())
+    lines = []
+    for k in sorted(keys - every):
+        close = difflib.get_close_matches(k, sorted(every), n=1)
+        lines.append(f"{k} is a parameter of no vehicle ({', '.join(known)})"
+                     + (f" (did you mean {close[0]}?)" if close else ""))
+    shared = keys & every
+    if shared:
+        lines.append(f"the other keys ({_listed(shared)}) fit {' and '.join(known)} alike, so the file does not tell "
+                     f"which vehicle it is for: {wrap}")
+    raise ParameterError(source, lines)
+
+
 def read_json(path: str | Path) -> dict[str, Any]:
     """Read a parameter file (JSON, or TOML by suffix); :class:`ParameterError` names the file on failure."""
     try:

@@ -18,7 +18,7 @@ from typing import Annotated, Any
 
 from pydantic import Field
 
-from fmu_models.common.params import param, read_json, validate_params
+from fmu_models.common.params import file_keys, param, read_json, validate_params
 from fmu_models.config import PositiveFiniteFloat
 
 DEFAULTS_FILE = Path(__file__).with_name("aerosonde.json")
@@ -40,6 +40,12 @@ RETIRED: dict[str, str] = {
     "C_D_alpha": "the drag polar's slope comes from C_L_alpha and e_oswald; delete C_D_alpha",
     "epsilon": "the model never used it; delete epsilon",
 }
+
+
+#: informative keys of aerosonde.json (the model uses KQ_N_m_per_A), checked but not stored
+FILE_EXTRAS = {"KV_rpm_per_V": (PositiveFiniteFloat, 1.0), "ncells": (Annotated[int, Field(ge=1, le=100)], 1)}
+#: sub-tables of a parameter file whose keys are merged into the top level
+SECTIONS = ("propulsion",)
 
 
 def _c(key: str, unit: str, text: str) -> Any:
@@ -126,10 +132,8 @@ class FixedWingParams:
                 log.info("%s: %s left out (reference values of the published set, not parameters of this model)",
                          source, ", ".join(dropped))
             values = {k: v for k, v in values.items() if k not in REFERENCE_ONLY}
-        # informative keys of aerosonde.json (the model uses KQ_N_m_per_A), checked but not stored
-        extra = {"KV_rpm_per_V": (PositiveFiniteFloat, 1.0), "ncells": (Annotated[int, Field(ge=1, le=100)], 1)}
-        scalars = validate_params(cls, values, source, extra=extra, sections=("propulsion",), retired=RETIRED)
-        return dataclasses.replace(cls(), **{k: v for k, v in scalars.items() if k not in extra})
+        scalars = validate_params(cls, values, source, extra=FILE_EXTRAS, sections=SECTIONS, retired=RETIRED)
+        return dataclasses.replace(cls(), **{k: v for k, v in scalars.items() if k not in FILE_EXTRAS})
 
     @classmethod
     def load(cls, path: str | Path) -> FixedWingParams:
@@ -149,3 +153,7 @@ class FixedWingParams:
     @property
     def aspect_ratio(self) -> float:
         return self.b_m**2 / self.S_wing_m2
+
+
+#: every key a flat fixed-wing parameter file may hold (what tells a flat file's vehicle)
+FLAT_FILE_KEYS = file_keys(FixedWingParams, FILE_EXTRAS, SECTIONS, RETIRED)

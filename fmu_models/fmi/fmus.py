@@ -60,13 +60,33 @@ class BuildOptions:
                              "count, at most that)")
 
 
-def split_params(data: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    """Sections per model from a parameter file; a bare thrust map or flat set goes to the model it fits."""
-    if any(k in data for k in MODELS):
-        return {k: data[k] for k in MODELS if k in data}
-    if "thrust_map" in data or data.get("type") == "anfis":
-        return {"quadrotor": data if "thrust_map" in data else {"thrust_map": data}}
-    return {"fixed_wing": data}
+def split_params(data: dict[str, Any], source: str = "parameter file") -> dict[str, dict[str, Any]]:
+    """Sections per model from a parameter file (:func:`fmu_models.common.params.vehicle_sections`): one section per
+    model, a flat set whose keys tell its model, or a bare thrust map (the quadrotor's). ``ParameterError``
+    naming ``source`` and the keys when the model cannot be told or keys would be left unused."""
+    from fmu_models.common.params import vehicle_sections
+    from fmu_models.fixed_wing.params import FLAT_FILE_KEYS as FIXED_WING_KEYS
+    from fmu_models.quadrotor.params import FLAT_FILE_KEYS as QUADROTOR_KEYS
+
+    if isinstance(data, dict) and data.get("type") == "anfis" and not any(k in data for k in MODELS):
+        return {"quadrotor": {"thrust_map": data}}
+    return vehicle_sections(data, {"quadrotor": QUADROTOR_KEYS, "fixed_wing": FIXED_WING_KEYS}, source)
+
+
+def sections_to_build(data: dict[str, Any], only: Sequence[str], source: str) -> dict[str, dict[str, Any]]:
+    """The sections of parameter-file contents ``data`` for the models ``only``: ``ParameterError`` naming
+    ``source`` and the file's keys when none of its parameters is for a model being built."""
+    from fmu_models.common.errors import ParameterError
+
+    sections = split_params(data, source)
+    used = {k: v for k, v in sections.items() if k in only}
+    if not used:
+        held = "; ".join(f"{name}: {', '.join(sorted(map(str, v))) or 'an empty section'}"
+                         for name, v in sections.items())
+        raise ParameterError(source, [f"holds parameters of {', '.join(sections)} only ({held}), and the build "
+                                      f"makes {', '.join(only)}: build {', '.join(sections)} (--only), or give "
+                                      f"a file for {', '.join(only)}"])
+    return used
 
 
 def make_model(name: str, values: dict[str, Any] | None, source: str) -> Any:
@@ -142,9 +162,13 @@ def build_fmus(
     if backend == "python" and (options.fmi_version != 2 or "cs" not in options.kinds):
         raise ValueError("the python backend builds FMI 2.0 Co-Simulation only (--fmi 2 --kind cs)")
     t0 = time.perf_counter()
-    sections = split_params(read_json(params_file)) if params_file else {}
+    names = list(only or MODELS)
+    unknown = [n for n in names if n not in MODELS]
+    if unknown:
+        raise ValueError(f"model = {unknown[0]!r} is not one of {', '.join(MODELS)}")
+    sections = sections_to_build(read_json(params_file), names, str(params_file)) if params_file else {}
     models = [(make_model(name, sections.get(name), f"{params_file or 'defaults'} [{name}]"),
-               HERE / name / "readme.md") for name in only or MODELS]
+               HERE / name / "readme.md") for name in names]
     if backend == "native":
         from fmu_models.fmi.native_build import Interface
 

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from fmu_models.common.errors import ParameterError, ProblemList
-from fmu_models.common.params import param, read_json, validate_params
+from fmu_models.common.params import file_keys, param, read_json, validate_params
 from fmu_models.quadrotor.anfis import AnfisMap, published_map
 from fmu_models.quadrotor.constants import MASS_KG, N_MOTORS, PWM_FULL_US, PWM_IDLE_US
 from fmu_models.quadrotor.thrust import FEATURE_INPUTS
@@ -90,6 +90,10 @@ class QuadrotorParams:
         d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "thrust_map"}
         d["thrust_map"] = self.thrust_map.to_dict()
         return d
+
+
+#: every key a flat quadrotor parameter file may hold (what tells a flat file's vehicle)
+FLAT_FILE_KEYS = file_keys(QuadrotorParams, FILE_EXTRAS, retired=RENAMED)
 
 
 def _check_map(probs: ProblemList, amap: AnfisMap, idle_us: float, full_us: float) -> None:

@@ -5,8 +5,9 @@
 Native FMUs (default: FMI 2.0 Co-Simulation + Model Exchange in one FMU) carry C binaries for the chosen
 platforms (default all three, compiled in parallel, one progress line per compile) and their sources;
 ``--backend python`` builds the pythonfmu FMUs (FMI 2.0 Co-Simulation). The work is done by
-``fmu_models.fmi.fmus.build_fmus``; this module parses and prints. Exit status: 0 built, 2 bad input or a
-failed compilation.
+``fmu_models.fmi.fmus.build_fmus``; this module parses and prints. ``--params`` takes a file with a section per
+vehicle or one vehicle's keys flat (its keys tell which); a file whose vehicle cannot be told, or with nothing
+for the models built, is bad input. Exit status: 0 built, 2 bad input or a failed compilation.
 """
 
 from __future__ import annotations

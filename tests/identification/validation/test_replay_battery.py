@@ -171,14 +171,20 @@ def test_the_identified_file_carries_an_uncertainty_validate_mc_reads(identified
 
 def test_a_fixed_wing_fmu_built_from_a_thrust_file_ignores_its_quadrotor_parts(identified: tuple[Path, Path]) -> None:
     """``build --params`` embeds the file in every FMU it builds: the fixed wing's replay takes no battery state
-    from it, and ``--mc`` does not draw the quadrotor's map coefficients for it (a clear error instead)."""
+    from it, and ``--mc`` does not draw the quadrotor's map coefficients for it (a clear error instead). A thrust
+    file alone holds nothing for a fixed wing and is refused; with a fixed-wing section beside it, it is built."""
     from build_fmus import build
+    from fmu_models.common.errors import ParameterError
     from identification.validation.replay import ValidationInputError
     from identification.validation.replay_battery import job_battery_state
     from identification.validation.workflow import mc_uncertainty
 
     params, quad = identified
-    (wing,) = build(params, params.parent / "wing", ["fixed_wing"])
+    with pytest.raises(ParameterError, match="quadrotor only"):
+        build(params, params.parent / "wing", ["fixed_wing"])
+    both = params.parent / "both.json"
+    both.write_text(json.dumps({**json.loads(params.read_text()), "fixed_wing": {"C_ell_p": -0.4}}))
+    (wing,) = build(both, params.parent / "wing", ["fixed_wing"])
     assert job_battery_state(quad, None, True, "quadrotor") is not None  # the quadrotor's own file: used
     assert job_battery_state(wing, None, True, "fixed_wing") is None
     assert job_battery_state(wing, None, False, "quadrotor") is None  # --no-embedded-params
