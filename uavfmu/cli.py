@@ -17,7 +17,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "build": ("uavfmu.commands.build", "build dist/quadrotor.fmu and dist/fixed_wing.fmu (native or pythonfmu)"),
     "identify": ("uavfmu.commands.identify", "identify a thrust map (thrust) or aero derivatives (aero) from a log"),
     "excite": ("uavfmu.commands.excite", "plan identification manoeuvres (3-2-1-1, doublets, multisines) for a fixed "
-               "wing: ArduPilot Lua, RC-override steps, timeline"),
+               "wing: ArduPilot Lua, RC-override steps, timeline; or for a quadrotor (--vehicle quadrotor): "
+               "MANUAL_CONTROL or RC-override steps, ArduCopter SystemId parameters"),
     "validate": ("uavfmu.commands.validate", "replay a flight log through an FMU with FMPy and score it"),
     "hil": ("uavfmu.commands.hil", "drive an FMU from an autopilot (PX4, ArduPilot JSON, MAVLink, NMEA)"),
     "autopilot-params": ("uavfmu.commands.autopilot_params",

@@ -156,6 +156,13 @@ def check_set(plan: ExcitationPlan, flight: Flight, names: Sequence[str], axes: 
                               estimate_biases=[b for b in NUISANCE_BIASES if b in outputs], compile=compile)
     weight = np.diag([1.0 / NOISE_SIGMA[n] ** 2 for n in outputs])
     M, all_names = oe.information(data, None, weight)
+    return conditioning(M, all_names, names, used)
+
+
+def conditioning(M: np.ndarray, all_names: Sequence[str], names: Sequence[str], blocks: list[int]) -> SetCheck:
+    """The figures of the module docstring for the first ``len(names)`` quantities of information matrix ``M``
+    (over ``all_names``: the set, then the nuisance parameters), from the records of ``blocks``."""
+    all_names = list(all_names)
     ident = analyse(M, all_names, len(names))
     n = len(names)
     r = np.abs(ident.correlation[:n].copy())
@@ -164,7 +171,7 @@ def check_set(plan: ExcitationPlan, flight: Flight, names: Sequence[str], axes: 
     Mg = M[:n, :n] - M[:n, n:] @ np.linalg.pinv(M[n:, n:]) @ M[n:, :n]
     ev = np.linalg.eigvalsh(normalised(0.5 * (Mg + Mg.T))[0])
     return SetCheck(list(names), ident.condition_number, float(ev[-1] / ev[0]) if ev[0] > 0 else float("inf"),
-                    float(r[i, k]), (all_names[i], all_names[k]), used)
+                    float(r[i, k]), (all_names[i], all_names[k]), blocks)
 
 
 def check_plan(plan: ExcitationPlan, gains: Gains = Gains()) -> tuple[Flight, dict[str, SetCheck]]:
@@ -179,4 +186,4 @@ def check_plan(plan: ExcitationPlan, gains: Gains = Gains()) -> tuple[Flight, di
 
 
 __all__ = ["LATERAL_SET", "LONGITUDINAL_SET", "Flight", "Gains", "SetCheck", "check_plan", "check_set",
-           "fly_closed_loop"]
+           "conditioning", "fly_closed_loop"]

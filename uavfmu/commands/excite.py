@@ -1,4 +1,5 @@
-"""``uavfmu excite``: plan identification manoeuvres for a fixed wing from its own modes.
+"""``uavfmu excite``: plan identification manoeuvres for a fixed wing from its own modes, or for a quadrotor
+(``--vehicle quadrotor``, see ``uavfmu.commands.excite_quadrotor``) from its rate dynamics.
 
 ``uavfmu excite --out flights/exc [--params plane.json] [--airspeed 25] [--inputs 3211,doublet,multisine]
 [--check]`` trims and linearises the model, prints its modes and the planned blocks, and writes
@@ -24,49 +25,68 @@ def _names(text: str) -> tuple[str, ...]:
     return tuple(s.strip() for s in text.split(",") if s.strip())
 
 
+def _or(value: float | None, default: float) -> float:
+    """An option's value, or the vehicle's default when it was not given."""
+    return default if value is None else value
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.description = __doc__.split("\n\n")[0]
     p.add_argument("--out", type=Path, required=True, help="output prefix: writes PREFIX.lua, .timeline.json, ...")
-    p.add_argument("--params", type=Path, help="fixed-wing parameter file (JSON; default: built-in Aerosonde)")
+    p.add_argument("--vehicle", choices=("fixed_wing", "quadrotor"), default="fixed_wing",
+                   help="vehicle to plan for (fixed_wing); quadrotor options below the fixed-wing ones")
+    p.add_argument("--params", type=Path, help="parameter file of the vehicle (JSON; default: built-in Aerosonde, "
+                                               "F450 for the quadrotor)")
     p.add_argument("--airspeed", type=float, default=25.0, help="trim airspeed [m/s] (25)")
-    p.add_argument("--inputs", default="3211,doublet,multisine", help="3211, doublet, multisine (all)")
+    p.add_argument("--inputs", default=None, help="3211, doublet, multisine (all; quadrotor: 3211,doublet)")
     p.add_argument("--surfaces", default="aileron,elevator,rudder", help="surfaces to excite (all three)")
     p.add_argument("--roll-limit", type=float, default=45.0, help="abort roll [deg] (45); plan peaks at half")
     p.add_argument("--pitch-limit", type=float, default=20.0, help="abort pitch change from trim [deg] (20)")
     p.add_argument("--surface-limit", type=float, default=20.0, help="surface range [deg] (20)")
-    p.add_argument("--rate", type=float, default=50.0, help="plan sample rate [Hz] (50)")
+    p.add_argument("--rate", type=float, default=None, help="plan sample rate [Hz] (50; quadrotor 100)")
     p.add_argument("--settle", type=float, default=2.0, help="trim hold before each input [s] (2)")
     p.add_argument("--tail", type=float, default=3.0, help="free response after each input [s] (3)")
-    p.add_argument("--recovery", type=float, default=10.0, help="recovery between blocks [s] (10)")
+    p.add_argument("--recovery", type=float, default=None, help="recovery between blocks [s] (10; quadrotor 6)")
     p.add_argument("--multisine-period", type=float, default=10.0, help="multisine period T [s] (10)")
-    p.add_argument("--max-frequency", type=float, default=3.0, help="highest planned frequency [Hz] (3)")
+    p.add_argument("--max-frequency", type=float, default=None,
+                   help="highest planned frequency [Hz] (3; quadrotor 5)")
     p.add_argument("--mode", default="MANUAL", help="ArduPlane mode the inputs are flown in (MANUAL)")
     p.add_argument("--recovery-mode", default="FBWA", help="ArduPlane mode between blocks and on abort (FBWA)")
     p.add_argument("--trigger-channel", type=int, default=8, help="RC channel whose switch starts the script (8)")
     p.add_argument("--min-height", type=float, default=40.0, help="abort below this height above home [m] (40)")
-    p.add_argument("--rc-rate", type=float, default=20.0, help="RC-override row rate [Hz] (20)")
+    p.add_argument("--rc-rate", type=float, default=None, help="RC-override row rate [Hz] (20; quadrotor 50)")
     p.add_argument("--mapping", type=Path, help="PWM mapping TOML (default: ArduPlane SERVO1-4, +/-0.35 rad)")
     p.add_argument("--check", action="store_true", help="fly the plan in closed loop and check identifiability")
     p.add_argument("--plots", type=Path, help="folder for PNG figures (inputs, spectra, check flight)")
+    from uavfmu.commands import excite_quadrotor
+
+    excite_quadrotor.add_arguments(p)
 
 
 def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
     from identification.excite.design import ExciteOptions
     from identification.excite.writers import OutputOptions
 
-    opt = ExciteOptions(airspeed_m_s=args.airspeed, inputs=_names(args.inputs), surfaces=_names(args.surfaces),
+    opt = ExciteOptions(airspeed_m_s=args.airspeed, inputs=_names(args.inputs or "3211,doublet,multisine"),
+                        surfaces=_names(args.surfaces),
                         roll_limit_deg=args.roll_limit, pitch_limit_deg=args.pitch_limit,
-                        surface_limit_deg=args.surface_limit, rate_hz=args.rate, settle_s=args.settle,
-                        tail_s=args.tail, recovery_s=args.recovery, multisine_period_s=args.multisine_period,
-                        max_frequency_hz=args.max_frequency)
+                        surface_limit_deg=args.surface_limit, rate_hz=_or(args.rate, 50.0), settle_s=args.settle,
+                        tail_s=args.tail, recovery_s=_or(args.recovery, 10.0), multisine_period_s=args.multisine_period,
+                        max_frequency_hz=_or(args.max_frequency, 3.0))
     out = OutputOptions(excite_mode=args.mode, recovery_mode=args.recovery_mode,
-                        trigger_channel=args.trigger_channel, min_height_m=args.min_height, rc_rate_hz=args.rc_rate)
+                        trigger_channel=args.trigger_channel, min_height_m=args.min_height,
+                        rc_rate_hz=_or(args.rc_rate, 20.0))
     return opt, out
 
 
 def run(args: argparse.Namespace) -> int:
     """Plan, check, write, print; see the module docstring."""
     import dataclasses
+
+    if args.vehicle == "quadrotor":
+        from uavfmu.commands import excite_quadrotor
+
+        return excite_quadrotor.run(args)
 
     from fmu_models.common.errors import ParameterError
     from fmu_models.fixed_wing.params import FixedWingParams
