@@ -1,3 +1,6 @@
-"""Experiment design for the fixed wing: the excitation plan (``design``), its closed-loop check on the model
-(``check``), the files a flight needs (``writers``: Lua script, RC override, timeline), plots and the workflow.
-Imports ``estimation``, ``logs``, ``common``; never ``thrust``, ``aero``, ``flights`` or ``validation``."""
+"""Experiment design: for the fixed wing, the excitation plan (``design``), its closed-loop check on the model
+(``check``), the files a flight needs (``writers``: Lua script, RC override, timeline), plots and the workflow; for
+the quadrotor, the stick plan from its rate dynamics (``quadrotor``), its closed-loop check (``quadrotor_check``),
+MANUAL_CONTROL / RC-override steps and ArduCopter SystemId parameters (``quadrotor_writers``) and the workflow
+(``quadrotor_workflow``). Imports ``estimation``, ``logs``, ``common``; never ``thrust``, ``aero``, ``flights`` or
+``validation``."""

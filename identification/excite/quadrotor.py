@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from fmu_models.common.simulate import Simulator
+from fmu_models.common.model import derivative_function, init_function
 from fmu_models.config import bounded, range_problems
 from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.model import QuadrotorModel
@@ -269,15 +269,19 @@ def mixer_signs(model: QuadrotorModel) -> dict[str, tuple[float, ...]]:
 def hover_point(params: QuadrotorParams, loops: AutopilotLoops) -> Hover:
     """PWM of hover (bisection on the model's vertical acceleration) and the control effectiveness there."""
     model = QuadrotorModel(params)
-    sim = Simulator(model)
-    p = sim.params(init_pos_down_m=IN_AIR_DOWN_M, tau_motor_s=0.0)  # effectiveness: thrust = command
+    f, init = derivative_function(model), init_function(model)
+    p = np.array(model.params.starts())
+    p[model.params.index["init_pos_down_m"]] = IN_AIR_DOWN_M
+    p[model.params.index["tau_motor_s"]] = 0.0  # effectiveness: thrust = command
+    u0 = np.array(model.inputs.starts())
+    x0 = np.asarray(init(u0, p)[0]).ravel()  # level, at rest, in the air (no lag: its states are not read)
     w_dot = model.states.index["vel_body_z_m_s"]
     rates = [model.states.index[n] for n in RATE_STATES]
 
     def xdot(pwm: np.ndarray) -> np.ndarray:
-        u = sim.inputs(**{f"pwm_{i + 1}_us": float(pwm[i]) for i in range(N_MOTORS)})
-        x, _ = sim.initial(u, p)
-        return np.asarray(sim.f(x, sim.full_inputs(u), p)).ravel()
+        u = u0.copy()
+        u[:N_MOTORS] = pwm
+        return np.asarray(f(x0, u, p)).ravel()
 
     lo, hi = params.pwm_idle_us, PWM_MAX_US
     if xdot(np.full(N_MOTORS, hi))[w_dot] >= 0.0:
