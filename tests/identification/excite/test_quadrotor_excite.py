@@ -25,7 +25,14 @@ from identification.excite.quadrotor import (
     hover_point,
     plan_quadrotor_excitation,
 )
-from identification.excite.quadrotor_check import QuadFlight, QuadSetCheck, check_quadrotor_plan
+from identification.excite.quadrotor_check import (
+    DRAG_SET,
+    QuadFlight,
+    QuadSetCheck,
+    check_quadrotor_plan,
+    check_set,
+    fly_closed_loop,
+)
 from identification.excite.quadrotor_workflow import excite_quadrotor, write_files
 from identification.excite.quadrotor_writers import (
     MANUAL_CONTROL_LIMITS,
@@ -197,7 +204,8 @@ def good_check() -> tuple[QuadExcitationPlan, QuadFlight, dict[str, QuadSetCheck
 def test_check_of_a_plan_moving_every_axis_is_well_conditioned_and_flies_within_limits(good_check) -> None:
     plan, flight, checks = good_check
     assert set(checks) == {"rotation", "drag"}
-    for c in checks.values():
+    for key, c in checks.items():
+        print(f"test plan {key}: {c.line()}")  # the figures docs/excitation.md quotes (pytest -s)
         assert math.isfinite(c.condition_number) and c.condition_number < CONDITION_LIMIT
         assert c.ok, c.line()
     assert max(checks["rotation"].relative_std.values()) < 0.01  # inertia, lag and yaw torque: well below 1 %
@@ -210,10 +218,23 @@ def test_check_flags_a_plan_that_leaves_pitch_and_yaw_unexcited() -> None:
     plan = plan_quadrotor_excitation(None, QuadExciteOptions(axes=("roll", "throttle"), **SHORT))
     _, checks = check_quadrotor_plan(plan, compile=False)
     rot = checks["rotation"]
+    for key, c in checks.items():
+        print(f"negative control {key}: {c.line()}")
     assert not rot.ok and "NOT well conditioned" in rot.line()
     assert rot.relative_std["Jy_kg_m2"] > RELATIVE_STD_WARN and rot.relative_std["b_drag_N_m_s2"] > RELATIVE_STD_WARN
     assert rot.relative_std["Jx_kg_m2"] < 0.01  # the roll blocks still determine Jx
     assert not checks["drag"].ok and checks["drag"].relative_std["kd_x_N_s_m"] > RELATIVE_STD_WARN
+
+
+def test_longer_stick_holds_determine_drag_better(good_check) -> None:
+    """Drag acts on body velocity, which short pulses hardly build: 4 s pulses cut its Cramér-Rao std."""
+    plan = plan_quadrotor_excitation(None, QuadExciteOptions(min_pulse_s=4.0, **SHORT))
+    flight = fly_closed_loop(plan, compile=False)
+    slow = check_set(plan, flight, DRAG_SET, ("roll", "pitch", "throttle"))
+    print(f"4 s pulses drag: {slow.line()}")
+    short = good_check[2]["drag"]
+    for name in DRAG_SET:
+        assert slow.relative_std[name] < 0.1 < short.relative_std[name]
 
 
 def test_workflow_writes_the_files_of_each_autopilot(tmp_path: Path) -> None:
