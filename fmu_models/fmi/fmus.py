@@ -89,19 +89,41 @@ def sections_to_build(data: dict[str, Any], only: Sequence[str], source: str) ->
     return used
 
 
-def make_model(name: str, values: dict[str, Any] | None, source: str) -> Any:
-    """The ``VehicleModel`` of ``name`` with ``values`` over its defaults."""
+def load_vehicle_params(path: str | Path, vehicle: str) -> Any:
+    """The parameters of ``vehicle`` (``QuadrotorParams`` or ``FixedWingParams``) in the parameter file ``path``, read
+    as ``build`` reads it (:func:`split_params`): ``ParameterError`` naming the file and its keys when its vehicle
+    cannot be told or it holds nothing for ``vehicle``."""
+    from fmu_models.common.params import read_json
+
+    if vehicle not in MODELS:
+        raise ValueError(f"vehicle = {vehicle!r} is not one of {', '.join(MODELS)}")
+    section = sections_to_build(read_json(path), [vehicle], str(path))[vehicle]
+    return make_model_params(vehicle, section, str(path))
+
+
+def make_model_params(name: str, values: dict[str, Any] | None, source: str) -> Any:
+    """The parameter dataclass of model ``name`` with ``values`` over its defaults."""
     if name == "quadrotor":
-        from fmu_models.quadrotor.model import QuadrotorModel
         from fmu_models.quadrotor.params import QuadrotorParams
 
-        return QuadrotorModel(QuadrotorParams.from_dict(values or {}, source=source))
+        return QuadrotorParams.from_dict(values or {}, source=source)
     if name == "fixed_wing":
-        from fmu_models.fixed_wing.model import FixedWingModel
         from fmu_models.fixed_wing.params import FixedWingParams
 
-        return FixedWingModel(FixedWingParams.from_dict(values or {}, source=source))
+        return FixedWingParams.from_dict(values or {}, source=source)
     raise ValueError(f"model = {name!r} is not one of {', '.join(MODELS)}")
+
+
+def make_model(name: str, values: dict[str, Any] | None, source: str) -> Any:
+    """The ``VehicleModel`` of ``name`` with ``values`` over its defaults."""
+    params = make_model_params(name, values, source)
+    if name == "quadrotor":
+        from fmu_models.quadrotor.model import QuadrotorModel
+
+        return QuadrotorModel(params)
+    from fmu_models.fixed_wing.model import FixedWingModel
+
+    return FixedWingModel(params)
 
 
 def _platforms(names: Sequence[str]) -> tuple[Any, ...]:

@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
         return excite_quadrotor.run(args)
 
     from fmu_models.common.errors import ParameterError
-    from fmu_models.fixed_wing.params import FixedWingParams
+    from fmu_models.fmi.fmus import load_vehicle_params
     from fmu_models.signals.pwm_mapping import PwmMapping
     from identification.excite.workflow import excite, write_files, write_plots
 
@@ -97,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
         opt, out = _options(args)
         if args.mapping:
             out = dataclasses.replace(out, mapping=PwmMapping.load(args.mapping))
-        params = FixedWingParams.load(args.params) if args.params else None
+        params = load_vehicle_params(args.params, "fixed_wing") if args.params else None
         command = "uavfmu excite " + " ".join(sys.argv[2:])
         result = excite(params, opt, out, check=args.check, command=command)
     except (OSError, ValueError, ParameterError) as err:  # ExciteError, ConfigError, MappingError, ...

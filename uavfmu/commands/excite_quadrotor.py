@@ -45,7 +45,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Plan, check, write, print; see the module docstring."""
     from fmu_models.common.errors import ParameterError
-    from fmu_models.quadrotor.params import QuadrotorParams
+    from fmu_models.fmi.fmus import load_vehicle_params
     from identification.excite.quadrotor import QuadExciteOptions
     from identification.excite.quadrotor_workflow import excite_quadrotor, write_files
     from identification.excite.quadrotor_writers import QuadOutputOptions
@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
                                 tail_s=args.tail, recovery_s=_or(args.recovery, 6.0),
                                 max_frequency_hz=_or(args.max_frequency, 5.0))
         out = QuadOutputOptions(rc_rate_hz=_or(args.rc_rate, 50.0), sid_injection=args.sid_injection)
-        params = QuadrotorParams.load(args.params) if args.params else None
+        params = load_vehicle_params(args.params, "quadrotor") if args.params else None
         command = "uavfmu excite " + " ".join(sys.argv[2:])
         result = excite_quadrotor(params, opt, out, check=args.check, command=command)
     except (OSError, ValueError, ParameterError) as err:  # ExciteError, ConfigError, ...

@@ -177,6 +177,7 @@ def run(args: argparse.Namespace) -> int:
     """Read, estimate, write, print; see the module docstring."""
     from fmu_models.common.errors import ParameterError
     from fmu_models.fixed_wing.params import FixedWingParams
+    from fmu_models.fmi.fmus import load_vehicle_params
     from fmu_models.signals.pwm_mapping import PwmMapping
     from identification.aero.identify import AeroInputError, AeroSource, identify_aero, write_results
     from identification.estimation.oem import EstimationError
@@ -186,7 +187,7 @@ def run(args: argparse.Namespace) -> int:
         logging.basicConfig(level=logging.ERROR, format="%(levelname)s %(name)s: %(message)s")
     try:
         opt = _options(args)
-        init = FixedWingParams.load(args.init) if args.init else FixedWingParams()
+        init = load_vehicle_params(args.init, "fixed_wing") if args.init else FixedWingParams()
         sources = []
         for path in args.log:
             log = read_log(path, channel_map=args.channel_map)

@@ -10,7 +10,8 @@ import pytest
 from fmpy import read_model_description
 
 from fmu_models.common.errors import ParameterError
-from fmu_models.fmi.fmus import BuildOptions, build_fmus, sections_to_build, split_params
+from fmu_models.fixed_wing.params import FixedWingParams
+from fmu_models.fmi.fmus import BuildOptions, build_fmus, load_vehicle_params, sections_to_build, split_params
 from fmu_models.quadrotor.params import QuadrotorParams
 from uavfmu.commands import build as build_command
 
@@ -112,3 +113,17 @@ def test_a_file_whose_keys_fit_no_model_being_built_is_refused_naming_them(tmp_p
     # a file for both vehicles, building one: the built one's section is used
     both = {"quadrotor": {"tau_motor_s": 0.02}, "fixed_wing": {"C_ell_p": -0.4}}
     assert sections_to_build(both, ["quadrotor"], "both.json") == {"quadrotor": {"tau_motor_s": 0.02}}
+
+
+def test_commands_that_read_one_vehicle_load_its_parameters_as_the_build_does(tmp_path: Path) -> None:
+    """`excite --params` and `identify aero --init` read one vehicle's parameters: a flat file of it, or its section;
+    a file that does not tell its vehicle, or holds another vehicle's parameters, is refused naming the keys."""
+    quad = load_vehicle_params(_file(tmp_path, FLAT_QUAD, "quad.json"), "quadrotor")
+    assert isinstance(quad, QuadrotorParams) and quad.tau_motor_s == 0.035 and quad.Jx_kg_m2 == 0.0123
+    wing = load_vehicle_params(_file(tmp_path, {"fixed_wing": {"C_ell_p": -0.4}, "uncertainty": {}}, "w.json"),
+                               "fixed_wing")
+    assert isinstance(wing, FixedWingParams) and wing.C_ell_p == -0.4
+    with pytest.raises(ParameterError, match="quadrotor only"):
+        load_vehicle_params(_file(tmp_path, FLAT_QUAD, "quad.json"), "fixed_wing")
+    with pytest.raises(ParameterError, match="does not tell which vehicle"):
+        load_vehicle_params(_file(tmp_path, {"Jx_kg_m2": 0.01}, "amb.json"), "fixed_wing")

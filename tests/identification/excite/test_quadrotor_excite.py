@@ -260,3 +260,8 @@ def test_command_exit_codes_agree_and_bad_input_is_refused(tmp_path: Path, capsy
     args = parser.parse_args(["--vehicle", "quadrotor", "--out", str(tmp_path / "q"), "--axes", "roll,flip"])
     assert excite_command.run(args) == excite_command.EXIT_BAD_INPUT
     assert "axes: 'flip' unknown" in capsys.readouterr().err
+    wing = tmp_path / "wing.json"
+    wing.write_text(json.dumps({"C_ell_p": -0.4}))
+    args = parser.parse_args(["--vehicle", "quadrotor", "--out", str(tmp_path / "q"), "--params", str(wing)])
+    assert excite_command.run(args) == excite_command.EXIT_BAD_INPUT  # a fixed-wing file is not read as defaults
+    assert "fixed_wing only (fixed_wing: C_ell_p)" in capsys.readouterr().err
