@@ -7,9 +7,9 @@ structure and default gains):
 
 - the plant of a rate axis: ``ω' = K e^{-sT} / (τ s + 1) · c``, ``c`` the normalised torque command of the rate
   controller, ``K`` [rad/s² per unit command] the model's own angular acceleration when the mixer moves each
-  motor by ``mix`` of its actuator range per unit command (evaluated on the model's equations at hover: arm
-  length, thrust-map slope and inertia for roll and pitch, yaw torque b/k and ``Jz`` for yaw), ``τ`` the motor
-  time constant ``tau_motor_s``, ``T`` the loop delay (sampling, filters, ESC);
+  motor by ``mix`` of its actuator range per unit command (the secant over +-50 us per motor about hover on the
+  model's equations: arm length, thrust-map slope and inertia for roll and pitch, yaw torque b/k and ``Jz`` for
+  yaw), ``τ`` the motor time constant ``tau_motor_s``, ``T`` the loop delay (sampling, filters, ESC);
 - the rate loop: PID (derivative low-passed) ``C(s)``, closed: ``T_r = C G / (1 + C G)``;
 - roll and pitch: the angle loop ``P_a`` around it, ``T_a = P_a T_r / (s + P_a T_r)`` (stick -> attitude);
   yaw: the stick drives ``T_r`` (stick -> yaw rate); throttle: a PI vertical-velocity loop on the commanded
@@ -21,6 +21,11 @@ of its stick response, where its phase lag reaches 45 deg per integration (:func
 a faster motor or a stiffer rate loop shortens the pulses), capped by ``max_frequency_hz`` and the plan rate; pulse
 widths and pulse trains are those of the fixed-wing design (:func:`identification.excite.design.pulse_unit`,
 :func:`~identification.excite.design.steps`).
+
+A ``drag`` input (roll, pitch and throttle) is a doublet timed by the translational mode instead: ``kd / m`` of the
+drag the axis moves (``kd_y``, ``kd_x``, ``kd_z``; the pulse unit at most ``max_hold_s``), since drag acts on the body
+velocity that short pulses hardly build; its tilt is also capped so that ``g tan(tilt) Δt`` stays within
+``speed_limit_m_s``.
 
 Stick amplitudes keep the linear closed-loop response within ``attitude_fraction`` of the tilt limit (roll,
 pitch), of the yaw-rate limit (yaw) and of the climb-rate limit (throttle), and within ``max_stick``; the throttle
@@ -39,11 +44,13 @@ import numpy as np
 from scipy import signal
 
 from fmu_models.common.model import derivative_function, init_function
+from fmu_models.common.units import G0_M_S2
 from fmu_models.config import bounded, range_problems
 from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.model import QuadrotorModel
 from fmu_models.quadrotor.params import QuadrotorParams
 from identification.excite.design import (
+    PULSES,
     Block,
     ExciteError,
     ExciteOptions,
@@ -51,12 +58,15 @@ from identification.excite.design import (
     max_frequency_rad_s,
     pulse_unit,
     scale_signals,
+    spectrum_centre,
     steps,
 )
 
 AXES = ("roll", "pitch", "yaw", "throttle")
 RATE_AXES = ("roll", "pitch", "yaw")
-INPUT_KINDS = ("3211", "doublet")
+INPUT_KINDS = ("3211", "doublet", "drag")
+#: the translational drag each stick axis moves (the drag input's timing): roll tilts towards body y, pitch body x
+DRAG_OF = {"roll": "kd_y_N_s_m", "pitch": "kd_x_N_s_m", "throttle": "kd_z_N_s_m"}
 AUTOPILOTS = ("px4", "ardupilot")
 #: actuator range every PWM maps onto (the project's motor PWM range: PX4 PWM_MAIN_MIN/MAX, ArduCopter
 #: MOT_PWM_MIN/MAX as ``uavfmu autopilot-params`` writes them) [us]
@@ -64,7 +74,10 @@ PWM_MIN_US, PWM_MAX_US = 1000.0, 2000.0
 #: the FMU's rate states and body-velocity states in the state vector (fmu_models.common.vehicle.BODY_STATES)
 RATE_STATES = ("rate_body_x_rad_s", "rate_body_y_rad_s", "rate_body_z_rad_s")
 IN_AIR_DOWN_M = -50.0  #: initial NED down position of the hover used for the linear analysis (no ground contact)
-STICK_STEP = 0.05  #: actuator-fraction step of the numerical effectiveness derivative
+#: half-width of the secant that gives the effectiveness, as a fraction of the actuator range (50 us about hover): a
+#: stick pulse moves the motors by about this much, and a thrust map fitted over a narrow band (the published F450 map
+#: spans 1450..1554 us per motor) has local slopes that change several-fold within it
+STICK_STEP = 0.05
 
 
 @dataclass(frozen=True)
@@ -103,16 +116,16 @@ class AutopilotLoops:
         return dataclasses.asdict(self)
 
 
-#: PX4 v1.13 defaults (mc_rate_control / mc_att_control / mc_pos_control params; quad_x mixer: roll and pitch
-#: scale 0.707 and yaw 1.0 on outputs -1..1, i.e. 0.354 and 0.5 of the actuator range)
+#: PX4 v1.13 defaults (mc_rate_control / mc_att_control / mc_pos_control params; the quad_x mixer table scales roll
+#: and pitch by 0.707 and yaw by 1.0 on motor outputs in 0..1, which MultirotorMixer maps to -1..1, i.e. the PWM range)
 PX4_LOOPS = AutopilotLoops(
     name="px4", rate_p=(0.15, 0.15, 0.2), rate_i=(0.2, 0.2, 0.1), rate_d=(0.003, 0.003, 0.0),
-    angle_p=(6.5, 6.5, 2.8), mix=(0.354, 0.354, 0.5), z_vel_p=4.0, z_vel_i=2.0, z_pos_p=1.0, tilt_max_deg=35.0,
+    angle_p=(6.5, 6.5, 2.8), mix=(0.707, 0.707, 1.0), z_vel_p=4.0, z_vel_i=2.0, z_pos_p=1.0, tilt_max_deg=35.0,
     yaw_rate_max_deg_s=150.0, climb_max_m_s=3.0, descent_max_m_s=1.0, throttle_deadzone=0.1, d_cutoff_hz=30.0,
     mode="ALTCTL", recovery_mode="POSCTL",
     source="PX4 v1.13 MC_ROLLRATE_P/I/D, MC_PITCHRATE_P/I/D, MC_YAWRATE_P/I, MC_ROLL_P, MC_PITCH_P, MC_YAW_P, "
            "MPC_Z_VEL_P_ACC, MPC_Z_VEL_I_ACC, MPC_Z_P, MPC_MAN_TILT_MAX, MPC_MAN_Y_MAX, MPC_Z_VEL_MAX_UP/DN, "
-           "MPC_HOLD_DZ, MC_DTERM_CUTOFF defaults")
+           "MPC_HOLD_DZ, IMU_DGYRO_CUTOFF defaults; MultirotorMixer quad_x scales")
 #: ArduCopter 4.x defaults (AC_AttitudeControl_Multi, AC_PosControl; AP_MotorsMatrix normalises the roll, pitch
 #: and yaw factors to 0.5; THR_DZ 100 of the 500 us half range)
 ARDUCOPTER_LOOPS = AutopilotLoops(
@@ -144,6 +157,8 @@ class QuadExciteOptions:
     tail_s: float = bounded(3.0, 0.0, 30.0, "s")
     recovery_s: float = bounded(6.0, 1.0, 300.0, "s")
     max_frequency_hz: float = bounded(5.0, 0.1, 50.0, "Hz")
+    max_hold_s: float = bounded(3.0, 0.5, 20.0, "s")  #: longest pulse unit of a drag doublet
+    speed_limit_m_s: float = bounded(3.0, 0.5, 15.0, "m/s")  #: a drag doublet's tilt builds at most this speed
 
     def problems(self) -> list[str]:
         out = range_problems(self)
@@ -294,9 +309,9 @@ def hover_point(params: QuadrotorParams, loops: AutopilotLoops) -> Hover:
     signs = mixer_signs(model)
     du = STICK_STEP * (PWM_MAX_US - PWM_MIN_US)
     eff = {}
-    for k, a in enumerate(RATE_AXES):
-        d = loops.mix[k] * du * np.asarray(signs[a])
-        eff[a] = float((xdot(pwm0 + d)[rates[k]] - xdot(pwm0 - d)[rates[k]]) / (2 * STICK_STEP))
+    for k, a in enumerate(RATE_AXES):  # secant over +-du per motor, scaled to one unit of command through the mixer
+        d = du * np.asarray(signs[a])
+        eff[a] = float(loops.mix[k] * (xdot(pwm0 + d)[rates[k]] - xdot(pwm0 - d)[rates[k]]) / (2 * STICK_STEP))
     coll = float(-(xdot(np.full(N_MOTORS, pwm0 + du))[w_dot] - xdot(np.full(N_MOTORS, pwm0 - du))[w_dot])
                  / (2 * STICK_STEP))
     bad = [a for a, v in eff.items() if not v > 0.0]
@@ -459,19 +474,29 @@ def plan_quadrotor_excitation(params: QuadrotorParams | None = None, opt: QuadEx
     targets = target_frequencies(lps, opt)
     dopt = opt.design_options()
     blocks, t = [], 0.0
-    specs = [(k, a) for k in opt.inputs for a in opt.axes]
+    specs = [(k, a) for k in opt.inputs for a in opt.axes if k != "drag" or a in DRAG_OF]
     for i, (kind, axis) in enumerate(specs, start=1):
-        dt = pulse_unit(kind, targets[axis], dopt)
-        unit = steps(kind, dt)
+        if kind == "drag":  # a doublet timed by the translational mode kd / m, held at most max_hold_s
+            w_drag = getattr(params, DRAG_OF[axis]) / params.mass_kg
+            dt = pulse_unit("doublet", max(w_drag, spectrum_centre(PULSES["doublet"]) / opt.max_hold_s), dopt)
+            unit = steps("doublet", dt)
+        else:
+            dt = pulse_unit(kind, targets[axis], dopt)
+            unit = steps(kind, dt)
         length = unit.duration_s + opt.tail_s
         lp = lps[axis]
         peak_unit, height_unit = _peak(lp, unit, length, opt.rate_hz)
         stick = _amplitude(axis, lp, peak_unit, loops, opt)
+        if kind == "drag" and axis != "throttle":  # the tilt held for dt builds about g tan(tilt) dt of speed
+            tilt_cap = math.atan(opt.speed_limit_m_s / (G0_M_S2 * dt)) / (peak_unit * lp.full_scale)
+            stick = min(stick, tilt_cap)
         effective = stick if axis != "throttle" else (stick - loops.throttle_deadzone) / (1 - loops.throttle_deadzone)
         peak = peak_unit * effective * lp.full_scale
         predicted = ({"tilt_deg": math.degrees(peak)} if axis in ("roll", "pitch") else
                      {"yaw_rate_deg_s": math.degrees(peak)} if axis == "yaw" else
                      {"climb_m_s": peak, "height_m": height_unit * effective * lp.full_scale})
+        if kind == "drag" and axis != "throttle":
+            predicted["speed_m_s"] = G0_M_S2 * math.tan(peak) * dt
         t_exc = t + opt.settle_s
         end = t_exc + length
         blocks.append(Block(i, axis, kind, scale_signals({axis: unit}, {axis: stick}), t, t_exc, end, dt, predicted))

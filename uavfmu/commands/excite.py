@@ -38,7 +38,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--params", type=Path, help="parameter file of the vehicle (JSON; default: built-in Aerosonde, "
                                                "F450 for the quadrotor)")
     p.add_argument("--airspeed", type=float, default=25.0, help="trim airspeed [m/s] (25)")
-    p.add_argument("--inputs", default=None, help="3211, doublet, multisine (all; quadrotor: 3211,doublet)")
+    p.add_argument("--inputs", default=None, help="3211, doublet, multisine (all; quadrotor: 3211, doublet, drag)")
     p.add_argument("--surfaces", default="aileron,elevator,rudder", help="surfaces to excite (all three)")
     p.add_argument("--roll-limit", type=float, default=45.0, help="abort roll [deg] (45); plan peaks at half")
     p.add_argument("--pitch-limit", type=float, default=20.0, help="abort pitch change from trim [deg] (20)")

@@ -1,7 +1,7 @@
 """``uavfmu excite --vehicle quadrotor``: plan stick 3-2-1-1s and doublets for a quadrotor from its rate dynamics.
 
 ``uavfmu excite --vehicle quadrotor --out flights/quad [--params quad.json] [--autopilot px4|ardupilot]
-[--axes roll,pitch,yaw,throttle] [--inputs 3211,doublet] [--check]`` finds the model's hover, its control
+[--axes roll,pitch,yaw,throttle] [--inputs 3211,doublet,drag] [--check]`` finds the model's hover, its control
 effectiveness, and the natural frequency of each stick axis under the autopilot's loops, prints them and the planned
 blocks, and writes (PX4) ``quad.manual_control.json``/``.csv`` or (ArduCopter) ``quad.rc_override.json``/``.csv``
 and one SystemId parameter file per axis ``quad.sid_<axis>.parm``, and ``quad.plan.json``. ``--check`` flies the
@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     from identification.excite.quadrotor_writers import QuadOutputOptions
 
     try:
-        opt = QuadExciteOptions(autopilot=args.autopilot, inputs=_names(args.inputs or "3211,doublet"),
+        opt = QuadExciteOptions(autopilot=args.autopilot, inputs=_names(args.inputs or "3211,doublet,drag"),
                                 axes=_names(args.axes), roll_limit_deg=args.tilt_limit,
                                 yaw_rate_limit_deg_s=args.yaw_rate_limit, climb_limit_m_s=args.climb_limit,
                                 max_stick=args.max_stick, rate_hz=_or(args.rate, 100.0), settle_s=args.settle,

@@ -47,7 +47,7 @@ from uavfmu.commands import excite_quadrotor as excite_quadrotor_command
 
 #: fine timing so that pulse widths are not rounded to the same sample
 FINE = QuadExciteOptions(rate_hz=400.0, min_pulse_s=0.02, max_frequency_hz=50.0)
-SHORT = dict(inputs=("doublet",), settle_s=0.5, tail_s=2.0, recovery_s=2.0)
+SHORT = dict(inputs=("doublet", "drag"), settle_s=0.5, tail_s=2.0, recovery_s=2.0)
 
 
 def _params(**values: float) -> QuadrotorParams:
@@ -95,9 +95,22 @@ def test_faster_roll_dynamics_give_shorter_roll_pulses_and_slower_yaw_longer_yaw
         assert lg[(kind, "yaw")] > b[(kind, "yaw")]  # motor lag slows the yaw-rate loop
     # the pulse puts the input spectrum's centre on the axis's natural frequency (the fixed-wing rule)
     for blk in base.blocks:
+        if blk.input == "drag":
+            continue
         w = base.targets_rad_s[blk.axis]
         assert blk.pulse_unit_s == pytest.approx(spectrum_centre((1, -1) if blk.input == "doublet" else
                                                                  (1, 1, 1, -1, -1, 1, -1)) / w, abs=0.5 / FINE.rate_hz)
+
+
+def test_drag_doublets_are_timed_by_the_translational_mode() -> None:
+    """A drag doublet's unit puts the doublet's spectrum centre on kd / m (held at most max_hold_s): the F450's
+    0.25 N s/m over 1.14 kg (0.22 rad/s) needs more than 3 s, so it is held 3 s; 2 N s/m gives 1.75 rad/s."""
+    base = _units(plan_quadrotor_excitation(None, FINE))
+    draggy = _units(plan_quadrotor_excitation(_params(kd_x_N_s_m=2.0), FINE))
+    assert base[("drag", "pitch")] == FINE.max_hold_s and ("drag", "yaw") not in base
+    centre = spectrum_centre((1, -1))
+    assert draggy[("drag", "pitch")] == pytest.approx(centre * QuadrotorParams().mass_kg / 2.0, abs=0.5 / FINE.rate_hz)
+    assert draggy[("drag", "roll")] == base[("drag", "roll")]  # roll tilts along y: kd_y unchanged
 
 
 def test_stick_amplitudes_keep_the_linear_response_within_the_limits() -> None:
@@ -110,6 +123,8 @@ def test_stick_amplitudes_keep_the_linear_response_within_the_limits() -> None:
             assert b.predicted_peak_deg["tilt_deg"] <= 10.0 + 1e-9
         if b.axis == "throttle":
             assert stick > plan.loops.throttle_deadzone  # outside altitude hold's deadzone
+        if b.input == "drag" and b.axis != "throttle":
+            assert b.predicted_peak_deg["speed_m_s"] <= opt.speed_limit_m_s + 1e-9
 
 
 def test_bad_options_are_refused_with_the_allowed_values() -> None:
@@ -209,6 +224,7 @@ def test_check_of_a_plan_moving_every_axis_is_well_conditioned_and_flies_within_
         assert math.isfinite(c.condition_number) and c.condition_number < CONDITION_LIMIT
         assert c.ok, c.line()
     assert max(checks["rotation"].relative_std.values()) < 0.01  # inertia, lag and yaw torque: well below 1 %
+    assert max(checks["drag"].relative_std.values()) < 0.1  # the drag doublets
     assert flight.max_tilt_deg <= plan.options.roll_limit_deg
     assert flight.height_range_m < 3.0  # altitude hold between the blocks
     assert any("tau_motor_s" in n for n in flight.notes)  # the default F450 has no lag: said so
@@ -226,15 +242,17 @@ def test_check_flags_a_plan_that_leaves_pitch_and_yaw_unexcited() -> None:
     assert not checks["drag"].ok and checks["drag"].relative_std["kd_x_N_s_m"] > RELATIVE_STD_WARN
 
 
-def test_longer_stick_holds_determine_drag_better(good_check) -> None:
-    """Drag acts on body velocity, which short pulses hardly build: 4 s pulses cut its Cramér-Rao std."""
-    plan = plan_quadrotor_excitation(None, QuadExciteOptions(min_pulse_s=4.0, **SHORT))
+def test_drag_doublets_determine_the_drag_that_short_pulses_leave_open(good_check) -> None:
+    """Drag acts on body velocity, which short pulses hardly build: without the drag doublets the same plan leaves
+    drag flagged (Cramér-Rao std above half its value); with them it is within 10 %."""
+    plan = plan_quadrotor_excitation(None, QuadExciteOptions(**{**SHORT, "inputs": ("doublet",)}))
     flight = fly_closed_loop(plan, compile=False)
-    slow = check_set(plan, flight, DRAG_SET, ("roll", "pitch", "throttle"))
-    print(f"4 s pulses drag: {slow.line()}")
-    short = good_check[2]["drag"]
+    short = check_set(plan, flight, DRAG_SET, ("roll", "pitch", "throttle"))
+    print(f"without drag doublets, drag: {short.line()}")
+    with_drag = good_check[2]["drag"]
+    assert not short.ok
     for name in DRAG_SET:
-        assert slow.relative_std[name] < 0.1 < short.relative_std[name]
+        assert with_drag.relative_std[name] < 0.1 < short.relative_std[name]
 
 
 def test_workflow_writes_the_files_of_each_autopilot(tmp_path: Path) -> None:
@@ -245,7 +263,7 @@ def test_workflow_writes_the_files_of_each_autopilot(tmp_path: Path) -> None:
                              *(f".sid_{a}.parm" for a in AXES)}
     paths = write_files(ap, tmp_path / "quad")
     plan = json.loads((tmp_path / "quad.plan.json").read_text())
-    assert plan["vehicle"] == "quadrotor" and set(plan["systemid"]) == set(AXES) and len(plan["blocks"]) == 4
+    assert plan["vehicle"] == "quadrotor" and set(plan["systemid"]) == set(AXES) and len(plan["blocks"]) == 7
     assert (tmp_path / "quad.rc_override.csv").read_text().splitlines()[0] == \
         "t_s,phase,block,ch1_us,ch2_us,ch3_us,ch4_us"
     assert all(p.exists() for p in paths) and px4.well_conditioned is None
