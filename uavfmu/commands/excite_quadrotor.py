@@ -38,6 +38,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--yaw-rate-limit", type=float, default=90.0, help="yaw-rate limit [deg/s] (90); plan peaks at half")
     g.add_argument("--climb-limit", type=float, default=1.5, help="climb-rate limit [m/s] (1.5); plan peaks at half")
     g.add_argument("--max-stick", type=float, default=0.6, help="largest stick deflection, fraction of full (0.6)")
+    g.add_argument("--max-hold", type=float, default=3.0, help="longest pulse unit of a drag doublet [s] (3)")
+    g.add_argument("--speed-limit", type=float, default=3.0, help="speed a drag doublet may build [m/s] (3)")
     g.add_argument("--sid-injection", choices=("mixer", "rate"), default="mixer",
                    help="ArduCopter SystemId injection point: mixer (SID_AXIS 10-13) or rate set-point (7-9)")
 
@@ -54,7 +56,8 @@ def run(args: argparse.Namespace) -> int:
         opt = QuadExciteOptions(autopilot=args.autopilot, inputs=_names(args.inputs or "3211,doublet,drag"),
                                 axes=_names(args.axes), roll_limit_deg=args.tilt_limit,
                                 yaw_rate_limit_deg_s=args.yaw_rate_limit, climb_limit_m_s=args.climb_limit,
-                                max_stick=args.max_stick, rate_hz=_or(args.rate, 100.0), settle_s=args.settle,
+                                max_stick=args.max_stick, max_hold_s=args.max_hold,
+                                speed_limit_m_s=args.speed_limit, rate_hz=_or(args.rate, 100.0), settle_s=args.settle,
                                 tail_s=args.tail, recovery_s=_or(args.recovery, 6.0),
                                 max_frequency_hz=_or(args.max_frequency, 5.0))
         out = QuadOutputOptions(rc_rate_hz=_or(args.rc_rate, 50.0), sid_injection=args.sid_injection)
