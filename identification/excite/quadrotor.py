@@ -151,7 +151,7 @@ class QuadExciteOptions:
     attitude_fraction: float = bounded(0.5, 0.05, 1.0)
     max_stick: float = bounded(0.6, 0.05, 1.0)
     loop_delay_s: float = bounded(0.01, 0.0, 0.1, "s")
-    rate_hz: float = bounded(100.0, 20.0, 400.0, "Hz")
+    rate_hz: float = bounded(100.0, 50.0, 400.0, "Hz")  #: one RK4 step per sample in the check: >= 50 Hz
     min_pulse_s: float = bounded(0.1, 0.02, 5.0, "s")
     settle_s: float = bounded(2.0, 0.0, 30.0, "s")
     tail_s: float = bounded(3.0, 0.0, 30.0, "s")

@@ -37,6 +37,7 @@ from fmu_models.quadrotor.model import QuadrotorModel
 from identification.estimation.identifiability import CONDITION_LIMIT, CORRELATION_LIMIT, normalised
 from identification.estimation.oem import RELATIVE_STD_WARN, Manoeuvre, OutputErrorEstimator
 from identification.excite.check import NOISE_SIGMA, SetCheck, conditioning
+from identification.excite.design import ExciteError
 from identification.excite.quadrotor import (
     AXES,
     IN_AIR_DOWN_M,
@@ -57,6 +58,7 @@ NUISANCE_STATES = ("rate_body_x_rad_s", "rate_body_y_rad_s", "rate_body_z_rad_s"
 CHECK_TAU_S = 0.02  #: motor time constant the check uses when the parameters have none [s]
 RATE_I_LIMIT = 0.3  #: rate-loop integrator clamp [normalised torque command]
 ACCEL_LIMIT_M_S2 = 6.0  #: commanded vertical acceleration clamp [m/s2]
+DIVERGED_RAD = math.radians(80.0)  #: a check flight tilting beyond this has lost control
 
 
 @dataclass
@@ -141,6 +143,10 @@ def fly_closed_loop(plan: QuadExcitationPlan, compile: bool = True) -> QuadFligh
         u[:N_MOTORS] = np.clip(PWM_MIN_US + act * span, PWM_MIN_US, PWM_MAX_US)
         x1, y1 = step(x, u, p, dt)
         x, y = np.asarray(x1).ravel(), np.asarray(y1).ravel()
+        if not (np.all(np.isfinite(x)) and max(abs(y[out["roll_rad"]]), abs(y[out["pitch_rad"]])) < DIVERGED_RAD):
+            raise ExciteError(f"the closed-loop check flight diverged at {t[k]:.2f} s of the plan (tilt beyond "
+                              f"{math.degrees(DIVERGED_RAD):.0f} deg or a non-finite state): the {lp.name} loops at "
+                              f"{plan.options.rate_hz:g} Hz do not hold this airframe; raise --rate or tune the loops")
         xs.append(x)
         us.append(u)
         ys.append(y)
@@ -233,6 +239,9 @@ def check_set(plan: QuadExcitationPlan, flight: QuadFlight, names: Sequence[str]
                               estimate_biases=OUTPUTS, compile=compile)
     weight = np.diag([1.0 / NOISE_SIGMA[n] ** 2 for n in OUTPUTS])
     M, all_names = oe.information(data, None, weight)
+    if not np.all(np.isfinite(M)):
+        raise ExciteError(f"the output-error sensitivities of the check flight are not finite at "
+                          f"{plan.options.rate_hz:g} Hz (one RK4 step per sample): raise --rate")
     std = cramer_rao_std(M, len(names))
     value = {n: abs(float(flight.p[model.params.index[n]])) for n in names}
     rel = {n: float(std[i] / value[n]) if value[n] > 0 else float("inf") for i, n in enumerate(names)}

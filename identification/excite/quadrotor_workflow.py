@@ -89,6 +89,10 @@ def excite_quadrotor(params: QuadrotorParams | None = None, opt: QuadExciteOptio
                         ".rc_override.csv": rc_override_csv(steps)}
         result.files.update({f".sid_{a}.parm": text for a, text in sid_parameters(plan, out, command).items()})
     result.warnings = list(steps["warnings"])
+    if result.flight is not None and result.flight.max_tilt_deg > plan.options.roll_limit_deg:
+        result.warnings.append(f"the check flight tilted {result.flight.max_tilt_deg:.0f} deg, beyond the "
+                               f"{plan.options.roll_limit_deg:g} deg limit: the loops or the plan rate do not hold "
+                               "this airframe (raise --rate, lower --max-stick)")
     result.files[".plan.json"] = json.dumps(result.plan_dict(out), indent=1)
     return result
 

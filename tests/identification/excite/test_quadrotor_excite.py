@@ -132,6 +132,8 @@ def test_bad_options_are_refused_with_the_allowed_values() -> None:
         plan_quadrotor_excitation(None, QuadExciteOptions(autopilot="inav"))
     with pytest.raises(ExciteError, match="multisine"):
         plan_quadrotor_excitation(None, QuadExciteOptions(inputs=("multisine",)))
+    with pytest.raises(ExciteError, match=r"rate_hz = 25.0; allowed range \[50.0, 400.0\] Hz"):
+        plan_quadrotor_excitation(None, QuadExciteOptions(rate_hz=25.0))
     with pytest.raises(ExciteError, match="cannot hover"):
         plan_quadrotor_excitation(_params(mass_kg=20.0), QuadExciteOptions())
 
