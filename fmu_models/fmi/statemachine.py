@@ -86,8 +86,8 @@ MASKS: dict[str, tuple[str, ...]] = {
     "CancelStep": ("StepInProgress",),
     "GetStatus": ("StepComplete", "StepFailed", "StepCanceled", "Terminated", "Error"),
     "SetInputDerivatives": ("Instantiated", "InitializationMode", "StepComplete"),
-    "GetOutputDerivatives": ("StepComplete", "StepFailed", "StepCanceled", "Terminated"),
-    "GetDirectionalDerivative": ("InitializationMode", *INITIALIZED),
+    "GetOutputDerivatives": ("StepComplete", "StepFailed", "StepCanceled", "Terminated", "Error"),
+    "GetDirectionalDerivative": ("InitializationMode", *INITIALIZED, "Error"),
     "EnterEventMode": ("EventMode", "ContinuousTimeMode"),
     "NewDiscreteStates": ("EventMode",),
     "EnterContinuousTimeMode": ("EventMode",),
@@ -103,7 +103,7 @@ MASKS: dict[str, tuple[str, ...]] = {
     "EnterStepMode": ("EventMode",),
     "EnterConfigurationMode": ("Instantiated", "StepComplete", "EventMode"),
     "ExitConfigurationMode": ("ConfigurationMode",),
-    "Clock": ("EventMode",),
+    "Clock": ("InitializationMode", "EventMode"),
 }
 
 #: where the FMI 3.0 state machine differs from the FMI 2.0 one (FMI 3.0 sections 2.3.1, 3.2.1): Get of inputs

@@ -371,8 +371,6 @@ _NOMINALS = ("fmi3GetNominalsOfContinuousStates also answers in Instantiated, as
              "does (the nominals are constants of the model)")
 _NUMBERS = ("fmi3GetNumberOfContinuousStates and fmi3GetNumberOfEventIndicators answer wherever an instance lives "
             "(the numbers never change: no structural parameters); a Co-Simulation instance gets an interface error")
-_UNSUPPORTED_IN_STATE = ("not provided by the FMUs (an error wherever called); refused as a state error where the "
-                         "standard allows it")
 #: (FMI version, row, state) -> the FMUs' answer and why; the same choices are listed in statemachine.py's docstring
 DEVIATIONS: dict[tuple[int, str, str], Deviation] = {
     (2, "Terminate", "Error"): Deviation(True, _ERROR_TERMINATE),
@@ -389,9 +387,6 @@ DEVIATIONS: dict[tuple[int, str, str], Deviation] = {
     (3, "GetNominals", "Instantiated"): Deviation(True, _NOMINALS),
     **{(3, "GetNumberOfStates", state): Deviation(True, _NUMBERS)
        for state in ("InitializationMode", "ContinuousTimeMode", "StepComplete", "Terminated", "Error")},
-    **{(v, row, "Error"): Deviation(False, _UNSUPPORTED_IN_STATE)
-       for v in (2, 3) for row in ("GetOutputDerivatives", "GetDirectionalDerivative")},
-    (3, "Clock", "InitializationMode"): Deviation(False, _UNSUPPORTED_IN_STATE),
 }
 
 

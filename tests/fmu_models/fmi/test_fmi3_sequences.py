@@ -225,6 +225,11 @@ EXPLICIT = [
      ["get", 0, 0, "Boolean", [], [], 0]],
     [*ME_LIFE[:3], ["setTime", 0, 0, 0.5], ["eventMode", 0, 0], ["ctMode", 0, 0], ["setTime", 0, 0, 0.5],
      ["eventMode", 0, 0]],
+    # the clock interval and shift functions are allowed in Initialization Mode, the derivative functions in
+    # Terminated (here the Error state after a rejected step): refused as not provided, not as a state error
+    [*LIFE[:2], ["clock", 0, 0, 0], ["clock", 0, 0, 2], ["clock", 0, 0, 5]],
+    [*LIFE, ["set", 0, 0, "Float64", [0], [math.nan], 0], ["step", 0, 0, 0, 0.0, 0.01, 0], ["deriv", 0, 0, 0],
+     ["deriv", 0, 0, 2]],
 ]
 
 

@@ -147,6 +147,10 @@ EXPLICIT = [
     [*LIFE, ["set", 0, 0, "Real", [0], [1600.0], 0], ["get", 0, 0, "Real", [OUT, OUT + 1], [], 0],
      ["step", 0, 0, 0, 0.0, 1e9], ["step", 0, 0, 0, 0.0, 1e5], ["step", 0, 0, 0, 0.0, 0.01]],
     [*LIFE, ["terminate", 0, 0], ["terminate", 0, 0], ["reset", 0, 0], ["debug", 0, 0, 1, 2, 0]],
+    # after a rejected step (Error state) the derivative functions are allowed by the standard (values for
+    # debugging): refused as not provided, not as a state error
+    [*LIFE, ["set", 0, 0, "Real", [0], [math.nan], 0], ["step", 0, 0, 0, 0.0, 0.01], ["deriv", 0, 0, 0],
+     ["deriv", 0, 0, 2]],
 ]
 
 
