@@ -19,6 +19,7 @@ from identification.common.parallel import (
     Executor,
     ParallelError,
     local_path,
+    retry_workers,
     run_inline,
     task_rng,
 )
@@ -115,3 +116,13 @@ def test_inline_a_task_that_always_raises_runs_exactly_twice(tmp_path: Path) -> 
 
     run = run_inline(failing, [{"k": 0}, {"k": 1}], progress=False)
     assert calls == [0, 0, 1, 1] and set(run.failures) == {0, 1}
+
+
+def test_a_retry_avoids_the_failed_worker_and_its_restart_of_the_same_name() -> None:
+    workers = {"tcp://127.0.0.1:1001": {"name": 0}, "tcp://127.0.0.1:1002": {"name": 1},
+               "tcp://127.0.0.1:1003": {"name": 0}}  # 1003: the nanny's restart of worker 0, which died at 1001
+    assert retry_workers(workers, ("tcp://127.0.0.1:1001", 0)) == ["tcp://127.0.0.1:1002"]
+    assert retry_workers(workers, ("tcp://127.0.0.1:1002", 1)) == ["tcp://127.0.0.1:1001", "tcp://127.0.0.1:1003"]
+    # workers without names (a remote cluster's): only the address is avoided
+    unnamed = {"tcp://a:1": {"name": None}, "tcp://b:1": {"name": None}}
+    assert retry_workers(unnamed, ("tcp://a:1", None)) == ["tcp://b:1"]
