@@ -2,18 +2,24 @@
 
 From this table ``header()`` generates ``uavfmu_states.h``, which the native FMI 2.0 / 3.0 layers
 (``native/fmi2Functions.c``, ``native/fmi3Functions.c`` over ``native/uavfmu_core.h``) and the pythonfmu guard
-(``shim.py``) include; the call-sequence tests (tests/fmu_models/fmi/test_fmi_sequences.py, FMI 2.0 on every backend,
-and test_fmi3_sequences.py, FMI 3.0) judge by the same table (``MASKS``, ``FMI3_MASKS``, ``RULES``,
-``INTERFACE``). States follow the FMI 2.0.4 (sections 3.2.3, 4.2.4) and FMI 3.0 state machines; FMI 3.0's Step
-Mode is FMI 2.0's stepComplete. Deliberate, documented choices beyond the figures:
+(``shim.py``) include. States follow the FMI 2.0.4 (sections 3.2.3, 4.2.4) and FMI 3.0 state machines; FMI 3.0's
+Step Mode is FMI 2.0's stepComplete. The call-sequence tests (tests/fmu_models/fmi/test_fmi_sequences.py, FMI 2.0
+on every backend, and test_fmi3_sequences.py, FMI 3.0) do not judge by this table but by the standards' tables
+written out in tests/fmu_models/fmi/fmi_standard.py, and test_fmi_standard_tables.py compares this table with them
+cell by cell. Deliberate, documented choices beyond the standards' tables (listed there too):
 
 * the Get functions (values, status, continuous states) also answer in the Error state, for diagnostics;
 * Terminate is also accepted in the Error state (importers such as FMPy terminate after a failed step before
   freeing; it only moves the instance to Terminated, from which Reset starts again);
 * fmi2DoStep is synchronous: the StepInProgress state is never entered, so fmi2CancelStep always answers
   "not allowed in state" (and the Get*Status kinds about a pending step are never available);
+* FMI 2.0 as FMI 3.0 allows: inputs can be set in Instantiated (their start values) and inputs and parameters read
+  back in Initialization Mode (FMI 2.0's table admits only variables with an initial attribute, and outputs and
+  initial unknowns); fmi2SetTime is also accepted in Event Mode (FMI 2.0: only for a pure discrete-time FMU);
+* FMI 3.0: fmi3GetNominalsOfContinuousStates also answers in Instantiated (as in FMI 2.0), the numbers of
+  continuous states and event indicators wherever an instance lives (they never change);
 * no structural parameters, clocks or event mode in Co-Simulation: the FMI 3.0 configuration and clock
-  functions answer an error;
+  functions answer an error (Configuration Mode is never entered);
 * a refused call (state, arguments, interface) changes nothing, in FMI 3.0 too (where the standard lets an FMU
   that returned fmi3Error go to Terminated); a model failure moves the instance to the Error state, which
   answers what FMI 3.0's Terminated answers (Get, Reset, FMU state) and Terminate;
@@ -80,8 +86,8 @@ MASKS: dict[str, tuple[str, ...]] = {
     "CancelStep": ("StepInProgress",),
     "GetStatus": ("StepComplete", "StepFailed", "StepCanceled", "Terminated", "Error"),
     "SetInputDerivatives": ("Instantiated", "InitializationMode", "StepComplete"),
-    "GetOutputDerivatives": ("StepComplete", "StepFailed", "StepCanceled", "Terminated"),
-    "GetDirectionalDerivative": ("InitializationMode", *INITIALIZED),
+    "GetOutputDerivatives": ("StepComplete", "StepFailed", "StepCanceled", "Terminated", "Error"),
+    "GetDirectionalDerivative": ("InitializationMode", *INITIALIZED, "Error"),
     "EnterEventMode": ("EventMode", "ContinuousTimeMode"),
     "NewDiscreteStates": ("EventMode",),
     "EnterContinuousTimeMode": ("EventMode",),
@@ -97,7 +103,7 @@ MASKS: dict[str, tuple[str, ...]] = {
     "EnterStepMode": ("EventMode",),
     "EnterConfigurationMode": ("Instantiated", "StepComplete", "EventMode"),
     "ExitConfigurationMode": ("ConfigurationMode",),
-    "Clock": ("EventMode",),
+    "Clock": ("InitializationMode", "EventMode"),
 }
 
 #: where the FMI 3.0 state machine differs from the FMI 2.0 one (FMI 3.0 sections 2.3.1, 3.2.1): Get of inputs

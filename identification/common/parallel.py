@@ -20,9 +20,10 @@ every cached path in a result or error message is turned back into the client's 
 pickled: ``fn`` must be an importable module-level function whose tasks and results are plain data.
 
 Faults: a task whose worker dies under it (a crashing FMU, SIGKILL, out of memory) or that raises is run once
-more (another worker when there is one); a task that fails twice is listed in :attr:`TaskRun.failures` with its
-error, and the rest completes. At most ``max_in_flight`` tasks are submitted at a time, so memory on client and
-workers is bounded by the tasks in flight, not by the number of tasks.
+more, on another worker when there is one (not the worker it failed on, nor a worker of the same name: the one
+a nanny restarted in place of a worker that died); a task that fails twice is listed in
+:attr:`TaskRun.failures` with its error, and the rest completes. At most ``max_in_flight`` tasks are submitted
+at a time, so memory on client and workers is bounded by the tasks in flight, not by the number of tasks.
 
 Results are dicts: ``numpy`` array values go to ``NNNNNN.npz``, the rest to ``NNNNNN.json`` (no pickle on disk).
 """
@@ -231,9 +232,10 @@ class Executor(AbstractContextManager):
         limit = max(1, max_in_flight or 2 * run.workers)
         attempt: dict[int, int] = {}
 
-        def submit(i: int, avoid: str | None = None) -> None:
+        def submit(i: int, avoid: tuple[str | None, Any] | None = None) -> None:
+            """Submit task ``i``; a retry goes to a worker other than ``avoid`` (address, name) when there is one."""
             attempt[i] = attempt.get(i, 0) + 1
-            others = [w for w in self.client.scheduler_info()["workers"] if w != avoid] if avoid else []
+            others = retry_workers(self.client.scheduler_info()["workers"], avoid) if avoid else []
             where = {"workers": others, "allow_other_workers": True} if others else {}
             shipped, blobs = _ship(per_task(tasks[i]))
             fut = self.client.submit(_run_task, fn, tasks[i], shipped, blobs, pure=False, **where,
@@ -263,19 +265,30 @@ class Executor(AbstractContextManager):
                     submit(j)
         return run
 
-    def _outcome(self, fut: Any, run: TaskRun, i: int) -> tuple[str | None, str | None]:
-        """Write a finished task's result to disk; or (error text, worker to avoid) when it failed."""
+    def _outcome(self, fut: Any, run: TaskRun, i: int) -> tuple[str | None, tuple[str | None, Any] | None]:
+        """Write a finished task's result to disk; or (error text, (address, name) of the worker to avoid) when it
+        failed."""
         try:
             out = fut.result()
         except Exception as err:  # KilledWorker (the worker died under the task), CancelledError, ...
-            last = getattr(getattr(err, "last_worker", None), "address", None)
+            worker = getattr(err, "last_worker", None)
+            last = getattr(worker, "address", None)
             what = f"the worker process ({last}) died during the task" if last else str(err)
-            return f"{type(err).__name__}: {what}", last
+            return f"{type(err).__name__}: {what}", (last, getattr(worker, "name", None))
         if "__error__" in out:
             who = self.client.who_has(fut).get(fut.key) or ()
-            return str(out["__error__"]), (who[0] if who else None)
+            address = who[0] if who else None
+            name = self.client.scheduler_info()["workers"].get(address, {}).get("name") if address else None
+            return str(out["__error__"]), (address, name)
         _write(run.out_dir, i, out)
         return None, None
+
+
+def retry_workers(workers: Mapping[str, Mapping[str, Any]], avoid: tuple[str | None, Any]) -> list[str]:
+    """Addresses of the ``workers`` (the scheduler's ``{address: info}``) a retry may go to: not the ``avoid``
+    (address, name) worker the task failed on, nor one of the same name (a nanny's restart of a dead worker)."""
+    address, name = avoid
+    return [w for w, info in workers.items() if w != address and (name is None or info.get("name") != name)]
 
 
 def _ship(files: Iterable[str | Path | None]) -> tuple[dict[str, tuple[str, str]], dict[str, bytes]]:

@@ -157,6 +157,46 @@ def test_hover_throttles_hover_the_model(built_fmus: dict[str, Path], generated:
     assert light_hover == pytest.approx(light_weight, rel=0.01)
 
 
+def _px4_shipped() -> dict[str, float]:
+    lines = (AUTOPILOT / "px4" / "px4-rc.params").read_text().splitlines()
+    return {ln.split()[2]: float(ln.split()[3]) for ln in lines if ln.strip() and not ln.startswith("#")}
+
+
+def _fmu_thrust_in_the_air(fmu: Path, pwm_us: float) -> tuple[float, float]:
+    """(total thrust [N], mass [kg]) of the quadrotor FMU itself with all four motors held at ``pwm_us`` for 1 s,
+    50 m up (the motors' first-order lag settled)."""
+    from fmu_models.fmi.host import FmuHost
+
+    host = FmuHost(fmu)
+    try:
+        host.start({"init_pos_down_m": -50.0})
+        dt = 0.01
+        for k in range(100):
+            host.step(k * dt, dt, {f"pwm_{i}_us": pwm_us for i in range(1, 5)})
+        return host.get(["thrust_total_N"])["thrust_total_N"], host.start_value("mass_kg")
+    finally:
+        host.close()
+
+
+def test_shipped_hover_values_hover_the_fmu_itself(built_fmus: dict[str, Path]) -> None:
+    """Independent of the generator: the values in the shipped files, through the autopilots' own thrust models
+    to a PWM (PX4: ``thrust = (1 - f) c + f c^2`` with f = THR_MDL_FAC, control c to 1000 + 1000 c us as the
+    adapter maps it; ArduCopter: ``_arducopter_hover_pwm``), and the FMU flown at that PWM: PX4's hover makes the
+    FMU's weight (mass start value x g) within 1 %; ArduCopter's, clamped at its 0.6875 maximum (the file says
+    so), makes less."""
+    fmu = built_fmus["quadrotor"]
+    v = _px4_shipped()
+    f, hover = v["THR_MDL_FAC"], v["MPC_THR_HOVER"]
+    c = hover if f == 0 else (-(1 - f) + math.sqrt((1 - f) ** 2 + 4 * f * hover)) / (2 * f)
+    thrust, mass = _fmu_thrust_in_the_air(fmu, 1000.0 + 1000.0 * c)
+    assert thrust == pytest.approx(mass * G0_M_S2, rel=0.01)
+    copter = ardupilot_params("copter-f450-x.parm")
+    assert copter["MOT_THST_HOVER"] == 0.6875 and "WARNING: MOT_THST_HOVER" in (
+        AUTOPILOT / "ardupilot" / "copter-f450-x.parm").read_text()
+    thrust, mass = _fmu_thrust_in_the_air(fmu, _arducopter_hover_pwm(copter))
+    assert thrust < mass * G0_M_S2
+
+
 def _rate_step(fmu: Path, params: dict[str, float], axis: str, step_deg_s: float, gain_scale: float = 1.0,
                servo_tau_s: float = 0.05, dt: float = 0.0025, duration_s: float = 1.2) -> tuple[np.ndarray, np.ndarray]:
     """ArduPlane's rate loop (AP_FW_Controller: out = FF s r + P s^2 e + I s^2 int e, out in degrees of a
@@ -234,6 +274,40 @@ def test_generated_plane_rate_loops_rise_fast_without_overshoot(axis: str, step_
     # the bound is not loose: a third of the gains misses it
     t, r = _rate_step(built_fmus["fixed_wing"], params, axis, step_deg_s, gain_scale=0.3)
     assert _rise_and_overshoot(t, r, step_deg_s)[0] >= 0.3
+
+
+#: the steady-state window and tolerance of a rate loop: the mean rate over the last 0.3 s of the 1.2 s response
+#: within 5 % of the demand (a loop that settles 7 % short fails)
+SETTLE_WINDOW_S, SETTLE_TOL = 0.3, 0.05
+
+
+def _settled(t: np.ndarray, r: np.ndarray, step: float) -> float:
+    """The mean rate over the last ``SETTLE_WINDOW_S`` of the response, as a fraction of the step."""
+    return float(np.mean(r[t >= t[-1] - SETTLE_WINDOW_S]) / step)
+
+
+def test_the_steady_state_check_rejects_a_loop_settling_seven_percent_short() -> None:
+    t = np.arange(0.0, 1.2, 0.0025)
+    first_order = 1.0 - np.exp(-np.maximum(t - 0.1, 0.0) / 0.08)
+    assert abs(_settled(t, 10.0 * first_order, 10.0) - 1.0) <= SETTLE_TOL
+    assert abs(_settled(t, 0.93 * 10.0 * first_order, 10.0) - 1.0) > SETTLE_TOL
+
+
+@pytest.mark.parametrize(("axis", "step_deg_s"), [
+    ("roll", 30.0),
+    pytest.param("pitch", 10.0, marks=pytest.mark.xfail(strict=True, reason=(
+        "the generated pitch-rate loop does not hold a sustained 10 deg/s pitch rate: after its first peak it "
+        "drops to about 0.6 of the demand and ends 1.2 s at 0.73 (the elevator needed keeps growing as "
+        "the pull-up bleeds speed, and the PI loop lags that ramp); its gains are already above ArduPilot's "
+        "documented range. Measured, not yet designed out"))),
+])
+def test_generated_plane_rate_loops_settle_on_the_demand(axis: str, step_deg_s: float, built_fmus: dict[str, Path],
+                                                         generated: dict[str, object]) -> None:
+    """The same closed loops as above, held for 1.2 s: the rate settles within 5 % of the demand."""
+    t, r = _rate_step(built_fmus["fixed_wing"], generated["arduplane"].values, axis, step_deg_s)
+    settled = _settled(t, r, step_deg_s)
+    print(f"{axis} rate step {step_deg_s} deg/s: {settled:.3f} of the demand over the last {SETTLE_WINDOW_S} s")
+    assert abs(settled - 1.0) <= SETTLE_TOL, f"{axis}: settles at {settled:.3f} of the demand"
 
 
 def test_wrong_vehicle_and_bad_options_are_clear_errors(built_fmus: dict[str, Path], tmp_path: Path) -> None:

@@ -461,3 +461,41 @@ def test_profile_from_the_bench_config(tmp_path) -> None:
     path.write_text('[sensors]\nprofile = "gazebo"\n')
     with pytest.raises(ConfigError, match="px4_gazebo"):
         load_hil_config(path)
+
+
+# The u-blox M8 profile's figures, each written here from its data sheet (not read from hil_adapter/sensors.py),
+# with the unit conversion spelled out.
+#: TDK InvenSense ICM-20602 data sheet DS-000176 rev 1.0, section 3.1 "Gyroscope specifications": rate noise
+#: spectral density 0.004 deg/s/sqrt(Hz); in rad/s/sqrt(Hz): x pi / 180
+ICM20602_GYRO_DENSITY_RAD_S = 0.004 * math.pi / 180.0
+#: same data sheet, section 3.2 "Accelerometer specifications": noise power spectral density 100 ug/sqrt(Hz);
+#: in m/s^2/sqrt(Hz): x 1e-6 g x 9.80665 m/s^2 per g (standard gravity)
+ICM20602_ACCEL_DENSITY_M_S2 = 100.0 * 1e-6 * 9.80665
+#: TE MS5611-01BA03 data sheet, "Technical data, pressure": resolution 0.012 mbar RMS at oversampling ratio 4096;
+#: in Pa: x 100 Pa per mbar
+MS5611_NOISE_PA = 0.012 * 100.0
+#: u-blox NEO-M8 data sheet UBX-15031086, "Performance": horizontal position accuracy 2.5 m CEP (GPS + GLONASS),
+#: velocity accuracy 0.05 m/s, navigation update rate 10 Hz (concurrent GNSS); CEP of a circular normal error =
+#: sigma sqrt(2 ln 2) = 1.1774 sigma, so the per-axis sigma is 2.5 / 1.1774 m
+NEO_M8_CEP_M, NEO_M8_VEL_M_S, NEO_M8_RATE_HZ = 2.5, 0.05, 10.0
+
+
+def test_ublox_profile_values_are_the_data_sheet_figures() -> None:
+    cfg = SensorConfig.profile("ublox_m8")
+    assert cfg.gyro.noise_density == pytest.approx(ICM20602_GYRO_DENSITY_RAD_S, rel=1e-9)
+    assert cfg.gyro.noise_density == pytest.approx(6.98e-5, rel=1e-3)  # the same figure, worked out by hand
+    assert cfg.accel.noise_density == pytest.approx(ICM20602_ACCEL_DENSITY_M_S2, rel=1e-9)
+    assert cfg.accel.noise_density == pytest.approx(9.81e-4, rel=1e-3)
+    assert cfg.baro.noise_std == pytest.approx(MS5611_NOISE_PA, rel=1e-9)
+    assert cfg.gps.eph_m == NEO_M8_CEP_M and cfg.gps.rate_hz == NEO_M8_RATE_HZ
+    assert cfg.gps.pos_gm_std_h_m == pytest.approx(NEO_M8_CEP_M / math.sqrt(2.0 * math.log(2.0)), rel=1e-4)
+    assert cfg.gps.vel_noise_std_m_s == NEO_M8_VEL_M_S
+
+
+def test_ublox_profile_gyro_noise_measured_has_the_data_sheet_density() -> None:
+    """The profile's gyro noise as the suite draws it (other gyro errors off): per-sample std = density / sqrt(dt)."""
+    dt = 0.004
+    gyro = SensorConfig.profile("ublox_m8").gyro.replace(drift_std=0.0, turn_on_bias_std=0.0)
+    suite = SensorSuite(SensorConfig.noise_free().replace(gyro=gyro), seed=11)
+    g = np.array([suite.sample((k + 1) * dt, outputs()).gyro_body_rad_s for k in range(20000)])
+    assert np.std(g[1:]) == pytest.approx(ICM20602_GYRO_DENSITY_RAD_S / math.sqrt(dt), rel=0.05)

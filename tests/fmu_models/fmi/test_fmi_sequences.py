@@ -1,5 +1,5 @@
 """Generated FMI 2.0 call sequences, the same ones against every backend: the FMU never crashes
-its host, follows the one state machine table both directions, and every backend answers alike.
+its host, follows the FMI 2.0 state machine both directions, and every backend answers alike.
 
 Hypothesis builds sequences of calls (life-cycle calls in any order, value references valid, unknown or of
 the wrong type, NaN/inf/huge values, NULL arrays and components, steps from the wrong time or with a bad or
@@ -7,9 +7,10 @@ huge size, FMU states of the other instance or the other model, damaged and trun
 queries, the unsupported derivative functions, debug-logging categories, bad instantiations) and
 ``fmi_worker.py`` runs each sequence with plain ctypes in one subprocess per backend (the native FMI 2.0
 Co-Simulation FMU and the pythonfmu FMU behind its guard), so a crash fails the test with the sequence that
-caused it. Every answer is judged by the oracle of ``fmi_oracle.py`` (built on ``fmu_models/fmi/statemachine.py``,
-the table the C layers are generated from, in both directions). The two backends must return identical statuses
-for every call. At least 1000 sequences run (printed). test_fmi3_sequences.py does the same for FMI 3.0.
+caused it. Every answer is judged by the oracle of ``fmi_oracle.py`` (built on the FMI 2.0 tables written out from
+the standard in ``fmi_standard.py``, not on ``fmu_models/fmi/statemachine.py``, in both directions). The two
+backends must return identical statuses for every call. At least 1000 sequences run (printed).
+test_fmi3_sequences.py does the same for FMI 3.0.
 """
 
 from __future__ import annotations
@@ -146,6 +147,10 @@ EXPLICIT = [
     [*LIFE, ["set", 0, 0, "Real", [0], [1600.0], 0], ["get", 0, 0, "Real", [OUT, OUT + 1], [], 0],
      ["step", 0, 0, 0, 0.0, 1e9], ["step", 0, 0, 0, 0.0, 1e5], ["step", 0, 0, 0, 0.0, 0.01]],
     [*LIFE, ["terminate", 0, 0], ["terminate", 0, 0], ["reset", 0, 0], ["debug", 0, 0, 1, 2, 0]],
+    # after a rejected step (Error state) the derivative functions are allowed by the standard (values for
+    # debugging): refused as not provided, not as a state error
+    [*LIFE, ["set", 0, 0, "Real", [0], [math.nan], 0], ["step", 0, 0, 0, 0.0, 0.01], ["deriv", 0, 0, 0],
+     ["deriv", 0, 0, 2]],
 ]
 
 

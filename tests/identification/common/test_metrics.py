@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from identification.common.metrics import MetricsError, fit_metrics
+from identification.common.metrics import MetricsError, fit_metrics, overall_outcome
 
 
 def test_hand_computed_example() -> None:
@@ -403,3 +403,15 @@ def test_json_rows_carry_their_names() -> None:
     worse = _one_step(log, t, np.array([[1.0], [0.0], [1.0], [0.0]]), ["a"])["a"]
     assert worse.verdict == "FAIL" and "force model loses to the log's mean specific force (skill -1.00, 90 % " \
         "interval" in worse.reason
+
+
+@pytest.mark.parametrize(("outcomes", "verdict"), [
+    (["win", "win"], "win"),
+    (["win", "lose"], "lose"),  # one lost comparison (a baseline, a held-out flight) is a loss, however many win
+    (["lose", "win", "win"], "lose"),
+    (["win", "tie"], "tie"),
+    (["tie", "lose"], "lose"),
+    ([], "tie"),  # nothing scored is no win
+])
+def test_overall_outcome_any_loss_loses_and_only_all_wins_win(outcomes: list[str], verdict: str) -> None:
+    assert overall_outcome(outcomes) == verdict

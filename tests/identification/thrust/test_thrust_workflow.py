@@ -15,11 +15,21 @@ import numpy as np
 import pytest
 
 import identification.logs.readers as readers
+import identification.thrust.workflow as thrust_workflow
 from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.params import QuadrotorParams
 from identification.thrust.dataset import ThrustDataError
-from identification.thrust.model import fmu_total_thrust
-from identification.thrust.workflow import FlightSpec, ThrustConfig, identify_thrust
+from identification.thrust.model import ModelSpec, fmu_total_thrust
+from identification.thrust.workflow import (
+    CONSTANT,
+    FlightSpec,
+    FoldResult,
+    Score,
+    ThrustConfig,
+    comparisons,
+    identify_thrust,
+    verdict_of,
+)
 from tests.conftest import shared_data
 
 G = 9.80665
@@ -352,3 +362,47 @@ def test_a_badly_damaged_flight_is_refused_unless_accepted(fake_logs: dict[str, 
     assert len(r.overrides) == 1 and r.overrides[0].startswith("--accept-damaged-log: using damaged.bin")
     assert "30.0 %" in r.overrides[0] and r.verdict == "win" and r.exit_code == 0  # the verdict stays its own
     assert json.loads(out.with_suffix(".metrics.json").read_text())["flights"][0]["quality"]["lines"]
+
+
+def _fold(name: str, n: int, model_err_N: float, base_err_N: float, seed: int) -> FoldResult:
+    """A held-out set of ``n`` samples at 10 Hz whose model and constant baseline miss the measured thrust by
+    white errors of the given RMS [N]."""
+    rng = np.random.default_rng(seed)
+    measured = 11.0 + np.sin(np.arange(n) / 7.0)
+    model = measured + model_err_N * rng.standard_normal(n)
+    const = measured + base_err_N * rng.standard_normal(n)
+    spec = ModelSpec(1100.0, 1900.0, 11.1, voltage=True)
+    rmse = lambda p: float(np.sqrt(np.mean((p - measured) ** 2)))  # noqa: E731
+    return FoldResult(name, n, Score(rmse(model), 0.0), {CONSTANT: Score(rmse(const), 0.0)}, 1.0, spec, 0.1,
+                      {"measured": measured, "model": model, CONSTANT: const})
+
+
+#: flight "a" (600 samples): the model far better; flight "b" (300): the constant better (0.1 N against 0.2 N).
+#: Pooled, the model's squared error is 600 x 0.05^2 + 300 x 0.2^2 = 13.5 N^2 against 600 x 1^2 + 300 x 0.1^2
+#: = 603 N^2: a clear pooled win that hides a held-out flight lost.
+def _pooled_win_one_flight_lost() -> list[FoldResult]:
+    return [_fold("a", 600, 0.05, 1.0, seed=1), _fold("b", 300, 0.2, 0.1, seed=2)]
+
+
+def test_a_pooled_win_with_one_held_out_flight_lost_is_a_loss() -> None:
+    comp = comparisons(_pooled_win_one_flight_lost(), calibrate=False, block_s=1.0)
+    c = comp[f"model vs {CONSTANT}"]
+    assert c["pooled"]["outcome"] == "win" and c["pooled"]["skill_lo"] > 0.0  # the case: pooled, a clear win
+    assert c["per_held_out"]["a"]["outcome"] == "win" and c["per_held_out"]["b"]["outcome"] == "lose"
+    assert verdict_of(comp) == "lose"
+
+
+def test_identify_thrust_reports_a_pooled_win_with_a_lost_flight_as_losing(
+        fake_logs: dict[str, VoltLog], monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """The whole workflow on folds constructed as above: verdict, exit code, warning and metrics JSON all say it
+    loses, and name the flight."""
+    fake_logs["a"] = VoltLog(1.2, 12.3, 10.6, seed=1)
+    fake_logs["b"] = VoltLog(1.2, 12.1, 10.4, seed=2)
+    monkeypatch.setattr(thrust_workflow, "fold_results", lambda *_a, **_k: _pooled_win_one_flight_lost())
+    out = tmp_path / "params.json"
+    r = identify_thrust(_cfg([("a", 1.2), ("b", 1.2)], out=out))
+    assert r.comparisons[f"model vs {CONSTANT}"]["pooled"]["outcome"] == "win"
+    assert r.verdict == "lose" and not r.model_beats_baselines and r.exit_code == 3
+    assert any("LOSES" in w and "loses on b" in w for w in r.warnings)
+    metrics = json.loads(out.with_suffix(".metrics.json").read_text())
+    assert metrics["verdict"] == "lose" and metrics["parameters_written"] is None and not out.exists()

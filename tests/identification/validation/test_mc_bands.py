@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -14,7 +15,15 @@ import pytest
 from fmu_models.common.errors import ParameterError
 from fmu_models.common.params import Uncertainty, read_uncertainty
 from identification.flights import synthetic
-from identification.validation.mc_bands import McTask, band_ranks, mc_task, noise_std, prediction_band
+from identification.validation.mc_bands import (
+    MAX_COVERAGE,
+    MIN_COVERAGE,
+    McTask,
+    band_ranks,
+    mc_task,
+    noise_std,
+    prediction_band,
+)
 from identification.validation.replay import options
 from identification.validation.workflow import ValidationJob, validate_mc
 from uavfmu.cli import main
@@ -53,20 +62,57 @@ def _pooled(signals: dict) -> float:
     return float(np.mean([signals[s]["band_coverage"] for s in IDENTIFIED]))
 
 
-def test_true_model_bands_cover_about_ninety_percent(fixed_wing_fmu: Path, wing, tmp_path: Path) -> None:
-    out = validate_mc(_job(fixed_wing_fmu, wing, tmp_path), identified(), DRAWS, seed=3, workers=2)
-    pooled = _pooled(out.signals)
-    assert 0.85 <= pooled <= 0.95, {s: round(out.signals[s]["band_coverage"], 3) for s in IDENTIFIED}
-    assert all(out.signals[s]["band_verdict"] != "not explained" for s in IDENTIFIED)
-    metrics = json.loads((tmp_path / "metrics.json").read_text())
+#: noise and estimate seeds of the true-model runs (each: its own noisy log and its own estimate one covariance draw
+#: off the truth), and the draws per run (N = 20: the band is the min..max of the draws, a 90.5 % interval)
+SEEDS = (1, 2, 3)
+SEED_DRAWS = 20
+
+
+@pytest.fixture(scope="module")
+def true_model_runs(fixed_wing_fmu: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[int, tuple[Any, Path]]:
+    """Seed -> (result, report folder) of the true model on its own 20 s noisy log, on one local cluster."""
+    from identification.common.parallel import Executor
+
+    runs = {}
+    with Executor(workers=2) as ex:
+        for s in SEEDS:
+            d = tmp_path_factory.mktemp(f"mc_seed{s}")
+            t, sig = synthetic.fixed_wing_flight(seconds=20.0, rate_hz=50.0, noise=True, seed=s)
+            log = {"log": synthetic.write_csv_log(d / "wing.csv", t, sig),
+                   "mapping": synthetic.write_mapping_toml(d / "mapping.toml")}
+            runs[s] = validate_mc(_job(fixed_wing_fmu, log, d / "report"), identified(seed=s), SEED_DRAWS, seed=3,
+                                  executor=ex), d / "report"
+    return runs
+
+
+def test_true_model_bands_cover_about_ninety_percent_per_signal_over_seeds(true_model_runs) -> None:
+    """Per signal, the median coverage over the seeds lies in the window the docs call consistent (80-98 %);
+    pooled over signals and seeds, 85-95 %. One run's coverage is one realisation: where the estimate is off by
+    a tail draw (seed 2: C_m_alpha 2.4 standard deviations off) the pitch signals it drives fall below 80 % on that
+    log, which is why the per-signal figure is the median over seeds."""
+    cov = {s: {k: out.signals[k]["band_coverage"] for k in IDENTIFIED} for s, (out, _) in true_model_runs.items()}
+    for k in IDENTIFIED:
+        print(f"{k:22s}", " ".join(f"{cov[s][k]:.3f}" for s in SEEDS))
+    median = {k: float(np.median([cov[s][k] for s in SEEDS])) for k in IDENTIFIED}
+    outside = {k: round(m, 3) for k, m in median.items() if not MIN_COVERAGE <= m <= MAX_COVERAGE}
+    assert not outside, f"median coverage over seeds {SEEDS} outside {MIN_COVERAGE}-{MAX_COVERAGE}: {outside}"
+    pooled = float(np.mean([cov[s][k] for s in SEEDS for k in IDENTIFIED]))
+    print(f"pooled {pooled:.3f}")
+    assert 0.85 <= pooled <= 0.95
+
+
+def test_true_model_run_writes_its_bands_to_metrics_and_report(true_model_runs) -> None:
+    out, report = true_model_runs[SEEDS[0]]
+    metrics = json.loads((report / "metrics.json").read_text())
     assert metrics["signals"]["roll_rad"]["band_coverage"] == out.signals["roll_rad"]["band_coverage"]
     assert "skill_persistence" in metrics["signals"]["roll_rad"]
     mc = metrics["monte_carlo"]
-    assert mc["draws"] == mc["draws_run"] == DRAWS and mc["parameters"] == NAMES and not mc["failed"]
+    assert mc["draws"] == mc["draws_run"] == SEED_DRAWS and mc["parameters"] == NAMES and not mc["failed"]
     # the noise the bands carry is estimated from the log: the demo's sensor noise, recovered within 15 %
     assert mc["output_noise_std"]["roll_rad"] == pytest.approx(synthetic.NOISE["roll_rad"], rel=0.15)
     assert mc["output_noise_std"]["airspeed_m_s"] == pytest.approx(synthetic.NOISE["airspeed_m_s"], rel=0.15)
-    page = (tmp_path / "report.html").read_text()
+    assert all(out.signals[k]["band_verdict"] != "not explained" for k in IDENTIFIED)
+    page = (report / "report.html").read_text()
     assert "5-95 % band coverage" in page and "Not explained" not in page
 
 
