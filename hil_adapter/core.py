@@ -25,6 +25,7 @@ from typing import Any, TextIO
 from fmu_models.fmi.host import FmuHost, FmuRunError
 from fmu_models.signals.names import OUTPUT_TO_LOG
 from fmu_models.signals.pwm_mapping import MappingError, PwmMapping, default_mapping
+from hil_adapter.config import SPEED_RANGE
 
 log = logging.getLogger(__name__)
 
@@ -42,6 +43,8 @@ OUT_OF_BAND_OUTPUT = "thrust_map_out_of_range"
 IDLE_GAP_S = 0.25
 #: lockstep default of the busy poll before a blocking receive [s]; see :class:`SocketSpinner`
 BUSY_POLL_S = 0.0005
+#: a lockstep run further behind its schedule than this [s] starts the schedule again from now (no burst)
+MAX_LAG_S = 0.25
 
 
 class SocketSpinner:
@@ -218,6 +221,8 @@ class Stats:
     out_of_band: int = 0
     #: wall time between the first and the last step, pauses left out [s]
     active_s: float = 0.0
+    #: simulation time stepped [s] (the FMU steps' sizes summed)
+    sim_s: float = 0.0
     started: float = field(default_factory=time.perf_counter)
     last_step: float = -math.inf
     #: wall time [s] of each reconnect: connection lost (or accepted again) -> first state sent on the new one
@@ -225,16 +230,18 @@ class Stats:
     latencies: deque[float] = field(default_factory=lambda: deque(maxlen=20000))
     #: adapter busy time per step [s]: from the autopilot's input to our reply sent (FMU step included)
     busy: deque[float] = field(default_factory=lambda: deque(maxlen=20000))
-    _live: tuple[int, float] = (0, 0.0)
+    _live: tuple[int, float, float] = (0, 0.0, 0.0)
 
-    def step(self, out_of_band: bool = False) -> None:
-        """Count one FMU step (and whether it was out of the thrust map's band)."""
+    def step(self, out_of_band: bool = False, dt_s: float = 0.0) -> None:
+        """Count one FMU step of ``dt_s`` [s] of simulation time (and whether it was out of the thrust map's
+        band)."""
         now = time.perf_counter()
         gap = now - self.last_step
         if gap < IDLE_GAP_S:
             self.active_s += gap
         self.last_step = now
         self.steps += 1
+        self.sim_s += dt_s
         if out_of_band:  # reported once, with the count, in the summary (and per step in the record)
             self.out_of_band += 1
 
@@ -249,17 +256,29 @@ class Stats:
         """Steps per second of stepping time (waits, reconnects and the time after the last step left out)."""
         return self.steps / self.active_s if self.active_s > 0 else 0.0
 
-    def live_rate_hz(self) -> float:
-        """Steps per second of stepping time since the previous call (the status line calls it every second);
-        0 once stepping has stopped."""
-        steps, active = self._live
-        self._live = (self.steps, self.active_s)
+    @property
+    def real_time_factor(self) -> float:
+        """Simulation seconds per wall second of stepping time (1 = real time; pauses left out)."""
+        return self.sim_s / self.active_s if self.active_s > 0 else 0.0
+
+    def live_rates(self) -> tuple[float, float]:
+        """(steps per second, real-time factor) over the stepping time since the previous call (the status line
+        calls it every second); zeros once stepping has stopped."""
+        steps, active, sim = self._live
+        self._live = (self.steps, self.active_s, self.sim_s)
         d_active = self.active_s - active
-        return (self.steps - steps) / d_active if d_active > 0 else 0.0
+        if d_active <= 0:
+            return 0.0, 0.0
+        return (self.steps - steps) / d_active, (self.sim_s - sim) / d_active
+
+    def live_rate_hz(self) -> float:
+        """Steps per second of stepping time since the previous call; 0 once stepping has stopped."""
+        return self.live_rates()[0]
 
     def summary(self, plant: Plant | None = None) -> dict[str, Any]:
         busy = 1e3 * sum(self.busy) / len(self.busy) if self.busy else math.nan
         out = {"steps": self.steps, "step_rate_hz": round(self.rate_hz, 1), "stepping_s": round(self.active_s, 3),
+               "real_time_factor": round(self.real_time_factor, 4),
                "busy_mean_ms": round(busy, 4),
                "latency_p50_ms": round(1e3 * self.percentile(50), 4),
                "latency_p99_ms": round(1e3 * self.percentile(99), 4),
@@ -276,7 +295,8 @@ class Stats:
     def line(self, plant: Plant | None = None) -> str:
         """The live status line; its rate is over the last second of stepping."""
         s = self.summary(plant)
-        return (f"t={s.get('sim_time_s', 0):8.2f}s steps={s['steps']} rate={self.live_rate_hz():.0f}/s "
+        rate, rtf = self.live_rates()
+        return (f"t={s.get('sim_time_s', 0):8.2f}s steps={s['steps']} rate={rate:.0f}/s rtf={rtf:.2f}x "
                 f"rtt p50={s['latency_p50_ms']:.3f}ms p99={s['latency_p99_ms']:.3f}ms overruns={s['overruns']} "
                 f"dropped={s['dropped']} malformed={s['malformed']} fmu_errors={s.get('fmu_errors', 0)}"
                 + (f" out_of_band={self.out_of_band}" if self.out_of_band else ""))
@@ -343,6 +363,51 @@ class Pacer:
             self.next_t = time.perf_counter()
         else:
             time.sleep(delay)
+
+
+def check_speed(speed: float | None) -> float | None:
+    """A lockstep speed factor (simulation seconds per wall second) in ``SPEED_RANGE``, or None (unpaced)."""
+    if speed is None:
+        return None
+    if isinstance(speed, bool) or not (math.isfinite(speed) and SPEED_RANGE[0] <= speed <= SPEED_RANGE[1]):
+        raise ValueError(f"speed = {speed!r}; allowed {SPEED_RANGE[0]:g}..{SPEED_RANGE[1]:g} or 'max'")
+    return float(speed)
+
+
+class SimClockPacer:
+    """Holds a lockstep loop to ``speed`` simulation seconds per wall second (Gazebo's lockstep runs at real
+    time unless ``PX4_SIM_SPEED_FACTOR`` says otherwise): ``wait(t_sim_s)`` sleeps until the wall clock reaches
+    the time the schedule gives simulation time ``t_sim_s``. The schedule is anchored at the first call and
+    after ``reset()``; a loop more than ``MAX_LAG_S`` behind (the autopilot or FMU too slow) starts it again from
+    now instead of bursting to catch up: counted as an overrun while stepping, not after a pause (a reconnect,
+    an autopilot that stopped sending). ``speed`` None: no pacing (``--speed max``)."""
+
+    def __init__(self, speed: float | None, stats: Stats) -> None:
+        self.speed = check_speed(speed)
+        self.stats = stats
+        self._anchor: tuple[float, float] | None = None  # (wall [s], simulation [s]) where the schedule starts
+        self._last = -math.inf
+
+    def reset(self) -> None:
+        """Start the schedule again at the next ``wait`` (a new connection, a restarted SITL)."""
+        self._anchor = None
+
+    def wait(self, t_sim_s: float) -> None:
+        if self.speed is None:
+            return
+        now = time.perf_counter()
+        paused, self._last = now - self._last > IDLE_GAP_S, now
+        if self._anchor is None:
+            self._anchor = (now, t_sim_s)
+            return
+        delay = self._anchor[0] + (t_sim_s - self._anchor[1]) / self.speed - now
+        if delay > 0.0:
+            time.sleep(delay)
+            self._last = time.perf_counter()
+        elif delay < -MAX_LAG_S or t_sim_s < self._anchor[1]:
+            if not paused and delay < -MAX_LAG_S:
+                self.stats.overruns += 1
+            self._anchor = (now, t_sim_s)
 
 
 @dataclass

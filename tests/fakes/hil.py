@@ -8,11 +8,15 @@ import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from identification.flights.scenarios import QuadrotorAutopilot, published_thrust_inverse
+
+#: the lockstep step of the fakes [s] (250 Hz, PX4's and the bench's default)
+DT = 0.004
 
 
 def euler_from_quat(w: float, x: float, y: float, z: float) -> tuple[float, float, float]:
@@ -67,6 +71,27 @@ def serving(server: Any, **serve_kwargs: Any) -> Iterator[Any]:
         th.join(timeout=10)
 
 
+class FakeSitl:
+    """An ArduPilot SITL stand-in on the JSON interface: sends servo frames at ``rate_hz`` to the adapter and
+    reads the JSON state back (``exchange``)."""
+
+    def __init__(self, address: tuple[str, int], rate_hz: int = 250) -> None:
+        import socket
+
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.settimeout(2.0)
+        self.address, self.rate_hz = address, rate_hz
+
+    def exchange(self, count: int, pwm: list[int]) -> dict:
+        from hil_adapter.packets import ServoPacket, parse_json_state
+
+        self.sock.sendto(ServoPacket(self.rate_hz, count, tuple(pwm + [0] * (16 - len(pwm)))).pack(), self.address)
+        data, _ = self.sock.recvfrom(65536)
+        assert data.startswith(b"\n") and data.endswith(b"\n")
+        return parse_json_state(data)
+
+
 class LockstepPx4Client:
     """A minimal PX4 SITL stand-in over TCP: answers each HIL_SENSOR with HIL_ACTUATOR_CONTROLS and checks that
     the time it is sent never goes backwards. Runs until the adapter closes the connection (or ``max_s``)."""
@@ -76,6 +101,8 @@ class LockstepPx4Client:
         self.steps = 0
         self.backwards = 0
         self.times_us: list[int] = []
+        #: monotonic wall time [s] at which each HIL_SENSOR arrived (beside ``times_us``)
+        self.wall_s: list[float] = []
         self.connected = threading.Event()
         self.error = ""
 
@@ -110,6 +137,7 @@ class LockstepPx4Client:
                     self.backwards += m.time_usec <= last
                     last = m.time_usec
                     self.times_us.append(last)
+                    self.wall_s.append(time.monotonic())
                     self.steps += 1
                     sock.sendall(mav.hil_actuator_controls_encode(
                         m.time_usec, [self.controls] * 16, mavlink2.MAV_MODE_FLAG_SAFETY_ARMED, 1).pack(mav))
@@ -117,6 +145,58 @@ class LockstepPx4Client:
             self.error = str(err) if not isinstance(err, ConnectionError) else ""
         finally:
             sock.close()
+
+
+def px4_pace(fmu: str | Path, speed: float | None, seconds: float) -> tuple[float, float, Any]:
+    """(simulation seconds, wall seconds) a fake lockstep PX4 saw over ``seconds`` of answering, and the
+    server's stats: the pace of a lockstep run at ``speed`` (None: unpaced)."""
+    from hil_adapter.core import Plant, Watchdog
+    from hil_adapter.px4 import Px4Server
+    from hil_adapter.sensors import SensorConfig, SensorSuite
+
+    plant = Plant(fmu)
+    srv = Px4Server(plant, SensorSuite(SensorConfig.noise_free()), port=0, dt_s=DT, speed=speed,
+                    watchdog=Watchdog(timeout_s=2.0))
+    client = LockstepPx4Client(srv.address[1], controls=0.0, max_s=seconds)
+    try:
+        with serving(srv):
+            th = threading.Thread(target=client.run)
+            th.start()
+            th.join(timeout=seconds + 10)
+    finally:
+        srv.close()
+        plant.close()
+    if client.error or client.backwards or len(client.times_us) < 10:
+        why = client.error or ("time went backwards" if client.backwards else "no steps")
+        raise RuntimeError(f"fake PX4: {why}")
+    first = 5  # after the first answers: the schedule is anchored at the first locked step
+    sim = (client.times_us[-1] - client.times_us[first]) * 1e-6
+    return sim, client.wall_s[-1] - client.wall_s[first], srv.stats
+
+
+def json_pace(fmu: str | Path, speed: float | None, seconds: float) -> tuple[float, float, Any]:
+    """(simulation seconds, wall seconds) a fake SITL saw over ``seconds`` of lockstep frames at 250 Hz, and
+    the server's stats."""
+    from hil_adapter.ardupilot_json import ArduPilotJsonServer, UdpTransport
+    from hil_adapter.core import Plant
+
+    plant = Plant(fmu)
+    srv = ArduPilotJsonServer(plant, UdpTransport("127.0.0.1", 0), speed=speed)
+    times, walls = [], []
+    try:
+        with serving(srv, poll_s=0.05):
+            sitl = FakeSitl(srv.transport.address, rate_hz=round(1 / DT))
+            end = time.monotonic() + seconds
+            k = 0
+            while time.monotonic() < end:
+                k += 1
+                times.append(sitl.exchange(k, [1000] * 4)["timestamp"])
+                walls.append(time.monotonic())
+            sitl.sock.close()
+    finally:
+        srv.transport.close()
+        plant.close()
+    return times[-1] - times[0], walls[-1] - walls[0], srv.stats
 
 
 def free_tcp_port() -> int:

@@ -106,7 +106,7 @@ def test_default_profile_hover_at_2_5_m_estimate_within_0_3_m(quadrotor_fmu: Pat
     """60 s of lockstep hover at 2.5 m on the default (PX4 Gazebo) sensor profile: the complementary filter's
     height error stays under 0.3 m the whole time after its 2 s start, and the vehicle holds 2.5 m."""
     plant = Plant(quadrotor_fmu)
-    srv = Px4Server(plant, sensor_suite(HilConfig()), port=0, dt_s=DT, watchdog=Watchdog(timeout_s=2.0))
+    srv = Px4Server(plant, sensor_suite(HilConfig(), seed=0), port=0, dt_s=DT, watchdog=Watchdog(timeout_s=2.0))
     try:
         with serving(srv):
             truth, est = _hover(srv, 62.0)
