@@ -102,10 +102,13 @@ class ArduPilotJsonServer:
 
     def reply(self) -> bytes:
         s = self.plant.state
-        gyro = (s["rate_body_x_rad_s"], s["rate_body_y_rad_s"], s["rate_body_z_rad_s"])
-        accel = (s["accel_body_x_m_s2"], s["accel_body_y_m_s2"], s["accel_body_z_m_s2"])
+        if self.plant.imu is not None:  # what a real IMU reports: the means over the frame's interval
+            accel, gyro = self.plant.imu
+        else:  # a start state: no interval yet
+            gyro = (s["rate_body_x_rad_s"], s["rate_body_y_rad_s"], s["rate_body_z_rad_s"])
+            accel = (s["accel_body_x_m_s2"], s["accel_body_y_m_s2"], s["accel_body_z_m_s2"])
         if self.sensors is not None:  # noisy IMU (SITL adds its own noise model on top if configured)
-            self.last_frame = self.sensors.sample(self.plant.t_s, s)
+            self.last_frame = self.sensors.sample(self.plant.t_s, s, self.plant.imu)
             gyro, accel = self.last_frame.gyro_body_rad_s, self.last_frame.accel_body_m_s2
         return json_state(self.plant.t_s - self.sitl_epoch_s, gyro, accel,
                           [s["pos_north_m"], s["pos_east_m"], s["pos_down_m"]],

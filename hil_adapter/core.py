@@ -26,6 +26,7 @@ from fmu_models.fmi.host import FmuHost, FmuRunError
 from fmu_models.signals.names import OUTPUT_TO_LOG
 from fmu_models.signals.pwm_mapping import MappingError, PwmMapping, default_mapping
 from hil_adapter.config import SPEED_RANGE
+from hil_adapter.sensors import GRAVITY_OUTPUT, Vec3, interval_imu
 
 log = logging.getLogger(__name__)
 
@@ -36,7 +37,7 @@ STATE_OUTPUTS = (
     "pos_north_m", "pos_east_m", "pos_down_m", "vel_north_m_s", "vel_east_m_s", "vel_down_m_s",
     "lat_deg", "lon_deg", "height_m", "altitude_m",
 )
-OPTIONAL_OUTPUTS = ("airspeed_m_s",)
+OPTIONAL_OUTPUTS = ("airspeed_m_s", GRAVITY_OUTPUT)
 #: FMU output flagging PWM above idle outside the thrust map's trained band (quadrotor)
 OUT_OF_BAND_OUTPUT = "thrust_map_out_of_range"
 #: a pause in stepping longer than this [s] (waiting for the autopilot, reconnecting) is not stepping time
@@ -94,7 +95,9 @@ class Plant:
     """The FMU behind the adapter: ``apply(pwm)`` then ``advance(dt)``; re-instantiates itself after an FMU error.
 
     ``t_s`` [s] is the simulation time the autopilot sees: it starts at ``start_time_s`` and never goes back,
-    across restarts (``epoch_s`` is where the current FMU run began on that clock).
+    across restarts (``epoch_s`` is where the current FMU run began on that clock). ``imu`` is what a real IMU
+    reports for the last step (mean specific force and body rate over it, ``sensors.interval_imu``); None at a
+    start state (no interval yet: the sensors read the outputs as they are).
     """
 
     def __init__(self, fmu: str | Path, mapping: PwmMapping | None = None,
@@ -126,9 +129,25 @@ class Plant:
         #: wall time of each FMU step (setReal + doStep + getReal) [s], for the statistics
         self.step_times: deque[float] = deque(maxlen=20000)
         self.epoch_s = float(start_time_s)
+        self._imu: tuple[Vec3, Vec3] | None = None
+        self._interval: tuple[dict[str, float], float] | None = None
         self.fmu_t_s = 0.0
         self.t_s = self.epoch_s
         self.restart()
+
+    @property
+    def imu(self) -> tuple[Vec3, Vec3] | None:
+        """(mean specific force [m/s^2], mean body rate [rad/s]) over the last step, body FRD: what a real IMU
+        reports for it (``sensors.interval_imu``, computed on first use after each step); None at a start state."""
+        if self._interval is not None:
+            before, dt_s = self._interval
+            self._interval = None
+            self._imu = interval_imu(before, self.state, dt_s)
+        return self._imu
+
+    @imu.setter
+    def imu(self, value: tuple[Vec3, Vec3] | None) -> None:
+        self._interval, self._imu = None, value
 
     @property
     def has_airspeed(self) -> bool:
@@ -141,6 +160,7 @@ class Plant:
         self.out_of_band = False
         self.host.start(self.start_values)
         self.state = self.host.get(self.outputs)
+        self.imu = None
 
     def clock_at_least(self, t_s: float) -> None:
         """Move the clock (not the FMU) forward to ``t_s`` if it is behind: the first packet carries a positive
@@ -161,6 +181,7 @@ class Plant:
     def advance(self, dt_s: float) -> dict[str, float]:
         """One FMU step of ``dt_s`` with the current inputs; returns the outputs by name."""
         t0 = time.perf_counter()
+        before = self.state
         try:
             self.host.step(self.fmu_t_s, dt_s, self.inputs)
             self.fmu_t_s += dt_s
@@ -169,6 +190,7 @@ class Plant:
             if self._oob_vr is not None:  # PWM above idle outside the thrust map's trained band (quadrotor)
                 self.out_of_band = bool(self.host.slave.getBoolean(self._oob_vr)[0])
             self.step_times.append(time.perf_counter() - t0)
+            self._interval = (before, dt_s)  # the IMU means over this step, computed when a sensor reads them
         except FmuRunError as err:
             self.fail(str(err))
             self.clock_at_least(self.t_s + dt_s)  # the failed step's time has passed: the next time is a new one

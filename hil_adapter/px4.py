@@ -207,7 +207,7 @@ class Px4Server:
         start state cannot be sent, the step is logged and skipped, and the watchdog takes over)."""
         t_s = self.plant.t_s
         t_us = round(t_s * 1e6)
-        frame = self.sensors.sample(t_s, self.plant.state)
+        frame = self.sensors.sample(t_s, self.plant.state, self.plant.imu)
         self.last_frame = frame
         try:
             data = self.msgs.sensor(t_us, frame) + self.msgs.state(t_us, self.plant.state)

@@ -167,6 +167,7 @@ def test_outputs_sitl_cannot_take_restart_the_simulation(quadrotor_fmu: Path) ->
 
         def runaway(dt_s: float) -> dict[str, float]:
             plant.state = {**advance(dt_s), "accel_body_x_m_s2": 1e39}
+            plant.imu = ((1e39, 0.0, 0.0), (0.0, 0.0, 0.0))  # the mean over the step, what the reply carries
             return plant.state
 
         plant.advance = runaway  # type: ignore[method-assign]
