@@ -192,6 +192,8 @@ def _with_options(cfg: HilConfig, interface: str, speed: float | str | None, see
     if seed is not None and interface == "ardupilot-json" and cfg.sensors is None:
         raise HilSetupError("--seed: ardupilot-json adds sensor noise only with a [sensors] section (SITL "
                             "models its own otherwise)")
+    if seed is not None and interface == "nmea":
+        raise HilSetupError("--seed: the nmea interface sends the FMU's GPS truth, no sensor noise")
     return cfg
 
 

@@ -111,6 +111,8 @@ def test_options_that_would_do_nothing_are_errors(quadrotor_fmu: Path, tmp_path:
         serve(quadrotor_fmu, "px4", cfg, speed=2.0, port=free_tcp_port())
     with pytest.raises(HilSetupError, match="--seed: ardupilot-json adds sensor noise only with a"):
         serve(quadrotor_fmu, "ardupilot-json", seed=3, port=0)
+    with pytest.raises(HilSetupError, match="--seed: the nmea interface sends the FMU's GPS truth"):
+        serve(quadrotor_fmu, "nmea", seed=3)
     cfg.write_text("[timing]\nspeed = 0\n")
     with pytest.raises(HilSetupError, match=r"timing\.speed.*= 0.*>= 0.01"):
         serve(quadrotor_fmu, "px4", cfg)
