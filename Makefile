@@ -6,13 +6,24 @@ STAMP  := $(VENV)/.installed-test
 BENCH_STAMP := $(VENV)/.installed-bench
 MUT_STAMP := $(VENV)/.installed-mutation
 
-.PHONY: demo demo-real test lint bench fmus clean mutation docs docs-check
+.PHONY: demo demo-real test lint bench fmus clean mutation docs docs-check libtbb
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e ".[test]"
 	touch $(STAMP)
+
+# Ecos (ecospy, a test extra) loads Debian's libtbb12: installed when missing; where that cannot be done (not root,
+# not Debian, no registry) the Ecos tests skip and say so, the rest of `make test` is unaffected
+libtbb:
+	@if ! dpkg -s libtbb12 >/dev/null 2>&1; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    echo "installing Debian's libtbb12 (Ecos's library needs it)"; \
+	    (apt-get install -y -qq libtbb12 || (apt-get update -qq && apt-get install -y -qq libtbb12)) >/dev/null 2>&1 \
+	      || echo "libtbb12 could not be installed: the Ecos tests will skip" >&2; \
+	  else echo "libtbb12 missing and apt-get unavailable here: the Ecos tests will skip" >&2; fi; \
+	fi
 
 $(BENCH_STAMP): $(STAMP)
 	$(PY) -m pip install --quiet -e ".[test,bench]"
@@ -32,7 +43,7 @@ demo-real: $(STAMP)
 fmus: $(STAMP)
 	$(PY) build_fmus.py --out dist
 
-test: $(STAMP)
+test: $(STAMP) libtbb
 	$(PY) -m ruff check .
 	$(VENV)/bin/lint-imports
 	@$(PY) -m pytest -q; rc=$$?; \

@@ -19,7 +19,7 @@ from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
 from fmu_models.signals.pwm_mapping import MappingError
-from hil_adapter.core import BUSY_POLL_S, Plant, Recorder, SocketSpinner, Stats
+from hil_adapter.core import BUSY_POLL_S, Plant, Recorder, SimClockPacer, SocketSpinner, Stats
 from hil_adapter.packets import PacketError, ServoPacket, json_state
 
 log = logging.getLogger(__name__)
@@ -78,9 +78,13 @@ class ArduPilotJsonServer:
     the bookkeeping done once the reply is out."""
 
     def __init__(self, plant: Plant, transport: DatagramTransport, stats: Stats | None = None,
-                 recorder: Recorder | None = None, sensors: Any = None) -> None:
+                 recorder: Recorder | None = None, sensors: Any = None, speed: float | None = None) -> None:
         self.plant, self.transport = plant, transport
         self.stats = stats or Stats()
+        #: simulation seconds per wall second: each reply to a new frame waits for its time on this schedule
+        #: (None: unpaced, ``--speed max``; the session's default is 1). SITL paces itself too, to its own
+        #: ``--speedup`` (``Aircraft::time_advance`` -> ``sync_frame_time``): the slower of the two sets the pace
+        self.pacer = SimClockPacer(speed, self.stats)
         #: called after every step with (t_s, FMU outputs): auxiliary outputs such as the NMEA GPS
         self.sinks: list[Callable[[float, Mapping[str, float]], None]] = []
         self.recorder, self.sensors = recorder, sensors
@@ -98,10 +102,13 @@ class ArduPilotJsonServer:
 
     def reply(self) -> bytes:
         s = self.plant.state
-        gyro = (s["rate_body_x_rad_s"], s["rate_body_y_rad_s"], s["rate_body_z_rad_s"])
-        accel = (s["accel_body_x_m_s2"], s["accel_body_y_m_s2"], s["accel_body_z_m_s2"])
+        if self.plant.imu is not None:  # what a real IMU reports: the means over the frame's interval
+            accel, gyro = self.plant.imu
+        else:  # a start state: no interval yet
+            gyro = (s["rate_body_x_rad_s"], s["rate_body_y_rad_s"], s["rate_body_z_rad_s"])
+            accel = (s["accel_body_x_m_s2"], s["accel_body_y_m_s2"], s["accel_body_z_m_s2"])
         if self.sensors is not None:  # noisy IMU (SITL adds its own noise model on top if configured)
-            self.last_frame = self.sensors.sample(self.plant.t_s, s)
+            self.last_frame = self.sensors.sample(self.plant.t_s, s, self.plant.imu)
             gyro, accel = self.last_frame.gyro_body_rad_s, self.last_frame.accel_body_m_s2
         return json_state(self.plant.t_s - self.sitl_epoch_s, gyro, accel,
                           [s["pos_north_m"], s["pos_east_m"], s["pos_down_m"]],
@@ -145,7 +152,7 @@ class ArduPilotJsonServer:
         self.plant.inputs = inputs
         self.last_count = pkt.frame_count
         self.plant.advance(1.0 / pkt.frame_rate_hz)
-        self.stats.step(self.plant.out_of_band)
+        self.stats.step(self.plant.out_of_band, 1.0 / pkt.frame_rate_hz)
         self._stepped_pwm = pwm
         try:
             self.last_reply = self.reply()
@@ -185,8 +192,13 @@ class ArduPilotJsonServer:
             t0 = time.perf_counter()
             idle_since = t0
             data, addr = got
+            stepped = self.stats.steps
             out = self.handle(data)
             if out is not None:
+                if self.stats.steps != stepped:  # a new frame (not a resend): its reply waits for its time
+                    paced = time.perf_counter()
+                    self.pacer.wait(self.plant.t_s)
+                    t0 += time.perf_counter() - paced  # the wait is neither latency nor adapter work
                 self.transport.send(out, addr)
                 busy = time.perf_counter() - t0
                 self.stats.latencies.append(busy)

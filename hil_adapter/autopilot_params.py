@@ -43,6 +43,10 @@ class AutopilotParams:
     notes: dict[str, str] = field(default_factory=dict)
     #: values the model asked for outside what the autopilot accepts, clamped (also ``# WARNING`` lines in the file)
     warnings: tuple[str, ...] = ()
+    #: ArduPlane: the circuit mission (QGC WPL 110) whose final approach follows the derived glide path
+    mission: str = ""
+    #: ArduPlane: that glide path [deg below the horizon]
+    glide_deg: float = math.nan
 
     def text(self) -> str:
         """The file: ArduPilot ``.parm`` (``NAME value``) or PX4 ``param set-default NAME value`` lines."""
@@ -78,6 +82,8 @@ class _Params:
         self.values: dict[str, float] = {}
         self.notes: dict[str, str] = {}
         self.warnings: list[str] = []
+        #: ArduPlane: the landing glide path [deg] (for the mission)
+        self.glide_deg = math.nan
 
     def __call__(self, name: str, value: float, note: str = "", digits: int | None = None) -> float:
         if not math.isfinite(value):
@@ -161,15 +167,18 @@ def autopilot_params(fmu: str | Path, autopilot: str, servo_tau_s: float = SERVO
         raise ValueError(f"{Path(fmu).name} is a {vehicle} model; {autopilot} flies a {VEHICLE_OF[autopilot]}")
     sim, p = _simulator(vehicle, starts)
     out = _Params()
+    mission = ""
     if autopilot == "arduplane":
-        from hil_adapter.autopilot_plane import arduplane
+        from hil_adapter.autopilot_plane import arduplane, circuit_mission
 
         arduplane(sim, p, out, servo_tau_s)
+        mission = circuit_mission(out.glide_deg)
     else:
         from hil_adapter.autopilot_copter import arducopter, px4
 
         (arducopter if autopilot == "arducopter" else px4)(sim, p, out)
-    return AutopilotParams(autopilot, vehicle, Path(fmu).name, out.values, out.notes, tuple(out.warnings))
+    return AutopilotParams(autopilot, vehicle, Path(fmu).name, out.values, out.notes, tuple(out.warnings), mission,
+                           out.glide_deg)
 
 
 __all__ = ["AUTOPILOTS", "AutopilotParams", "autopilot_params", "fmu_parameters", "vehicle_of"]

@@ -223,8 +223,12 @@ def arduplane(sim: Any, p: np.ndarray, out: Any, servo_tau_s: float) -> None:
     pitch_tconst = out.clamp("PTCH2SRV_TCONST", round(3 * rises["pitch"], 2), *TCONST_S, TCONST_SOURCE)
     tconst = out("PTCH2SRV_TCONST", pitch_tconst, "3 x the designed pitch-rate rise, inside ArduPlane's 0.4..1 s")
     n_max = (vc / (1.15 * vs)) ** 2  # keep 15 % above the stall speed in the turn (Vs sqrt(n))
-    roll = out("ROLL_LIMIT_DEG", round(min(45.0, max(20.0, math.degrees(math.acos(min(1.0, 1 / n_max)))))),
-               f"load factor {n_max:.2f} at cruise keeps 1.15 x the stall speed (20..45)")
+    bank = min(45.0, max(20.0, math.degrees(math.acos(min(1.0, 1 / n_max)))))
+    # the limit is a command: the roll the controller reaches overshoots it (39.45 deg flown on a 39 deg limit)
+    roll = out("ROLL_LIMIT_DEG", math.floor(bank / (1.0 + OVERSHOOT_MAX)),
+               f"load factor {n_max:.2f} at cruise keeps 1.15 x the stall speed at {bank:.1f} deg (20..45); less the "
+               f"{100 * OVERSHOOT_MAX:.0f} % overshoot the rate loops are designed to, so the roll reached stays "
+               "inside it")
     radius = vc ** 2 / (G_M_S2 * math.tan(math.radians(roll)))
     out("WP_LOITER_RAD", 10 * math.ceil(2 * radius / 10), f"2 x the turn radius {radius:.0f} m at the roll limit")
     out("WP_RADIUS", 10 * math.ceil(radius / 10), "the turn radius at the roll limit")
@@ -247,25 +251,83 @@ def arduplane(sim: Any, p: np.ndarray, out: Any, servo_tau_s: float) -> None:
     t_ph = math.pi * math.sqrt(2) * vc / G_M_S2
     out("TECS_TIME_CONST", out.clamp("TECS_TIME_CONST", round(max(3.0, t_ph / 2.5), 1), 3.0, 10.0, TECS),
         f"phugoid period pi sqrt(2) V/g = {t_ph:.1f} s / 2.5")
-    _landing(out, trims, v_min, tconst)
+    _landing(out, trims, vs, tconst)
 
 
 #: AP_TECS: TECS_LAND_TCONST 1..5 s, "smaller than TECS_TIME_CONST"
 LAND_TCONST_S = (1.0, 5.0)
+#: approach speed over the slowest level trim: the flare, flown with the motor stopped, bleeds 3-4 m/s before
+#: touchdown (tests/fakes/arduplane.py on the Aerosonde); 1.2-1.3 x the stall speed is the usual approach margin
+APPROACH_MARGIN = 1.25
+#: the approach glide path as a fraction of the idle glide angle at the approach speed: TECS keeps throttle to
+#: steepen (down to idle) and to flatten the path
+GLIDE_FRACTION = 1.0 / 3.0
+#: AP_TECS LAND_PMAX @Range [deg]
+LAND_PMAX_DEG = (-5.0, 40.0)
 
 
-def _landing(out: Any, trims: _Trimmer, v_land: float, tconst: float) -> None:
-    """TECS landing time constant, flare and touchdown attitude from the landing-speed trim."""
-    land = trims.at(v_land)
-    t_ph = math.pi * math.sqrt(2) * v_land / G_M_S2
-    out("TECS_LAND_ARSPD", v_land, "AIRSPEED_MIN")
+def _landing(out: Any, trims: _Trimmer, vs: float, tconst: float) -> None:
+    """Approach speed and glide path, TECS landing time constant, flare trigger and the flare's pitch limits from
+    the trims at the approach speed and at the slowest trim speed ``vs``; the glide path goes into the mission
+    (``out.glide_deg``)."""
+    v_app = out("TECS_LAND_ARSPD", math.ceil(APPROACH_MARGIN * vs),
+                f"{APPROACH_MARGIN} x the slowest level trim {vs:.1f} m/s: the flare, motor stopped, bleeds speed")
+    idle = trims.gamma_at_throttle(v_app, 0.0, -0.4, 0.0)
+    glide_deg = round(2 * GLIDE_FRACTION * math.degrees(-idle)) / 2
+    out.glide_deg = glide_deg
+    approach = trims.at(v_app, -math.radians(glide_deg))
+    slowest = trims.at(vs + 0.05)
+    t_ph = math.pi * math.sqrt(2) * v_app / G_M_S2
     hi = min(LAND_TCONST_S[1], out.values["TECS_TIME_CONST"] - 0.1)
     land_tc = out.clamp("TECS_LAND_TCONST", round(max(2.0, t_ph / 2.5), 1), LAND_TCONST_S[0], hi,
                         "AP_TECS range, below TECS_TIME_CONST")
     out("TECS_LAND_TCONST", land_tc,
         f"landing phugoid period {t_ph:.1f} s / 2.5 (the 2 s default is faster than the airframe's height response)")
     out("TECS_LAND_SINK", 0.5, "flare sink target [m/s], under the 1 m/s touchdown aim")
-    out("LAND_PITCH_DEG", round(max(0.0, math.degrees(land.alpha_rad)), 1),
-        f"the trim angle of attack at {v_land} m/s: level attitude of the flare")
-    out("LAND_FLARE_SEC", round(max(2.0, 3 * tconst + 1.0), 1), "3 pitch time constants + 1 s to arrest the sink")
+    approach_pitch = math.degrees(approach.alpha_rad) - glide_deg
+    out("LAND_PITCH_DEG", max(0.0, round(approach_pitch)),
+        f"flare pitch floor: level, or the approach pitch {approach_pitch:.1f} deg ({glide_deg} deg glide path at "
+        f"{v_app} m/s) if higher; a higher floor pitches up at flare entry and floats the aircraft to a stall")
+    pmax = out.clamp("TECS_LAND_PMAX", math.floor(math.degrees(slowest.alpha_rad)), *LAND_PMAX_DEG,
+                     "AP_TECS LAND_PMAX @Range")
+    out("TECS_LAND_PMAX", pmax, f"flare pitch ceiling: the angle of attack of the slowest trim "
+        f"{math.degrees(slowest.alpha_rad):.1f} deg (level flare: pitch = alpha)")
+    flare_sec = round(max(2.0, 3 * tconst + 1.0), 1)
+    sink = v_app * math.sin(math.radians(glide_deg))
+    out("LAND_FLARE_SEC", flare_sec, f"3 pitch time constants + 1 s to arrest the sink (on the glide path: at "
+        f"{flare_sec * sink:.1f} m, the {sink:.2f} m/s approach sink)")
     out("LAND_FLARE_ALT", 3)
+
+
+#: the shipped circuit's home (ArduPilot SITL's default, CMAC): latitude, longitude [deg], altitude [m]
+CIRCUIT_HOME = (-35.363261, 149.16523, 584.0)
+#: the landing point [m north of home], the final approach's length [m] and its last waypoint's height [m]
+LAND_NORTH_M = 300.0
+FINAL_M = 600.0
+SHORT_FINAL_M = 15.0
+#: (MAV_CMD, north [m], east [m], height [m]) before the final approach: takeoff (10 deg) to 50 m, a rectangle
+CIRCUIT = ((22, 400.0, 0.0, 50.0), (16, 800.0, 0.0, 60.0), (16, 800.0, -500.0, 60.0))
+
+
+def circuit_mission(glide_deg: float) -> str:
+    """The shipped ArduPlane circuit (QGC WPL 110): takeoff, a rectangle, then a straight final of ``FINAL_M`` on
+    the glide path of ``glide_deg`` through the landing point: its base corner, final turn and short-final
+    waypoint lie on that path (ArduPlane's landing slope runs from the waypoint before MAV_CMD_NAV_LAND to the
+    landing point)."""
+    from fmu_models.common.wgs84 import radii_of_curvature
+
+    lat0, lon0, alt0 = CIRCUIT_HOME
+    r_m, r_n = (float(r) for r in radii_of_curvature(math.radians(lat0)))
+    deg_n = math.degrees(1.0 / r_m)
+    deg_e = math.degrees(1.0 / (r_n * math.cos(math.radians(lat0))))
+    slope = math.tan(math.radians(glide_deg))
+    h_final = round(FINAL_M * slope)
+    start = LAND_NORTH_M - h_final / slope
+    legs = (*CIRCUIT, (16, start, -500.0, h_final), (16, start, 0.0, h_final),
+            (16, LAND_NORTH_M - SHORT_FINAL_M / slope, 0.0, SHORT_FINAL_M), (21, LAND_NORTH_M, 0.0, 0.0))
+    rows = ["QGC WPL 110", f"0\t1\t0\t16\t0\t0\t0\t0\t{lat0:.8f}\t{lon0:.8f}\t{alt0:.8f}\t1"]
+    for k, (cmd, north, east, h) in enumerate(legs, start=1):
+        p1 = 10 if cmd == 22 else 0  # takeoff: minimum pitch [deg]
+        rows.append(f"{k}\t0\t3\t{cmd}\t{p1}\t0\t0\t0\t{lat0 + north * deg_n:.8f}\t{lon0 + east * deg_e:.8f}\t"
+                    f"{h:g}\t1")
+    return "\n".join(rows) + "\n"

@@ -10,6 +10,7 @@ their problems reported the same way: one line per problem with file, field, val
 
     [network]    host = "127.0.0.1"   port = 4560       # PX4 TCP / JSON UDP; 127.0.0.1 unless told otherwise
     [timing]     mode = "lockstep"    rate_hz = 250     # PX4: lockstep or realtime; MAVLink/NMEA: realtime
+                 speed = 1.0                             # lockstep: sim seconds per wall second, or "max"
                  busy_poll_us = 500                      # lockstep: poll this long before a blocking receive
     [watchdog]   timeout_s = 0.5      mode = "throttle_off"   # or "hold"
     [record]     path = "hil_log.csv"                    # every step in and out, readable by our readers
@@ -18,12 +19,14 @@ their problems reported the same way: one line per problem with file, field, val
     [px4]        rc_channels = [1500, 1500, 1000, 1500]  # RC_CHANNELS sent with each heartbeat (PWM)
                  wing_controls = {"1" = 0, "2" = 1, "3" = 3, "4" = 2}  # fixed wing: output channel -> control
     [start]      init_pos_down_m = 0.0                    # FMU start values
-    [sensors]    seed = 0  profile = "px4_gazebo"  [sensors.gps] ...   # hil_adapter.sensors (PROFILES)
+    [sensors]    seed = 7  profile = "px4_gazebo"  [sensors.gps] ...   # hil_adapter.sensors (PROFILES);
+                                                         # no seed: a fresh one per run, printed in the summary
     [mapping.channels.aileron_rad] source = 1 ...                    # fmu_models.signals.pwm_mapping
 """
 
 from __future__ import annotations
 
+import secrets
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -39,6 +42,12 @@ Text = Annotated[str, StringConstraints(min_length=1, max_length=256)]
 Port = Annotated[int, Field(ge=0, le=65535)]
 OutputChannel = Annotated[str, StringConstraints(pattern=r"^([1-9]|1[0-6])$")]  #: TOML keys are strings
 ControlIndex = Annotated[int, Field(ge=0, le=15)]
+#: allowed lockstep speed factors (simulation seconds per wall second); "max" runs unpaced
+SPEED_RANGE = (0.01, 1000.0)
+#: lockstep speed factor: simulation seconds per wall second, or "max" (unpaced)
+Speed = Annotated[float, Field(ge=SPEED_RANGE[0], le=SPEED_RANGE[1], allow_inf_nan=False)] | Literal["max"]
+#: a fresh sensor seed is drawn below this (short enough to type back with --seed)
+FRESH_SEED_BOUND = 2**32
 
 
 class NetworkSection(Schema):
@@ -49,6 +58,8 @@ class NetworkSection(Schema):
 class TimingSection(Schema):
     mode: Literal["lockstep", "realtime"] = "lockstep"
     rate_hz: float = Field(250.0, ge=1.0, le=10000.0, allow_inf_nan=False)
+    #: lockstep interfaces (PX4 lockstep, ArduPilot JSON): simulation seconds per wall second, "max" unpaced
+    speed: Speed = 1.0
     #: busy poll before a blocking receive [us]; 0 turns it off
     busy_poll_us: float = Field(500.0, ge=0.0, le=100_000.0, allow_inf_nan=False)
 
@@ -97,6 +108,11 @@ class HilConfig(Schema):
     mapping: dict[str, Any] | None = None
 
     @property
+    def speed(self) -> float | None:
+        """``[timing] speed`` as a factor, None for "max" (unpaced)."""
+        return None if self.timing.speed == "max" else float(self.timing.speed)
+
+    @property
     def wing_controls(self) -> dict[int, int] | None:
         """``[px4] wing_controls`` as output channel -> control index."""
         wc = self.px4.wing_controls
@@ -135,15 +151,21 @@ def _lines(section: str, err: Exception) -> list[str]:
     return [f"{section} " + " ".join(str(err).split())]
 
 
-def sensor_suite(cfg: HilConfig) -> Any:
-    """The seeded ``SensorSuite`` of ``[sensors]`` (``seed`` beside the per-sensor tables)."""
+def sensor_suite(cfg: HilConfig, seed: int | None = None) -> Any:
+    """The seeded ``SensorSuite`` of ``[sensors]`` (``seed`` beside the per-sensor tables). ``seed`` (``--seed``)
+    overrides the table's; with neither, a fresh seed is drawn (``suite.seed`` says which, for the summary), so
+    runs differ unless asked to repeat."""
     from hil_adapter.sensors import SensorConfig, SensorSuite
 
     table = dict(cfg.sensors or {})
-    seed = table.pop("seed", 0)
+    table_seed = table.pop("seed", None)
+    seed = seed if seed is not None else table_seed
+    if seed is None:
+        seed = secrets.randbelow(FRESH_SEED_BOUND)
     profile = table.pop("profile", "px4_gazebo")
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63:
-        raise ValueError(f"sensors.seed = {seed!r}: needs an integer; allowed 0..2^63-1")
+        source = "sensors.seed" if table_seed is seed else "seed"
+        raise ValueError(f"{source} = {seed!r}: needs an integer; allowed 0..2^63-1")
     if not isinstance(profile, str):
         raise ValueError(f"sensors.profile = {profile!r}: needs a string")
     return SensorSuite(SensorConfig.from_dict(table, "sensors", profile=profile), seed=seed)

@@ -25,6 +25,8 @@ from typing import Any, TextIO
 from fmu_models.fmi.host import FmuHost, FmuRunError
 from fmu_models.signals.names import OUTPUT_TO_LOG
 from fmu_models.signals.pwm_mapping import MappingError, PwmMapping, default_mapping
+from hil_adapter.config import SPEED_RANGE
+from hil_adapter.sensors import GRAVITY_OUTPUT, Vec3, interval_imu
 
 log = logging.getLogger(__name__)
 
@@ -35,13 +37,15 @@ STATE_OUTPUTS = (
     "pos_north_m", "pos_east_m", "pos_down_m", "vel_north_m_s", "vel_east_m_s", "vel_down_m_s",
     "lat_deg", "lon_deg", "height_m", "altitude_m",
 )
-OPTIONAL_OUTPUTS = ("airspeed_m_s",)
+OPTIONAL_OUTPUTS = ("airspeed_m_s", GRAVITY_OUTPUT)
 #: FMU output flagging PWM above idle outside the thrust map's trained band (quadrotor)
 OUT_OF_BAND_OUTPUT = "thrust_map_out_of_range"
 #: a pause in stepping longer than this [s] (waiting for the autopilot, reconnecting) is not stepping time
 IDLE_GAP_S = 0.25
 #: lockstep default of the busy poll before a blocking receive [s]; see :class:`SocketSpinner`
 BUSY_POLL_S = 0.0005
+#: a lockstep run further behind its schedule than this [s] starts the schedule again from now (no burst)
+MAX_LAG_S = 0.25
 
 
 class SocketSpinner:
@@ -91,7 +95,9 @@ class Plant:
     """The FMU behind the adapter: ``apply(pwm)`` then ``advance(dt)``; re-instantiates itself after an FMU error.
 
     ``t_s`` [s] is the simulation time the autopilot sees: it starts at ``start_time_s`` and never goes back,
-    across restarts (``epoch_s`` is where the current FMU run began on that clock).
+    across restarts (``epoch_s`` is where the current FMU run began on that clock). ``imu`` is what a real IMU
+    reports for the last step (mean specific force and body rate over it, ``sensors.interval_imu``); None at a
+    start state (no interval yet: the sensors read the outputs as they are).
     """
 
     def __init__(self, fmu: str | Path, mapping: PwmMapping | None = None,
@@ -123,9 +129,25 @@ class Plant:
         #: wall time of each FMU step (setReal + doStep + getReal) [s], for the statistics
         self.step_times: deque[float] = deque(maxlen=20000)
         self.epoch_s = float(start_time_s)
+        self._imu: tuple[Vec3, Vec3] | None = None
+        self._interval: tuple[dict[str, float], float] | None = None
         self.fmu_t_s = 0.0
         self.t_s = self.epoch_s
         self.restart()
+
+    @property
+    def imu(self) -> tuple[Vec3, Vec3] | None:
+        """(mean specific force [m/s^2], mean body rate [rad/s]) over the last step, body FRD: what a real IMU
+        reports for it (``sensors.interval_imu``, computed on first use after each step); None at a start state."""
+        if self._interval is not None:
+            before, dt_s = self._interval
+            self._interval = None
+            self._imu = interval_imu(before, self.state, dt_s)
+        return self._imu
+
+    @imu.setter
+    def imu(self, value: tuple[Vec3, Vec3] | None) -> None:
+        self._interval, self._imu = None, value
 
     @property
     def has_airspeed(self) -> bool:
@@ -138,6 +160,7 @@ class Plant:
         self.out_of_band = False
         self.host.start(self.start_values)
         self.state = self.host.get(self.outputs)
+        self.imu = None
 
     def clock_at_least(self, t_s: float) -> None:
         """Move the clock (not the FMU) forward to ``t_s`` if it is behind: the first packet carries a positive
@@ -158,6 +181,7 @@ class Plant:
     def advance(self, dt_s: float) -> dict[str, float]:
         """One FMU step of ``dt_s`` with the current inputs; returns the outputs by name."""
         t0 = time.perf_counter()
+        before = self.state
         try:
             self.host.step(self.fmu_t_s, dt_s, self.inputs)
             self.fmu_t_s += dt_s
@@ -166,6 +190,7 @@ class Plant:
             if self._oob_vr is not None:  # PWM above idle outside the thrust map's trained band (quadrotor)
                 self.out_of_band = bool(self.host.slave.getBoolean(self._oob_vr)[0])
             self.step_times.append(time.perf_counter() - t0)
+            self._interval = (before, dt_s)  # the IMU means over this step, computed when a sensor reads them
         except FmuRunError as err:
             self.fail(str(err))
             self.clock_at_least(self.t_s + dt_s)  # the failed step's time has passed: the next time is a new one
@@ -218,6 +243,8 @@ class Stats:
     out_of_band: int = 0
     #: wall time between the first and the last step, pauses left out [s]
     active_s: float = 0.0
+    #: simulation time stepped [s] (the FMU steps' sizes summed)
+    sim_s: float = 0.0
     started: float = field(default_factory=time.perf_counter)
     last_step: float = -math.inf
     #: wall time [s] of each reconnect: connection lost (or accepted again) -> first state sent on the new one
@@ -225,16 +252,18 @@ class Stats:
     latencies: deque[float] = field(default_factory=lambda: deque(maxlen=20000))
     #: adapter busy time per step [s]: from the autopilot's input to our reply sent (FMU step included)
     busy: deque[float] = field(default_factory=lambda: deque(maxlen=20000))
-    _live: tuple[int, float] = (0, 0.0)
+    _live: tuple[int, float, float] = (0, 0.0, 0.0)
 
-    def step(self, out_of_band: bool = False) -> None:
-        """Count one FMU step (and whether it was out of the thrust map's band)."""
+    def step(self, out_of_band: bool = False, dt_s: float = 0.0) -> None:
+        """Count one FMU step of ``dt_s`` [s] of simulation time (and whether it was out of the thrust map's
+        band)."""
         now = time.perf_counter()
         gap = now - self.last_step
         if gap < IDLE_GAP_S:
             self.active_s += gap
         self.last_step = now
         self.steps += 1
+        self.sim_s += dt_s
         if out_of_band:  # reported once, with the count, in the summary (and per step in the record)
             self.out_of_band += 1
 
@@ -249,17 +278,29 @@ class Stats:
         """Steps per second of stepping time (waits, reconnects and the time after the last step left out)."""
         return self.steps / self.active_s if self.active_s > 0 else 0.0
 
-    def live_rate_hz(self) -> float:
-        """Steps per second of stepping time since the previous call (the status line calls it every second);
-        0 once stepping has stopped."""
-        steps, active = self._live
-        self._live = (self.steps, self.active_s)
+    @property
+    def real_time_factor(self) -> float:
+        """Simulation seconds per wall second of stepping time (1 = real time; pauses left out)."""
+        return self.sim_s / self.active_s if self.active_s > 0 else 0.0
+
+    def live_rates(self) -> tuple[float, float]:
+        """(steps per second, real-time factor) over the stepping time since the previous call (the status line
+        calls it every second); zeros once stepping has stopped."""
+        steps, active, sim = self._live
+        self._live = (self.steps, self.active_s, self.sim_s)
         d_active = self.active_s - active
-        return (self.steps - steps) / d_active if d_active > 0 else 0.0
+        if d_active <= 0:
+            return 0.0, 0.0
+        return (self.steps - steps) / d_active, (self.sim_s - sim) / d_active
+
+    def live_rate_hz(self) -> float:
+        """Steps per second of stepping time since the previous call; 0 once stepping has stopped."""
+        return self.live_rates()[0]
 
     def summary(self, plant: Plant | None = None) -> dict[str, Any]:
         busy = 1e3 * sum(self.busy) / len(self.busy) if self.busy else math.nan
         out = {"steps": self.steps, "step_rate_hz": round(self.rate_hz, 1), "stepping_s": round(self.active_s, 3),
+               "real_time_factor": round(self.real_time_factor, 4),
                "busy_mean_ms": round(busy, 4),
                "latency_p50_ms": round(1e3 * self.percentile(50), 4),
                "latency_p99_ms": round(1e3 * self.percentile(99), 4),
@@ -276,7 +317,8 @@ class Stats:
     def line(self, plant: Plant | None = None) -> str:
         """The live status line; its rate is over the last second of stepping."""
         s = self.summary(plant)
-        return (f"t={s.get('sim_time_s', 0):8.2f}s steps={s['steps']} rate={self.live_rate_hz():.0f}/s "
+        rate, rtf = self.live_rates()
+        return (f"t={s.get('sim_time_s', 0):8.2f}s steps={s['steps']} rate={rate:.0f}/s rtf={rtf:.2f}x "
                 f"rtt p50={s['latency_p50_ms']:.3f}ms p99={s['latency_p99_ms']:.3f}ms overruns={s['overruns']} "
                 f"dropped={s['dropped']} malformed={s['malformed']} fmu_errors={s.get('fmu_errors', 0)}"
                 + (f" out_of_band={self.out_of_band}" if self.out_of_band else ""))
@@ -343,6 +385,51 @@ class Pacer:
             self.next_t = time.perf_counter()
         else:
             time.sleep(delay)
+
+
+def check_speed(speed: float | None) -> float | None:
+    """A lockstep speed factor (simulation seconds per wall second) in ``SPEED_RANGE``, or None (unpaced)."""
+    if speed is None:
+        return None
+    if isinstance(speed, bool) or not (math.isfinite(speed) and SPEED_RANGE[0] <= speed <= SPEED_RANGE[1]):
+        raise ValueError(f"speed = {speed!r}; allowed {SPEED_RANGE[0]:g}..{SPEED_RANGE[1]:g} or 'max'")
+    return float(speed)
+
+
+class SimClockPacer:
+    """Holds a lockstep loop to ``speed`` simulation seconds per wall second (Gazebo's lockstep runs at real
+    time unless ``PX4_SIM_SPEED_FACTOR`` says otherwise): ``wait(t_sim_s)`` sleeps until the wall clock reaches
+    the time the schedule gives simulation time ``t_sim_s``. The schedule is anchored at the first call and
+    after ``reset()``; a loop more than ``MAX_LAG_S`` behind (the autopilot or FMU too slow) starts it again from
+    now instead of bursting to catch up: counted as an overrun while stepping, not after a pause (a reconnect,
+    an autopilot that stopped sending). ``speed`` None: no pacing (``--speed max``)."""
+
+    def __init__(self, speed: float | None, stats: Stats) -> None:
+        self.speed = check_speed(speed)
+        self.stats = stats
+        self._anchor: tuple[float, float] | None = None  # (wall [s], simulation [s]) where the schedule starts
+        self._last = -math.inf
+
+    def reset(self) -> None:
+        """Start the schedule again at the next ``wait`` (a new connection, a restarted SITL)."""
+        self._anchor = None
+
+    def wait(self, t_sim_s: float) -> None:
+        if self.speed is None:
+            return
+        now = time.perf_counter()
+        paused, self._last = now - self._last > IDLE_GAP_S, now
+        if self._anchor is None:
+            self._anchor = (now, t_sim_s)
+            return
+        delay = self._anchor[0] + (t_sim_s - self._anchor[1]) / self.speed - now
+        if delay > 0.0:
+            time.sleep(delay)
+            self._last = time.perf_counter()
+        elif delay < -MAX_LAG_S or t_sim_s < self._anchor[1]:
+            if not paused and delay < -MAX_LAG_S:
+                self.stats.overruns += 1
+            self._anchor = (now, t_sim_s)
 
 
 @dataclass

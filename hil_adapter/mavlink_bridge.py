@@ -94,10 +94,10 @@ class MavlinkBridge:
         self._receive()
         self.watchdog.check(self.plant, self.stats)
         self.plant.advance(self.dt_s)
-        self.stats.step(self.plant.out_of_band)
+        self.stats.step(self.plant.out_of_band, self.dt_s)
         t_s = self.plant.t_s
         t_us = round(t_s * 1e6)
-        frame = self.sensors.sample(t_s, self.plant.state)
+        frame = self.sensors.sample(t_s, self.plant.state, self.plant.imu)
         out = [self.msgs.sensor(t_us, frame), self.msgs.state(t_us, self.plant.state)]
         if frame.gps is not None:
             out.append(self.msgs.gps(t_us, frame.gps))

@@ -28,7 +28,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from fmu_models.common.atmosphere import G0_M_S2
 from fmu_models.quadrotor.constants import N_MOTORS
-from hil_adapter.core import BUSY_POLL_S, Pacer, Plant, Recorder, SocketSpinner, Stats, Watchdog
+from hil_adapter.core import BUSY_POLL_S, Pacer, Plant, Recorder, SimClockPacer, SocketSpinner, Stats, Watchdog
 from hil_adapter.mavlink_fast import FastMavlink
 
 log = logging.getLogger(__name__)
@@ -165,12 +165,17 @@ class Px4Server:
                  lockstep: bool = True, dt_s: float = 0.004, stats: Stats | None = None,
                  recorder: Recorder | None = None, watchdog: Watchdog | None = None,
                  rc_channels: Sequence[int] | None = None, listener: Listener | None = None,
-                 wing_controls: Mapping[int, int] | None = None, busy_poll_s: float = BUSY_POLL_S) -> None:
+                 wing_controls: Mapping[int, int] | None = None, busy_poll_s: float = BUSY_POLL_S,
+                 speed: float | None = None) -> None:
         self.plant, self.sensors = plant, sensors
+
         #: lockstep: busy-poll this long [s] for the actuator reply before blocking (``core.SocketSpinner``)
         self.busy_poll_s = SocketSpinner.check(busy_poll_s)
         self.lockstep, self.dt_s = lockstep, dt_s
         self.stats = stats or Stats()
+        #: lockstep: simulation seconds per wall second once PX4 answers (None: unpaced, ``--speed max``; the
+        #: session's default is 1); before its first answer the steps run at this pace too (real time for None)
+        self.pacer = SimClockPacer(speed, self.stats)
         #: called after every step with (t_s, FMU outputs): auxiliary outputs such as the NMEA GPS
         self.sinks: list[Callable[[float, Mapping[str, float]], None]] = []
         self.recorder = recorder
@@ -202,7 +207,7 @@ class Px4Server:
         start state cannot be sent, the step is logged and skipped, and the watchdog takes over)."""
         t_s = self.plant.t_s
         t_us = round(t_s * 1e6)
-        frame = self.sensors.sample(t_s, self.plant.state)
+        frame = self.sensors.sample(t_s, self.plant.state, self.plant.imu)
         self.last_frame = frame
         try:
             data = self.msgs.sensor(t_us, frame) + self.msgs.state(t_us, self.plant.state)
@@ -264,7 +269,7 @@ class Px4Server:
         if self.pwm and not self.watchdog.tripped:
             self.plant.apply(self.pwm)
         self.plant.advance(self.dt_s)
-        self.stats.step(self.plant.out_of_band)
+        self.stats.step(self.plant.out_of_band, self.dt_s)
 
     def _after_send(self) -> None:
         """Bookkeeping of the state just sent, off the autopilot's critical path: the log row (PWM that led to
@@ -307,8 +312,12 @@ class Px4Server:
         conn.settimeout(self.watchdog.timeout_s)
         spinner = SocketSpinner(conn, self.busy_poll_s)
         got_input: float | None = None
-        pacer: Pacer | None = Pacer(self.dt_s, Stats())  # its overruns are not the lockstep loop's
+        speed = self.pacer.speed or 1.0  # the free run before PX4's first answer: real time unless a speed is set
+        pacer: Pacer | None = Pacer(self.dt_s / speed, Stats())  # its overruns are not the lockstep loop's
+        self.pacer.reset()
         while not (stop is not None and stop.is_set()) and (max_steps is None or self.stats.steps < max_steps):
+            if pacer is None:
+                self.pacer.wait(self.plant.t_s)  # hold the lockstep run to its speed factor
             t0 = time.perf_counter()
             self._send_step(conn)
             if got_input is not None:

@@ -34,7 +34,7 @@ from pydantic import BeforeValidator, Field
 # all we use here (checked: ``isa(1000.0)`` and ``radii_of_curvature(0.8)`` return Python floats).
 from fmu_models.common.atmosphere import EXPONENT, LAPSE_K_M, P0_PA, T0_K, isa
 from fmu_models.common.units import G0_M_S2
-from fmu_models.common.wgs84 import radii_of_curvature
+from fmu_models.common.wgs84 import normal_gravity, radii_of_curvature
 from fmu_models.config import ConfigError, Schema, validate_config
 
 KELVIN_OFFSET = 273.15  #: 0 degC in K
@@ -395,6 +395,52 @@ def _ned_to_body(q: tuple[float, float, float, float], v: list[float]) -> tuple[
             r02 * v[0] + r12 * v[1] + r22 * v[2])
 
 
+#: FMU output of the gravity the model integrates with (WGS-84 normal gravity at the vehicle) [m/s^2]
+GRAVITY_OUTPUT = "gravity_m_s2"
+Vec3 = tuple[float, float, float]
+
+
+#: the FMU outputs ``interval_imu`` reads at each end of the interval, in one C call
+_IMU_ENDS = operator.itemgetter("quat_w", "quat_x", "quat_y", "quat_z", "vel_north_m_s", "vel_east_m_s",
+                                "vel_down_m_s", GRAVITY_OUTPUT)
+
+
+def interval_imu(before: Mapping[str, float], after: Mapping[str, float], dt_s: float) -> tuple[Vec3, Vec3]:
+    """What a strapdown IMU reports for the sample interval of ``dt_s`` [s] between two FMU states: (mean specific
+    force [m/s^2], mean body rate [rad/s]), body FRD. The specific force is the delta velocity over the interval,
+    ``(v1 - v0) / dt - g`` in NED (exact for the model's flat NED velocity equation), rotated into the body at the
+    interval's middle attitude; the rate is the delta angle, the rotation vector of ``q0* q1``, over ``dt``. An
+    impulse shorter than the interval (a touchdown) so reaches the estimator with its whole velocity change, which
+    the outputs at the end of the interval (the FMU's ``accel_body_*``, an instant) miss. Gravity: the FMU's
+    ``gravity_m_s2`` (mean of both ends), else WGS-84 normal gravity at the end position. Plain floats: it runs
+    once per lockstep step."""
+    try:
+        w0, x0, y0, z0, vn0, ve0, vd0, g0 = _IMU_ENDS(before)
+        w1, x1, y1, z1, vn1, ve1, vd1, g1 = _IMU_ENDS(after)
+    except KeyError:  # an FMU without the gravity output
+        g = float(normal_gravity(math.radians(after["lat_deg"]), after["height_m"]))
+        return interval_imu({**before, GRAVITY_OUTPUT: g}, {**after, GRAVITY_OUTPUT: g}, dt_s)
+    # q0* q1: the rotation over the interval in the body frame (q and -q are one attitude: take the short way)
+    dw = w0 * w1 + x0 * x1 + y0 * y1 + z0 * z1
+    dx = w0 * x1 - x0 * w1 - y0 * z1 + z0 * y1
+    dy = w0 * y1 + x0 * z1 - y0 * w1 - z0 * x1
+    dz = w0 * z1 - x0 * y1 + y0 * x1 - z0 * w1
+    if dw < 0.0:
+        dw, dx, dy, dz, w1, x1, y1, z1 = -dw, -dx, -dy, -dz, -w1, -x1, -y1, -z1
+    sin_half = math.sqrt(dx * dx + dy * dy + dz * dz)
+    inv_dt = 1.0 / dt_s
+    # angle / sin(angle / 2), -> 2 as the angle -> 0
+    k = (2.0 * math.atan2(sin_half, dw) / sin_half if sin_half > 1e-9 else 2.0) * inv_dt
+    fn, fe, fd = (vn1 - vn0) * inv_dt, (ve1 - ve0) * inv_dt, (vd1 - vd0) * inv_dt - 0.5 * (g0 + g1)
+    # the middle attitude, (q0 + q1) normalised, applied as R_b2n^T
+    w, x, y, z = w0 + w1, x0 + x1, y0 + y1, z0 + z1
+    s = 1.0 / (w * w + x * x + y * y + z * z)
+    return ((s * ((w * w + x * x - y * y - z * z) * fn + 2 * (x * y + w * z) * fe + 2 * (x * z - w * y) * fd),
+             s * (2 * (x * y - w * z) * fn + (w * w - x * x + y * y - z * z) * fe + 2 * (y * z + w * x) * fd),
+             s * (2 * (x * z + w * y) * fn + 2 * (y * z - w * x) * fe + (w * w - x * x - y * y + z * z) * fd)),
+            (k * dx, k * dy, k * dz))
+
+
 def _walk_and_noise(truth: tuple[float, float, float], bias: list[float], drift: list[float],
                     coef: tuple[float, float, float], z: list[float], i: int = 0) -> tuple[float, float, float]:
     """One 3-axis reading from the six draws ``z[i:i + 6]``: ``drift`` (updated in place) ``= pole * drift +
@@ -638,8 +684,10 @@ class SensorSuite:
                          tuple(lerp(a, b) for a, b in zip(first.vel_ned_m_s, second.vel_ned_m_s, strict=True)))
 
     # ------------------------------------------------------------------ the frame
-    def sample(self, t_s: float, outputs: Mapping[str, float]) -> SensorFrame:
-        """Sensor readings at simulation time ``t_s`` [s] from the FMU outputs by name."""
+    def sample(self, t_s: float, outputs: Mapping[str, float], imu: tuple[Vec3, Vec3] | None = None) -> SensorFrame:
+        """Sensor readings at simulation time ``t_s`` [s] from the FMU outputs by name; ``imu`` (mean specific force,
+        mean body rate over the sample interval: :func:`interval_imu`) replaces the outputs' instantaneous
+        accelerometer and gyro truth when given."""
         t_s = float(t_s)
         if not math.isfinite(t_s):
             raise ValueError(f"sample time must be finite, got {t_s}")
@@ -649,6 +697,8 @@ class SensorSuite:
             missing = [name for name in REQUIRED_OUTPUTS if name not in outputs]
             raise MissingOutputError(f"FMU output{'s' if len(missing) > 1 else ''} {', '.join(missing)} "
                                      "missing: the sensor models need them") from None
+        if imu is not None:
+            (ax, ay, az), (p, q, r) = imu
         if self._t_prev is not None and t_s < self._t_prev:
             self._restart_clock()
         dt = 0.0 if self._t_prev is None else t_s - self._t_prev
@@ -692,5 +742,5 @@ __all__ = [
     "PROFILES", "REQUIRED_OUTPUTS", "UPDATED_BARO", "UPDATED_DIFF_PRESSURE", "UPDATED_IMU", "UPDATED_MAG",
     "AccelConfig", "BaroConfig", "DiffPressureConfig", "GpsConfig", "GpsFix",
     "GyroConfig", "MagConfig", "MissingOutputError", "SensorConfig", "SensorConfigError", "SensorFrame", "SensorSuite",
-    "gazebo_gps_error", "pressure_altitude_m",
+    "gazebo_gps_error", "interval_imu", "pressure_altitude_m",
 ]

@@ -17,10 +17,18 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fmu_models.config import ConfigError
+from fmu_models.config import ConfigError, validate_config
 from fmu_models.fmi.host import FmuRunError
 from fmu_models.signals.pwm_mapping import MappingError, PwmMapping
-from hil_adapter.config import DEFAULT_PORTS, INTERFACES, HilConfig, load_hil_config, sensor_suite
+from hil_adapter.config import (
+    DEFAULT_PORTS,
+    INTERFACES,
+    SPEED_RANGE,
+    HilConfig,
+    TimingSection,
+    load_hil_config,
+    sensor_suite,
+)
 from hil_adapter.core import Pacer, Plant, Recorder, Stats, Watchdog
 
 log = logging.getLogger(__name__)
@@ -86,10 +94,15 @@ def stop_on_signals(stop: threading.Event, caught: list[str]) -> Iterator[None]:
 def serve(fmu: str | Path, interface: str, config: HilConfig | str | Path | None = None, *,
           host: str | None = None, port: int | None = None, record: str | Path | None = None,
           duration_s: float | None = None, stop: threading.Event | None = None,
-          status: Callable[[str], None] | None = None, handle_signals: bool = True) -> HilResult:
+          status: Callable[[str], None] | None = None, handle_signals: bool = True,
+          speed: float | str | None = None, seed: int | None = None) -> HilResult:
     """Serve an autopilot from ``fmu`` over ``interface`` until ``stop`` is set, ``duration_s`` of wall time
     passes or SIGINT/SIGTERM arrives; ``status`` gets the live line every second. ``HilSetupError`` when the
-    session cannot start (bad config, FMU, port); faults while running end up in the result, never raised."""
+    session cannot start (bad config, FMU, port); faults while running end up in the result, never raised.
+
+    ``speed`` (``--speed``; overrides ``[timing] speed``, default 1): lockstep simulation seconds per wall
+    second, ``"max"`` unpaced. ``seed`` (``--seed``; overrides ``[sensors] seed``): the sensor noise seed; with
+    neither a fresh one is drawn. Both end up in the summary (``seed``, ``real_time_factor``)."""
     if interface not in INTERFACES:
         raise HilSetupError(f"interface {interface!r}; allowed: {', '.join(INTERFACES)}")
     if duration_s is not None and not (math.isfinite(duration_s) and 0 < duration_s <= MAX_DURATION_S):
@@ -98,11 +111,12 @@ def serve(fmu: str | Path, interface: str, config: HilConfig | str | Path | None
     closers: list[Callable[[], Any]] = []
     try:
         cfg = config if isinstance(config, HilConfig) else load_hil_config(config)
-        setup = _setup(Path(fmu), interface, cfg, host, port, record, closers)
+        cfg = _with_options(cfg, interface, speed, seed)
+        setup = _setup(Path(fmu), interface, cfg, host, port, record, closers, seed)
     except (ConfigError, MappingError, FmuRunError, OSError, ValueError) as err:
         _close_all(closers)
         raise HilSetupError(str(err)) from None
-    server, plant, stats, recorder, address = setup
+    server, plant, stats, recorder, address, sensors = setup
     caught: list[str] = []
     expired = threading.Event()
 
@@ -127,6 +141,9 @@ def serve(fmu: str | Path, interface: str, config: HilConfig | str | Path | None
         if timer:
             timer.cancel()
         summary = stats.summary(plant)
+        summary["speed"] = "max" if cfg.speed is None else cfg.speed
+        if sensors is not None:  # the noise seed: --seed N repeats this run's sensor noise
+            summary["seed"] = sensors.seed
         _close_all(closers)
     stopped = (f"signal {caught[0]}" if caught else "error" if error else
                "duration" if expired.is_set() else "stopped")
@@ -148,11 +165,45 @@ def _close_all(closers: list[Callable[[], Any]]) -> None:
     closers.clear()
 
 
+def parse_speed(text: str) -> float | str:
+    """A ``--speed`` argument: ``"max"`` or a factor in ``SPEED_RANGE`` (``ValueError`` naming the range)."""
+    if text.strip().lower() == "max":
+        return "max"
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and SPEED_RANGE[0] <= value <= SPEED_RANGE[1]):
+        raise ValueError(f"--speed {text!r}; allowed {SPEED_RANGE[0]:g}..{SPEED_RANGE[1]:g} or max")
+    return value
+
+
+def _with_options(cfg: HilConfig, interface: str, speed: float | str | None, seed: int | None) -> HilConfig:
+    """``cfg`` with ``speed`` in ``[timing]``; options that would do nothing on this interface are errors."""
+    if speed is not None:
+        value = parse_speed(speed) if isinstance(speed, str) else speed
+        timing = validate_config({**cfg.timing.model_dump(), "speed": value}, TimingSection, "--speed")
+        cfg = cfg.model_copy(update={"timing": timing})
+    lockstep = interface == "ardupilot-json" or (interface == "px4" and cfg.timing.mode == "lockstep")
+    if cfg.speed != 1.0 and not lockstep:
+        raise HilSetupError(f"speed {cfg.timing.speed}: only lockstep runs (px4 with [timing] mode = \"lockstep\", "
+                            f"ardupilot-json) can run at another pace; {interface} "
+                            f"{'in real time ' if interface == 'px4' else ''}follows the wall clock")
+    if seed is not None and interface == "ardupilot-json" and cfg.sensors is None:
+        raise HilSetupError("--seed: ardupilot-json adds sensor noise only with a [sensors] section (SITL "
+                            "models its own otherwise)")
+    if seed is not None and interface == "nmea":
+        raise HilSetupError("--seed: the nmea interface sends the FMU's GPS truth, no sensor noise")
+    return cfg
+
+
 def _setup(fmu: Path, interface: str, cfg: HilConfig, host: str | None, port: int | None,
-           record: str | Path | None, closers: list[Callable[[], Any]]) -> tuple[Any, Plant, Stats, Any, str]:
-    """Plant, sensors, recorder and the interface's server, each registered in ``closers`` as it is made."""
+           record: str | Path | None, closers: list[Callable[[], Any]],
+           seed: int | None = None) -> tuple[Any, Plant, Stats, Any, str, Any]:
+    """Plant, sensors, recorder and the interface's server, each registered in ``closers`` as it is made;
+    the sensor suite is the last item (None when the interface adds no sensor noise)."""
     mapping = PwmMapping.from_dict(cfg.mapping, "[mapping]") if cfg.mapping is not None else None
-    sensors = sensor_suite(cfg)
+    sensors = sensor_suite(cfg, seed)
     watchdog = Watchdog(cfg.watchdog.timeout_s, cfg.watchdog.mode)
     dt = 1.0 / cfg.timing.rate_hz
     plant = Plant(fmu, mapping, cfg.start, start_time_s=dt)
@@ -168,6 +219,8 @@ def _setup(fmu: Path, interface: str, cfg: HilConfig, host: str | None, port: in
     port = port if port is not None else cfg.network.port
     port = port if port is not None else DEFAULT_PORTS.get(interface, 0)
     server = _make_server(interface, plant, sensors, stats, recorder, watchdog, host, port, dt, cfg, closers)
+    if (interface == "ardupilot-json" and cfg.sensors is None) or interface == "nmea":
+        sensors = None  # no sensor noise is sent: no seed to report
     if cfg.nmea is not None:
         sink, serial_port = nmea_sink(cfg)
         server.sinks.append(sink)
@@ -176,7 +229,7 @@ def _setup(fmu: Path, interface: str, cfg: HilConfig, host: str | None, port: in
         raise HilSetupError("--interface nmea needs an [nmea] section with the serial port")
     address = getattr(server, "address", None)
     where = f"{address[0]}:{address[1]}" if isinstance(address, tuple) else f"{host}:{port}"
-    return server, plant, stats, recorder, where if interface in DEFAULT_PORTS else interface
+    return server, plant, stats, recorder, where if interface in DEFAULT_PORTS else interface, sensors
 
 
 def nmea_sink(cfg: HilConfig) -> tuple[Callable[[float, Mapping[str, float]], None], Any]:
@@ -203,7 +256,7 @@ def _make_server(interface: str, plant: Plant, sensors: Any, stats: Stats, recor
         from hil_adapter.px4 import Px4Server
 
         srv = Px4Server(plant, sensors, host, port, cfg.timing.mode == "lockstep", dt, stats, recorder, watchdog,
-                        cfg.px4.rc_channels, wing_controls=cfg.wing_controls, busy_poll_s=poll_s)
+                        cfg.px4.rc_channels, wing_controls=cfg.wing_controls, busy_poll_s=poll_s, speed=cfg.speed)
         closers.append(srv.close)
         return srv
     if interface == "ardupilot-json":
@@ -212,7 +265,8 @@ def _make_server(interface: str, plant: Plant, sensors: Any, stats: Stats, recor
         transport = UdpTransport(host, port, busy_poll_s=poll_s)
         closers.append(transport.close)
         # SITL models its own sensor noise: our noise goes on the IMU only when [sensors] asks for it
-        srv = ArduPilotJsonServer(plant, transport, stats, recorder, sensors if cfg.sensors is not None else None)
+        srv = ArduPilotJsonServer(plant, transport, stats, recorder, sensors if cfg.sensors is not None else None,
+                                  speed=cfg.speed)
         srv.address = transport.address
         return srv
     from hil_adapter.mavlink_bridge import MavlinkBridge, connect
@@ -235,7 +289,7 @@ class NmeaOnly:
         pacer = Pacer(self.dt, self.stats)
         while not stop.is_set():
             self.plant.advance(self.dt)
-            self.stats.step(self.plant.out_of_band)
+            self.stats.step(self.plant.out_of_band, self.dt)
             for sink in self.sinks:
                 sink(self.plant.t_s, self.plant.state)
             pacer.wait()

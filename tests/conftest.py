@@ -31,6 +31,17 @@ def built_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 
 @pytest.fixture(scope="session")
+def fmi3_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Both vehicles as FMI 3.0 Co-Simulation + Model Exchange FMUs (this machine's platform), built once."""
+    from build_fmus import BuildOptions, build
+    from fmu_models.fmi import zigcc
+
+    out = tmp_path_factory.mktemp("fmi3")
+    opts = BuildOptions(fmi_version=3, kinds=("cs", "me"), platforms=(zigcc.host_platform().fmi_name,))
+    return {p.stem: p for p in build(None, out, None, options=opts)}
+
+
+@pytest.fixture(scope="session")
 def python_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Both FMUs built with the pythonfmu backend (``uavfmu build --backend python``), once."""
     from build_fmus import build

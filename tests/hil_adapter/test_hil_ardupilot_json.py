@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import socket
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +14,7 @@ from hil_adapter.ardupilot_json import ArduPilotJsonServer, UdpTransport
 from hil_adapter.core import Plant, Recorder
 from hil_adapter.packets import SERVO16_MAGIC, SERVO32_MAGIC, PacketError, ServoPacket, parse_json_state
 from identification.logs.readers import read_log
-from tests.fakes.hil import controller_inputs, hold_10m_autopilot, recorded, serving
+from tests.fakes.hil import FakeSitl, controller_inputs, hold_10m_autopilot, recorded, serving
 
 RATE_HZ = 250
 
@@ -32,22 +31,6 @@ def test_servo_packet_layouts_round_trip() -> None:
         ServoPacket.unpack(b"\xd2\x04" + raw[2:])
     with pytest.raises(PacketError, match="must be 40 bytes, got 39"):
         ServoPacket.unpack(raw[:-1])
-
-
-class FakeSitl:
-    """A SITL stand-in: sends servo frames to the adapter, reads the JSON state back."""
-
-    def __init__(self, address: tuple[str, int]) -> None:
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1", 0))
-        self.sock.settimeout(2.0)
-        self.address = address
-
-    def exchange(self, count: int, pwm: list[int]) -> dict:
-        self.sock.sendto(ServoPacket(RATE_HZ, count, tuple(pwm + [0] * (16 - len(pwm)))).pack(), self.address)
-        data, _ = self.sock.recvfrom(65536)
-        assert data.startswith(b"\n") and data.endswith(b"\n")
-        return parse_json_state(data)
 
 
 @pytest.fixture
@@ -184,6 +167,7 @@ def test_outputs_sitl_cannot_take_restart_the_simulation(quadrotor_fmu: Path) ->
 
         def runaway(dt_s: float) -> dict[str, float]:
             plant.state = {**advance(dt_s), "accel_body_x_m_s2": 1e39}
+            plant.imu = ((1e39, 0.0, 0.0), (0.0, 0.0, 0.0))  # the mean over the step, what the reply carries
             return plant.state
 
         plant.advance = runaway  # type: ignore[method-assign]

@@ -80,6 +80,28 @@ def test_landing_mission_takes_off_first_and_lands_last() -> None:
     assert commands[1] == 22 and commands[-1] == 21  # MAV_CMD_NAV_TAKEOFF ... MAV_CMD_NAV_LAND
 
 
+def _glide_deg(items: list[list[str]], k: int) -> float:
+    """The descent angle [deg] from waypoint ``k`` to ``k + 1`` (north legs: distance from the latitudes)."""
+    from fmu_models.common.wgs84 import radii_of_curvature
+
+    (lat_a, h_a), (lat_b, h_b) = ((float(items[j][8]), float(items[j][10])) for j in (k, k + 1))
+    r_m = float(radii_of_curvature(math.radians(lat_a))[0])
+    return math.degrees(math.atan2(h_a - h_b, math.radians(lat_b - lat_a) * r_m))
+
+
+def test_shipped_mission_is_generated_and_its_final_follows_the_glide_path(generated: dict[str, object]) -> None:
+    """autopilot/ardupilot/aerosonde-circuit.waypoints is what `uavfmu autopilot-params ... --mission` writes; the
+    final approach (final turn, short final, landing point) lies on the glide path derived from the model, and
+    ArduPlane's landing slope (the waypoint before LAND to the landing point) is that path."""
+    plane = generated["arduplane"]
+    shipped = (AUTOPILOT / "ardupilot" / "aerosonde-circuit.waypoints").read_text()
+    assert shipped == plane.mission, "regenerate with `uavfmu autopilot-params ... --mission`"
+    items = [r.split("\t") for r in shipped.splitlines()[1:]]
+    assert plane.glide_deg > 2.0  # not the 1.2 deg approach the flare could not finish from
+    for k in (len(items) - 3, len(items) - 2):
+        assert _glide_deg(items, k) == pytest.approx(plane.glide_deg, abs=0.1)
+
+
 # ------------------------------------------------------------------------------------------ generated from the model
 GENERATED = {"arduplane": ("ardupilot/plane-aerosonde.parm", "fixed_wing"),
              "arducopter": ("ardupilot/copter-f450-x.parm", "quadrotor"),
@@ -363,7 +385,8 @@ RANGES: dict[str, dict[str, tuple[float, float, str]]] = {
         "TECS_LAND_TCONST": (1.0, 5.0, AP_TECS), "TECS_LAND_SINK": (0.0, 2.0, AP_TECS),
         "TECS_CLMB_MAX": (0.1, 20.0, AP_TECS), "TECS_SINK_MIN": (0.1, 10.0, AP_TECS),
         "TECS_SINK_MAX": (0.0, 20.0, AP_TECS), "TECS_TIME_CONST": (3.0, 10.0, AP_TECS),
-        "TECS_LAND_ARSPD": (-1, 127, AP_TECS), "AIRSPEED_MIN": (5, 100, AP_PLANE), "AIRSPEED_MAX": (5, 100, AP_PLANE),
+        "TECS_LAND_ARSPD": (-1, 127, AP_TECS), "TECS_LAND_PMAX": (-5, 40, AP_TECS),
+        "AIRSPEED_MIN": (5, 100, AP_PLANE), "AIRSPEED_MAX": (5, 100, AP_PLANE),
         "WP_LOITER_RAD": (-32767, 32767, AP_PLANE),
         "RLL2SRV_TCONST": (0.4, 1.0, AP_FW), "PTCH2SRV_TCONST": (0.4, 1.0, AP_FW),
         **{f"{a}_RATE_FF": (0.0, 3.0, AP_FW) for a in ("RLL", "PTCH", "YAW")},
@@ -396,6 +419,19 @@ def test_generated_values_lie_in_the_autopilots_documented_ranges(autopilot: str
             assert any(w.startswith(f"{name} = ") for w in warnings), f"{name} outside {lo}..{hi} without a warning"
 
 
+def test_plane_roll_limit_keeps_its_stall_margin_with_the_controllers_overshoot(built_fmus: dict[str, Path],
+                                                                                 generated: dict[str, object]) -> None:
+    """The roll the controller reaches (the limit plus the rate loops' design overshoot) stays at or under the bank
+    that keeps 1.15 x the stall speed at cruise (SITL flew 39.45 deg on a 39 deg limit)."""
+    from hil_adapter.autopilot_params import _simulator, fmu_parameters
+    from hil_adapter.autopilot_plane import OVERSHOOT_MAX, _Trimmer
+
+    v = generated["arduplane"].values
+    vs = _Trimmer(*_simulator("fixed_wing", fmu_parameters(built_fmus["fixed_wing"]))).slowest()
+    bank_deg = math.degrees(math.acos(min(1.0, (1.15 * vs) ** 2 / v["AIRSPEED_CRUISE"] ** 2)))
+    assert v["ROLL_LIMIT_DEG"] * (1 + OVERSHOOT_MAX) <= bank_deg
+
+
 def test_plane_speeds_follow_arduplanes_documented_advice(generated: dict[str, object]) -> None:
     """ArduPlane/Parameters.cpp: AIRSPEED_MAX at least 50 % above AIRSPEED_MIN (for TECS height control);
     AP_TECS: TECS_LAND_TCONST smaller than TECS_TIME_CONST."""
@@ -426,3 +462,31 @@ def test_a_value_outside_the_autopilots_range_is_clamped_with_a_warning_in_the_f
     assert len(out.warnings) == 2 and out.warnings[1].startswith("PTCH_RATE_P = 1.149 lies outside 0.08..0.35")
     text = AutopilotParams("arducopter", "quadrotor", "q.fmu", {"MOT_THST_EXPO": -1.0}, {}, tuple(out.warnings)).text()
     assert "# WARNING: MOT_THST_EXPO: the model gives -1.28" in text
+
+
+def test_generated_plane_lands_under_1_m_s_near_the_point(built_fmus: dict[str, Path],
+                                                          generated: dict[str, object]) -> None:
+    """The generated landing settings flown on the Aerosonde FMU in ArduPlane's landing structure (AP_TECS energy
+    control on the approach, AP_Landing's flare trigger, the flare's sink-rate demand with the motor stopped and
+    its pitch limits, attitude and rate loops: tests/fakes/arduplane.py) from the mission's final turn (its
+    height on the glide path) to touchdown: sink under 1 m/s, airspeed above the slowest level trim (no stall),
+    within 50 m of the landing point. The settings SITL failed with (approach at AIRSPEED_MIN, a flare pitch floor
+    at its trim angle of attack, a 1.2 deg approach) touch down above 1 m/s and below that speed in the same fake."""
+    from tests.fakes.arduplane import fly_landing
+
+    plane = generated["arduplane"]
+    v = plane.values
+    vs = v["TKOFF_ROTATE_SPD"] - 1  # below the slowest trim (19.9 m/s, rounded up to 20)
+    items = [r.split("\t") for r in plane.mission.splitlines()[1:]]
+    final_height = float(items[-3][10])
+    landing = fly_landing(built_fmus["fixed_wing"], v, plane.glide_deg, start_height_m=final_height)
+    print(f"landing: flare at {landing.flare_height_m:.2f} m, touchdown sink {landing.touchdown_sink_m_s:.2f} m/s, "
+          f"airspeed {landing.touchdown_airspeed_m_s:.1f} m/s, {landing.touchdown_north_m:+.0f} m from the point")
+    assert landing.touchdown_sink_m_s < 1.0
+    assert landing.touchdown_airspeed_m_s > vs
+    assert abs(landing.touchdown_north_m) < 50.0
+    old = {**v, "TECS_LAND_ARSPD": v["AIRSPEED_MIN"], "LAND_PITCH_DEG": 4.5, "TECS_LAND_TCONST": 4.0,
+           "LAND_FLARE_SEC": 2.2}
+    old.pop("TECS_LAND_PMAX")
+    failed = fly_landing(built_fmus["fixed_wing"], old, 1.2, start_height_m=15.0)
+    assert failed.touchdown_sink_m_s > 1.0 and failed.touchdown_airspeed_m_s < vs + 1  # the check can fail

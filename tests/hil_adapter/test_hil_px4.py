@@ -19,7 +19,16 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from hil_adapter.core import Plant, Watchdog
 from hil_adapter.px4 import HilMessages, Px4Server, controls_to_pwm
-from hil_adapter.sensors import UPDATED_BARO, UPDATED_DIFF_PRESSURE, UPDATED_IMU, UPDATED_MAG, SensorConfig, SensorSuite
+from hil_adapter.sensors import (
+    REQUIRED_OUTPUTS,
+    UPDATED_BARO,
+    UPDATED_DIFF_PRESSURE,
+    UPDATED_IMU,
+    UPDATED_MAG,
+    SensorConfig,
+    SensorSuite,
+    interval_imu,
+)
 from tests.fakes.hil import controller_inputs, hold_10m_autopilot, serving
 
 DT = 0.004  # PX4's usual 250 Hz
@@ -289,7 +298,13 @@ def test_px4_over_an_in_memory_transport(quadrotor_fmu: Path, tmp_path: Path) ->
     sensed_z = np.array([float(r["sens_accel_z_m_s2"]) for r in rows[1:]])
     assert accel_z[45] == pytest.approx(-9.81, abs=0.05)  # at rest on the ground
     assert np.all(np.abs(np.diff(accel_z[55:])) > 1e-6)  # climbing: drag changes the reading every step
-    np.testing.assert_allclose(sensed_z, accel_z, rtol=0, atol=1e-9)  # sensors of the same step, not the last
+    # the accelerometer sent with each state is the mean over the step that led to it (delta velocity), not the
+    # instant at its end and not the last step's: recomputed here from the recorded states
+    states = [{k: float(v) for k, v in r.items() if k in (*REQUIRED_OUTPUTS, "gravity_m_s2")} for r in rows]
+    means_z = np.array([interval_imu(states[k - 1], states[k], DT)[0][2] for k in range(1, len(rows))])
+    np.testing.assert_allclose(sensed_z, means_z, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(sensed_z[:45], accel_z[:45], rtol=0, atol=1e-6)  # at rest the mean is the instant
+    assert abs(sensed_z[50] - accel_z[50]) > 0.5  # the motors spinning up: the mean over the step differs
     assert all(float(r["servo_1_pwm_us"]) == pytest.approx(1700.0, abs=1e-3) for r in rows[60:])  # float32 controls
 
 
@@ -301,6 +316,7 @@ def test_outputs_no_message_holds_restart_the_simulation(absorb_server) -> None:
     try:
         srv.plant.advance(DT)
         srv.plant.state = {**srv.plant.state, "accel_body_x_m_s2": 1e39}
+        srv.plant.imu = ((1e39, 0.0, 0.0), (0.0, 0.0, 0.0))  # the mean over the step, as sent
         errors = srv.plant.fmu_errors
         srv._send_step(a)
         assert srv.plant.fmu_errors == errors + 1 and "do not fit" in srv.plant.last_error

@@ -17,99 +17,20 @@ from hil_adapter.config import HilConfig, sensor_suite
 from hil_adapter.core import Plant, Watchdog
 from hil_adapter.px4 import Px4Server
 from hil_adapter.sensors import UPDATED_BARO, SensorConfig, SensorSuite
-from identification.flights.scenarios import QuadrotorAutopilot, published_thrust_inverse
-from tests.fakes.hil import controller_inputs, serving
+from tests.fakes.hil import HeightFilter, fly_px4_altitude, serving
 
 DT = 0.004
 HOLD_M = 2.5
-
-
-class HeightFilter:
-    """Third-order complementary filter (height up, vertical speed, accelerometer bias) on the vertical
-    specific force, corrected by the barometer at every sample; the barometer's offset is pulled towards the
-    GPS altitude with the time constant ``offset_tau_s`` (as PX4's EKF2 corrects baro height to GPS)."""
-
-    def __init__(self, omega_rad_s: float = 2.0, offset_tau_s: float = 10.0) -> None:
-        self.k1, self.k2, self.k3 = 3 * omega_rad_s, 3 * omega_rad_s ** 2, omega_rad_s ** 3
-        self.offset_tau_s = offset_tau_s
-        self.h: float | None = None
-        self.v = self.bias = self.offset = 0.0
-        self.baro_h = 0.0
-
-    def predict(self, dt: float, q: tuple[float, float, float, float], accel_body: tuple[float, float, float]) -> None:
-        w, x, y, z = q
-        f_down = (2 * (x * z - w * y) * accel_body[0] + 2 * (y * z + w * x) * accel_body[1]
-                  + (w * w - x * x - y * y + z * z) * accel_body[2])
-        acc_up = -(f_down + G0_M_S2) - self.bias
-        if self.h is None:
-            return
-        self.h += self.v * dt + 0.5 * acc_up * dt * dt
-        self.v += acc_up * dt
-
-    def baro(self, dt: float, pressure_alt_m: float) -> None:
-        self.baro_h = pressure_alt_m
-        if self.h is None:
-            self.h = pressure_alt_m
-            return
-        err = (pressure_alt_m - self.offset) - self.h
-        self.h += self.k1 * err * dt
-        self.v += self.k2 * err * dt
-        self.bias -= self.k3 * err * dt
-
-    def gps(self, dt_fix: float, alt_m: float) -> None:
-        self.offset += (self.baro_h - alt_m - self.offset) * min(dt_fix / self.offset_tau_s, 1.0)
-
-
-def _hover(server: Px4Server, seconds: float) -> tuple[np.ndarray, np.ndarray]:
-    """Fly the lockstep hover; (true heights, estimated heights) above home, one per step after the first."""
-    home = server.plant.host.start_value("home_height_m")
-    ap = QuadrotorAutopilot(lambda t: HOLD_M, published_thrust_inverse())
-    filt = HeightFilter()
-    sock = socket.create_connection(server.address, timeout=5.0)
-    sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-    mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
-    truth, est, pending, sensor, last_fix, last_baro = [], [], [], None, None, None
-    try:
-        for k in range(round(seconds / DT)):
-            got: dict[str, object] = {}
-            while "HIL_STATE_QUATERNION" not in got:
-                if not pending:
-                    pending += mav.parse_buffer(sock.recv(65536)) or []
-                    continue
-                m = pending.pop(0)
-                got[m.get_type()] = m
-            sensor, state = got["HIL_SENSOR"], got["HIL_STATE_QUATERNION"]
-            q = tuple(state.attitude_quaternion)
-            filt.predict(DT, q, (sensor.xacc, sensor.yacc, sensor.zacc))
-            if sensor.fields_updated & UPDATED_BARO == UPDATED_BARO:  # a new barometer reading (50 Hz)
-                t_baro = sensor.time_usec * 1e-6
-                filt.baro(t_baro - (last_baro if last_baro is not None else t_baro - DT), sensor.pressure_alt)
-                last_baro = t_baro
-            if "HIL_GPS" in got:
-                fix = got["HIL_GPS"]
-                filt.gps(0.2 if last_fix is None else (fix.time_usec - last_fix) * 1e-6, fix.alt * 1e-3)
-                last_fix = fix.time_usec
-            truth.append(state.alt * 1e-3 - home)
-            est.append(filt.h - filt.offset - home)
-            v = (state.vx / 100.0, state.vy / 100.0, -filt.v)
-            y = controller_inputs(q, (state.rollspeed, state.pitchspeed, state.yawspeed), est[-1], v)
-            cmd = ap(k * DT, y)
-            controls = [(cmd[f"pwm_{i}_us"] - 1000.0) / 1000.0 for i in range(1, 5)] + [0.0] * 12
-            sock.sendall(mav.hil_actuator_controls_encode(state.time_usec, controls,
-                                                          mavlink2.MAV_MODE_FLAG_SAFETY_ARMED, 1).pack(mav))
-    finally:
-        sock.close()
-    return np.array(truth), np.array(est)
 
 
 def test_default_profile_hover_at_2_5_m_estimate_within_0_3_m(quadrotor_fmu: Path) -> None:
     """60 s of lockstep hover at 2.5 m on the default (PX4 Gazebo) sensor profile: the complementary filter's
     height error stays under 0.3 m the whole time after its 2 s start, and the vehicle holds 2.5 m."""
     plant = Plant(quadrotor_fmu)
-    srv = Px4Server(plant, sensor_suite(HilConfig()), port=0, dt_s=DT, watchdog=Watchdog(timeout_s=2.0))
+    srv = Px4Server(plant, sensor_suite(HilConfig(), seed=0), port=0, dt_s=DT, watchdog=Watchdog(timeout_s=2.0))
     try:
         with serving(srv):
-            truth, est = _hover(srv, 62.0)
+            _, truth, est = fly_px4_altitude(srv, lambda t: HOLD_M, 62.0)
     finally:
         srv.close()
         plant.close()

@@ -27,15 +27,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--port", type=int, help="PX4 TCP port (4560) or JSON UDP port (9002)")
     parser.add_argument("--record", type=Path, help="CSV log of every step (overrides [record] path)")
     parser.add_argument("--duration-s", type=float, help="stop after this much wall time")
+    parser.add_argument("--speed", help="lockstep pace: simulation seconds per wall second (default 1, or "
+                        "[timing] speed), 'max' for as fast as the autopilot answers")
+    parser.add_argument("--seed", type=int, help="sensor noise seed (default [sensors] seed, else a fresh one, "
+                        "printed in the summary)")
     parser.add_argument("--quiet", action="store_true", help="no live status line")
 
 
 def run(args: argparse.Namespace) -> int:
-    from hil_adapter.session import HilSetupError, serve
+    from hil_adapter.session import HilSetupError, parse_speed, serve
 
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     if args.port is not None and not 0 <= args.port <= 65535:
         print(f"uavfmu hil: error: --port {args.port}; allowed 0..65535", file=sys.stderr)
+        return 2
+    try:
+        speed = parse_speed(args.speed) if args.speed is not None else None
+    except ValueError as err:
+        print(f"uavfmu hil: error: {err}", file=sys.stderr)
         return 2
 
     def live(line: str) -> None:
@@ -44,7 +53,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"uavfmu hil: {args.interface} serving {args.fmu.name}", flush=True)
     try:
         result = serve(args.fmu, args.interface, args.config, host=args.host, port=args.port, record=args.record,
-                       duration_s=args.duration_s, status=None if args.quiet else live)
+                       duration_s=args.duration_s, status=None if args.quiet else live, speed=speed,
+                       seed=args.seed)
     except HilSetupError as err:
         print(f"uavfmu hil: error: {err}", file=sys.stderr)
         return 2

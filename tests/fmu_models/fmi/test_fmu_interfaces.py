@@ -20,7 +20,7 @@ from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
-from build_fmus import BuildOptions, build, make_model
+from build_fmus import make_model
 from fmu_models.fmi import fmuzip, zigcc
 from fmu_models.fmi.native_build import FMI3_INCLUDE, FMI_INCLUDE, Interface, model_description
 from fmu_models.fmi.statemachine import MAX_INTERNAL_STEPS
@@ -32,14 +32,6 @@ START = {
                   "init_pos_down_m": -20.0},
     "fixed_wing": {"aileron_rad": 0.0, "elevator_rad": -0.1, "rudder_rad": 0.0, "throttle": 0.6},
 }
-
-
-@pytest.fixture(scope="module")
-def fmi3_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """Both vehicles as FMI 3.0 Co-Simulation + Model Exchange FMUs (this machine's platform)."""
-    out = tmp_path_factory.mktemp("fmi3")
-    opts = BuildOptions(fmi_version=3, kinds=("cs", "me"), platforms=(zigcc.host_platform().fmi_name,))
-    return {p.stem: p for p in build(None, out, None, options=opts)}
 
 
 def fmus_of(version: int, built_fmus: dict[str, Path], fmi3_fmus: dict[str, Path]) -> dict[str, Path]:
