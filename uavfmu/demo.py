@@ -209,6 +209,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"thrust model identified from the quadrotor log(s) (per-motor ANFIS, {m['cross_validation']})")
         for name, value in m["pooled_rmse_N"].items():
             print(f"  {'held-out RMSE [N] ' + name:<36} {value:10.4f}")
+        h = m.get("headline")
+        if h:
+            print(f"  {'like for like (' + h['information'] + ')':<36} {h['rmse_ratio']:10.4f}  ({h['model']} / "
+                  f"{h['baseline']}, {h['outcome']})")
         print(f"  {'verdict':<36} {m['verdict_text']}")
         print(f"  {'model':<36} {m['model']}")
         print(f"  {'trained band [command u]':<36} {m['band'][0]:10.3f} {m['band'][1]:8.3f}")
