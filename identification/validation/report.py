@@ -232,6 +232,7 @@ def validation_page(res: ReplayResult) -> str:
         f"<p class='{'pass' if res.status == 'pass' else 'fail'}'>{html.escape(verdict)}. A signal passes only "
         "when it beats persistence (the logged value at the window start, held) over the whole 90 % block-bootstrap "
         "interval of its skill and meets its accuracy threshold; a skill whose interval reaches zero is a tie.</p>",
+        *_input_checks(res),
         *_log_notes(res),
         "<h2>Metrics beside the baselines</h2>", _metrics_table(res),
         "<h2>Error against prediction horizon</h2>", *_horizon_section(res),
@@ -245,6 +246,15 @@ def validation_page(res: ReplayResult) -> str:
         "<h2>Signals</h2>", *_signal_figures(res), "</body></html>",
     ]
     return "\n".join(parts)
+
+
+def _input_checks(res: ReplayResult) -> list[str]:
+    """The logged inputs outside what the FMU was built for (``identification.validation.input_check``)."""
+    if not res.input_checks:
+        return []
+    rows = [[f.input, f.check, f.logged, f.expected, f.fed] for f in res.input_checks]
+    return ["<h2 class='fail'>Inputs outside what the FMU was built for</h2>",
+            _table(["input", "check", "logged", "the FMU expects", "fed"], rows)]
 
 
 def index_page(results: Sequence[dict[str, Any]]) -> str:

@@ -94,11 +94,13 @@ class ValidationResult:
     replay: ReplayResult | None = None
     retried: str = ""
     battery: dict[str, Any] | None = None  #: where ``battery_voltage_V`` came from (with ``params_file``)
+    #: logged inputs outside what the FMU was built for (``identification.validation.input_check``), as dicts
+    input_checks: list[dict[str, Any]] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready summary (no arrays)."""
         keys = ("fmu", "log", "status", "error", "signals", "failed", "windows", "excluded", "ground", "gaps",
-                "warnings", "one_step", "horizons", "report", "retried", "battery")
+                "warnings", "one_step", "horizons", "report", "retried", "battery", "input_checks")
         return {k: getattr(self, k) for k in keys}
 
     def lines(self) -> list[str]:
@@ -152,7 +154,7 @@ def result_of(res: ReplayResult, job: ValidationJob) -> ValidationResult:
                             res.failed, len(res.windows), res.excluded, dict(res.ground), dict(res.gaps), warnings,
                             {k: v.as_dict() for k, v in res.one_step.items()},
                             {k: [r.as_dict() for r in rows] for k, rows in res.horizons.items()}, None, res,
-                            battery=res.battery)
+                            battery=res.battery, input_checks=[f.as_dict() for f in res.input_checks])
 
 
 def metrics_document(res: ReplayResult, out: ValidationResult) -> dict[str, Any]:
@@ -170,6 +172,7 @@ def metrics_document(res: ReplayResult, out: ValidationResult) -> dict[str, Any]
         "horizons": {k: [r.as_dict() for r in rows] for k, rows in res.horizons.items()},
         "one_step": out.one_step,
         "battery_voltage_V": res.battery,
+        "input_checks": out.input_checks,
         "quality": res.log.get("quality"),
         **({"monte_carlo": res.bands.info} if res.bands is not None else {}),
     }
@@ -402,6 +405,9 @@ def summary_lines(r: ValidationResult) -> list[str]:
     if r.battery:
         out.append(f"  battery_voltage_V: {r.battery['source']} ({r.battery['detail']}; model from "
                    f"{r.battery.get('params', '?')})")
+    for f in r.input_checks:
+        out.append(f"  INPUT CHECK {f['input']}: {f['check']}: logged {f['logged']}; the FMU expects {f['expected']}; "
+                   f"fed {f['fed']}")
     scored = r.windows - r.excluded
     why = ", ".join(f"{k}: {n}" for k, n in {**r.ground, **r.gaps}.items())
     out.append(f"  {scored} of {r.windows} replay windows scored"
