@@ -19,6 +19,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "excite": ("uavfmu.commands.excite", "plan identification manoeuvres (3-2-1-1, doublets, multisines) for a fixed "
                "wing: ArduPilot Lua, RC-override steps, timeline"),
     "validate": ("uavfmu.commands.validate", "replay a flight log through an FMU with FMPy and score it"),
+    "discrepancy": ("uavfmu.commands.discrepancy", "learn an FMU's replay error from logs into its parameter file "
+                    "(prediction bands of validate --mc)"),
     "hil": ("uavfmu.commands.hil", "drive an FMU from an autopilot (PX4, ArduPilot JSON, MAVLink, NMEA)"),
     "autopilot-params": ("uavfmu.commands.autopilot_params",
                          "write ArduPlane, ArduCopter or PX4 parameters computed from an FMU's model"),

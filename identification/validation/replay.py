@@ -169,11 +169,22 @@ class ReplayResult:
         return [m.fmu for m in self.maps if self.scores[m.fmu].verdict != "n/a" and m.gate]
 
     @property
+    def band_misses(self) -> list[str]:
+        """Gated signals whose Monte Carlo band covers far less or far more of the log than its nominal level
+        (``identification.validation.mc_bands.Bands.verdict``: ``not explained`` or ``wide``)."""
+        if self.bands is None:
+            return []
+        return [m.fmu for m in self.maps if m.gate and self.bands.verdict(m.fmu)[0] in ("not explained", "wide")]
+
+    @property
     def status(self) -> str:
-        """``fail`` (a gated signal fails), ``tie`` (none fails, one ties), ``unscored`` (no gated signal has
-        a verdict) or ``pass``."""
+        """``fail`` (a gated signal fails), ``band`` (none fails, but a gated signal's prediction band misses its
+        nominal coverage), ``tie`` (none fails, one ties), ``unscored`` (no gated signal has a verdict) or
+        ``pass``."""
         if self.failed:
             return "fail"
+        if self.band_misses:
+            return "band"
         if self.ties:
             return "tie"
         return "pass" if self.scored else "unscored"

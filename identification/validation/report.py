@@ -223,7 +223,9 @@ def validation_page(res: ReplayResult) -> str:
     params = _table(["parameter", "value"], [[k, f"{v:.6g}"] for k, v in fmu["parameters"].items()])
     verdict = {"pass": "all gated signals pass", "fail": f"FAILED: {', '.join(res.failed)}",
                "tie": f"TIE: {', '.join(res.ties)} not better than persistence with confidence",
-               "unscored": "NOT SCORED: no gated signal has a verdict"}[res.status]
+               "unscored": "NOT SCORED: no gated signal has a verdict",
+               "band": f"BANDS MISCALIBRATED: {', '.join(res.band_misses)} (prediction band coverage far from its "
+                       "nominal level)"}[res.status]
     parts = [
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>uavfmu validation</title><style>{STYLE}</style>"
         "</head><body>",

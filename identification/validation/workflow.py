@@ -39,9 +39,13 @@ from identification.validation.job import ValidationJob, job_files, load_maps
 from identification.validation.replay import Horizon, ReplayResult, ValidationInputError, options
 
 if TYPE_CHECKING:
+    from fmu_models.common.params import Discrepancy
     from identification.common.parallel import Executor
+    from identification.validation.discrepancy import DiscrepancyResult
 
 MAX_JOBS = 10_000
+#: band verdicts (``identification.validation.mc_bands.Bands.verdict``) that make a run's status ``band``
+BAND_MISSES = ("not explained", "wide")
 
 
 class ManifestError(ConfigError):
@@ -213,14 +217,24 @@ def mc_uncertainty(params_file: Path | None, fmu: Path | None = None) -> Uncerta
     return unc
 
 
+def mc_discrepancy(params_file: Path | None, fmu: Path | None = None) -> Discrepancy | None:
+    """The model discrepancy of a Monte Carlo run: the ``discrepancy`` block of ``params_file``, else of the
+    parameter file embedded in ``fmu``; None when there is none (the bands then carry parameters and noise only)."""
+    from identification.validation.discrepancy import read_discrepancy
+
+    return read_discrepancy(params_file, fmu)
+
+
 def validate_mc(job: ValidationJob, uncertainty: Uncertainty, draws: int, seed: int = 0, *,
                 workers: int | None = None, scheduler: str | None = None, progress: Any = False,
-                executor: Executor | None = None) -> ValidationResult:
+                executor: Executor | None = None, discrepancy: Discrepancy | None = None) -> ValidationResult:
     """:func:`validate` with Monte Carlo bands: the nominal replay with the uncertainty's mean as parameters,
     then ``draws`` replays with parameters and restart states drawn (``identification.validation.mc_bands``) on
     ``identification.common.parallel``; each signal's band coverage beside its skill, in the summary, ``metrics.json``
     and
-    the report (``executor``: an open one, kept open). Raises like :func:`validate`."""
+    the report (``executor``: an open one, kept open). ``discrepancy``: the model's learned error added to every
+    draw (``identification.validation.discrepancy``; :func:`mc_discrepancy` reads it). Raises like
+    :func:`validate`."""
     from fmu_models.fmi.host import FmuHost
     from identification.common.parallel import Executor
     from identification.logs.readers import read_log
@@ -244,16 +258,38 @@ def validate_mc(job: ValidationJob, uncertainty: Uncertainty, draws: int, seed: 
     mc_bands.check_draws(draws, len(res.t_s) + 1, len(res.maps), job.options.max_memory_mb)  # before the cluster
     log = read_log(job.log, channel_map=job.channel_map)
     with nullcontext(executor) if executor is not None else Executor(scheduler, workers) as ex:
-        res.bands = mc_bands.monte_carlo(job, uncertainty, res, log, draws, seed, ex, units, progress)
+        res.bands = mc_bands.monte_carlo(job, uncertainty, res, log, draws, seed, ex, units, progress,
+                                         discrepancy=discrepancy)
     out = result_of(res, job)
     if job.report_dir is not None:
         write_report(res, out, Path(job.report_dir))
     return out
 
 
+def learn_discrepancy(job: ValidationJob, logs: Sequence[Path], params_out: Path | None = None) -> DiscrepancyResult:
+    """Replay each of ``logs`` as ``job`` (its ``log`` replaced) and learn the model's discrepancy
+    (``identification.validation.discrepancy``); with ``params_out`` (a JSON parameter file) store it there under
+    ``discrepancy``. Raises like :func:`validate`."""
+    from identification.validation.discrepancy import DiscrepancyResult, learn, write_discrepancy
+
+    results = []
+    for log in logs:
+        res = validate(replace(job, log=Path(log), report_dir=None)).replay
+        assert res is not None
+        results.append(res)
+    disc = learn(results, [str(x) for x in logs])
+    written = None
+    if params_out is not None:
+        write_discrepancy(params_out, disc)
+        written = params_out
+    summary = tuple({"log": str(x), "windows_scored": len(r.windows) - r.excluded} for x, r in zip(logs, results,
+                                                                                                   strict=True))
+    return DiscrepancyResult(disc, summary, written)
+
+
 def validate_mc_batch(jobs: Sequence[ValidationJob], uncertainty: Uncertainty, draws: int, seed: int = 0, *,
                       workers: int | None = None, scheduler: str | None = None,
-                      progress: Any = False) -> list[ValidationResult]:
+                      progress: Any = False, discrepancy: Discrepancy | None = None) -> list[ValidationResult]:
     """:func:`validate_mc` of every job on one cluster (the same ``seed``: every job sees the same parameter
     draws); a job with bad input or a failing FMU is an ``error`` result naming why, and the rest runs."""
     from identification.common.parallel import Executor
@@ -262,7 +298,8 @@ def validate_mc_batch(jobs: Sequence[ValidationJob], uncertainty: Uncertainty, d
     with Executor(scheduler, workers) as ex:
         for job in jobs:
             try:
-                out.append(validate_mc(job, uncertainty, draws, seed, progress=progress, executor=ex))
+                out.append(validate_mc(job, uncertainty, draws, seed, progress=progress, executor=ex,
+                                       discrepancy=discrepancy))
             except (FmuRunError, OSError, ValueError, KeyError) as err:
                 out.append(ValidationResult(str(job.fmu), str(job.log), "error", error=str(err).strip("'\"")))
             out[-1].replay = None  # one replay's arrays in memory at a time
@@ -387,6 +424,11 @@ def _fmt(x: Any, spec: str) -> str:
     return "-" if x is None or (isinstance(x, float) and x != x) else format(x, spec)
 
 
+def _band_words(r: ValidationResult) -> str:
+    return "; ".join(f"{k} {100 * v['band_coverage']:.0f} % ({v['band_verdict']})" for k, v in r.signals.items()
+                     if v.get("gated") and v.get("band_verdict") in BAND_MISSES)
+
+
 def summary_lines(r: ValidationResult) -> list[str]:
     """Console lines of one result (see :meth:`ValidationResult.lines`)."""
     head = f"{Path(r.fmu).name} x {Path(r.log).name}: "
@@ -398,7 +440,9 @@ def summary_lines(r: ValidationResult) -> list[str]:
     verdict = {"pass": "PASS",
                "fail": f"FAIL ({len(r.failed)} of {len(r.signals)} signals fail: {', '.join(r.failed)})",
                "tie": f"TIE ({', '.join(ties)} not better than persistence with confidence; nothing fails)",
-               "unscored": "NOT SCORED (no gated signal has a verdict: nothing was shown)"}[r.status]
+               "unscored": "NOT SCORED (no gated signal has a verdict: nothing was shown)",
+               "band": "BANDS MISCALIBRATED (nothing fails, but a gated signal's prediction band covers "
+                       f"{_band_words(r)})"}[r.status]
     out = [head + verdict]
     if r.retried:
         out.append(f"  run twice: the first attempt failed ({r.retried})")
@@ -442,9 +486,10 @@ def _band_lines(r: ValidationResult) -> list[str]:
     """What the Monte Carlo bands say: signals the model and its stated uncertainty do not explain."""
     bad = {s: v for s, v in r.signals.items() if v.get("band_verdict") == "not explained"}
     wide = [s for s, v in r.signals.items() if v.get("band_verdict") == "wide"]
-    out = ["  band cover: share of logged samples inside the 5-95 % Monte Carlo band (parameters drawn from the "
-           "identified covariance, restart states and sensor noise from the log); about 90 % when the model and its "
-           "uncertainty explain the log"]
+    out = ["  band cover: share of logged samples inside the 5-95 % Monte Carlo band (nominal 90 %: parameters drawn "
+           "from the identified covariance, restart states from the log, plus the learned model discrepancy where the "
+           "parameter file has one, else sensor noise); a gated signal below 80 % or above 98 % is a finding "
+           "(status band, exit 4)"]
     out += [f"  NOT EXPLAINED {s}: {v['band_reason']}" for s, v in bad.items()]
     if wide:
         out.append(f"  wide bands (uncertainty overstated, or a noise-free log signal): {', '.join(wide)}")
@@ -452,7 +497,7 @@ def _band_lines(r: ValidationResult) -> list[str]:
 
 
 def batch_summary(results: Sequence[ValidationResult]) -> str:
-    n = {k: sum(r.status == k for r in results) for k in ("pass", "fail", "tie", "unscored", "error")}
+    n = {k: sum(r.status == k for r in results) for k in ("pass", "fail", "band", "tie", "unscored", "error")}
     n_retry = sum(bool(r.retried) for r in results)
     return (f"{len(results)} runs: " + ", ".join(f"{v} {k}" for k, v in n.items() if v or k in ("pass", "fail"))
             + (f"; {n_retry} retried after a failed first attempt" if n_retry else ""))
