@@ -8,10 +8,10 @@ bands (parameters + discrepancy + noise, ``validate_mc``). Pooled over the folds
 held-out logged samples inside the nominal 90 % band (target 80-95 % for every gated signal) and the band's mean
 width over the replay's RMSE (target <= 3).
 
-The shared fixed-wing excitation log has no second flight: its excitation blocks are split in time, the
-discrepancy of the fixed-wing FMU is learned on the first half of the blocks and the bands are scored on the
-held-out second half (same targets). The FMU is the project's default fixed wing (the log's derivatives are not
-given): the bands must then carry a large model error, which is what they are for.
+The shared fixed-wing excitation log has no second flight: ``identify aero`` on it (the timeline's fit and
+held-out segments, every default) writes the estimate and its covariance, the fixed-wing FMU is built from it,
+the discrepancy is learned on the fit segments and the bands are scored on the held-out segments (same
+targets).
 
     .venv/bin/python bench/prediction_bands.py [--draws N] [--only erle,px4,wing]   # exit 1 on a miss
 
@@ -40,10 +40,20 @@ WING = DATA / "fixed_wing" / "arduplane_sitl_fmu_excitation.BIN"
 WING_TIMELINE = DATA / "fixed_wing" / "arduplane_sitl_fmu_excitation.timeline.json"
 COVERAGE = (0.80, 0.95)  #: pooled share of held-out samples inside the nominal 90 % band
 MAX_WIDTH_OVER_RMSE = 3.0
-#: the PX4 csv logs carry no altitude: their output map is the default without it
-PX4_MAP = """[signals_extra]
-[thresholds]
-"""
+
+
+def px4_map_toml() -> str:
+    """The quadrotor's default output map without ``altitude_m`` (the PX4 csv logs carry no altitude)."""
+    from identification.validation.output_map import QUADROTOR
+
+    lines = []
+    for m in QUADROTOR:
+        if m.fmu == "altitude_m":
+            continue
+        lines += [f"[signals.{m.fmu}]", f'log = "{m.log}"', f"scale = {m.scale}", f"wrap = {str(m.wrap).lower()}"]
+        lines += [f'scale_by_param = "{m.scale_by_param}"'] if m.scale_by_param else []
+        lines += [f"max_rmse = {m.max_rmse}"] if m.max_rmse is not None else []
+    return "\n".join(lines) + "\n"
 
 
 @dataclass
@@ -119,27 +129,38 @@ def quadrotor(name: str, flights: list[tuple[Path, float]], draws: int, fmu_mass
 
 
 def fixed_wing(draws: int) -> bool:
-    """Discrepancy learned on the first half of the excitation blocks, bands scored on the second half."""
+    """``identify aero`` on the excitation log (its timeline's fit and held-out segments), the FMU built from the
+    estimate, the discrepancy learned on the fit segments, the bands scored on the held-out segments."""
     from build_fmus import build
-    from fmu_models.common.params import Uncertainty
-    from identification.validation.discrepancy import learn
+    from fmu_models.common.params import read_uncertainty
+    from fmu_models.fixed_wing.params import FixedWingParams
+    from fmu_models.signals.pwm_mapping import PwmMapping
+    from identification.aero.identify import AeroOptions, AeroSource, identify_aero, write_results
+    from identification.aero.model import parse_segments
+    from identification.logs.readers import read_log
+    from identification.validation.discrepancy import learn, write_discrepancy
     from identification.validation.workflow import ValidationJob, validate, validate_mc
 
-    blocks = json.loads(WING_TIMELINE.read_text())["blocks"]
-    spans = [(float(b["manual_start_s"]), float(b["manual_end_s"])) for b in blocks]
-    half = len(spans) // 2
+    log = read_log(WING)
     with tempfile.TemporaryDirectory() as tmp:
-        (fmu,) = build(None, Path(tmp), ["fixed_wing"])
-        learned = [validate(ValidationJob(fmu, WING, t_range=s)).replay for s in spans[:half]]
-        disc = learn(learned, [f"{WING.name} {a:.1f}-{b:.1f} s" for a, b in spans[:half]])
-        # no identified covariance for the default fixed wing: one parameter with a negligible spread keeps the
-        # Monte Carlo machinery (restart states, discrepancy) and adds no parameter uncertainty that is not there
-        unc = Uncertainty(names=["mass_kg"], mean=[13.5], covariance=[[1e-12]])
+        params = Path(tmp) / "excite.json"
+        result = identify_aero([AeroSource(log, PwmMapping.from_ardupilot(log.params), None, None, None)], None,
+                               FixedWingParams(), AeroOptions(free="auto", progress=False))
+        write_results(result, params, Path(tmp) / "excite.metrics.json", WING.name, 50.0)
+        metrics = json.loads((Path(tmp) / "excite.metrics.json").read_text())
+        fit = [(g.t0_s, g.t1_s) for g in parse_segments(",".join(metrics["fit_segments"]))]
+        held = [(g.t0_s, g.t1_s) for g in parse_segments(",".join(metrics["validation_segments"]))]
+        print(f"  identify aero: {len(fit)} fit and {len(held)} held-out segments")
+        (fmu,) = build(params, Path(tmp) / "fmu", ["fixed_wing"])
+        learned = [validate(ValidationJob(fmu, WING, t_range_s=s, embedded_params=False)).replay for s in fit]
+        disc = learn(learned, [f"{WING.name} {a:.1f}-{b:.1f} s" for a, b in fit])
+        write_discrepancy(params, disc)
+        unc = read_uncertainty(params)
         pool = Pool()
-        for s in spans[half:]:
-            pool.add(validate_mc(ValidationJob(fmu, WING, t_range=s), unc, draws, workers=2,
+        for s in held:
+            pool.add(validate_mc(ValidationJob(fmu, WING, t_range_s=s, embedded_params=False), unc, draws, workers=2,
                                  discrepancy=disc).replay)
-    return pool.table(f"fixed-wing excitation, blocks {half + 1}..{len(spans)} held out")
+    return pool.table("fixed-wing excitation log, held-out segments of identify aero")
 
 
 def main() -> int:
@@ -158,7 +179,7 @@ def main() -> int:
     if "px4" in only:
         with tempfile.TemporaryDirectory() as tmp:
             omap = Path(tmp) / "px4_map.toml"
-            omap.write_text(PX4_MAP)
+            omap.write_text(px4_map_toml())
             ok &= quadrotor("PX4 csv", list(PX4), args.draws, PX4_FMU_MASS_KG, omap)
     if "wing" in only:
         ok &= fixed_wing(args.draws)

@@ -222,6 +222,9 @@ class SignalDiscrepancy(Schema):
         min_length=2, max_length=MAX_HORIZON_BINS + 1)
     quantiles: list[list[FiniteValue]] = Field(min_length=1, max_length=MAX_HORIZON_BINS)
     samples: list[Annotated[int, Field(ge=0)]] = Field(min_length=1, max_length=MAX_HORIZON_BINS)
+    #: the quantiles are of (logged - FMU) / (|FMU - FMU at the window's first sample| + scale_floor): the error
+    #: scales with how far the model itself moved since the restart (None: of logged - FMU itself)
+    scale_floor: float | None = Field(None, gt=0.0, allow_inf_nan=False)
 
     @model_validator(mode="after")
     def _consistent(self) -> SignalDiscrepancy:

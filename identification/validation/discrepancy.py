@@ -7,14 +7,18 @@ identification flights, or better flights left out of the identification) and st
 beside the covariance (``discrepancy``, :class:`fmu_models.common.params.Discrepancy`); ``validate --mc`` adds a
 draw of it to every parameter draw (:func:`draws`), so the band is parameters + discrepancy + sensor noise.
 
-**Method: empirical quantiles of the residual (logged - FMU) per signal and horizon bin** (time since the replay
-window restarted from the logged state). Chosen over an AR model or a Gaussian process because the replay error
-of an open-loop unstable vehicle is not Gaussian or stationary: it grows with the horizon, is biased (a drifting
-attitude integrates into a drifting position) and heavy-tailed (a few windows with a manoeuvre carry most of the
-error). Quantiles need no distribution, cost nothing to evaluate and say how many samples they rest on; the
-horizon bins carry the growth. What they leave out: dependence on the state (a manoeuvring window and a hover
-window get the same band at the same horizon). The residuals are against the logged, noisy signal, so they
-carry the sensor noise too: a signal with a discrepancy gets no second white-noise term in the Monte Carlo.
+**Method: empirical quantiles of the scaled residual per signal and horizon bin.** The residual is logged - FMU,
+the horizon the time since the replay window restarted from the logged state, and the scale
+``|FMU(t) - FMU(t0)| + floor``: how far the model itself moved since the window's first sample, plus the mean of
+that departure over the learning replays (:func:`scale_of`). Chosen over an AR model or a Gaussian process
+because the replay error of an open-loop unstable vehicle is not Gaussian or stationary: it grows with the
+horizon, is biased (a drifting attitude integrates into a drifting position) and heavy-tailed (a few windows with
+a manoeuvre carry most of the error). Quantiles need no distribution, cost nothing to evaluate and say how many
+samples they rest on; the horizon bins carry the growth, and the scale carries the state: a window where the
+model swings far gets a wide band, a hover a narrow one. Measured leave-one-flight-out on the three Erle flights
+(``bench/prediction_bands.py``'s study, same coverage), the scale halves the mean band width on the body rates
+and the attitude against horizon bins alone. The residuals are against the logged, noisy signal, so they carry
+the sensor noise too: a signal with a discrepancy gets no second white-noise term in the Monte Carlo.
 """
 
 from __future__ import annotations
@@ -55,6 +59,24 @@ def residuals(res: ReplayResult, name: str) -> np.ndarray:
     return (r + math.pi) % (2.0 * math.pi) - math.pi if m.wrap else r
 
 
+def scale_of(res: ReplayResult, name: str, floor: float) -> np.ndarray:
+    """Per sample of ``res.t_s``: ``|FMU(t) - FMU at its window's first scored sample| + floor`` (NaN where the
+    FMU output is not scored; angles wrapped)."""
+    m = next(x for x in res.maps if x.fmu == name)
+    mod = np.asarray(res.model[name], float)
+    starts = np.array([a for a, _ in res.windows], dtype=float)
+    idx = np.clip(np.searchsorted(starts, np.asarray(res.t_s, float), side="left") - 1, 0, len(starts) - 1)
+    first = np.full(len(starts), np.nan)
+    ok = np.flatnonzero(np.isfinite(mod))
+    if ok.size:
+        w, pos = np.unique(idx[ok], return_index=True)  # the first finite sample of each window
+        first[w] = mod[ok[pos]]
+    d = mod - first[idx]
+    if m.wrap:
+        d = (d + math.pi) % (2.0 * math.pi) - math.pi
+    return np.abs(d) + floor
+
+
 def _edges(h: np.ndarray, span_s: float) -> np.ndarray:
     """Horizon bin edges over [0, span]: ``N_BINS`` equal bins, merged until each holds ``MIN_BIN_SAMPLES``."""
     edges = list(np.linspace(0.0, span_s, N_BINS + 1))
@@ -78,9 +100,13 @@ def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "") 
     rate_hz = float(first.options.get("rate_hz", 50.0))
     signals: dict[str, SignalDiscrepancy] = {}
     for m in first.maps:
+        departure = np.concatenate([scale_of(res, m.fmu, 0.0) for res in results])
+        floor = float(np.nanmean(departure)) if np.isfinite(departure).any() else 0.0
+        if not floor > 0.0:  # a model that never moves: the residual itself
+            floor = 0.0
         hs, rs = [], []
         for res in results:
-            r = residuals(res, m.fmu)
+            r = residuals(res, m.fmu) / (scale_of(res, m.fmu, floor) if floor > 0.0 else 1.0)
             ok = np.isfinite(r)
             hs.append(horizons_s(res)[ok])
             rs.append(r[ok])
@@ -93,19 +119,23 @@ def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "") 
             sel = r[(h >= a) & (h < b)]
             counts.append(int(sel.size))
             rows.append([float(v) for v in np.quantile(sel, LEVELS)] if sel.size else [0.0] * len(LEVELS))
-        signals[m.fmu] = SignalDiscrepancy(horizon_edges_s=[float(e) for e in edges], quantiles=rows, samples=counts)
+        signals[m.fmu] = SignalDiscrepancy(horizon_edges_s=[float(e) for e in edges], quantiles=rows, samples=counts,
+                                           scale_floor=floor if floor > 0.0 else None)
     if not signals:
         raise ValidationInputError(f"discrepancy: fewer than {MIN_BIN_SAMPLES} scored samples in every signal")
     return Discrepancy(levels=list(LEVELS), signals=signals, window_s=window_s, rate_hz=rate_hz,
                        logs=[str(x) for x in logs], note=note or (
-                           "empirical quantiles of logged - FMU per horizon bin (identification.validation."
-                           "discrepancy); learned from replays of the listed logs"))
+                           "empirical quantiles of (logged - FMU) / (|FMU - FMU at the window start| + scale_floor) "
+                           "per horizon bin (identification.validation.discrepancy); learned from replays of the "
+                           "listed logs"))
 
 
-def draws(disc: Discrepancy, name: str, h_s: np.ndarray, n_draws: int, rng: np.random.Generator) -> np.ndarray:
+def draws(disc: Discrepancy, name: str, h_s: np.ndarray, n_draws: int, rng: np.random.Generator,
+          res: ReplayResult | None = None) -> np.ndarray:
     """``n_draws`` x len(``h_s``) draws of signal ``name``'s discrepancy at horizons ``h_s`` [s] (inverse CDF of
     the stored quantiles, linear between levels, the tails cut at the outer levels; a horizon beyond the
-    learned ones takes the last bin)."""
+    learned ones takes the last bin), times the scale of the nominal replay ``res`` (:func:`scale_of`) when the
+    quantiles are of the scaled residual."""
     s = disc.signals[name]
     edges = np.asarray(s.horizon_edges_s)
     q = np.asarray(s.quantiles)
@@ -117,6 +147,10 @@ def draws(disc: Discrepancy, name: str, h_s: np.ndarray, n_draws: int, rng: np.r
     for b in np.unique(bins):
         cols = bins == b
         out[:, cols] = np.interp(u[:, cols], levels, q[b])
+    if s.scale_floor is not None:
+        if res is None:
+            raise ValueError(f"discrepancy of {name} is scaled by the replay's own departure: give the replay")
+        out *= scale_of(res, name, s.scale_floor)
     return out
 
 

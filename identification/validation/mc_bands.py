@@ -129,7 +129,8 @@ def mc_task(task: McTask) -> dict[str, Any]:
         mapping = PwmMapping.load(local_path(job.mapping)) if job.mapping else None
         battery = job_battery_state(local_path(job.fmu), local_path(job.params_file) if job.params_file else None,
                                     job.embedded_params, vehicle_of(host))
-        setup = replay_setup(host, log, job.log, maps, job.options, dict(job.start_values), mapping, battery=battery)
+        setup = replay_setup(host, log, job.log, maps, job.options, dict(job.start_values), mapping,
+                             t_range=job.t_range_s, battery=battery)
         n = len(setup.t)
         out = {m.fmu: np.full((len(task.draws), n), np.nan) for m in maps}
         failed = []
@@ -236,7 +237,7 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
                                        f"({'; '.join(failed[:3])})")
         if m.fmu in learned:
             rng = np.random.default_rng([seed, DISCREPANCY_STREAM, len(lo)])
-            ys = ys + discrepancy_draws(discrepancy, m.fmu, horizon, len(ys), rng)  # type: ignore[arg-type]
+            ys = ys + discrepancy_draws(discrepancy, m.fmu, horizon, len(ys), rng, res)  # type: ignore[arg-type]
         lo[m.fmu], hi[m.fmu] = prediction_band(ys)
         y = res.measured[m.fmu]
         ok = np.isfinite(y) & np.isfinite(lo[m.fmu]) & np.isfinite(res.model[m.fmu])

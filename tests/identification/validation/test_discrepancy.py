@@ -125,3 +125,29 @@ def test_a_learned_discrepancy_brings_a_wrong_models_bands_back_to_their_level(
     assert cov1["altitude_m"] > 0.98 and with_d.signals["altitude_m"]["band_verdict"] == "wide"
     assert with_d.status == "band"
     assert with_d.replay.bands.info["discrepancy"]["signals"] == list(learned.discrepancy.signals)
+
+
+def test_the_scale_follows_the_models_own_departure_and_narrows_the_band_where_it_holds_still() -> None:
+    """Residual = 0.3 x how far the model moved since the restart x N(0, 1) (plus a little noise): half the
+    windows swing, half hold still. The scaled quantiles cover fresh residuals at about 90 % with a band far
+    narrower in the quiet windows than in the swinging ones."""
+    def replay(seed: int) -> SimpleNamespace:
+        res, h = _replay(seed, n_windows=200)
+        rng = np.random.default_rng(seed + 100)
+        swing = np.repeat(np.arange(200) % 2 == 0, 100)
+        model = np.where(swing, 2.0 * h, 0.0)
+        res.model["roll_rad"] = model
+        res.measured["roll_rad"] = model + 0.3 * model * rng.standard_normal(h.size) + 0.01 * rng.standard_normal(
+            h.size)
+        res.swing = swing
+        return res
+
+    disc = learn([replay(11)], ["synthetic"])
+    s = disc.signals["roll_rad"]
+    assert s.scale_floor is not None and s.scale_floor > 0.0
+    new = replay(12)
+    lo, hi = prediction_band(draws(disc, "roll_rad", horizons_s(new), 40, np.random.default_rng(5), new))
+    r = new.measured["roll_rad"] - new.model["roll_rad"]
+    assert 0.86 <= float(((r >= lo) & (r <= hi)).mean()) <= 0.97
+    width = hi - lo
+    assert width[~new.swing].mean() < 0.5 * width[new.swing].mean()
