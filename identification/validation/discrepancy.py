@@ -168,7 +168,8 @@ class DiscrepancyResult:
         i5, i95 = d.levels.index(0.05), d.levels.index(0.95)
         for name, s in d.signals.items():
             first, last = s.quantiles[0], s.quantiles[-1]
-            out.append(f"  {name:<18} 5-95 % of logged - FMU: [{first[i5]:+.3g}, {first[i95]:+.3g}] at "
+            what = "logged - FMU" if s.scale_floor is None else f"(logged - FMU) / (departure + {s.scale_floor:.3g})"
+            out.append(f"  {name:<18} 5-95 % of {what}: [{first[i5]:+.3g}, {first[i95]:+.3g}] at "
                        f"{s.horizon_edges_s[0]:g}-{s.horizon_edges_s[1]:.2g} s, [{last[i5]:+.3g}, {last[i95]:+.3g}] at "
                        f"{s.horizon_edges_s[-2]:.2g}-{s.horizon_edges_s[-1]:.2g} s ({sum(s.samples)} samples)")
         if self.written:
