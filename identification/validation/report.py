@@ -143,10 +143,14 @@ def _band_note(res: ReplayResult) -> str:
     info = res.bands.info
     bad = [f"{m.fmu}: {res.bands.verdict(m.fmu)[1]}" for m in res.maps if res.bands.verdict(m.fmu)[0] ==
            "not explained"]
+    learned = (info.get("discrepancy") or {}).get("signals") or []
+    parts = (f"plus a draw of the model discrepancy learned from {len(info['discrepancy']['logs'])} replay(s) on "
+             f"{', '.join(learned)} (it carries their sensor noise), sensor noise on the others" if learned else
+             "each compared sample with the sensor noise estimated from the log")
     text = (f"Bands: {info['draws_run']} of {info['draws']} Monte Carlo replays (seed {info['seed']}) with "
-            f"{', '.join(info['parameters'])} drawn from the identified covariance, each window's restart state and "
-            "each compared sample with the sensor noise estimated from the log. Coverage is the share of logged "
-            "samples inside the 5-95 % band: about 90 % when the model and its stated uncertainty explain the log.")
+            f"{', '.join(info['parameters'])} drawn from the identified covariance, each window's restart state "
+            f"with the sensor noise estimated from the log, {parts}. Nominal level 90 % (the 5-95 % band); "
+            "coverage is the share of logged samples inside it, below 80 % or above 98 % a finding.")
     out = f"<p>{html.escape(text)}</p>"
     if bad:
         out += "".join(f"<p class='fail'>Not explained by the model and its uncertainty: {html.escape(b)}</p>"

@@ -125,6 +125,11 @@ def test_a_learned_discrepancy_brings_a_wrong_models_bands_back_to_their_level(
     assert cov1["altitude_m"] > 0.98 and with_d.signals["altitude_m"]["band_verdict"] == "wide"
     assert with_d.status == "band"
     assert with_d.replay.bands.info["discrepancy"]["signals"] == list(learned.discrepancy.signals)
+    from identification.validation.report import validation_page
+
+    page = validation_page(with_d.replay)  # the report: the band, its nominal level, the coverage achieved
+    assert "Nominal level 90 %" in page and "model discrepancy learned from 1 replay(s)" in page
+    assert "5-95 % band coverage" in page and "BANDS MISCALIBRATED: altitude_m" in page
 
 
 def test_the_scale_follows_the_models_own_departure_and_narrows_the_band_where_it_holds_still() -> None:
