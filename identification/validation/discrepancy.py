@@ -15,7 +15,8 @@ because the replay error of an open-loop unstable vehicle is not Gaussian or sta
 horizon, is biased (a drifting attitude integrates into a drifting position) and heavy-tailed (a few windows with
 a manoeuvre carry most of the error). Quantiles need no distribution, cost nothing to evaluate and say how many
 samples they rest on; the horizon bins carry the growth, and the scale carries the state: a window where the
-model swings far gets a wide band, a hover a narrow one. Measured leave-one-flight-out on the three Erle flights
+model swings far gets a wide band, a hover a narrow one. Per signal the scaled form is kept only when it gives
+the narrower band on the learning replays. Measured leave-one-flight-out on the three Erle flights
 (``bench/prediction_bands.py``'s study, same coverage), the scale halves the mean band width on the body rates
 and the attitude against horizon bins alone. The residuals are against the logged, noisy signal, so they carry
 the sensor noise too: a signal with a discrepancy gets no second white-noise term in the Monte Carlo.
@@ -91,8 +92,40 @@ def _edges(h: np.ndarray, span_s: float) -> np.ndarray:
     return np.asarray(edges)
 
 
+def _fit(results: Sequence[ReplayResult], name: str, floor: float, window_s: float
+         ) -> tuple[SignalDiscrepancy, float] | None:
+    """The quantile table of signal ``name`` (scaled by :func:`scale_of` with ``floor``; 0: unscaled) and the
+    mean width of its 90 % band over the learning samples (None: too few samples)."""
+    hs, rs, ss = [], [], []
+    for res in results:
+        scale = scale_of(res, name, floor) if floor > 0.0 else np.ones(len(res.t_s))
+        r = residuals(res, name) / scale
+        ok = np.isfinite(r)
+        hs.append(horizons_s(res)[ok])
+        rs.append(r[ok])
+        ss.append(scale[ok])
+    h, r, sc = np.concatenate(hs), np.concatenate(rs), np.concatenate(ss)
+    if r.size < MIN_BIN_SAMPLES:
+        return None
+    edges = _edges(h, window_s if window_s > 0 else float(h.max()))
+    rows, counts, width = [], [], 0.0
+    i5, i95 = LEVELS.index(0.05), LEVELS.index(0.95)
+    for a, b in itertools.pairwise(edges):
+        sel = (h >= a) & (h < b)
+        counts.append(int(sel.sum()))
+        q = [float(v) for v in np.quantile(r[sel], LEVELS)] if sel.any() else [0.0] * len(LEVELS)
+        rows.append(q)
+        width += float(np.sum((q[i95] - q[i5]) * sc[sel]))
+    table = SignalDiscrepancy(horizon_edges_s=[float(e) for e in edges], quantiles=rows, samples=counts,
+                              scale_floor=floor if floor > 0.0 else None)
+    return table, width / r.size
+
+
 def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "") -> Discrepancy:
-    """The discrepancy of the replays ``results`` (same FMU, same options), pooled per signal and horizon bin."""
+    """The discrepancy of the replays ``results`` (same FMU, same options), pooled per signal and horizon bin.
+    Per signal the scaled form (:func:`scale_of`) is kept when its 90 % band is narrower on the learning samples
+    than the unscaled one (the scale helps where the error follows the model's own motion, e.g. a diverging
+    attitude, not where it does not, e.g. vibration on a thrust measured at the PWM rate)."""
     if not results:
         raise ValidationInputError("discrepancy: no replay to learn from")
     first = results[0]
@@ -102,32 +135,17 @@ def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "") 
     for m in first.maps:
         departure = np.concatenate([scale_of(res, m.fmu, 0.0) for res in results])
         floor = float(np.nanmean(departure)) if np.isfinite(departure).any() else 0.0
-        if not floor > 0.0:  # a model that never moves: the residual itself
-            floor = 0.0
-        hs, rs = [], []
-        for res in results:
-            r = residuals(res, m.fmu) / (scale_of(res, m.fmu, floor) if floor > 0.0 else 1.0)
-            ok = np.isfinite(r)
-            hs.append(horizons_s(res)[ok])
-            rs.append(r[ok])
-        h, r = np.concatenate(hs), np.concatenate(rs)
-        if r.size < MIN_BIN_SAMPLES:
-            continue
-        edges = _edges(h, window_s if window_s > 0 else float(h.max()))
-        rows, counts = [], []
-        for a, b in itertools.pairwise(edges):
-            sel = r[(h >= a) & (h < b)]
-            counts.append(int(sel.size))
-            rows.append([float(v) for v in np.quantile(sel, LEVELS)] if sel.size else [0.0] * len(LEVELS))
-        signals[m.fmu] = SignalDiscrepancy(horizon_edges_s=[float(e) for e in edges], quantiles=rows, samples=counts,
-                                           scale_floor=floor if floor > 0.0 else None)
+        fits = [f for f in (_fit(results, m.fmu, 0.0, window_s),
+                            _fit(results, m.fmu, floor, window_s) if floor > 0.0 else None) if f is not None]
+        if fits:
+            signals[m.fmu] = min(fits, key=lambda f: f[1])[0]
     if not signals:
         raise ValidationInputError(f"discrepancy: fewer than {MIN_BIN_SAMPLES} scored samples in every signal")
     return Discrepancy(levels=list(LEVELS), signals=signals, window_s=window_s, rate_hz=rate_hz,
                        logs=[str(x) for x in logs], note=note or (
-                           "empirical quantiles of (logged - FMU) / (|FMU - FMU at the window start| + scale_floor) "
-                           "per horizon bin (identification.validation.discrepancy); learned from replays of the "
-                           "listed logs"))
+                           "empirical quantiles of logged - FMU per horizon bin, where scale_floor is given divided "
+                           "by (|FMU - FMU at the window start| + scale_floor) (identification.validation."
+                           "discrepancy); learned from replays of the listed logs"))
 
 
 def draws(disc: Discrepancy, name: str, h_s: np.ndarray, n_draws: int, rng: np.random.Generator,
