@@ -13,7 +13,8 @@ held-out segments, every default) writes the estimate and its covariance, the fi
 the discrepancy is learned on the fit segments and the bands are scored on the held-out segments (same
 targets).
 
-    .venv/bin/python bench/prediction_bands.py [--draws N] [--only erle,px4,wing]   # exit 1 on a miss
+    .venv/bin/python bench/prediction_bands.py [--draws N] [--only erle,px4,wing] [--no-parameter-spread]
+    # exit 1 on a miss
 
 Heavy (minutes): every fold builds an FMU and runs N Monte Carlo replays on two local worker processes.
 """
@@ -128,11 +129,11 @@ def quadrotor(name: str, flights: list[tuple[Path, float]], draws: int, fmu_mass
     return pool.table(f"{name} leave-one-flight-out")
 
 
-def fixed_wing(draws: int) -> bool:
+def fixed_wing(draws: int, parameter_spread: bool = True) -> bool:
     """``identify aero`` on the excitation log (its timeline's fit and held-out segments), the FMU built from the
     estimate, the discrepancy learned on the fit segments, the bands scored on the held-out segments."""
     from build_fmus import build
-    from fmu_models.common.params import read_uncertainty
+    from fmu_models.common.params import Uncertainty, read_uncertainty
     from fmu_models.fixed_wing.params import FixedWingParams
     from fmu_models.signals.pwm_mapping import PwmMapping
     from identification.aero.identify import AeroOptions, AeroSource, identify_aero, write_results
@@ -156,11 +157,14 @@ def fixed_wing(draws: int) -> bool:
         disc = learn(learned, [f"{WING.name} {a:.1f}-{b:.1f} s" for a, b in fit])
         write_discrepancy(params, disc)
         unc = read_uncertainty(params)
+        if not parameter_spread:  # a study: the discrepancy alone, the parameters at their estimate
+            unc = Uncertainty(names=unc.names, mean=unc.mean, covariance=[[0.0] * len(unc.names)] * len(unc.names))
         pool = Pool()
         for s in held:
             pool.add(validate_mc(ValidationJob(fmu, WING, t_range_s=s, embedded_params=False), unc, draws, workers=2,
                                  discrepancy=disc).replay)
-    return pool.table("fixed-wing excitation log, held-out segments of identify aero")
+    return pool.table("fixed-wing excitation log, held-out segments of identify aero"
+                      + ("" if parameter_spread else " (no parameter spread)"))
 
 
 def main() -> int:
@@ -168,6 +172,8 @@ def main() -> int:
     ap.add_argument("--draws", type=int, default=19, help="Monte Carlo draws per replay (19: the fewest a 5-95 %% "
                     "band allows)")
     ap.add_argument("--only", default="erle,px4,wing", help="which studies (comma separated)")
+    ap.add_argument("--no-parameter-spread", action="store_true",
+                    help="fixed wing: the parameters at their estimate (a zero covariance), the discrepancy alone")
     args = ap.parse_args()
     if not all(p.exists() for p in [*ERLE, *(p for p, _ in PX4), WING]):
         print(f"bench/prediction_bands.py: needs {DATA} (../shared/data beside the checkout)")
@@ -182,7 +188,7 @@ def main() -> int:
             omap.write_text(px4_map_toml())
             ok &= quadrotor("PX4 csv", list(PX4), args.draws, PX4_FMU_MASS_KG, omap)
     if "wing" in only:
-        ok &= fixed_wing(args.draws)
+        ok &= fixed_wing(args.draws, not args.no_parameter_spread)
     print(f"\nall targets: {'met' if ok else 'NOT met'}")
     return 0 if ok else 1
 
