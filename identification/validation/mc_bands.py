@@ -249,6 +249,9 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
             "min_coverage": MIN_COVERAGE, "max_coverage": MAX_COVERAGE,
             "discrepancy": {"signals": learned, "logs": discrepancy.logs if discrepancy else [],
                             "window_s": discrepancy.window_s if discrepancy else None,
+                            "same_windows": discrepancy is None or (
+                                discrepancy.window_s == res.options.get("window_s")
+                                and discrepancy.rate_hz == res.options.get("rate_hz")),
                             "parts": "parameters + restart-state noise + learned discrepancy (carries the sensor "
                                      "noise)" if learned else "parameters + restart-state noise + sensor noise"}}
     return Bands(lo, hi, cov, info)

@@ -490,6 +490,11 @@ def _band_lines(r: ValidationResult) -> list[str]:
            "from the identified covariance, restart states from the log, plus the learned model discrepancy where the "
            "parameter file has one, else sensor noise); a gated signal below 80 % or above 98 % is a finding "
            "(status band, exit 4)"]
+    disc = (r.replay.bands.info.get("discrepancy") if r.replay is not None and r.replay.bands is not None
+            else None) or {}
+    if disc.get("signals") and not disc.get("same_windows", True):
+        out.append(f"  note: the discrepancy was learned with {disc['window_s']:g} s windows at another window length "
+                   "or rate than this replay: its horizons do not match (learn it with the same --window-s, --rate-hz)")
     out += [f"  NOT EXPLAINED {s}: {v['band_reason']}" for s, v in bad.items()]
     if wide:
         out.append(f"  wide bands (uncertainty overstated, or a noise-free log signal): {', '.join(wide)}")

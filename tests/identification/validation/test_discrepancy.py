@@ -125,6 +125,8 @@ def test_a_learned_discrepancy_brings_a_wrong_models_bands_back_to_their_level(
     assert cov1["altitude_m"] > 0.98 and with_d.signals["altitude_m"]["band_verdict"] == "wide"
     assert with_d.status == "band"
     assert with_d.replay.bands.info["discrepancy"]["signals"] == list(learned.discrepancy.signals)
+    assert with_d.replay.bands.info["discrepancy"]["same_windows"]  # learned with the replay's windows and rate
+    assert not any("discrepancy was learned with" in line for line in with_d.lines())
     from identification.validation.report import validation_page
 
     page = validation_page(with_d.replay)  # the report: the band, its nominal level, the coverage achieved
