@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from fmu_models.common.units import G0_M_S2
+from fmu_models.quadrotor.constants import CELL_EMPTY_V, CELL_FULL_V, CELL_NOMINAL_V
 
 PWM_MIN_US, PWM_MAX_US = 1000.0, 2000.0
 SPIN_MAX = 0.95  #: ArduCopter's MOT_SPIN_MAX default
@@ -25,7 +26,6 @@ AP_MOTORS = "ArduPilot libraries/AP_Motors/AP_MotorsMulticopter"
 PX4_TILT_DEG = (20.0, 89.0)
 PX4_CLIMB_M_S = (1.0, 8.0)  #: MPC_Z_VEL_MAX_UP 0.5..8, floored at MPC_TKO_SPEED's minimum 1 m/s
 PX4_LAND_SPEED_MIN_M_S = 0.6
-CELL_FULL_V, CELL_EMPTY_V, CELL_NOMINAL_V = 4.2, 3.3, 3.7  #: LiPo cell voltages
 
 
 def thrust_curve(sim: Any, p: np.ndarray, pwm_us: np.ndarray) -> np.ndarray:

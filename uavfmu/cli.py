@@ -20,6 +20,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
                "wing: ArduPilot Lua, RC-override steps, timeline; or for a quadrotor (--vehicle quadrotor): "
                "MANUAL_CONTROL or RC-override steps, ArduCopter SystemId parameters"),
     "validate": ("uavfmu.commands.validate", "replay a flight log through an FMU with FMPy and score it"),
+    "discrepancy": ("uavfmu.commands.discrepancy", "learn an FMU's replay error from logs into its parameter file "
+                    "(prediction bands of validate --mc)"),
     "hil": ("uavfmu.commands.hil", "drive an FMU from an autopilot (PX4, ArduPilot JSON, MAVLink, NMEA)"),
     "autopilot-params": ("uavfmu.commands.autopilot_params",
                          "write ArduPlane, ArduCopter or PX4 parameters computed from an FMU's model"),

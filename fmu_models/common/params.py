@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import itertools
 import math
 import re
 from collections.abc import Mapping
@@ -275,6 +276,76 @@ class Uncertainty(Schema):
 
 #: the ``uncertainty`` key as an extra field of :func:`params_schema` (parameter files that carry it)
 UNCERTAINTY_FIELD: ExtraFields = {"uncertainty": (Uncertainty | None, None)}
+
+
+#: most signals, horizon bins and quantile levels a ``discrepancy`` block may carry
+MAX_DISCREPANCY_SIGNALS, MAX_HORIZON_BINS, MAX_QUANTILE_LEVELS = 64, 100, 101
+Level = Annotated[float, Field(gt=0.0, lt=1.0, allow_inf_nan=False)]
+FiniteValue = Annotated[float, Field(allow_inf_nan=False)]
+
+
+class SignalDiscrepancy(Schema):
+    """One signal's model discrepancy: quantiles of (logged - FMU) per horizon bin (time since the replay window
+    restarted from the logged state), in the FMU output's unit."""
+
+    horizon_edges_s: list[Annotated[float, Field(ge=0.0, le=86400.0, allow_inf_nan=False)]] = Field(
+        min_length=2, max_length=MAX_HORIZON_BINS + 1)
+    quantiles: list[list[FiniteValue]] = Field(min_length=1, max_length=MAX_HORIZON_BINS)
+    samples: list[Annotated[int, Field(ge=0)]] = Field(min_length=1, max_length=MAX_HORIZON_BINS)
+    #: the quantiles are of (logged - FMU) / (|FMU - FMU at the window's first sample| + scale_floor): the error
+    #: scales with how far the model itself moved since the restart (None: of logged - FMU itself)
+    scale_floor: float | None = Field(None, gt=0.0, allow_inf_nan=False)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> SignalDiscrepancy:
+        e = self.horizon_edges_s
+        if any(b <= a for a, b in itertools.pairwise(e)):
+            raise ValueError(f"horizon_edges_s = {e}: allowed strictly increasing values")
+        n = len(e) - 1
+        if len(self.quantiles) != n or len(self.samples) != n:
+            raise ValueError(f"{len(self.quantiles)} quantile rows and {len(self.samples)} sample counts for {n} "
+                             "horizon bins (allowed: one of each per bin)")
+        if any(any(b < a for a, b in itertools.pairwise(row)) for row in self.quantiles):
+            raise ValueError("a quantile row decreases (allowed: non-decreasing along the levels)")
+        return self
+
+
+class Discrepancy(Schema):
+    """The optional top-level ``"discrepancy"`` key of a parameter file, beside ``uncertainty``: the model's
+    error learned where the truth is known (replays of flights through the FMU), per signal and horizon, as
+    empirical quantiles at ``levels``; ``validate --mc`` adds draws from it to the parameter draws
+    (``identification.validation.discrepancy``)."""
+
+    levels: list[Level] = Field(min_length=2, max_length=MAX_QUANTILE_LEVELS)
+    signals: dict[str, SignalDiscrepancy] = Field(min_length=1, max_length=MAX_DISCREPANCY_SIGNALS)
+    window_s: float = Field(ge=0.0, le=86400.0, allow_inf_nan=False)
+    rate_hz: float = Field(gt=0.0, le=2000.0, allow_inf_nan=False)
+    logs: list[Annotated[str, Field(max_length=1000)]] = Field(default_factory=list, max_length=1000)
+    note: str = Field("", max_length=2000)  #: how the numbers were made; not read
+
+    @model_validator(mode="after")
+    def _levels(self) -> Discrepancy:
+        if any(b <= a for a, b in itertools.pairwise(self.levels)):
+            raise ValueError(f"levels = {self.levels}: allowed strictly increasing values in (0, 1)")
+        bad = [k for k, s in self.signals.items() if any(len(r) != len(self.levels) for r in s.quantiles)]
+        if bad:
+            raise ValueError(f"signals {', '.join(bad)}: a quantile row's length differs from levels' "
+                             f"({len(self.levels)}; allowed: one value per level)")
+        return self
+
+
+def discrepancy_of(data: dict[str, Any], path: str) -> Discrepancy | None:
+    """The ``discrepancy`` block of parameter-file contents ``data`` read from ``path`` (None when there is none;
+    :class:`ParameterError` naming the file and each problem when it is malformed)."""
+    from fmu_models.config import validate_config
+
+    if not isinstance(data, dict) or "discrepancy" not in data:
+        return None
+    try:
+        return validate_config(data["discrepancy"], Discrepancy, str(path))
+    except ConfigError as err:
+        lines = [re.sub(r"^field \(top level\) = .*: Value error, ", "", p) for p in err.problems]
+        raise ParameterError(err.source, [f"discrepancy: {p}" for p in lines]) from None
 
 
 def read_uncertainty(path: str | Path) -> Uncertainty:

@@ -10,5 +10,6 @@ N_MOTORS = 4  #: motors of a quad (X or + frame)
 PWM_IDLE_US = 1100.0  #: per-motor PWM at and below which an ESC gives no thrust [us]
 PWM_FULL_US = 2000.0  #: per-motor PWM of full command (normalised command u = 1) [us]
 MASS_KG = 1.14  #: DJI F450 take-off mass, paper 000 Table 1 [kg]
+CELL_FULL_V, CELL_EMPTY_V, CELL_NOMINAL_V = 4.2, 3.3, 3.7  #: LiPo cell voltages: full, empty, nominal [V]
 #: FMU inputs, motor k = 1..4 in ArduPilot/PX4 order
 MOTOR_PWM_INPUTS = tuple(f"pwm_{k}_us" for k in range(1, N_MOTORS + 1))

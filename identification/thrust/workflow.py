@@ -37,7 +37,7 @@ from fmu_models.quadrotor.thrust import consequent_parameters
 from identification.common.jsonio import write_json
 from identification.common.metrics import SkillInterval, block_starts, overall_outcome, skill_interval
 from identification.thrust.anfis_train import r_squared, rmse
-from identification.thrust.battery import HOVER_CLIMB_M_S
+from identification.thrust.battery import HOVER_CLIMB_M_S, hover_thrust_scale
 from identification.thrust.dataset import (
     MOTOR_MIN_PWM_US,
     MOTOR_SIGNAL,
@@ -62,10 +62,19 @@ from identification.thrust.model import (
     select_spec,
 )
 
-#: the hover condition: the rotors' vertical thrust T cos(roll) cos(pitch) carries the weight m g
 CALIBRATIONS = ("auto", "on", "off")
 CONSTANT = "constant m g"
 OUTCOMES = ("win", "tie", "lose")
+#: side-information levels of the comparisons: every predictor at a level has the same information
+RAW, STATE, CALIBRATED = "raw", "battery state", "calibrated"
+INFORMATION = {
+    RAW: "no information from the held-out flight beyond PWM, mass and a logged voltage where a predictor "
+         "takes it",
+    STATE: "each predictor times its own hover battery state on the held-out flight (causal, the model's "
+           "time constant; from mass, PWM, climb rate and attitude)",
+    CALIBRATED: "each predictor times its own per-flight hover calibration (one scale per held-out flight: "
+                "mean vertical thrust over its hover samples = m g)",
+}
 
 
 @dataclass(frozen=True)
@@ -338,22 +347,38 @@ def _select(train: list[FlightData], base: ModelSpec, cfg: ThrustConfig, calibra
 
 def score_fold(name: str, train: list[FlightData], test: FlightData, base: ModelSpec, cfg: ThrustConfig,
                calibrate: bool) -> FoldResult:
-    """Select the structure on ``train`` (inner CV), fit on ``train``, score it and the baselines on ``test``."""
+    """Select the structure on ``train`` (inner CV), fit on ``train``, score it and the baselines on ``test``.
+
+    Every predictor (the map, the constant m g, the polynomials) is also given each piece of side information
+    the model may take from the held-out flight, by the same function: its own hover battery state
+    (:func:`with_battery_state`, when the model has one) and a per-flight hover calibration
+    (:func:`identification.thrust.model.hover_scale`, when ``calibrate``); see :data:`INFORMATION`."""
     fitted, spec = fit_physical(train, _select(train, base, cfg, calibrate), cfg.epochs, cfg.check_block_s,
                                 source=f"fold without {name}")
     p = fitted.params
     y = test.thrust_N
+    raw_model = predict(p, spec, test, state=False)
     pred = predict(p, spec, test)
-    series = {"measured": y, "model": pred, "model without battery state": predict(p, spec, test, state=False)}
-    series.update(baseline_predictions(train, test, spec))
-    scale = hover_scale(pred, test)
+    series = {"measured": y, "model": pred}
+    raw = {_model_key(spec, RAW): raw_model, **baseline_predictions(train, test, spec)}
+    series.update(raw)
+    if spec.tau_s is not None:
+        for key, v in raw.items():
+            if key != _model_key(spec, RAW):
+                series[f"{key} ({STATE})"] = with_battery_state(v, test, spec.tau_s)
     if calibrate:
-        for key in [k for k in series if k not in ("measured", CONSTANT)]:
-            own = key == "model" and spec.tau_s is not None  # its hover battery state is its calibration
-            series[f"{key} (calibrated)"] = series[key] * (1.0 if own else hover_scale(series[key], test))
+        for key, v in raw.items():
+            series[f"{key} ({CALIBRATED})"] = v * hover_scale(v, test)
+    scale = hover_scale(pred, test)
     scores = {k: Score(rmse(v, y), r_squared(v, y)) for k, v in series.items() if k not in ("measured", "model")}
     return FoldResult(name, int(y.size), Score(rmse(pred, y), r_squared(pred, y)), scores, scale, spec,
                       test.period_s, series)
+
+
+def with_battery_state(pred_N: np.ndarray, f: FlightData, tau_s: float) -> np.ndarray:
+    """``pred_N`` times its own hover battery state on flight ``f`` (time constant ``tau_s``): what the model's
+    state does to the map (:func:`identification.thrust.model.battery_input_V`), applied to any predictor."""
+    return pred_N * hover_thrust_scale(f.time_s, f.vertical(pred_N), f.hover, f.weight_N, tau_s)
 
 
 def outer_folds(flights: list[FlightData], n_blocks: int) -> list[tuple[str, list[FlightData], FlightData]]:
@@ -410,28 +435,70 @@ def _fold_of(got: dict[str, Any]) -> FoldResult:
                       {k: got[f"series_{i}"] for i, k in enumerate(got["series_names"])})
 
 
-def comparisons(folds: list[FoldResult], calibrate: bool, block_s: float) -> dict[str, dict[str, Any]]:
-    """Model vs each baseline, pooled over the held-out sets and per held-out set, as skill intervals.
-
-    Raw: the model (with its battery state) against the raw baselines. Calibrated (when ``calibrate``): the
-    calibrated model against the calibrated polynomials and the constant m g. A model with a hover battery
-    state is calibrated by that state (time-varying, from the same mass, PWM and hover samples), not by a
-    second constant scale on top; without a state it gets the baselines' constant per-flight scale."""
-    pairs = [("model", b) for b in folds[0].series if _is_baseline(b) and "(calibrated)" not in b]
-    if calibrate:
-        pairs += [("model (calibrated)", b) for b in folds[0].series if b == CONSTANT or
-                  (_is_baseline(b) and b.endswith("(calibrated)"))]
-    out = {}
-    for model, base in pairs:
-        pooled = _interval(folds, model, base, block_s)
-        per = {f.held_out: _interval([f], model, base, block_s).as_dict() for f in folds}
-        out[f"{model} vs {base}"] = {"model": model, "baseline": base, "pooled": pooled.as_dict(),
-                                     "per_held_out": per, "rmse_ratio": _ratio(folds, model, base)}
-    return out
+def _model_key(spec: ModelSpec, level: str) -> str:
+    """The series name of the model with the side information ``level`` (``model`` is the written one)."""
+    if level == STATE or (level == RAW and spec.tau_s is None):
+        return "model"
+    bare = "model" if spec.tau_s is None else "model without battery state"
+    return bare if level == RAW else f"{bare} ({level})"
 
 
 def _is_baseline(key: str) -> bool:
-    return key == CONSTANT or key.startswith("poly")
+    """A raw baseline's series name (the constant or a polynomial, no side information)."""
+    return key == CONSTANT or (key.startswith("poly") and not key.endswith(")"))
+
+
+def _baseline_key(base: str, level: str) -> str:
+    return base if level == RAW else f"{base} ({level})"
+
+
+def levels_of(spec: ModelSpec, calibrate: bool) -> list[str]:
+    """The side-information levels scored: none, the hover battery state (a model with one), the calibration."""
+    return [RAW, *([STATE] if spec.tau_s is not None else []), *([CALIBRATED] if calibrate else [])]
+
+
+def used_levels(spec: ModelSpec, calibrate: bool) -> list[str]:
+    """The levels the written model is used at, which decide the verdict: the information the FMU is given
+    in a replay (its battery state, or none) and, when scored, the per-flight calibration of
+    :meth:`ThrustResult.params_for`."""
+    return [STATE if spec.tau_s is not None else RAW, *([CALIBRATED] if calibrate else [])]
+
+
+def comparisons(folds: list[FoldResult], calibrate: bool, block_s: float) -> dict[str, dict[str, Any]]:
+    """Model vs each baseline with the same side information (:data:`INFORMATION`), pooled over the held-out
+    sets and per held-out set, as skill intervals.
+
+    At each level every predictor has the same information from the held-out flight: none (``raw``), its own
+    hover battery state (``battery state``: the model's time constant, applied to the constant and the
+    polynomials as to the map), or its own per-flight hover calibration (``calibrated``). ``in_verdict``: the
+    level is one the written model is used at (:func:`used_levels`)."""
+    ref = folds[0].spec  # every fold has a state or none (``ThrustConfig.battery_state``, no voltage log)
+    raw_bases = [b for b in folds[0].series if _is_baseline(b)]
+    used = used_levels(ref, calibrate)
+    out = {}
+    for level in levels_of(ref, calibrate):
+        model = _model_key(ref, level)
+        for b in raw_bases:
+            base = _baseline_key(b, level)
+            if base not in folds[0].series:
+                continue
+            pooled = _interval(folds, model, base, block_s)
+            per = {f.held_out: _interval([f], model, base, block_s).as_dict() for f in folds}
+            out[f"{model} vs {base}"] = {"model": model, "baseline": base, "information": level,
+                                         "information_text": INFORMATION[level], "in_verdict": level in used,
+                                         "pooled": pooled.as_dict(), "per_held_out": per,
+                                         "rmse_ratio": _ratio(folds, model, base)}
+    return out
+
+
+def headline(comp: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """The like-for-like headline: at the information the written model is used with in a replay (the first
+    level of :func:`used_levels`), the model against the best baseline given the same information."""
+    level = next(c["information"] for c in comp.values() if c["in_verdict"])
+    same = [c for c in comp.values() if c["information"] == level]
+    best = max(same, key=lambda c: c["rmse_ratio"])  # the baseline with the lowest RMSE
+    return {"information": level, "information_text": INFORMATION[level], "model": best["model"],
+            "baseline": best["baseline"], "rmse_ratio": best["rmse_ratio"], "outcome": best["pooled"]["outcome"]}
 
 
 def _interval(folds: list[FoldResult], model: str, base: str, block_s: float) -> SkillInterval:
@@ -457,10 +524,11 @@ def _pooled_rmse(folds: list[FoldResult], key: str) -> float:
 
 
 def verdict_of(comp: dict[str, dict[str, Any]]) -> str:
-    """``lose`` if a baseline beats the model pooled or on any held-out set; ``win`` if the model beats every
-    baseline pooled (intervals above zero); else ``tie``."""
-    pooled = [c["pooled"]["outcome"] for c in comp.values()]
-    per = [o["outcome"] for c in comp.values() for o in c["per_held_out"].values()]
+    """Over the comparisons ``in_verdict``: ``lose`` if a baseline beats the model pooled or on any held-out set;
+    ``win`` if the model beats every baseline pooled (intervals above zero); else ``tie``."""
+    judged = [c for c in comp.values() if c.get("in_verdict", True)]
+    pooled = [c["pooled"]["outcome"] for c in judged]
+    per = [o["outcome"] for c in judged for o in c["per_held_out"].values()]
     return "lose" if "lose" in per else overall_outcome(pooled)
 
 
@@ -490,7 +558,11 @@ def identify_thrust(cfg: ThrustConfig) -> ThrustResult:
     pooled = {k: _pooled_rmse(results, k) for k in results[0].series if k != "measured"}
     warnings = list(notes) + ([yaw_note] if yaw_note else [])
     if verdict == "lose":
-        warnings.append("the identified model LOSES to a baseline on held-out data: " + _losers(comp))
+        warnings.append("the identified model LOSES to a baseline on held-out data: " + _losers(comp, True))
+    unused = _losers(comp, False)
+    if unused:
+        warnings.append("without the side information it is used with, the model LOSES to a baseline given the "
+                        f"same (not in the verdict): {unused}")
     overrides = [o for f in flights for o in f.overrides]
     result = ThrustResult(final, spec, tuple(results), pooled, comp, verdict,
                           tuple(flight_summary(f) for f in flights), cal, _uncertainty(fitted),
@@ -501,9 +573,11 @@ def identify_thrust(cfg: ThrustConfig) -> ThrustResult:
     return _write(result, cfg)
 
 
-def _losers(comp: dict[str, dict[str, Any]]) -> str:
+def _losers(comp: dict[str, dict[str, Any]], in_verdict: bool) -> str:
     items = []
     for key, c in comp.items():
+        if c["in_verdict"] != in_verdict:
+            continue
         where = [h for h, o in c["per_held_out"].items() if o["outcome"] == "lose"]
         if c["pooled"]["outcome"] == "lose" or where:
             items.append(f"{key} (RMSE ratio {c['rmse_ratio']:.3f}{'; loses on ' + ', '.join(where) if where else ''})")
@@ -607,6 +681,9 @@ def _metrics(r: ThrustResult, cfg: ThrustConfig, calibrate: bool) -> dict[str, A
         ],
         "pooled_rmse_N": r.pooled,
         "comparisons": r.comparisons,
+        "information_levels": INFORMATION,
+        "verdict_levels": sorted({c["information"] for c in r.comparisons.values() if c["in_verdict"]}),
+        "headline": headline(r.comparisons),
         "verdict": r.verdict,
         "verdict_text": VERDICT_TEXT[r.verdict],
         "overrides": list(r.overrides),

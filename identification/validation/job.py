@@ -34,6 +34,8 @@ class ValidationJob:
     #: without ``params_file``, read the battery-state model from the parameter file embedded in the FMU
     #: (``build --params`` embeds it); False holds the input at its start value unless logged
     embedded_params: bool = True
+    #: replay only this span of the log [s, log time] (None: the whole log); e.g. a held-out segment
+    t_range_s: tuple[float, float] | None = None
 
 
 

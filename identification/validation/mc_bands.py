@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from fmu_models.common.params import Uncertainty
+from fmu_models.common.params import Discrepancy, Uncertainty
 from identification.validation.replay import ReplayResult, ValidationInputError
 
 if TYPE_CHECKING:
@@ -53,6 +53,8 @@ STATE_SIGNALS = {"init_roll_rad": "roll_rad", "init_pitch_rad": "pitch_rad", "in
 #: bytes per draw, grid sample and compared signal held at the peak (draws on the client, one signal at a time,
 #: plus a chunk on each worker: counted as all signals at once, an upper bound)
 BYTES_PER_DRAW_SAMPLE = 8
+#: random stream of the discrepancy draws (the parameter draws use ``task_rng(seed, k)``)
+DISCREPANCY_STREAM = 7919
 
 
 def noise_std(values: np.ndarray, wrap: bool = False) -> float:
@@ -127,7 +129,8 @@ def mc_task(task: McTask) -> dict[str, Any]:
         mapping = PwmMapping.load(local_path(job.mapping)) if job.mapping else None
         battery = job_battery_state(local_path(job.fmu), local_path(job.params_file) if job.params_file else None,
                                     job.embedded_params, vehicle_of(host))
-        setup = replay_setup(host, log, job.log, maps, job.options, dict(job.start_values), mapping, battery=battery)
+        setup = replay_setup(host, log, job.log, maps, job.options, dict(job.start_values), mapping,
+                             t_range=job.t_range_s, battery=battery)
         n = len(setup.t)
         out = {m.fmu: np.full((len(task.draws), n), np.nan) for m in maps}
         failed = []
@@ -202,13 +205,22 @@ def check_draws(draws: int, n_samples: int, n_signals: int, max_memory_mb: float
 
 
 def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: FlightLog, draws: int, seed: int,
-                executor: Executor, units: dict[str, str | None], progress: Any = False) -> Bands:
-    """Run ``draws`` draws of ``job`` (whose nominal replay is ``res``) on ``executor``; the bands."""
+                executor: Executor, units: dict[str, str | None], progress: Any = False,
+                discrepancy: Discrepancy | None = None) -> Bands:
+    """Run ``draws`` draws of ``job`` (whose nominal replay is ``res``) on ``executor``; the bands. With
+    ``discrepancy`` (``identification.validation.discrepancy``) each draw of a signal it covers gets a draw of
+    the model's discrepancy at each sample's horizon added, instead of the white sensor noise (the learned
+    residuals are against the logged signal: they carry its noise)."""
+    from identification.validation.discrepancy import draws as discrepancy_draws
+    from identification.validation.discrepancy import horizons_s
     from identification.validation.job import job_files
 
     check_draws(draws, len(res.t_s) + 1, len(res.maps), res.options["max_memory_mb"])
     params = {**{k: float(v) for k, v in res.fmu["parameters"].items()}, **dict(job.start_values)}
     state_std, out_std = _state_noise(log), output_noise(log, res.maps, units, params)
+    learned = [m.fmu for m in res.maps if discrepancy is not None and m.fmu in discrepancy.signals]
+    out_std = {k: (0.0 if k in learned else v) for k, v in out_std.items()}
+    horizon = horizons_s(res) if learned else None
     chunk = max(1, math.ceil(draws / (2 * executor.threads())))  # each chunk reads the log and sets up once
     tasks = [McTask(job, unc, seed, tuple(range(a, min(draws, a + chunk))), state_std, out_std)
              for a in range(0, draws, chunk)]
@@ -223,6 +235,9 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
         if len(ys) < MIN_DRAWS:
             raise ValidationInputError(f"Monte Carlo: fewer than {MIN_DRAWS} of {draws} draws ran "
                                        f"({'; '.join(failed[:3])})")
+        if m.fmu in learned:
+            rng = np.random.default_rng([seed, DISCREPANCY_STREAM, len(lo)])
+            ys = ys + discrepancy_draws(discrepancy, m.fmu, horizon, len(ys), rng, res)  # type: ignore[arg-type]
         lo[m.fmu], hi[m.fmu] = prediction_band(ys)
         y = res.measured[m.fmu]
         ok = np.isfinite(y) & np.isfinite(lo[m.fmu]) & np.isfinite(res.model[m.fmu])
@@ -231,5 +246,12 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
     info = {"draws": draws, "draws_run": len(ys), "seed": seed, "band": list(BAND), "parameters": unc.names,
             "mean": unc.mean, "std": list(unc.std.values()), "output_noise_std": out_std, "state_noise_std": state_std,
             "failed": failed, "retried_tasks": len(run.retried),
-            "min_coverage": MIN_COVERAGE, "max_coverage": MAX_COVERAGE}
+            "min_coverage": MIN_COVERAGE, "max_coverage": MAX_COVERAGE,
+            "discrepancy": {"signals": learned, "logs": discrepancy.logs if discrepancy else [],
+                            "window_s": discrepancy.window_s if discrepancy else None,
+                            "same_windows": discrepancy is None or (
+                                discrepancy.window_s == res.options.get("window_s")
+                                and discrepancy.rate_hz == res.options.get("rate_hz")),
+                            "parts": "parameters + restart-state noise + learned discrepancy (carries the sensor "
+                                     "noise)" if learned else "parameters + restart-state noise + sensor noise"}}
     return Bands(lo, hi, cov, info)

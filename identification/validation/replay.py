@@ -51,6 +51,7 @@ from identification.logs.log_state import (
     mapped_inputs,
     unwrapped_angle,
 )
+from identification.validation.input_check import BATTERY_INPUT, check_inputs
 from identification.validation.output_map import SignalMap
 
 WING_INPUTS = ("aileron_rad", "elevator_rad", "rudder_rad", "throttle")
@@ -149,6 +150,8 @@ class ReplayResult:
     #: where ``battery_voltage_V`` came from when a battery-state model fed it
     #: (``identification.validation.replay_battery``)
     battery: dict[str, Any] | None = None
+    #: logged inputs outside what the FMU was built for (``identification.validation.input_check.InputFinding``)
+    input_checks: list[Any] = field(default_factory=list)
 
     @property
     def failed(self) -> list[str]:
@@ -166,11 +169,22 @@ class ReplayResult:
         return [m.fmu for m in self.maps if self.scores[m.fmu].verdict != "n/a" and m.gate]
 
     @property
+    def band_misses(self) -> list[str]:
+        """Gated signals whose Monte Carlo band covers far less or far more of the log than its nominal level
+        (``identification.validation.mc_bands.Bands.verdict``: ``not explained`` or ``wide``)."""
+        if self.bands is None:
+            return []
+        return [m.fmu for m in self.maps if m.gate and self.bands.verdict(m.fmu)[0] in ("not explained", "wide")]
+
+    @property
     def status(self) -> str:
-        """``fail`` (a gated signal fails), ``tie`` (none fails, one ties), ``unscored`` (no gated signal has
-        a verdict) or ``pass``."""
+        """``fail`` (a gated signal fails), ``band`` (none fails, but a gated signal's prediction band misses its
+        nominal coverage), ``tie`` (none fails, one ties), ``unscored`` (no gated signal has a verdict) or
+        ``pass``."""
         if self.failed:
             return "fail"
+        if self.band_misses:
+            return "band"
         if self.ties:
             return "tie"
         return "pass" if self.scored else "unscored"
@@ -409,6 +423,8 @@ class ReplaySetup:
     notes: list[str]
     opts: ValidationOptions
     battery: dict[str, Any] | None = None
+    #: logged inputs outside what the FMU was built for (``identification.validation.input_check``)
+    input_checks: list[Any] = field(default_factory=list)
 
 
 def replay_setup(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalMap], opts: ValidationOptions,
@@ -434,6 +450,9 @@ def replay_setup(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[S
             source = feed(battery, vehicle, params, log, t, inputs, notes)
         except ValueError as err:
             raise ValidationInputError(f"{log_path}: {err}") from err
+    fed = _set_inputs(host, inputs, overrides, notes)
+    if source is not None and source.get("source") != "logged":
+        fed.setdefault(BATTERY_INPUT, f"{source['source']} ({source['detail']})")
     measured = _measured(maps, log, t, host, params)
     n = len(t)
     step = n - 1 if not opts.window_s else max(1, round(opts.window_s * opts.rate_hz))
@@ -443,8 +462,43 @@ def replay_setup(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[S
     starts = [{**s, **overrides} for s in initial_values_at(log, t[edges[:-1]],
                                                             forward_from_airspeed=vehicle == "fixed_wing")]
     extra = [a for a in ACCEL if a in host.variables and log.has(a)]
+    scored = np.repeat(np.asarray(included), np.diff(edges))
+    scored = np.append(scored, scored[-1])
+    if on_ground is not None:
+        scored &= ~on_ground
+    from identification.validation.replay_battery import LOGGED
+
+    logged_v = log.signal(LOGGED).resample(t) if log.has(LOGGED) else None
+    findings = check_inputs(vehicle, inputs, _servo_pwm(vehicle, log, mapping, t), params, logged_v, fed, scored)
     return ReplaySetup(vehicle, t, inputs, measured, edges, included, ground, gaps, on_ground, starts, extra, params,
-                       notes, opts, source)
+                       notes, opts, source, findings)
+
+
+def _set_inputs(host: FmuHost, inputs: dict[str, np.ndarray], overrides: Mapping[str, float], notes: list[str]
+                ) -> dict[str, str]:
+    """Feed every FMU input named in ``overrides`` (``--set``) as that constant instead of the log; what was fed
+    per input (an input's start value alone would be overwritten by the logged series)."""
+    fed = {}
+    for name, value in overrides.items():
+        v = host.variables.get(name)
+        if v is None or v.causality != "input" or name not in inputs:
+            continue
+        inputs[name] = np.full(len(next(iter(inputs.values()))), float(value))
+        fed[name] = f"{float(value):g} (--set {name}) instead of the log"
+        notes[:] = [n for n in notes if not n.startswith(f"FMU input {name} ")]
+        notes.append(f"FMU input {name} fed {float(value):g} from --set, not from the log")
+    return fed
+
+
+def _servo_pwm(vehicle: str, log: FlightLog, mapping: PwmMapping | None, t: np.ndarray
+               ) -> dict[str, tuple[np.ndarray, tuple[float, float, str]]]:
+    """Per fixed-wing input: its logged servo PWM on the grid and the mapping channel's range."""
+    if vehicle != "fixed_wing":
+        return {}
+    m = mapping or PwmMapping.from_ardupilot(log.params)
+    return {c.target: (hold(log.signal(f"servo_{c.source}_pwm_us"), t),
+                       (c.min_us, c.max_us, f"mapping channel {c.source} min_us..max_us"))
+            for c in m.channels if c.target in WING_INPUTS and log.has(f"servo_{c.source}_pwm_us")}
 
 
 def simulate_setup(host: FmuHost, setup: ReplaySetup, maps: Sequence[SignalMap],
@@ -479,7 +533,7 @@ def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalM
                        {k: v[1:] for k, v in model.items()}, {k: v[1:] for k, v in measured.items()},
                        [(float(t[a]), float(t[b])) for a, b in itertools.pairwise(edges)],
                        [], {}, tuple(maps), overrides, included=list(s.included), ground=s.ground, gaps=s.gaps,
-                       options=opts.model_dump(), battery=s.battery)
+                       options=opts.model_dump(), battery=s.battery, input_checks=list(s.input_checks))
     res.log["warnings"] += s.notes
     score(res, np.asarray(edges), {m.fmu: measured[m.fmu][edges[:-1]] for m in maps})
     res.horizons = _horizons(maps, measured, model, edges, s.included, opts)

@@ -143,10 +143,14 @@ def _band_note(res: ReplayResult) -> str:
     info = res.bands.info
     bad = [f"{m.fmu}: {res.bands.verdict(m.fmu)[1]}" for m in res.maps if res.bands.verdict(m.fmu)[0] ==
            "not explained"]
+    learned = (info.get("discrepancy") or {}).get("signals") or []
+    parts = (f"plus a draw of the model discrepancy learned from {len(info['discrepancy']['logs'])} replay(s) on "
+             f"{', '.join(learned)} (it carries their sensor noise), sensor noise on the others" if learned else
+             "each compared sample with the sensor noise estimated from the log")
     text = (f"Bands: {info['draws_run']} of {info['draws']} Monte Carlo replays (seed {info['seed']}) with "
-            f"{', '.join(info['parameters'])} drawn from the identified covariance, each window's restart state and "
-            "each compared sample with the sensor noise estimated from the log. Coverage is the share of logged "
-            "samples inside the 5-95 % band: about 90 % when the model and its stated uncertainty explain the log.")
+            f"{', '.join(info['parameters'])} drawn from the identified covariance, each window's restart state "
+            f"with the sensor noise estimated from the log, {parts}. Nominal level 90 % (the 5-95 % band); "
+            "coverage is the share of logged samples inside it, below 80 % or above 98 % a finding.")
     out = f"<p>{html.escape(text)}</p>"
     if bad:
         out += "".join(f"<p class='fail'>Not explained by the model and its uncertainty: {html.escape(b)}</p>"
@@ -223,7 +227,9 @@ def validation_page(res: ReplayResult) -> str:
     params = _table(["parameter", "value"], [[k, f"{v:.6g}"] for k, v in fmu["parameters"].items()])
     verdict = {"pass": "all gated signals pass", "fail": f"FAILED: {', '.join(res.failed)}",
                "tie": f"TIE: {', '.join(res.ties)} not better than persistence with confidence",
-               "unscored": "NOT SCORED: no gated signal has a verdict"}[res.status]
+               "unscored": "NOT SCORED: no gated signal has a verdict",
+               "band": f"BANDS MISCALIBRATED: {', '.join(res.band_misses)} (prediction band coverage far from its "
+                       "nominal level)"}[res.status]
     parts = [
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>uavfmu validation</title><style>{STYLE}</style>"
         "</head><body>",
@@ -232,6 +238,7 @@ def validation_page(res: ReplayResult) -> str:
         f"<p class='{'pass' if res.status == 'pass' else 'fail'}'>{html.escape(verdict)}. A signal passes only "
         "when it beats persistence (the logged value at the window start, held) over the whole 90 % block-bootstrap "
         "interval of its skill and meets its accuracy threshold; a skill whose interval reaches zero is a tie.</p>",
+        *_input_checks(res),
         *_log_notes(res),
         "<h2>Metrics beside the baselines</h2>", _metrics_table(res),
         "<h2>Error against prediction horizon</h2>", *_horizon_section(res),
@@ -245,6 +252,15 @@ def validation_page(res: ReplayResult) -> str:
         "<h2>Signals</h2>", *_signal_figures(res), "</body></html>",
     ]
     return "\n".join(parts)
+
+
+def _input_checks(res: ReplayResult) -> list[str]:
+    """The logged inputs outside what the FMU was built for (``identification.validation.input_check``)."""
+    if not res.input_checks:
+        return []
+    rows = [[f.input, f.check, f.logged, f.expected, f.fed] for f in res.input_checks]
+    return ["<h2 class='fail'>Inputs outside what the FMU was built for</h2>",
+            _table(["input", "check", "logged", "the FMU expects", "fed"], rows)]
 
 
 def index_page(results: Sequence[dict[str, Any]]) -> str:

@@ -39,9 +39,13 @@ from identification.validation.job import ValidationJob, job_files, load_maps
 from identification.validation.replay import Horizon, ReplayResult, ValidationInputError, options
 
 if TYPE_CHECKING:
+    from fmu_models.common.params import Discrepancy
     from identification.common.parallel import Executor
+    from identification.validation.discrepancy import DiscrepancyResult
 
 MAX_JOBS = 10_000
+#: band verdicts (``identification.validation.mc_bands.Bands.verdict``) that make a run's status ``band``
+BAND_MISSES = ("not explained", "wide")
 
 
 class ManifestError(ConfigError):
@@ -94,11 +98,13 @@ class ValidationResult:
     replay: ReplayResult | None = None
     retried: str = ""
     battery: dict[str, Any] | None = None  #: where ``battery_voltage_V`` came from (with ``params_file``)
+    #: logged inputs outside what the FMU was built for (``identification.validation.input_check``), as dicts
+    input_checks: list[dict[str, Any]] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready summary (no arrays)."""
         keys = ("fmu", "log", "status", "error", "signals", "failed", "windows", "excluded", "ground", "gaps",
-                "warnings", "one_step", "horizons", "report", "retried", "battery")
+                "warnings", "one_step", "horizons", "report", "retried", "battery", "input_checks")
         return {k: getattr(self, k) for k in keys}
 
     def lines(self) -> list[str]:
@@ -128,7 +134,7 @@ def validate(job: ValidationJob, progress: Callable[[int, int], None] | None = N
         res = replay(host, log, job.log, maps, rate_hz=o.rate_hz, window_s=o.window_s or None,
                      start_values=dict(job.start_values), mapping=mapping, progress=progress,
                      include_ground=o.include_ground, horizons_s=o.horizons_s, max_memory_mb=o.max_memory_mb,
-                     battery=battery)
+                     battery=battery, t_range=job.t_range_s)
     out = result_of(res, job)
     if job.report_dir is not None:
         write_report(res, out, Path(job.report_dir))
@@ -152,7 +158,7 @@ def result_of(res: ReplayResult, job: ValidationJob) -> ValidationResult:
                             res.failed, len(res.windows), res.excluded, dict(res.ground), dict(res.gaps), warnings,
                             {k: v.as_dict() for k, v in res.one_step.items()},
                             {k: [r.as_dict() for r in rows] for k, rows in res.horizons.items()}, None, res,
-                            battery=res.battery)
+                            battery=res.battery, input_checks=[f.as_dict() for f in res.input_checks])
 
 
 def metrics_document(res: ReplayResult, out: ValidationResult) -> dict[str, Any]:
@@ -170,6 +176,7 @@ def metrics_document(res: ReplayResult, out: ValidationResult) -> dict[str, Any]
         "horizons": {k: [r.as_dict() for r in rows] for k, rows in res.horizons.items()},
         "one_step": out.one_step,
         "battery_voltage_V": res.battery,
+        "input_checks": out.input_checks,
         "quality": res.log.get("quality"),
         **({"monte_carlo": res.bands.info} if res.bands is not None else {}),
     }
@@ -210,14 +217,24 @@ def mc_uncertainty(params_file: Path | None, fmu: Path | None = None) -> Uncerta
     return unc
 
 
+def mc_discrepancy(params_file: Path | None, fmu: Path | None = None) -> Discrepancy | None:
+    """The model discrepancy of a Monte Carlo run: the ``discrepancy`` block of ``params_file``, else of the
+    parameter file embedded in ``fmu``; None when there is none (the bands then carry parameters and noise only)."""
+    from identification.validation.discrepancy import read_discrepancy
+
+    return read_discrepancy(params_file, fmu)
+
+
 def validate_mc(job: ValidationJob, uncertainty: Uncertainty, draws: int, seed: int = 0, *,
                 workers: int | None = None, scheduler: str | None = None, progress: Any = False,
-                executor: Executor | None = None) -> ValidationResult:
+                executor: Executor | None = None, discrepancy: Discrepancy | None = None) -> ValidationResult:
     """:func:`validate` with Monte Carlo bands: the nominal replay with the uncertainty's mean as parameters,
     then ``draws`` replays with parameters and restart states drawn (``identification.validation.mc_bands``) on
     ``identification.common.parallel``; each signal's band coverage beside its skill, in the summary, ``metrics.json``
     and
-    the report (``executor``: an open one, kept open). Raises like :func:`validate`."""
+    the report (``executor``: an open one, kept open). ``discrepancy``: the model's learned error added to every
+    draw (``identification.validation.discrepancy``; :func:`mc_discrepancy` reads it). Raises like
+    :func:`validate`."""
     from fmu_models.fmi.host import FmuHost
     from identification.common.parallel import Executor
     from identification.logs.readers import read_log
@@ -241,16 +258,38 @@ def validate_mc(job: ValidationJob, uncertainty: Uncertainty, draws: int, seed: 
     mc_bands.check_draws(draws, len(res.t_s) + 1, len(res.maps), job.options.max_memory_mb)  # before the cluster
     log = read_log(job.log, channel_map=job.channel_map)
     with nullcontext(executor) if executor is not None else Executor(scheduler, workers) as ex:
-        res.bands = mc_bands.monte_carlo(job, uncertainty, res, log, draws, seed, ex, units, progress)
+        res.bands = mc_bands.monte_carlo(job, uncertainty, res, log, draws, seed, ex, units, progress,
+                                         discrepancy=discrepancy)
     out = result_of(res, job)
     if job.report_dir is not None:
         write_report(res, out, Path(job.report_dir))
     return out
 
 
+def learn_discrepancy(job: ValidationJob, logs: Sequence[Path], params_out: Path | None = None) -> DiscrepancyResult:
+    """Replay each of ``logs`` as ``job`` (its ``log`` replaced) and learn the model's discrepancy
+    (``identification.validation.discrepancy``); with ``params_out`` (a JSON parameter file) store it there under
+    ``discrepancy``. Raises like :func:`validate`."""
+    from identification.validation.discrepancy import DiscrepancyResult, learn, write_discrepancy
+
+    results = []
+    for log in logs:
+        res = validate(replace(job, log=Path(log), report_dir=None)).replay
+        assert res is not None
+        results.append(res)
+    disc = learn(results, [str(x) for x in logs])
+    written = None
+    if params_out is not None:
+        write_discrepancy(params_out, disc)
+        written = params_out
+    summary = tuple({"log": str(x), "windows_scored": len(r.windows) - r.excluded} for x, r in zip(logs, results,
+                                                                                                   strict=True))
+    return DiscrepancyResult(disc, summary, written)
+
+
 def validate_mc_batch(jobs: Sequence[ValidationJob], uncertainty: Uncertainty, draws: int, seed: int = 0, *,
                       workers: int | None = None, scheduler: str | None = None,
-                      progress: Any = False) -> list[ValidationResult]:
+                      progress: Any = False, discrepancy: Discrepancy | None = None) -> list[ValidationResult]:
     """:func:`validate_mc` of every job on one cluster (the same ``seed``: every job sees the same parameter
     draws); a job with bad input or a failing FMU is an ``error`` result naming why, and the rest runs."""
     from identification.common.parallel import Executor
@@ -259,7 +298,8 @@ def validate_mc_batch(jobs: Sequence[ValidationJob], uncertainty: Uncertainty, d
     with Executor(scheduler, workers) as ex:
         for job in jobs:
             try:
-                out.append(validate_mc(job, uncertainty, draws, seed, progress=progress, executor=ex))
+                out.append(validate_mc(job, uncertainty, draws, seed, progress=progress, executor=ex,
+                                       discrepancy=discrepancy))
             except (FmuRunError, OSError, ValueError, KeyError) as err:
                 out.append(ValidationResult(str(job.fmu), str(job.log), "error", error=str(err).strip("'\"")))
             out[-1].replay = None  # one replay's arrays in memory at a time
@@ -384,6 +424,11 @@ def _fmt(x: Any, spec: str) -> str:
     return "-" if x is None or (isinstance(x, float) and x != x) else format(x, spec)
 
 
+def _band_words(r: ValidationResult) -> str:
+    return "; ".join(f"{k} {100 * v['band_coverage']:.0f} % ({v['band_verdict']})" for k, v in r.signals.items()
+                     if v.get("gated") and v.get("band_verdict") in BAND_MISSES)
+
+
 def summary_lines(r: ValidationResult) -> list[str]:
     """Console lines of one result (see :meth:`ValidationResult.lines`)."""
     head = f"{Path(r.fmu).name} x {Path(r.log).name}: "
@@ -395,13 +440,18 @@ def summary_lines(r: ValidationResult) -> list[str]:
     verdict = {"pass": "PASS",
                "fail": f"FAIL ({len(r.failed)} of {len(r.signals)} signals fail: {', '.join(r.failed)})",
                "tie": f"TIE ({', '.join(ties)} not better than persistence with confidence; nothing fails)",
-               "unscored": "NOT SCORED (no gated signal has a verdict: nothing was shown)"}[r.status]
+               "unscored": "NOT SCORED (no gated signal has a verdict: nothing was shown)",
+               "band": "BANDS MISCALIBRATED (nothing fails, but a gated signal's prediction band covers "
+                       f"{_band_words(r)})"}[r.status]
     out = [head + verdict]
     if r.retried:
         out.append(f"  run twice: the first attempt failed ({r.retried})")
     if r.battery:
         out.append(f"  battery_voltage_V: {r.battery['source']} ({r.battery['detail']}; model from "
                    f"{r.battery.get('params', '?')})")
+    for f in r.input_checks:
+        out.append(f"  INPUT CHECK {f['input']}: {f['check']}: logged {f['logged']}; the FMU expects {f['expected']}; "
+                   f"fed {f['fed']}")
     scored = r.windows - r.excluded
     why = ", ".join(f"{k}: {n}" for k, n in {**r.ground, **r.gaps}.items())
     out.append(f"  {scored} of {r.windows} replay windows scored"
@@ -436,9 +486,15 @@ def _band_lines(r: ValidationResult) -> list[str]:
     """What the Monte Carlo bands say: signals the model and its stated uncertainty do not explain."""
     bad = {s: v for s, v in r.signals.items() if v.get("band_verdict") == "not explained"}
     wide = [s for s, v in r.signals.items() if v.get("band_verdict") == "wide"]
-    out = ["  band cover: share of logged samples inside the 5-95 % Monte Carlo band (parameters drawn from the "
-           "identified covariance, restart states and sensor noise from the log); about 90 % when the model and its "
-           "uncertainty explain the log"]
+    out = ["  band cover: share of logged samples inside the 5-95 % Monte Carlo band (nominal 90 %: parameters drawn "
+           "from the identified covariance, restart states from the log, plus the learned model discrepancy where the "
+           "parameter file has one, else sensor noise); a gated signal below 80 % or above 98 % is a finding "
+           "(status band, exit 4)"]
+    disc = (r.replay.bands.info.get("discrepancy") if r.replay is not None and r.replay.bands is not None
+            else None) or {}
+    if disc.get("signals") and not disc.get("same_windows", True):
+        out.append(f"  note: the discrepancy was learned with {disc['window_s']:g} s windows at another window length "
+                   "or rate than this replay: its horizons do not match (learn it with the same --window-s, --rate-hz)")
     out += [f"  NOT EXPLAINED {s}: {v['band_reason']}" for s, v in bad.items()]
     if wide:
         out.append(f"  wide bands (uncertainty overstated, or a noise-free log signal): {', '.join(wide)}")
@@ -446,7 +502,7 @@ def _band_lines(r: ValidationResult) -> list[str]:
 
 
 def batch_summary(results: Sequence[ValidationResult]) -> str:
-    n = {k: sum(r.status == k for r in results) for k in ("pass", "fail", "tie", "unscored", "error")}
+    n = {k: sum(r.status == k for r in results) for k in ("pass", "fail", "band", "tie", "unscored", "error")}
     n_retry = sum(bool(r.retried) for r in results)
     return (f"{len(results)} runs: " + ", ".join(f"{v} {k}" for k, v in n.items() if v or k in ("pass", "fail"))
             + (f"; {n_retry} retried after a failed first attempt" if n_retry else ""))

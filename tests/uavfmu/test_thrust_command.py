@@ -59,3 +59,25 @@ def test_cli_exit_3_when_a_baseline_wins_and_each_override_says_what_it_did(
 def test_cli_bad_mass_is_exit_2_naming_the_flight(tmp_path: Path, capsys) -> None:
     assert main(["identify", "thrust", "x.bin=-2", "--out", str(tmp_path / "p.json")]) == 2
     assert "flight x.bin: field mass_kg = -2.0" in capsys.readouterr().err
+
+
+def test_report_groups_the_comparisons_by_side_information_with_a_like_for_like_headline(
+    fake_logs: dict  # noqa: F811
+) -> None:
+    from identification.thrust.workflow import FlightSpec, ThrustConfig, identify_thrust
+    from uavfmu.commands.identify_thrust import format_report
+
+    fake_logs["hi"] = VoltLog(1.2, 12.6, 12.4, seed=5, voltage=False)
+    fake_logs["lo"] = VoltLog(1.2, 10.4, 10.2, seed=6, voltage=False)
+    r = identify_thrust(ThrustConfig(flights=(FlightSpec(Path("hi"), 1.2), FlightSpec(Path("lo"), 1.2)),
+                                     calibrate="on", n_mfs=1))
+    text = format_report(r)
+    raw, state, cal = (text.index(f"  [{lv}]") for lv in ("raw", "battery state", "calibrated"))
+    assert raw < state < cal
+    assert "(reported, not in the verdict)" in text[raw:state] and "not in the verdict" not in text[state:]
+    assert "model vs poly sum u^2, sum u (battery state)" in text[state:cal]
+    assert "model (calibrated) vs constant m g (calibrated)" in text[cal:] or \
+        "model without battery state (calibrated) vs constant m g (calibrated)" in text[cal:]
+    h = r.metrics["headline"]
+    assert f"headline (like for like, battery state): model {r.pooled['model']:.3f} N vs {h['baseline']}" in text
+    assert h["baseline"].endswith("(battery state)")

@@ -297,12 +297,24 @@ def format_report(r: Any) -> str:
         block = [[row[c] for c in cols] for row in [head, *rows]]
         widths = [max(len(x[k]) for x in block) for k in range(len(cols))]
         lines += ["  " + "  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)) for row in block]
-    lines.append("skill = 1 - RMSE_model / RMSE_baseline, 90 % block-bootstrap interval (pooled; per held-out):")
-    for key, c in r.comparisons.items():
-        p = c["pooled"]
-        per = ", ".join(f"{h} {o['outcome']}" for h, o in c["per_held_out"].items())
-        lines.append(f"  {key}: RMSE ratio {c['rmse_ratio']:.3f}, skill {p['skill']:+.3f} "
-                     f"[{p['skill_lo']:+.3f}, {p['skill_hi']:+.3f}] {p['outcome'].upper()} ({per})")
+    lines.append("skill = 1 - RMSE_model / RMSE_baseline, 90 % block-bootstrap interval (pooled; per held-out); "
+                 "every pair has the same side information:")
+    levels = list(dict.fromkeys(c["information"] for c in r.comparisons.values()))
+    for level in levels:
+        same = {k: c for k, c in r.comparisons.items() if c["information"] == level}
+        judged = next(iter(same.values()))["in_verdict"]
+        lines.append(f"  [{level}] {next(iter(same.values()))['information_text']}"
+                     f"{'' if judged else ' (reported, not in the verdict)'}:")
+        for key, c in same.items():
+            p = c["pooled"]
+            per = ", ".join(f"{h} {o['outcome']}" for h, o in c["per_held_out"].items())
+            lines.append(f"    {key}: RMSE ratio {c['rmse_ratio']:.3f}, skill {p['skill']:+.3f} "
+                         f"[{p['skill_lo']:+.3f}, {p['skill_hi']:+.3f}] {p['outcome'].upper()} ({per})")
+    h = r.metrics.get("headline")
+    if h:
+        lines.append(f"headline (like for like, {h['information']}): {h['model']} {r.pooled[h['model']]:.3f} N vs "
+                     f"{h['baseline']} {r.pooled[h['baseline']]:.3f} N pooled = {h['rmse_ratio']:.3f}x "
+                     f"({h['outcome']})")
     lines.append(f"model: {r.spec.describe()}")
     if r.calibration:
         lines.append("per-flight calibration scale (thrust_scale for replays that do not drive the battery state): "

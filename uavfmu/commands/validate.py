@@ -22,8 +22,13 @@ the
 parameter file the FMU was built from (``build --params`` embeds it) does the same; ``--no-embedded-params``
 holds the input at its start value instead.
 
+``--mc`` also adds the model's learned discrepancy (the ``discrepancy`` key of the same parameter file, written by
+``uavfmu discrepancy``; ``--no-discrepancy`` leaves it out), so the band is parameters + discrepancy + sensor noise.
+
 Exit status: 0 every gated signal of every run passes, 1 a signal fails (or a batch run errors), 2 bad input,
-3 nothing fails but a signal ties with persistence (its skill interval reaches zero) or nothing was scored.
+3 nothing fails but a signal ties with persistence (its skill interval reaches zero) or nothing was scored,
+4 (with ``--mc``) nothing fails but a gated signal's 90 % band covers less than 80 % or more than 98 % of its
+logged samples (``identification.validation.mc_bands``: the band does not say how far the replay can be trusted).
 """
 
 from __future__ import annotations
@@ -33,7 +38,7 @@ import os
 import sys
 from pathlib import Path
 
-EXIT_PASS, EXIT_FAIL, EXIT_BAD_INPUT, EXIT_TIE = 0, 1, 2, 3
+EXIT_PASS, EXIT_FAIL, EXIT_BAD_INPUT, EXIT_TIE, EXIT_BAND = 0, 1, 2, 3, 4
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -73,6 +78,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="parameter file (JSON/TOML) whose 'uncertainty' key gives names, mean, covariance "
                              "(default: the file embedded in the FMU by `build --params`)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the Monte Carlo draws (default 0)")
+    parser.add_argument("--no-discrepancy", action="store_true",
+                        help="--mc without the learned model discrepancy of the parameter file (parameters and "
+                             "sensor noise only)")
 
 
 def _parse_set(items: list[str]) -> dict[str, float]:
@@ -121,10 +129,22 @@ def run(args: argparse.Namespace) -> int:
                                   params_file=args.params or (args.uncertainty if args.mc else None),
                                   embedded_params=not args.no_embedded_params)]
         uncertainty = _uncertainty(args)
+        discrepancy = _discrepancy(args) if uncertainty is not None else None
     except (ValueError, ConfigError) as err:
         print(f"uavfmu validate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    return _run_batch(jobs, args, uncertainty) if args.batch else _run_one(jobs[0], args, uncertainty)
+    if args.batch:
+        return _run_batch(jobs, args, uncertainty, discrepancy)
+    return _run_one(jobs[0], args, uncertainty, discrepancy)
+
+
+def _discrepancy(args: argparse.Namespace) -> object:
+    """The learned model discrepancy for ``--mc``: of the --uncertainty file, else the FMU's embedded file."""
+    from identification.validation.workflow import mc_discrepancy
+
+    if args.no_discrepancy:
+        return None
+    return mc_discrepancy(args.uncertainty, None if args.batch else args.fmu)
 
 
 def _uncertainty(args: argparse.Namespace) -> object:
@@ -146,7 +166,7 @@ def _uncertainty(args: argparse.Namespace) -> object:
     return mc_uncertainty(args.uncertainty, None if args.batch else args.fmu)
 
 
-def _run_one(job: object, args: argparse.Namespace, uncertainty: object = None) -> int:
+def _run_one(job: object, args: argparse.Namespace, uncertainty: object = None, discrepancy: object = None) -> int:
     from fmu_models.fmi.host import FmuRunError
     from identification.common.parallel import ParallelError
     from identification.validation.workflow import validate, validate_mc
@@ -156,7 +176,8 @@ def _run_one(job: object, args: argparse.Namespace, uncertainty: object = None) 
             res = validate(job)  # type: ignore[arg-type]
         else:
             res = validate_mc(job, uncertainty, args.mc, args.seed, workers=args.jobs,  # type: ignore[arg-type]
-                              scheduler=args.scheduler, progress=not args.quiet)
+                              scheduler=args.scheduler, progress=not args.quiet,
+                              discrepancy=discrepancy)  # type: ignore[arg-type]
     except (FmuRunError, OSError, ValueError, KeyError, ParallelError) as err:
         print(f"uavfmu validate: error: {str(err).strip(chr(39) + chr(34))}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -166,7 +187,7 @@ def _run_one(job: object, args: argparse.Namespace, uncertainty: object = None) 
     return exit_status([res.status])
 
 
-def _run_batch(jobs: list, args: argparse.Namespace, uncertainty: object = None) -> int:
+def _run_batch(jobs: list, args: argparse.Namespace, uncertainty: object = None, discrepancy: object = None) -> int:
     from identification.common.parallel import ParallelError
     from identification.validation.workflow import batch_summary, validate_batch, validate_mc_batch, write_batch_report
 
@@ -175,7 +196,8 @@ def _run_batch(jobs: list, args: argparse.Namespace, uncertainty: object = None)
             results = validate_batch(jobs, args.jobs, progress=not args.quiet, scheduler=args.scheduler)
         else:  # every run's draws on the same cluster, one run after another
             results = validate_mc_batch(jobs, uncertainty, args.mc, args.seed, workers=args.jobs,  # type: ignore[arg-type]
-                                        scheduler=args.scheduler, progress=not args.quiet)
+                                        scheduler=args.scheduler, progress=not args.quiet,
+                                        discrepancy=discrepancy)  # type: ignore[arg-type]
     except ParallelError as err:
         print(f"uavfmu validate: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -188,7 +210,10 @@ def _run_batch(jobs: list, args: argparse.Namespace, uncertainty: object = None)
 
 
 def exit_status(statuses: list[str]) -> int:
-    """0 all pass; 1 any fails or errors; else 3 (a tie or nothing scored: not shown better than persistence)."""
+    """0 all pass; 1 any fails or errors; 4 a band misses its nominal coverage; else 3 (a tie or nothing scored:
+    not shown better than persistence)."""
     if any(s in ("fail", "error") for s in statuses):
         return EXIT_FAIL
+    if "band" in statuses:
+        return EXIT_BAND
     return EXIT_PASS if all(s == "pass" for s in statuses) else EXIT_TIE

@@ -136,10 +136,22 @@ def test_without_voltage_the_hover_state_recovers_each_battery_and_a_static_map_
     assert any(o.startswith("--write-losing-model") for o in kept.overrides)
     assert json.loads(out.with_suffix(".metrics.json").read_text())["verdict"] == "lose"
     state = identify_thrust(_cfg(flights, calibrate="off", n_mfs=1))
-    assert state.spec.tau_s is not None and state.verdict == "win" and state.exit_code == 0
+    assert state.spec.tau_s is not None
     for f in state.folds:
         assert f.model.rmse_N < 0.5 * f.baselines["model without battery state"].rmse_N
-        assert f.model.rmse_N < f.baselines["constant m g"].rmse_N
+        assert f.model.rmse_N < f.baselines["constant m g (battery state)"].rmse_N
+    # like for like: the polynomial given the same hover state is the one-rule map (same features), so the
+    # two tie within 1 %; the constant with the state stays far behind
+    same = state.comparisons["model vs poly sum u^2, sum u (battery state)"]
+    assert same["information"] == "battery state" and same["in_verdict"] and abs(same["rmse_ratio"] - 1.0) < 0.01
+    assert state.comparisons["model vs constant m g (battery state)"]["pooled"]["outcome"] == "win"
+    # without the state the map still loses to m g: reported (comparison and warning), not in the verdict
+    raw = state.comparisons["model without battery state vs constant m g"]
+    assert raw["information"] == "raw" and not raw["in_verdict"] and raw["pooled"]["outcome"] == "lose"
+    assert any("not in the verdict" in w and "model without battery state vs constant m g" in w
+               for w in state.warnings)
+    assert state.metrics["verdict_levels"] == ["battery state"]
+    assert state.metrics["headline"]["information"] == "battery state"
     # the FMU gets the state as an equivalent battery voltage: thrust scales with V / V_nom
     p = state.params
     assert p.thrust_voltage_exponent == 1.0
@@ -156,8 +168,9 @@ def test_per_flight_calibration_recovers_the_level_and_replays_with_thrust_scale
     fake_logs["lo"] = VoltLog(1.2, 10.4, 10.2, seed=6, voltage=False)
     cal = identify_thrust(_cfg([("hi", 1.2), ("lo", 1.2)], calibrate="on", n_mfs=1, battery_state=False))
     for f in cal.folds:
-        assert f.baselines["model (calibrated)"].rmse_N < f.baselines["constant m g"].rmse_N
-    assert cal.comparisons["model (calibrated) vs constant m g"]["pooled"]["outcome"] == "win"
+        assert f.baselines["model (calibrated)"].rmse_N < f.baselines["constant m g (calibrated)"].rmse_N
+    c = cal.comparisons["model (calibrated) vs constant m g (calibrated)"]
+    assert c["pooled"]["outcome"] == "win" and c["information"] == "calibrated" and c["in_verdict"]
     assert set(cal.calibration) == {"hi", "lo"}
     # replaying a flight with its scale: the FMU's thrust over its hover samples averages m g
     lo = cal.params_for("lo")
@@ -285,23 +298,35 @@ def _fmu_matches_scored_function(params_file: Path, p: QuadrotorParams) -> None:
 
 
 @pytest.mark.slow
-def test_erle_without_voltage_the_battery_state_wins_raw_and_no_baseline_beats_it_calibrated() -> None:
-    """Done-when (Erle, no voltage): raw, the model with its hover battery state beats the constant and the
-    polynomial by more than 5 % pooled and on every held-out flight; calibrated, no baseline beats it."""
+def test_erle_every_rival_gets_the_same_side_information_and_the_headline_is_like_for_like() -> None:
+    """Erle, no voltage. Every comparison pairs predictors with the same information from the held-out flight
+    (none, their own hover battery state, their own calibration). Measured (LOFO, pooled): with the state the
+    model beats m g given the state (0.595x) and ties the polynomial given the same state (0.998x); calibrated
+    it beats m g and ties the polynomial; without the state it loses to m g (1.22x): reported, not in the
+    verdict, which judges the information the FMU is used with."""
     r = identify_thrust(ThrustConfig(flights=_erle_flights()))
     assert r.metrics["per_flight_calibration"] and r.spec.tau_s is not None
-    raw = {k: c for k, c in r.comparisons.items() if k.startswith("model vs")}
-    assert set(raw) == {"model vs constant m g", "model vs poly sum u^2, sum u"}
-    for c in raw.values():
-        assert c["rmse_ratio"] <= 0.95 and c["pooled"]["outcome"] == "win"
-        assert {o["outcome"] for o in c["per_held_out"].values()} == {"win"}
-    for f in r.folds:  # the battery state is what wins: without it the same map loses to the constant
+    suffix = {"raw": "", "battery state": " (battery state)", "calibrated": " (calibrated)"}
+    for c in r.comparisons.values():  # the baseline carries exactly the model's information
+        b = c["baseline"]
+        assert b.endswith(suffix[c["information"]]) and not b[: len(b) - len(suffix[c["information"]])].endswith(")")
+    assert {c["information"] for c in r.comparisons.values()} == {"raw", "battery state", "calibrated"}
+    state = r.comparisons["model vs constant m g (battery state)"]
+    assert state["rmse_ratio"] <= 0.65 and {o["outcome"] for o in state["per_held_out"].values()} == {"win"}
+    poly = r.comparisons["model vs poly sum u^2, sum u (battery state)"]
+    assert poly["rmse_ratio"] <= 1.0 and poly["pooled"]["outcome"] != "lose"
+    h = r.metrics["headline"]
+    assert (h["information"], h["baseline"]) == ("battery state", "poly sum u^2, sum u (battery state)")
+    raw = r.comparisons["model without battery state vs constant m g"]
+    assert raw["pooled"]["outcome"] == "lose" and not raw["in_verdict"] and raw["rmse_ratio"] > 1.1
+    for f in r.folds:  # the battery state is what wins: without it the same map is worse on every flight
         assert f.model.rmse_N < f.baselines["model without battery state"].rmse_N
-    assert r.verdict in ("win", "tie") and r.exit_code == 0
-    cal = {k: c for k, c in r.comparisons.items() if k.startswith("model (calibrated) vs")}
-    for c in cal.values():  # calibrated too: <= 0.95 x and never beaten on a held-out flight
-        assert c["rmse_ratio"] <= 0.95 and c["pooled"]["outcome"] != "lose"
-        assert "lose" not in {o["outcome"] for o in c["per_held_out"].values()}
+    cal = {k: c for k, c in r.comparisons.items() if c["information"] == "calibrated"}
+    assert set(cal) == {"model without battery state (calibrated) vs constant m g (calibrated)",
+                        "model without battery state (calibrated) vs poly sum u^2, sum u (calibrated)"}
+    for c in cal.values():
+        assert c["in_verdict"] and "lose" not in {o["outcome"] for o in c["per_held_out"].values()}
+    assert r.verdict == "tie" and r.exit_code == 0
     assert all(f["attitude_logged"] for f in r.flights)  # the hover condition uses T cos(roll) cos(pitch)
     assert all(0.8 < s < 1.25 for s in r.calibration.values())
 

@@ -206,7 +206,8 @@ def test_cli_mc_prints_coverage_beside_skill(fixed_wing_fmu: Path, wing, tmp_pat
                "--mc", "19", "--uncertainty", str(params), "--jobs", "1", "--report", str(tmp_path / "r")])
     out = capsys.readouterr().out
     metrics = json.loads((tmp_path / "r" / "metrics.json").read_text())
-    assert rc == (1 if metrics["failed"] else 0)  # coverage is reported, the exit status is the skill verdicts'
+    assert rc == (1 if metrics["failed"] else 4)  # a failing skill first; else the bands' miss is exit 4
+    assert metrics["status"] == ("fail" if metrics["failed"] else "band")
     assert "band cover" in out and "NOT EXPLAINED" in out
     assert metrics["monte_carlo"]["draws"] == 19
 

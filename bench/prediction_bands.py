@@ -1,0 +1,197 @@
+"""Benchmark: do the prediction bands of ``validate --mc`` cover flights they were not learned on?
+
+Leave-one-flight-out on the shared quadrotor flights (three Erle, two PX4 csv): per fold, ``identify thrust`` on
+the training flights writes the parameter file (thrust map, covariance, battery state), the quadrotor FMU is
+built from it, the model's discrepancy is learned from replays of the training flights
+(``identification.validation.workflow.learn_discrepancy``) and the held-out flight is replayed with Monte Carlo
+bands (parameters + discrepancy + noise, ``validate_mc``). Pooled over the folds, per signal: the share of the
+held-out logged samples inside the nominal 90 % band (target 80-95 % for every gated signal) and the band's mean
+width over the replay's RMSE (target <= 3).
+
+The shared fixed-wing excitation log has no second flight: ``identify aero`` on it (the timeline's fit and
+held-out segments, every default) writes the estimate and its covariance, the fixed-wing FMU is built from it,
+the discrepancy is learned on the fit segments and the bands are scored on the held-out segments (same
+targets).
+
+    .venv/bin/python bench/prediction_bands.py [--draws N] [--only erle,px4,wing] [--no-parameter-spread]
+    # exit 1 on a miss
+
+Heavy (minutes): every fold builds an FMU and runs N Monte Carlo replays on two local worker processes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+ERLE = tuple(DATA / "quadrotor" / f"arducopter_x_quad_real_{n}.BIN" for n in (218, 104, 105))
+PX4 = ((DATA / "quadrotor_px4_csv" / "drone1-8", 1.32), (DATA / "quadrotor_px4_csv" / "drone1-10", 1.085))
+PX4_FMU_MASS_KG = 1.2
+WING = DATA / "fixed_wing" / "arduplane_sitl_fmu_excitation.BIN"
+WING_TIMELINE = DATA / "fixed_wing" / "arduplane_sitl_fmu_excitation.timeline.json"
+COVERAGE = (0.80, 0.95)  #: pooled share of held-out samples inside the nominal 90 % band
+MAX_WIDTH_OVER_RMSE = 3.0
+
+
+def px4_map_toml() -> str:
+    """The quadrotor's default output map without ``altitude_m`` (the PX4 csv logs carry no altitude)."""
+    from identification.validation.output_map import QUADROTOR
+
+    lines = []
+    for m in QUADROTOR:
+        if m.fmu == "altitude_m":
+            continue
+        lines += [f"[signals.{m.fmu}]", f'log = "{m.log}"', f"scale = {m.scale}", f"wrap = {str(m.wrap).lower()}"]
+        lines += [f'scale_by_param = "{m.scale_by_param}"'] if m.scale_by_param else []
+        lines += [f"max_rmse = {m.max_rmse}"] if m.max_rmse is not None else []
+    return "\n".join(lines) + "\n"
+
+
+@dataclass
+class Pool:
+    """Per signal, over folds: samples inside the band, samples scored, sum of widths, sum of squared errors."""
+
+    inside: dict[str, int] = field(default_factory=dict)
+    n: dict[str, int] = field(default_factory=dict)
+    width: dict[str, float] = field(default_factory=dict)
+    sse: dict[str, float] = field(default_factory=dict)
+    gated: dict[str, bool] = field(default_factory=dict)
+
+    def add(self, res: object) -> None:
+        for m in res.maps:  # type: ignore[attr-defined]
+            y, mod = res.measured[m.fmu], res.model[m.fmu]  # type: ignore[attr-defined]
+            lo, hi = res.bands.lo[m.fmu], res.bands.hi[m.fmu]  # type: ignore[attr-defined]
+            ok = np.isfinite(y) & np.isfinite(mod) & np.isfinite(lo) & np.isfinite(hi)
+            k = m.fmu
+            self.inside[k] = self.inside.get(k, 0) + int(((y[ok] >= lo[ok]) & (y[ok] <= hi[ok])).sum())
+            self.n[k] = self.n.get(k, 0) + int(ok.sum())
+            self.width[k] = self.width.get(k, 0.0) + float((hi[ok] - lo[ok]).sum())
+            e = y[ok] - mod[ok]
+            if m.wrap:
+                e = (e + math.pi) % (2 * math.pi) - math.pi
+            self.sse[k] = self.sse.get(k, 0.0) + float((e * e).sum())
+            self.gated[k] = m.gate
+
+    def table(self, title: str) -> bool:
+        print(f"\n{title}: nominal 90 % bands, pooled over the held-out sets")
+        print(f"  {'signal':<18} {'samples':>8} {'coverage':>9} {'mean width':>11} {'RMSE':>9} {'width/RMSE':>10}"
+              "  target")
+        ok = True
+        for k in self.n:
+            n = max(self.n[k], 1)
+            cov, width, rmse = self.inside[k] / n, self.width[k] / n, math.sqrt(self.sse[k] / n)
+            ratio = width / rmse if rmse > 0 else math.inf
+            met = COVERAGE[0] <= cov <= COVERAGE[1] and ratio <= MAX_WIDTH_OVER_RMSE
+            if self.gated[k]:
+                ok &= met
+            verdict = ("met" if met else "MISSED") if self.gated[k] else "not gated"
+            print(f"  {k:<18} {self.n[k]:>8} {cov:>9.1%} {width:>11.4g} {rmse:>9.4g} {ratio:>10.2f}  {verdict}")
+        return ok
+
+
+def _fold(train: list[tuple[Path, float]], test: Path, work: Path, draws: int, fmu_mass: float | None,
+          output_map: Path | None) -> object:
+    from build_fmus import build
+    from fmu_models.common.params import read_uncertainty
+    from identification.thrust.workflow import FlightSpec, ThrustConfig, identify_thrust
+    from identification.validation.discrepancy import read_discrepancy
+    from identification.validation.workflow import ValidationJob, learn_discrepancy, validate_mc
+
+    params = work / "params.json"
+    r = identify_thrust(ThrustConfig(flights=tuple(FlightSpec(p, m) for p, m in train), out=params,
+                                     fmu_mass_kg=fmu_mass, write_losing_model=True))
+    print(f"  fold without {test.name}: thrust {r.spec.describe()}, verdict {r.verdict}")
+    (fmu,) = build(params, work / "fmu", ["quadrotor"])
+    job = ValidationJob(fmu, train[0][0], output_map=output_map, params_file=params)
+    learn_discrepancy(job, [p for p, _ in train], params)
+    res = validate_mc(ValidationJob(fmu, test, output_map=output_map, params_file=params), read_uncertainty(params),
+                      draws, workers=2, discrepancy=read_discrepancy(params)).replay
+    return res
+
+
+def quadrotor(name: str, flights: list[tuple[Path, float]], draws: int, fmu_mass: float | None,
+              output_map: Path | None) -> bool:
+    pool = Pool()
+    for i, (test, _) in enumerate(flights):
+        train = [f for j, f in enumerate(flights) if j != i]
+        with tempfile.TemporaryDirectory() as tmp:
+            pool.add(_fold(train, test, Path(tmp), draws, fmu_mass, output_map))
+    return pool.table(f"{name} leave-one-flight-out")
+
+
+def fixed_wing(draws: int, parameter_spread: bool = True) -> bool:
+    """``identify aero`` on the excitation log (its timeline's fit and held-out segments), the FMU built from the
+    estimate, the discrepancy learned on the fit segments, the bands scored on the held-out segments."""
+    from build_fmus import build
+    from fmu_models.common.params import Uncertainty, read_uncertainty
+    from fmu_models.fixed_wing.params import FixedWingParams
+    from fmu_models.signals.pwm_mapping import PwmMapping
+    from identification.aero.identify import AeroOptions, AeroSource, identify_aero, write_results
+    from identification.aero.model import parse_segments
+    from identification.logs.readers import read_log
+    from identification.validation.discrepancy import learn, write_discrepancy
+    from identification.validation.workflow import ValidationJob, validate, validate_mc
+
+    log = read_log(WING)
+    with tempfile.TemporaryDirectory() as tmp:
+        params = Path(tmp) / "excite.json"
+        result = identify_aero([AeroSource(log, PwmMapping.from_ardupilot(log.params), None, None, None)], None,
+                               FixedWingParams(), AeroOptions(free="auto", progress=False))
+        write_results(result, params, Path(tmp) / "excite.metrics.json", WING.name, 50.0)
+        metrics = json.loads((Path(tmp) / "excite.metrics.json").read_text())
+        fit = [(g.t0_s, g.t1_s) for g in parse_segments(",".join(metrics["fit_segments"]))]
+        held = [(g.t0_s, g.t1_s) for g in parse_segments(",".join(metrics["validation_segments"]))]
+        print(f"  identify aero: {len(fit)} fit and {len(held)} held-out segments")
+        (fmu,) = build(params, Path(tmp) / "fmu", ["fixed_wing"])
+        learned = [validate(ValidationJob(fmu, WING, t_range_s=s, embedded_params=False)).replay for s in fit]
+        disc = learn(learned, [f"{WING.name} {a:.1f}-{b:.1f} s" for a, b in fit])
+        write_discrepancy(params, disc)
+        unc = read_uncertainty(params)
+        if not parameter_spread:  # a study: the discrepancy alone, the parameters at their estimate
+            unc = Uncertainty(names=unc.names, mean=unc.mean, covariance=[[0.0] * len(unc.names)] * len(unc.names))
+        pool = Pool()
+        for s in held:
+            pool.add(validate_mc(ValidationJob(fmu, WING, t_range_s=s, embedded_params=False), unc, draws, workers=2,
+                                 discrepancy=disc).replay)
+    return pool.table("fixed-wing excitation log, held-out segments of identify aero"
+                      + ("" if parameter_spread else " (no parameter spread)"))
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--draws", type=int, default=19, help="Monte Carlo draws per replay (19: the fewest a 5-95 %% "
+                    "band allows)")
+    ap.add_argument("--only", default="erle,px4,wing", help="which studies (comma separated)")
+    ap.add_argument("--no-parameter-spread", action="store_true",
+                    help="fixed wing: the parameters at their estimate (a zero covariance), the discrepancy alone")
+    args = ap.parse_args()
+    if not all(p.exists() for p in [*ERLE, *(p for p, _ in PX4), WING]):
+        print(f"bench/prediction_bands.py: needs {DATA} (../shared/data beside the checkout)")
+        return 2
+    only = set(args.only.split(","))
+    ok = True
+    if "erle" in only:
+        ok &= quadrotor("Erle", [(p, 1.14) for p in ERLE], args.draws, None, None)
+    if "px4" in only:
+        with tempfile.TemporaryDirectory() as tmp:
+            omap = Path(tmp) / "px4_map.toml"
+            omap.write_text(px4_map_toml())
+            ok &= quadrotor("PX4 csv", list(PX4), args.draws, PX4_FMU_MASS_KG, omap)
+    if "wing" in only:
+        ok &= fixed_wing(args.draws, not args.no_parameter_spread)
+    print(f"\nall targets: {'met' if ok else 'NOT met'}")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,220 @@
+"""The model's discrepancy: how far an FMU replay is from the log, learned where the truth is known.
+
+A Monte Carlo band over the identified parameters alone covers a fraction of a real flight (on the Erle
+quadrotor, 18-35 % of the samples of a 90 % band): the model's own error, which dominates a replay, is in no
+parameter. This module learns that error from replays of flights the model is meant to explain (the
+identification flights, or better flights left out of the identification) and stores it in the parameter file
+beside the covariance (``discrepancy``, :class:`fmu_models.common.params.Discrepancy`); ``validate --mc`` adds a
+draw of it to every parameter draw (:func:`draws`), so the band is parameters + discrepancy + sensor noise.
+
+**Method: empirical quantiles of the scaled residual per signal and horizon bin.** The residual is logged - FMU,
+the horizon the time since the replay window restarted from the logged state, and the scale
+``|FMU(t) - FMU(t0)| + floor``: how far the model itself moved since the window's first sample, plus the mean of
+that departure over the learning replays (:func:`scale_of`). Chosen over an AR model or a Gaussian process
+because the replay error of an open-loop unstable vehicle is not Gaussian or stationary: it grows with the
+horizon, is biased (a drifting attitude integrates into a drifting position) and heavy-tailed (a few windows with
+a manoeuvre carry most of the error). Quantiles need no distribution, cost nothing to evaluate and say how many
+samples they rest on; the horizon bins carry the growth, and the scale carries the state: a window where the
+model swings far gets a wide band, a hover a narrow one. Per signal the scaled form is kept only when it gives
+the narrower band on the learning replays. Measured leave-one-flight-out on the three Erle flights
+(``bench/prediction_bands.py``'s study, same coverage), the scale halves the mean band width on the body rates
+and the attitude against horizon bins alone. The residuals are against the logged, noisy signal, so they carry
+the sensor noise too: a signal with a discrepancy gets no second white-noise term in the Monte Carlo.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fmu_models.common.params import Discrepancy, SignalDiscrepancy, discrepancy_of, read_json
+from identification.validation.replay import ReplayResult, ValidationInputError
+
+#: quantile levels stored per horizon bin: dense in the tails a 90 % band reads
+LEVELS = (0.005, 0.01, 0.025, 0.05, 0.075, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.925, 0.95, 0.975, 0.99,
+          0.995)
+N_BINS = 10  #: horizon bins over a window (full-length replays: over the longest horizon)
+MIN_BIN_SAMPLES = 20  #: a horizon bin with fewer residuals is merged into its neighbour
+
+
+def horizons_s(res: ReplayResult) -> np.ndarray:
+    """Per sample of ``res.t_s``: time [s] since its replay window restarted from the logged state (a window's
+    end sample belongs to it, not to the next window, which restarts there)."""
+    starts = np.array([a for a, _ in res.windows], dtype=float)
+    t = np.asarray(res.t_s, dtype=float)
+    idx = np.clip(np.searchsorted(starts, t, side="left") - 1, 0, len(starts) - 1)
+    return t - starts[idx]
+
+
+def residuals(res: ReplayResult, name: str) -> np.ndarray:
+    """Logged minus FMU of signal ``name`` on ``res.t_s`` (NaN where not scored; angles wrapped to +-pi)."""
+    m = next(x for x in res.maps if x.fmu == name)
+    r = np.asarray(res.measured[name], float) - np.asarray(res.model[name], float)
+    return (r + math.pi) % (2.0 * math.pi) - math.pi if m.wrap else r
+
+
+def scale_of(res: ReplayResult, name: str, floor: float) -> np.ndarray:
+    """Per sample of ``res.t_s``: ``|FMU(t) - FMU at its window's first scored sample| + floor`` (NaN where the
+    FMU output is not scored; angles wrapped)."""
+    m = next(x for x in res.maps if x.fmu == name)
+    mod = np.asarray(res.model[name], float)
+    starts = np.array([a for a, _ in res.windows], dtype=float)
+    idx = np.clip(np.searchsorted(starts, np.asarray(res.t_s, float), side="left") - 1, 0, len(starts) - 1)
+    first = np.full(len(starts), np.nan)
+    ok = np.flatnonzero(np.isfinite(mod))
+    if ok.size:
+        w, pos = np.unique(idx[ok], return_index=True)  # the first finite sample of each window
+        first[w] = mod[ok[pos]]
+    d = mod - first[idx]
+    if m.wrap:
+        d = (d + math.pi) % (2.0 * math.pi) - math.pi
+    return np.abs(d) + floor
+
+
+def _edges(h: np.ndarray, span_s: float) -> np.ndarray:
+    """Horizon bin edges over [0, span]: ``N_BINS`` equal bins, merged until each holds ``MIN_BIN_SAMPLES``."""
+    edges = list(np.linspace(0.0, span_s, N_BINS + 1))
+    edges[-1] = span_s + 1e-9
+    while len(edges) > 2:
+        counts = np.histogram(h, bins=edges)[0]
+        low = int(np.argmin(counts))
+        if counts[low] >= MIN_BIN_SAMPLES:
+            break
+        drop = low + 1 if low == 0 else low  # merge with the neighbour: drop one of its edges
+        del edges[min(drop, len(edges) - 2)]
+    return np.asarray(edges)
+
+
+def _fit(results: Sequence[ReplayResult], name: str, floor: float, window_s: float
+         ) -> tuple[SignalDiscrepancy, float] | None:
+    """The quantile table of signal ``name`` (scaled by :func:`scale_of` with ``floor``; 0: unscaled) and the
+    mean width of its 90 % band over the learning samples (None: too few samples)."""
+    hs, rs, ss = [], [], []
+    for res in results:
+        scale = scale_of(res, name, floor) if floor > 0.0 else np.ones(len(res.t_s))
+        r = residuals(res, name) / scale
+        ok = np.isfinite(r)
+        hs.append(horizons_s(res)[ok])
+        rs.append(r[ok])
+        ss.append(scale[ok])
+    h, r, sc = np.concatenate(hs), np.concatenate(rs), np.concatenate(ss)
+    if r.size < MIN_BIN_SAMPLES:
+        return None
+    edges = _edges(h, window_s if window_s > 0 else float(h.max()))
+    rows, counts, width = [], [], 0.0
+    i5, i95 = LEVELS.index(0.05), LEVELS.index(0.95)
+    for a, b in itertools.pairwise(edges):
+        sel = (h >= a) & (h < b)
+        counts.append(int(sel.sum()))
+        q = [float(v) for v in np.quantile(r[sel], LEVELS)] if sel.any() else [0.0] * len(LEVELS)
+        rows.append(q)
+        width += float(np.sum((q[i95] - q[i5]) * sc[sel]))
+    table = SignalDiscrepancy(horizon_edges_s=[float(e) for e in edges], quantiles=rows, samples=counts,
+                              scale_floor=floor if floor > 0.0 else None)
+    return table, width / r.size
+
+
+def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "") -> Discrepancy:
+    """The discrepancy of the replays ``results`` (same FMU, same options), pooled per signal and horizon bin.
+    Per signal the scaled form (:func:`scale_of`) is kept when its 90 % band is narrower on the learning samples
+    than the unscaled one (the scale helps where the error follows the model's own motion, e.g. a diverging
+    attitude, not where it does not, e.g. vibration on a thrust measured at the PWM rate)."""
+    if not results:
+        raise ValidationInputError("discrepancy: no replay to learn from")
+    first = results[0]
+    window_s = float(first.options.get("window_s", 0.0))
+    rate_hz = float(first.options.get("rate_hz", 50.0))
+    signals: dict[str, SignalDiscrepancy] = {}
+    for m in first.maps:
+        departure = np.concatenate([scale_of(res, m.fmu, 0.0) for res in results])
+        floor = float(np.nanmean(departure)) if np.isfinite(departure).any() else 0.0
+        fits = [f for f in (_fit(results, m.fmu, 0.0, window_s),
+                            _fit(results, m.fmu, floor, window_s) if floor > 0.0 else None) if f is not None]
+        if fits:
+            signals[m.fmu] = min(fits, key=lambda f: f[1])[0]
+    if not signals:
+        raise ValidationInputError(f"discrepancy: fewer than {MIN_BIN_SAMPLES} scored samples in every signal")
+    return Discrepancy(levels=list(LEVELS), signals=signals, window_s=window_s, rate_hz=rate_hz,
+                       logs=[str(x) for x in logs], note=note or (
+                           "empirical quantiles of logged - FMU per horizon bin, where scale_floor is given divided "
+                           "by (|FMU - FMU at the window start| + scale_floor) (identification.validation."
+                           "discrepancy); learned from replays of the listed logs"))
+
+
+def draws(disc: Discrepancy, name: str, h_s: np.ndarray, n_draws: int, rng: np.random.Generator,
+          res: ReplayResult | None = None) -> np.ndarray:
+    """``n_draws`` x len(``h_s``) draws of signal ``name``'s discrepancy at horizons ``h_s`` [s] (inverse CDF of
+    the stored quantiles, linear between levels, the tails cut at the outer levels; a horizon beyond the
+    learned ones takes the last bin), times the scale of the nominal replay ``res`` (:func:`scale_of`) when the
+    quantiles are of the scaled residual."""
+    s = disc.signals[name]
+    edges = np.asarray(s.horizon_edges_s)
+    q = np.asarray(s.quantiles)
+    levels = np.asarray(disc.levels)
+    h = np.asarray(h_s, float)
+    bins = np.clip(np.searchsorted(edges, h, side="right") - 1, 0, len(q) - 1)
+    u = rng.uniform(levels[0], levels[-1], (n_draws, h.size))
+    out = np.empty_like(u)
+    for b in np.unique(bins):
+        cols = bins == b
+        out[:, cols] = np.interp(u[:, cols], levels, q[b])
+    if s.scale_floor is not None:
+        if res is None:
+            raise ValueError(f"discrepancy of {name} is scaled by the replay's own departure: give the replay")
+        out *= scale_of(res, name, s.scale_floor)
+    return out
+
+
+@dataclass(frozen=True)
+class DiscrepancyResult:
+    """What :func:`learn_discrepancy` learned, from which replays, and where it was written."""
+
+    discrepancy: Discrepancy
+    replays: tuple[dict[str, Any], ...]
+    written: Path | None = None
+
+    def lines(self) -> list[str]:
+        d = self.discrepancy
+        out = [f"discrepancy learned from {len(self.replays)} replay(s) ({d.window_s:g} s windows, {d.rate_hz:g} Hz):"]
+        i5, i95 = d.levels.index(0.05), d.levels.index(0.95)
+        for name, s in d.signals.items():
+            first, last = s.quantiles[0], s.quantiles[-1]
+            what = "logged - FMU" if s.scale_floor is None else f"(logged - FMU) / (departure + {s.scale_floor:.3g})"
+            out.append(f"  {name:<18} 5-95 % of {what}: [{first[i5]:+.3g}, {first[i95]:+.3g}] at "
+                       f"{s.horizon_edges_s[0]:g}-{s.horizon_edges_s[1]:.2g} s, [{last[i5]:+.3g}, {last[i95]:+.3g}] at "
+                       f"{s.horizon_edges_s[-2]:.2g}-{s.horizon_edges_s[-1]:.2g} s ({sum(s.samples)} samples)")
+        if self.written:
+            out.append(f"written to {self.written} (key 'discrepancy', beside 'uncertainty')")
+        return out
+
+
+def write_discrepancy(path: Path, disc: Discrepancy) -> None:
+    """Store ``disc`` in the JSON parameter file ``path`` under ``discrepancy`` (the rest kept as it is)."""
+    from identification.common.jsonio import write_json
+
+    if Path(path).suffix.lower() != ".json":
+        raise ValidationInputError(f"{path}: the discrepancy is written into a JSON parameter file (.json)")
+    data = read_json(path)
+    data["discrepancy"] = json.loads(disc.model_dump_json())
+    discrepancy_of(data, str(path))  # what is written reads back
+    write_json(Path(path), data)
+
+
+def read_discrepancy(path: Path | None, fmu: Path | None = None) -> Discrepancy | None:
+    """The ``discrepancy`` block of ``path``, else of the parameter file embedded in ``fmu`` (``build --params``);
+    None when there is none."""
+    if path is not None:
+        return discrepancy_of(read_json(path), str(path))
+    if fmu is None:
+        return None
+    from fmu_models.fmi.fmuzip import embedded_params
+
+    found = embedded_params(Path(fmu))
+    return None if found is None else discrepancy_of(*found)

@@ -1,0 +1,160 @@
+"""The model discrepancy of ``validate --mc``: learned per signal and horizon from replays, stored in the
+parameter file beside the covariance, drawn back with the stated coverage, and what brings a wrong model's
+bands back to their nominal level on a flight it was not learned on."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from fmu_models.common.errors import ParameterError
+from fmu_models.common.params import discrepancy_of
+from identification.validation.discrepancy import LEVELS, draws, horizons_s, learn, read_discrepancy, write_discrepancy
+from identification.validation.mc_bands import prediction_band
+from identification.validation.output_map import SignalMap
+from tests.identification.validation.test_mc_bands import (  # noqa: F401 - wing is a fixture
+    IDENTIFIED,
+    NAMES,
+    _job,
+    identified,
+    wing,
+)
+from uavfmu.commands.validate import EXIT_BAND, exit_status
+
+Z95 = 1.6448536269514722  #: standard normal 95 % quantile
+
+
+def _replay(seed: int, sigma_per_s: float = 1.0, window_s: float = 2.0, n_windows: int = 200,
+            rate_hz: float = 50.0) -> SimpleNamespace:
+    """A replay stand-in: residual logged - FMU ~ N(0, (sigma h)^2), h the time since the window restart."""
+    rng = np.random.default_rng(seed)
+    step = round(window_s * rate_hz)
+    t = np.arange(1, n_windows * step + 1) / rate_hz
+    starts = np.arange(n_windows) * window_s
+    h = t - starts[np.clip(np.searchsorted(starts, t, side="left") - 1, 0, None)]
+    model = np.zeros(t.size)
+    y = sigma_per_s * h * rng.standard_normal(t.size)
+    return SimpleNamespace(t_s=t, windows=[(a, a + window_s) for a in starts],
+                           maps=(SignalMap("roll_rad", "roll_rad"),), measured={"roll_rad": y},
+                           model={"roll_rad": model}, options={"window_s": window_s, "rate_hz": rate_hz}), h
+
+
+def test_horizon_restarts_at_each_window_and_the_end_sample_belongs_to_its_window() -> None:
+    res, h = _replay(0, n_windows=3)
+    np.testing.assert_allclose(horizons_s(res), h)
+    assert horizons_s(res)[99] == pytest.approx(2.0) and horizons_s(res)[100] == pytest.approx(0.02)
+
+
+def test_learned_quantiles_follow_the_growth_with_horizon_and_draws_cover_ninety_percent() -> None:
+    res, _ = _replay(1)
+    disc = learn([res], ["synthetic"])
+    s = disc.signals["roll_rad"]
+    i5, i95 = LEVELS.index(0.05), LEVELS.index(0.95)
+    for (a, b), row in zip(zip(s.horizon_edges_s[:-1], s.horizon_edges_s[1:], strict=True), s.quantiles,
+                           strict=True):
+        rms_h = math.sqrt((b**3 - a**3) / (3 * (b - a)))  # sigma h mixed over the bin: a scale mixture of normals
+        assert row[i95] == pytest.approx(-row[i5], abs=0.15 * rms_h + 0.01)  # ~3 sampling sd of the difference
+        assert 0.8 * Z95 * a <= row[i95] <= 1.2 * Z95 * rms_h + 0.01
+    assert sum(s.samples) == res.t_s.size
+    # fresh residuals of the same process fall inside the 5-95 % of the draws about 90 % of the time
+    new, _ = _replay(2)
+    d = draws(disc, "roll_rad", horizons_s(new), 40, np.random.default_rng(3))
+    lo, hi = prediction_band(d)  # the ranks validate --mc takes (mc_bands.band_ranks)
+    inside = (new.measured["roll_rad"] >= lo) & (new.measured["roll_rad"] <= hi)
+    assert 0.86 <= inside.mean() <= 0.94
+    # a horizon beyond the learned ones takes the last bin, not an extrapolation
+    far = draws(disc, "roll_rad", np.array([50.0]), 2000, np.random.default_rng(4))
+    assert np.abs(far).max() <= max(abs(s.quantiles[-1][0]), s.quantiles[-1][-1]) + 1e-12
+
+
+def test_the_parameter_file_stores_it_beside_the_covariance_and_names_each_problem(tmp_path: Path) -> None:
+    res, _ = _replay(5, n_windows=20)
+    disc = learn([res], ["synthetic"])
+    params = tmp_path / "p.json"
+    params.write_text(json.dumps({"uncertainty": identified().model_dump(), "quadrotor": {"mass_kg": 1.2}}))
+    write_discrepancy(params, disc)
+    data = json.loads(params.read_text())
+    assert set(data) == {"uncertainty", "quadrotor", "discrepancy"} and data["quadrotor"] == {"mass_kg": 1.2}
+    assert read_discrepancy(params) == disc
+    bad = json.loads(params.read_text())
+    bad["discrepancy"]["signals"]["roll_rad"]["quantiles"][0] = bad["discrepancy"]["signals"]["roll_rad"][
+        "quantiles"][0][::-1]
+    bad["discrepancy"]["levels"][0] = 1.5
+    with pytest.raises(ParameterError, match=r"p\.json: 2 problem") as err:
+        discrepancy_of(bad, str(params))
+    assert "discrepancy: field levels.0 = 1.5" in str(err.value) and "a quantile row decreases" in str(err.value)
+    assert read_discrepancy(None) is None and discrepancy_of({"uncertainty": {}}, "x") is None
+
+
+def test_a_band_far_from_its_nominal_coverage_is_exit_4_unless_something_fails() -> None:
+    assert exit_status(["band"]) == EXIT_BAND == 4
+    assert exit_status(["band", "fail"]) == 1 and exit_status(["band", "pass"]) == 4
+    assert exit_status(["pass"]) == 0 and exit_status(["tie"]) == 3
+
+
+def test_a_learned_discrepancy_brings_a_wrong_models_bands_back_to_their_level(
+    fixed_wing_fmu: Path, wing: dict[str, Path], tmp_path: Path  # noqa: F811 - the fixture
+) -> None:
+    """Derivatives 30 % off with the right model's confidence: the parameter bands miss the log (status band,
+    exit 4). The same wrong FMU's discrepancy learned on another flight (other seed and manoeuvres) brings the
+    held-out flight's bands to about their nominal 90 %."""
+    from identification.flights import synthetic
+    from identification.validation.workflow import learn_discrepancy, validate_mc
+
+    wrong = identified(scale=1.3)
+    t, sig = synthetic.fixed_wing_flight(seconds=40.0, rate_hz=50.0, noise=True, seed=7)
+    other = synthetic.write_csv_log(tmp_path / "other.csv", t, sig)
+    job = _job(fixed_wing_fmu, wing, None)
+    learned = learn_discrepancy(job.__class__(fixed_wing_fmu, other, job.options, mapping=job.mapping,
+                                              start_values=dict(zip(NAMES, wrong.mean, strict=True))), [other])
+    without = validate_mc(job, wrong, 40, seed=3, workers=2)
+    with_d = validate_mc(job, wrong, 40, seed=3, workers=2, discrepancy=learned.discrepancy)
+    cov0 = {s: v["band_coverage"] for s, v in without.signals.items()}
+    cov1 = {s: v["band_coverage"] for s, v in with_d.signals.items()}
+    print({s: (round(cov0[s], 3), round(cov1[s], 3)) for s in cov0})
+    assert without.status == "band" and "BANDS MISCALIBRATED" in without.lines()[0]
+    assert np.mean([cov1[s] for s in IDENTIFIED]) > np.mean([cov0[s] for s in IDENTIFIED]) + 0.2
+    assert all(0.8 <= cov1[s] <= 0.98 for s in IDENTIFIED), cov1
+    # the altitude is logged noise-free and this flight climbs less than the one learned on: its band covers
+    # everything, and that is a finding too (status band), not a pass
+    assert cov1["altitude_m"] > 0.98 and with_d.signals["altitude_m"]["band_verdict"] == "wide"
+    assert with_d.status == "band"
+    assert with_d.replay.bands.info["discrepancy"]["signals"] == list(learned.discrepancy.signals)
+    assert with_d.replay.bands.info["discrepancy"]["same_windows"]  # learned with the replay's windows and rate
+    assert not any("discrepancy was learned with" in line for line in with_d.lines())
+    from identification.validation.report import validation_page
+
+    page = validation_page(with_d.replay)  # the report: the band, its nominal level, the coverage achieved
+    assert "Nominal level 90 %" in page and "model discrepancy learned from 1 replay(s)" in page
+    assert "5-95 % band coverage" in page and "BANDS MISCALIBRATED: altitude_m" in page
+
+
+def test_the_scale_follows_the_models_own_departure_and_narrows_the_band_where_it_holds_still() -> None:
+    """Residual = 0.3 x how far the model moved since the restart x N(0, 1) (plus a little noise): half the
+    windows swing, half hold still. The scaled quantiles cover fresh residuals at about 90 % with a band far
+    narrower in the quiet windows than in the swinging ones."""
+    def replay(seed: int) -> SimpleNamespace:
+        res, h = _replay(seed, n_windows=200)
+        rng = np.random.default_rng(seed + 100)
+        swing = np.repeat(np.arange(200) % 2 == 0, 100)
+        model = np.where(swing, 2.0 * h, 0.0)
+        res.model["roll_rad"] = model
+        res.measured["roll_rad"] = model + 0.3 * model * rng.standard_normal(h.size) + 0.01 * rng.standard_normal(
+            h.size)
+        res.swing = swing
+        return res
+
+    disc = learn([replay(11)], ["synthetic"])
+    s = disc.signals["roll_rad"]
+    assert s.scale_floor is not None and s.scale_floor > 0.0
+    new = replay(12)
+    lo, hi = prediction_band(draws(disc, "roll_rad", horizons_s(new), 40, np.random.default_rng(5), new))
+    r = new.measured["roll_rad"] - new.model["roll_rad"]
+    assert 0.86 <= float(((r >= lo) & (r <= hi)).mean()) <= 0.97
+    width = hi - lo
+    assert width[~new.swing].mean() < 0.5 * width[new.swing].mean()

@@ -1,0 +1,52 @@
+"""``uavfmu discrepancy FMU LOG [LOG ...] --params FILE``: learn how far the FMU's replays are from the logs.
+
+Replays each log through the FMU as ``uavfmu validate`` does (same windows, rate, output map, PWM mapping and
+battery feed), pools the residuals logged - FMU per signal and horizon, and writes their empirical quantiles into
+the JSON parameter file ``FILE`` under ``discrepancy``, beside ``uncertainty``
+(``identification.validation.discrepancy``). ``uavfmu validate --mc`` then adds it to every parameter draw. Give
+flights the FMU's parameters were not fitted on where you have them (the bands are then honest on new flights).
+The work is done by ``identification.validation.workflow.learn_discrepancy``; this module parses and prints.
+
+Exit status: 0 written, 2 bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+EXIT_OK, EXIT_BAD_INPUT = 0, 2
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.description = __doc__.split("\n\n")[0]
+    parser.add_argument("fmu", type=Path, help="the FMU (built from --params, or with the same parameters)")
+    parser.add_argument("logs", type=Path, nargs="+", help="flight logs to learn from")
+    parser.add_argument("--params", type=Path, required=True, help="JSON parameter file to store the discrepancy in")
+    parser.add_argument("--map", type=Path, help="output map TOML (as validate)")
+    parser.add_argument("--mapping", type=Path, help="PWM mapping TOML for fixed-wing surfaces and throttle")
+    parser.add_argument("--channel-map", type=Path, help="TOML/JSON [channels] for the logs' outputs")
+    parser.add_argument("--window-s", type=float, help="replay windows [s] (default 2; use validate's)")
+    parser.add_argument("--rate-hz", type=float, help="replay sample rate [Hz] (default 50)")
+    parser.add_argument("--include-ground", action="store_true", default=None, help="also ground windows")
+
+
+def run(args: argparse.Namespace) -> int:
+    from fmu_models.common.errors import ParameterError
+    from fmu_models.config import ConfigError
+    from fmu_models.fmi.host import FmuRunError
+    from identification.validation.replay import check_options
+    from identification.validation.workflow import ValidationJob, learn_discrepancy
+
+    try:
+        values = {"window_s": args.window_s, "rate_hz": args.rate_hz, "include_ground": args.include_ground}
+        opts = check_options(**{k: v for k, v in values.items() if v is not None})
+        job = ValidationJob(args.fmu, args.logs[0], opts, args.map, args.mapping, args.channel_map,
+                            params_file=args.params)
+        result = learn_discrepancy(job, args.logs, args.params)
+    except (ValueError, ConfigError, ParameterError, FmuRunError, OSError, KeyError) as err:
+        print(f"uavfmu discrepancy: error: {str(err).strip(chr(39) + chr(34))}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    print("\n".join(result.lines()))
+    return EXIT_OK
