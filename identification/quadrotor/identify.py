@@ -260,9 +260,12 @@ def _windows(logs: Sequence[FlightLog], params: QuadrotorParams, opt: QuadrotorO
             if path is not None:
                 segs = qseg.load_blocks(path, log)
                 how = f"excitation blocks of {Path(path).name}"
+            elif qseg.sysid_segments(log):
+                segs = qseg.sysid_segments(log)
+                how = "ArduCopter SystemId chirps (SIDD)"
             else:
                 segs = qseg.airborne_segments(log, params.pwm_idle_us)
-                how = "airborne time cut into 6 s pieces (no blocks file)"
+                how = "airborne time cut into 6 s pieces (no blocks file, no SystemId chirps)"
         f, v = qseg.hold_out(segs, opt.hold_out_every)
         notes.append(f"{Path(log.source).name}: {len(f)} fit and {len(v)} held-out segments from {how}")
         fit += [(k, w) for w in qseg.split_windows(f, opt.window_s)]

@@ -120,6 +120,30 @@ def load_blocks(path: Path, log: FlightLog) -> list[Segment]:
     return out
 
 
+#: a pause longer than this [s] between ArduCopter SystemId samples (SIDD) starts a new chirp
+SYSID_GAP_S = 0.5
+
+
+def sysid_segments(log: FlightLog, rest_s: float = 2.0) -> list[Segment]:
+    """The chirps of ArduCopter's SystemId mode: spans of its ``SIDD`` samples (logged while a chirp runs;
+    ``SIDS`` holds the settings once per chirp) plus ``rest_s``, labelled with the ``SIDS`` axis where logged."""
+    if not log.has("SIDD.Targ"):
+        return []
+    t = log.signal("SIDD.Targ").t_s
+    if len(t) < 2:
+        return []
+    cuts = np.flatnonzero(np.diff(t) > SYSID_GAP_S) + 1
+    axis = log.signal("SIDS.Ax") if log.has("SIDS.Ax") else None
+    out = []
+    for run in np.split(t, cuts):
+        label = "sysid"
+        if axis is not None and len(axis.t_s):
+            i = int(np.clip(np.searchsorted(axis.t_s, run[0] + 1e-3, side="right") - 1, 0, len(axis.t_s) - 1))
+            label = f"sysid axis {int(axis.values[i])}"
+        out.append(Segment(float(run[0]), float(min(run[-1] + rest_s, log.duration_s)), label))
+    return out
+
+
 def airborne_segments(log: FlightLog, idle_pwm_us: float, piece_s: float = 6.0, rate_hz: float = 50.0
                       ) -> list[Segment]:
     """Airborne spans (motors above idle, above the ground level), cut into pieces of ``piece_s``."""

@@ -111,3 +111,17 @@ def test_shared_px4_sitl_log_held_out_rates_beat_persistence():
     assert res.exit_code == q.EXIT_OK
     assert res.params.tau_motor_s > 0.005  # the default FMU has no motor lag; this flight's motors lag
     assert dataclasses.asdict(res.prior)["Jx_kg_m2"] > 0
+
+
+def test_arducopter_sysid_chirps_become_segments():
+    from identification.quadrotor.segments import sysid_segments
+
+    t = np.r_[np.arange(10.0, 20.0, 0.0025), np.arange(40.0, 45.0, 0.0025)]
+    sig = {"SIDD.Targ": Signal("SIDD.Targ", t, np.sin(t), "", ""),
+           "SIDS.Ax": Signal("SIDS.Ax", np.array([10.0, 40.0]), np.array([1.0, 3.0]), "", ""),
+           "b": Signal("b", np.array([0.0, 60.0]), np.zeros(2), "", "")}
+    segs = sysid_segments(FlightLog("x.bin", "dataflash", sig, {}, "quadrotor"))
+    assert [s.label for s in segs] == ["sysid axis 1", "sysid axis 3"]
+    # each chirp from its first SIDD sample to its last plus the 2 s rest
+    assert [(s.t0_s, s.t1_s) for s in segs] == [pytest.approx((10.0, 19.9975 + 2.0)),
+                                                pytest.approx((40.0, 44.9975 + 2.0))]
