@@ -36,6 +36,7 @@ from fmu_models.quadrotor.thrust import (
 
 PWM_INPUT_MIN_US = 0.0  #: 0 us = no pulse (motor off); below idle thrust is zero anyway
 PWM_INPUT_MAX_US = 2500.0
+OMEGA_EPS_N = 1e-6  #: below this thrust [N] the motor speed goes linearly to 0 (finite derivative at idle)
 
 
 def _n_inputs(u: Any) -> int:
@@ -118,7 +119,9 @@ class QuadrotorModel(vehicle.BodyVehicleModel):
         pv = self.params.view(p)
         _, vel, quat, rates, _ = vehicle.split(x)
         thrust = self.motor_thrust(x, u, p)
-        omega = [ca.sqrt(ca.fmax(t, 0.0) / pv.k_thrust_N_s2) for t in thrust]
+        # sqrt(T/k), written T / sqrt(k max(T, eps)): the same above eps, linear to 0 below, so its derivative
+        # stays finite at zero thrust (output-error sensitivities would otherwise turn NaN at an idle motor)
+        omega = [ca.fmax(t, 0.0) / ca.sqrt(pv.k_thrust_N_s2 * ca.fmax(t, OMEGA_EPS_N)) for t in thrust]
         total = thrust[0] + thrust[1] + thrust[2] + thrust[3]
         drag = -ca.vertcat(pv.kd_x_N_s_m * vel[0], pv.kd_y_N_s_m * vel[1], pv.kd_z_N_s_m * vel[2])
         f_ground, m_ground, on_ground = contact_forces(

@@ -828,7 +828,7 @@ class OutputErrorEstimator:
         n_total = len(theta)
         M, _ = self._normal_equations(res, jacs, W, n_total)
         prior_info = self.prior_information(n_total)
-        M_inv = np.linalg.pinv(M + np.diag(prior_info))
+        M_inv = scaled_pinv(M + np.diag(prior_info))
         std_white = np.sqrt(np.maximum(np.diag(M_inv), 0.0))
         middle = np.diag(prior_info)  # sandwich: the prior's information beside the data's coloured term
         for j, (r, J) in enumerate(zip(res, jacs, strict=True)):
@@ -870,6 +870,16 @@ class OutputErrorEstimator:
                         n_global=ng, bootstrap_std=boot, bound_method=method, identifiability=ident,
                         prior_sd=self.prior_sd.copy(), covariance=cov[:ng, :ng].copy(), n_segments=len(data),
                         bootstrap_dof=dof, bootstrap_factor=factor, unbounded=unbounded)
+
+
+def scaled_pinv(M: np.ndarray) -> np.ndarray:
+    """Pseudo-inverse of a symmetric information matrix after scaling it to unit diagonal: the same matrix for a
+    well-posed ``M``, but parameters of very different magnitude (a fan torque constant of 1e-7 N m s^2 beside an
+    inertia of 1e-2 kg m^2) no longer push the small singular values of the scaled-out ones below ``pinv``'s
+    cut-off, where their variance would come out as 0."""
+    d = np.sqrt(np.maximum(np.diag(M), 0.0))
+    d = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 1.0)
+    return d[:, None] * np.linalg.pinv(d[:, None] * M * d[None, :], hermitian=True) * d[None, :]
 
 
 def _cost(res: list[np.ndarray], W: np.ndarray) -> float:
@@ -932,7 +942,7 @@ def consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Sequence[
     info = np.zeros(len(theta))
     info[keep] = oe.prior_information(len(keep))
     info[cons] = 1.0 / sd ** 2
-    aug = np.linalg.pinv(M + np.diag(info))
+    aug = scaled_pinv(M + np.diag(info))
     informed = np.sqrt(np.maximum(np.diag(aug)[cons], 0.0)) / sd
     return Consider(names, sd, (A * sd ** 2) @ A.T, A, informed)
 

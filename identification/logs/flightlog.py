@@ -199,6 +199,7 @@ class FlightLog:
     vehicle: str | None = None
     warnings: list[str] = field(default_factory=list)
     quality: DataQuality | None = None
+    boot_s: float = 0.0  #: autopilot boot time [s] of the log's t = 0 (ULog: its start timestamp; else 0)
 
     def __post_init__(self) -> None:
         if self.quality is None:

@@ -79,6 +79,8 @@ class ValidationInputError(ValueError):
 
 
 Horizon = Annotated[float, Field(gt=0, le=3600, allow_inf_nan=False)]
+Seconds = Annotated[float, Field(ge=0, le=1e7, allow_inf_nan=False)]
+MAX_SEGMENTS = 5000  #: most spans ``segments_s`` may list
 
 
 class ValidationOptions(Schema):
@@ -89,6 +91,16 @@ class ValidationOptions(Schema):
     horizons_s: list[Horizon] = Field(default_factory=lambda: list(DEFAULT_HORIZONS_S), max_length=32)
     include_ground: bool = False
     max_memory_mb: float = Field(2048.0, gt=0, le=1e6, allow_inf_nan=False)
+    #: only windows wholly inside one of these (t0, t1) spans [s from the log start] are scored (empty: all);
+    #: e.g. the held-out segments of an identification
+    segments_s: list[tuple[Seconds, Seconds]] = Field(default_factory=list, max_length=MAX_SEGMENTS)
+
+    @model_validator(mode="after")
+    def _segments_ordered(self) -> ValidationOptions:
+        bad = [f"{a:g}:{b:g}" for a, b in self.segments_s if not a < b]
+        if bad:
+            raise ValueError(f"segments_s {', '.join(bad[:5])} (allowed: t0 < t1)")
+        return self
 
     @model_validator(mode="after")
     def _window_holds_two_samples(self) -> ValidationOptions:
@@ -459,6 +471,22 @@ def replay_setup(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[S
     edges = [*range(0, n - 1, step), n - 1]
     included, ground, gaps, on_ground = _windows_to_score(log, log_path, vehicle, maps, mapping, t, edges, opts,
                                                           max(params.get("pwm_idle_us", 0.0), DEFAULT_IDLE_US))
+    if opts.segments_s:
+        spans: list[list[float]] = []
+        for a, b in sorted(opts.segments_s):  # touching spans (a segment given as its windows) join
+            if spans and a <= spans[-1][1] + 1e-6:
+                spans[-1][1] = max(spans[-1][1], b)
+            else:
+                spans.append([a, b])
+        inside = [any(a <= t[e0] + 1e-9 and t[e1] <= b + 1e-9 for a, b in spans)
+                  for e0, e1 in itertools.pairwise(edges)]
+        outside = sum(1 for i, k in zip(included, inside, strict=True) if i and not k)
+        included = [i and k for i, k in zip(included, inside, strict=True)]
+        if outside:
+            gaps = {**gaps, "outside the given segments": outside}
+        if not any(included):
+            raise ValidationInputError(f"{log_path}: no replay window lies wholly inside the given segments "
+                                       f"(windows of {opts.window_s:g} s)")
     starts = [{**s, **overrides} for s in initial_values_at(log, t[edges[:-1]],
                                                             forward_from_airspeed=vehicle == "fixed_wing")]
     extra = [a for a in ACCEL if a in host.variables and log.has(a)]
@@ -520,11 +548,11 @@ def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalM
            mapping: PwmMapping | None = None, t_range: tuple[float, float] | None = None,
            progress: Callable[[int, int], None] | None = None, *, include_ground: bool = False,
            horizons_s: Sequence[float] = DEFAULT_HORIZONS_S, max_memory_mb: float = 2048.0,
-           battery: Any = None) -> ReplayResult:
+           battery: Any = None, segments_s: Sequence[tuple[float, float]] = ()) -> ReplayResult:
     """Replay ``log`` through the FMU of ``host`` on a ``rate_hz`` grid and score the signals of ``maps``
-    (``battery``: see :func:`replay_setup`)."""
+    (``battery``: see :func:`replay_setup`; ``segments_s``: see :class:`ValidationOptions`)."""
     opts = options(rate_hz=rate_hz, window_s=window_s or 0.0, include_ground=include_ground,
-                   horizons_s=list(horizons_s), max_memory_mb=max_memory_mb)
+                   horizons_s=list(horizons_s), max_memory_mb=max_memory_mb, segments_s=list(segments_s))
     overrides = dict(start_values or {})
     s = replay_setup(host, log, log_path, maps, opts, overrides, mapping, t_range, battery)
     t, edges, measured = s.t, s.edges, s.measured

@@ -134,7 +134,7 @@ def validate(job: ValidationJob, progress: Callable[[int, int], None] | None = N
         res = replay(host, log, job.log, maps, rate_hz=o.rate_hz, window_s=o.window_s or None,
                      start_values=dict(job.start_values), mapping=mapping, progress=progress,
                      include_ground=o.include_ground, horizons_s=o.horizons_s, max_memory_mb=o.max_memory_mb,
-                     battery=battery, t_range=job.t_range_s)
+                     battery=battery, t_range=job.t_range_s, segments_s=o.segments_s)
     out = result_of(res, job)
     if job.report_dir is not None:
         write_report(res, out, Path(job.report_dir))

@@ -23,6 +23,12 @@ def test_demo_pipeline(tmp_path: Path, capsys) -> None:
     # the recorded flight used the Aerosonde's C_ell_p = -0.51 and C_ell_delta_a = 0.17
     assert aero["C_ell_p"]["value"] == pytest.approx(-0.51, rel=0.05)
     assert aero["C_ell_delta_a"]["value"] == pytest.approx(0.17, rel=0.05)
+    # the quadrotor's inertia and motor lag, identified from the stick-excitation flight, go into the rebuilt FMU
+    dyn = json.loads((work / "quadrotor_dynamics.metrics.json").read_text())
+    assert {"Jx_kg_m2", "Jy_kg_m2", "tau_motor_s"} <= set(dyn["free"])
+    held = dyn["held_out_vs_persistence"]
+    assert all(held[n]["outcome"] == "win" for n in ("rate_body_x_rad_s", "rate_body_y_rad_s"))
+    assert ident["quadrotor"]["Jx_kg_m2"] == pytest.approx(dyn["estimates"]["Jx_kg_m2"]["value"])
     results = json.loads((work / "report" / "results.json").read_text())
     # scored on held-out flights (other references, excitation and noise), never on the identification logs
     assert [Path(r["log"]).name for r in results] == ["quadrotor_flight_held_out.bin", "fixed_wing_flight_held_out.bin"]

@@ -7,7 +7,9 @@ Inputs: quadrotor motor PWM, or fixed-wing surface and throttle commands through
 (``--mapping FILE.toml``, else the log's ArduPilot ``SERVOn_*`` parameters). Compared signals and their pass
 rules come from the output map (``--map``; defaults per vehicle in ``identification.validation.output_map``). Windows
 of ``--window-s`` seconds are each re-initialised from the logged state (0: one full-length replay);
-windows with the vehicle on the ground are left out unless ``--include-ground``. The work is done by
+windows with the vehicle on the ground are left out unless ``--include-ground``; ``--segments t0:t1,...`` or
+``--segments-from METRICS.json`` (the held-out segments of ``identify quadrotor``) score only the windows that lie
+wholly inside those spans. The work is done by
 ``identification.validation.workflow``; this module parses and prints.
 
 Runs go through ``identification.common.parallel`` (dask.distributed): local worker processes (``--jobs``), or a running
@@ -50,6 +52,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mapping", type=Path, help="PWM mapping TOML for fixed-wing surfaces and throttle")
     parser.add_argument("--window-s", type=float, help="replay windows [s] (0: full length; default 2)")
     parser.add_argument("--rate-hz", type=float, help="replay sample rate [Hz] (default 50, at most 2000)")
+    parser.add_argument("--segments", help="score only windows inside these spans t0:t1,... [s from the log start]")
+    parser.add_argument("--segments-from", type=Path, metavar="METRICS",
+                        help="score only windows inside the held-out segments of an identify quadrotor metrics "
+                             "JSON (its held_out_segments)")
     parser.add_argument("--horizons-s", type=str, help="prediction horizons [s], comma separated "
                                                        "(default 0.1,0.5,1,2)")
     parser.add_argument("--include-ground", action="store_true", default=None,
@@ -102,7 +108,34 @@ def _option_values(args: argparse.Namespace) -> dict[str, object]:
         except ValueError:
             raise ValueError(f"--horizons-s {args.horizons_s!r}: expected numbers separated by commas") from None
     return {"window_s": args.window_s, "rate_hz": args.rate_hz, "horizons_s": horizons,
-            "include_ground": args.include_ground, "max_memory_mb": args.max_memory_mb}
+            "include_ground": args.include_ground, "max_memory_mb": args.max_memory_mb,
+            "segments_s": _segments(args)}
+
+
+def _segments(args: argparse.Namespace) -> list[tuple[float, float]] | None:
+    """``--segments t0:t1,...`` and the ``held_out_segments`` of ``--segments-from`` as (t0, t1) pairs."""
+    import json
+
+    items = [s for s in (getattr(args, "segments", None) or "").split(",") if s.strip()]
+    src = getattr(args, "segments_from", None)
+    if src is not None:
+        try:
+            held = json.loads(Path(src).read_text()).get("held_out_segments")
+        except (OSError, ValueError, AttributeError) as err:
+            raise ValueError(f"--segments-from {src}: not a readable metrics JSON ({err})") from None
+        if not isinstance(held, list) or not all(isinstance(h, str) for h in held):
+            raise ValueError(f"--segments-from {src}: no held_out_segments list of 't0:t1' strings in it")
+        items += held
+    if not items:
+        return None
+    out = []
+    for item in items:
+        try:
+            a, b = (float(v) for v in item.split(":"))
+        except ValueError:
+            raise ValueError(f"--segments: {item!r} is not t0:t1 in seconds") from None
+        out.append((a, b))
+    return out
 
 
 def run(args: argparse.Namespace) -> int:

@@ -348,6 +348,12 @@ def _derived_signals(signals: dict[str, Signal]) -> None:
         for name, vals in (("vel_north_m_s", spd.values * np.cos(course)),
                            ("vel_east_m_s", spd.values * np.sin(course)), ("vel_down_m_s", vz.values)):
             signals[name] = Signal(name, spd.t_s, vals, "m/s", "from GPS.Spd/GCrs/VZ")
+    # without GPS velocity, the EKF3's NED velocity (XKF1 VN, VE, VD [m/s], first core)
+    if all(f"XKF1.{f}" in signals for f in ("VN", "VE", "VD")):
+        for name, fld in (("vel_north_m_s", "VN"), ("vel_east_m_s", "VE"), ("vel_down_m_s", "VD")):
+            if name not in signals:
+                v = signals[f"XKF1.{fld}"]
+                signals[name] = Signal(name, v.t_s, v.values, "m/s", f"from XKF1.{fld}")
     _battery(signals)
     if "altitude_m" not in signals and "BARO.Alt" in signals:
         s = signals["BARO.Alt"]

@@ -88,5 +88,5 @@ def read_ulog(path: Path) -> FlightLog:
         quality.messages_skipped += 1  # pyulog skips to the next sync marker without saying how much
     params = {k: float(v) for k, v in ulog.initial_parameters.items() if isinstance(v, int | float)}
     log = FlightLog(str(path), "ulog", signals, params, "quadrotor" if "motor_1_pwm_us" in signals else None,
-                    warnings)
+                    warnings, boot_s=float(ulog.start_timestamp) * 1e-6)
     return sanitize_log(log, quality)

@@ -1,0 +1,107 @@
+"""Replica study of ``identify quadrotor``: random quadrotors with known truths, flown like a PX4 log.
+
+Each draw (``identification.flights.quadrotor_replica.random_truth``): inertias +-40 %, motor time constant
+0-50 ms, yaw torque constant and drag +-50 % around the F450 defaults. The draw is flown by the PX4-like closed
+loop of ``identification.flights.quadrotor_replica`` (attitude P, rate PID on the 30 Hz low-passed gyro, a mixer
+of the *nominal* airframe, the thrust curve's inverse) through the planned stick 3-2-1-1s and doublets on roll,
+pitch, yaw and throttle (two sets), the actuator outputs logged at ``--rate-hz`` with gyro and accelerometer
+noise and turn-on biases. ``identify_quadrotor`` then runs with every default but the segments (the planned
+blocks). Per draw and parameter it prints the relative error, the 95 % half-width (relative) and ``!`` when the
+interval misses the truth; the yaw pair is checked as the ratio the data determine, ``(b/k)/Jz`` (Jz alone
+rests on the airframe prior). The motor time constant is checked within max(10 % of the truth, 2 ms): draws
+go down to 0 ms, and below 20 ms a tenth of the truth is under half a 4 ms sample at 250 Hz.
+
+Targets (exit 1 on a miss): every checked parameter within 10 % of its truth in every draw; 95 % intervals
+covering the truth in at least 90 % of the cases (per parameter over the draws); median half-width of the 95 %
+interval at most 3x the median actual error (per parameter; the ratio is printed, 2x is the wish).
+
+Run: ``.venv/bin/python bench/quadrotor_replica.py [--draws 20] [--seed 0] [--rate-hz 250]``
+(about 20 s per draw on one core).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+import numpy as np
+
+from fmu_models.quadrotor.params import QuadrotorParams
+from identification.flights.quadrotor_replica import fly_replica, planned_blocks, random_truth
+from identification.quadrotor import identify as q
+from identification.quadrotor.segments import Segment
+
+CHECKED = ("Jx_kg_m2", "Jy_kg_m2", "(b/k)/Jz", "tau_motor_s", "kd_x_N_s_m", "kd_y_N_s_m", "kd_z_N_s_m")
+WITHIN = 0.10
+COVERAGE_MIN = 0.90
+WIDTH_MAX = 3.0
+TAU_ABS_S = 2e-3
+
+
+def one_draw(seed: int, rate_hz: float) -> dict[str, tuple[float, float, float]]:
+    """``{parameter: (truth, estimate, 95 % half-width)}`` of one draw."""
+    truth = random_truth(np.random.default_rng(seed))
+    flight = fly_replica(truth, planned_blocks(sets=2), rate_hz=rate_hz, sim_hz=500.0, seed=seed)
+    segs = [Segment(b.start_s, b.end_s, b.axis) for b in flight.blocks]
+    res = q.identify_quadrotor(flight.log, QuadrotorParams(), q.QuadrotorOptions(segments=segs))
+    est = res.estimates()
+    ratio = {r.name: r for r in res.ratios}["(b/k)/Jz"]
+    out = {n: (getattr(truth, n), est[n]["value"], 1.96 * est[n]["std"]) for n in CHECKED if n in est}
+    out["(b/k)/Jz"] = (truth.b_drag_N_m_s2 / truth.k_thrust_N_s2 / truth.Jz_kg_m2, ratio.value, 1.96 * ratio.std)
+    return out
+
+
+def within(name: str, truth: float, value: float) -> bool:
+    err = abs(value - truth)
+    if name == "tau_motor_s":
+        return err <= max(WITHIN * truth, TAU_ABS_S)
+    return err <= WITHIN * abs(truth)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--draws", type=int, default=20)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--rate-hz", type=float, default=250.0)
+    args = ap.parse_args(argv)
+    if not 1 <= args.draws <= 200:
+        ap.error("--draws must lie in 1..200")
+    rows: dict[str, list[tuple[float, float, float]]] = {n: [] for n in CHECKED}
+    misses = []
+    for d in range(args.draws):
+        t0 = time.perf_counter()
+        got = one_draw(args.seed + d, args.rate_hz)
+        line = []
+        for n in CHECKED:
+            tr, v, hw = got[n]
+            rows[n].append(got[n])
+            ok = within(n, tr, v)
+            cover = abs(v - tr) <= hw
+            if not ok:
+                misses.append(f"draw {d} {n}: {100 * (v / tr - 1):+.1f} % (truth {tr:.4g}, estimate {v:.4g})")
+            line.append(f"{n} {100 * (v / tr - 1):+5.1f}% hw {100 * hw / abs(tr):4.1f}%{'' if cover else '!'}")
+        print(f"draw {d:2d} ({time.perf_counter() - t0:4.0f} s): " + "  ".join(line), flush=True)
+    print(f"\n{'parameter':<14} {'max |err| %':>11} {'within 10 %':>11} {'coverage':>9} {'med half-width':>15} "
+          f"{'med |err|':>10} {'ratio':>6}")
+    failed = bool(misses)
+    for n in CHECKED:
+        arr = np.array(rows[n])
+        tr, v, hw = arr[:, 0], arr[:, 1], arr[:, 2]
+        err = np.abs(v - tr)
+        cover = float(np.mean(err <= hw))
+        inside = float(np.mean([within(n, a, b) for a, b in zip(tr, v, strict=True)]))
+        ratio = float(np.median(hw) / max(np.median(err), 1e-300))
+        bad = cover < COVERAGE_MIN or ratio > WIDTH_MAX or inside < 1.0
+        failed |= bad
+        print(f"{n:<14} {100 * np.max(err / np.abs(tr)):11.1f} {100 * inside:10.0f}% {100 * cover:8.0f}% "
+              f"{np.median(hw):15.4g} {np.median(err):10.4g} {ratio:6.2f}{'  MISS' if bad else ''}")
+    for m in misses:
+        print(f"MISS {m}")
+    print(f"targets: within {100 * WITHIN:.0f} % every draw, coverage >= {100 * COVERAGE_MIN:.0f} %, median "
+          f"half-width <= {WIDTH_MAX:g}x median error: {'MISSED' if failed else 'met'}")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

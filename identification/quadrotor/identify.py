@@ -1,0 +1,610 @@
+"""``identify quadrotor`` as a library: a quadrotor's rate and force dynamics from logs by output error.
+
+:func:`identify_quadrotor` takes read logs, the start parameters (the thrust map of ``identify thrust``'s file,
+or the FMU defaults) and :class:`QuadrotorOptions`, and returns a :class:`QuadrotorIdResult`. The estimator is
+``identification.estimation.oem`` on the quadrotor model of ``fmu_models.quadrotor`` (the FMU's equations):
+outputs body rates and specific force, inputs the four motor PWMs (and battery voltage where logged), free
+``Jx_kg_m2``, ``Jy_kg_m2`` (the arm's moment effectiveness ``l/J`` with the arm length of the file),
+``tau_motor_s``, ``b_drag_N_m_s2`` with ``Jz_kg_m2`` (the data fix ``(b/k)/Jz``; the airframe prior fixes
+``Jz``) and, where the log has velocity, ``kd_x/y/z_N_s_m``; per window the initial body rates and the
+gyro and accelerometer biases. Method and references: readme.md.
+
+A log whose motor commands are logged slower than :data:`MIN_COMMAND_HZ` cannot show the rate dynamics (the
+motors change many times between two logged commands): the result says which parameters it cannot determine
+and why, keeps them at their start values, and estimates drag from the specific force and the logged velocity
+(equation error: ``a_body = -kd v_body / m + bias``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fmu_models.common.mathns import NP
+from fmu_models.common.model import init_function
+from fmu_models.common.rotations import euler_to_dcm_rows, transpose_apply
+from fmu_models.quadrotor.constants import N_MOTORS
+from fmu_models.quadrotor.model import QuadrotorModel
+from fmu_models.quadrotor.params import QuadrotorParams
+from fmu_models.signals.names import OUTPUT_TO_LOG
+from identification.common.metrics import skill_interval
+from identification.estimation.oem import Estimate, EstimationError, Manoeuvre, OutputErrorEstimator
+from identification.logs.flightlog import BATTERY_VOLTAGE, FlightLog, LogError, check_quality
+from identification.logs.log_state import hold, initial_values
+from identification.quadrotor import segments as qseg
+from identification.quadrotor.priors import BATTERY_MASS_KG, MOTOR_MASS_KG, InertiaPrior, airframe_inertia
+
+#: fitted outputs: body rates (gyro) and specific force (accelerometer)
+RATE_OUTPUTS = ("rate_body_x_rad_s", "rate_body_y_rad_s", "rate_body_z_rad_s")
+FORCE_OUTPUTS = ("accel_body_x_m_s2", "accel_body_y_m_s2", "accel_body_z_m_s2")
+#: the rate-dynamics parameters and the drag
+RATE_PARAMS = ("Jx_kg_m2", "Jy_kg_m2", "Jz_kg_m2", "b_drag_N_m_s2", "tau_motor_s")
+DRAG_PARAMS = ("kd_x_N_s_m", "kd_y_N_s_m", "kd_z_N_s_m")
+#: slowest logged motor command rate [Hz] at which the rate dynamics are fitted: a quadrotor's rate loop acts
+#: within 20-50 ms (rate-loop bandwidth 5-15 Hz, motor time constants 10-50 ms); commands logged slower than this
+#: leave the moments between two samples unknown
+MIN_COMMAND_HZ = 50.0
+#: search bounds of the free parameters (SI); the motor time constant is kept above one millisecond (at 0 the
+#: model switches the lag off and the sensitivity vanishes)
+BOUNDS = {"Jx_kg_m2": (1e-5, 10.0), "Jy_kg_m2": (1e-5, 10.0), "Jz_kg_m2": (1e-5, 10.0),
+          "b_drag_N_m_s2": (1e-12, 1e-3), "tau_motor_s": (1e-3, 0.3),
+          "kd_x_N_s_m": (0.0, 100.0), "kd_y_N_s_m": (0.0, 100.0), "kd_z_N_s_m": (0.0, 100.0)}
+#: motor time constant the fit starts from when the start parameters have none [s]
+TAU_START_S = 0.02
+#: exit status of ``uavfmu identify quadrotor`` (documented in the CLI module)
+EXIT_OK, EXIT_BAD_INPUT, EXIT_FAILED, EXIT_LOSES, EXIT_LATE_FAILURE, EXIT_NOT_IDENTIFIABLE = 0, 2, 3, 4, 5, 6
+
+
+class QuadrotorInputError(ValueError):
+    """Options or logs that cannot be identified from (named with their values)."""
+
+
+@dataclass(frozen=True)
+class QuadrotorOptions:
+    """What to fit and how (times [s], rates [Hz], masses [kg])."""
+
+    rate_hz: float = 250.0  #: output-error sample rate (capped at the log's motor command rate)
+    window_s: float = 1.0  #: each fit window is replayed from the log's state at its start
+    segments: Sequence[qseg.Segment] | None = None  #: explicit segments (else the blocks file, else airborne)
+    blocks: Path | None = None  #: blocks file of a single log (else ``NAME.blocks.json`` beside it)
+    hold_out_every: int = 3  #: every n-th segment held out for scoring (0: none)
+    score_window_s: float = 0.5  #: held-out replays restart from the logged state this often
+    motor_mass_kg: float = MOTOR_MASS_KG
+    battery_mass_kg: float = BATTERY_MASS_KG
+    max_iter: int = 25
+    progress: bool = False
+    force: bool = False  #: use a log whose damage exceeds the quality limit
+
+    def problems(self) -> list[str]:
+        out = []
+        for name, lo, hi in (("rate_hz", 10.0, 1000.0), ("window_s", 0.2, 10.0), ("score_window_s", 0.1, 5.0),
+                             ("max_iter", 1, 200), ("hold_out_every", 0, 100)):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and lo <= v <= hi):
+                out.append(f"{name} = {v!r} (allowed {lo:g}..{hi:g})")
+        return out
+
+
+@dataclass
+class Ratio:
+    """A combination the data determine, with its 1-sigma bound and what it means."""
+
+    name: str
+    value: float
+    std: float
+    unit: str
+    meaning: str
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"value": self.value, "std": self.std, "ci95": [self.value - 1.96 * self.std,
+                                                              self.value + 1.96 * self.std],
+                "unit": self.unit, "meaning": self.meaning}
+
+
+@dataclass
+class QuadrotorIdResult:
+    """Everything ``identify quadrotor`` found; ``as_dict()`` is the metrics JSON."""
+
+    params: QuadrotorParams  #: the start parameters with the estimates written in
+    free: list[str]
+    estimate: Estimate | None
+    prior: InertiaPrior
+    fit_segments: list[qseg.Segment]
+    held_out_segments: list[qseg.Segment]
+    command_hz: float
+    not_identifiable: dict[str, str] = field(default_factory=dict)  #: parameter -> why this log cannot say
+    ratios: list[Ratio] = field(default_factory=list)
+    drag: dict[str, dict[str, float]] = field(default_factory=dict)  #: equation-error drag (slow commands)
+    held_out: dict[str, dict[str, Any]] = field(default_factory=dict)  #: output -> skill against persistence
+    notes: list[str] = field(default_factory=list)
+    failures: list[str] = field(default_factory=list)
+
+    @property
+    def losing_outputs(self) -> list[str]:
+        return [n for n, s in self.held_out.items() if s["outcome"] == "lose"]
+
+    @property
+    def exit_code(self) -> int:
+        """0 identified and not beaten; 4 persistence beats the model on a held-out output; 5 a step after the
+        solve (held-out scoring) failed; 6 parameters this log cannot determine (what it could was identified)."""
+        if self.losing_outputs:
+            return EXIT_LOSES
+        if self.failures:
+            return EXIT_LATE_FAILURE
+        return EXIT_NOT_IDENTIFIABLE if self.not_identifiable else EXIT_OK
+
+    def estimates(self) -> dict[str, dict[str, Any]]:
+        """Every estimated model parameter: value, 1-sigma, 95 % interval and what determined it."""
+        out: dict[str, dict[str, Any]] = {}
+        est = self.estimate
+        if est is not None:
+            std, dom = est.std, est.dominance()
+            for i, n in enumerate(est.names[:est.n_global]):
+                v = float(est.values[i])
+                out[n] = {"value": v, "std": float(std[i]), "ci95": [v - 1.96 * float(std[i]),
+                                                                     v + 1.96 * float(std[i])],
+                          "determined_by": _determined(n, dom[i])}
+        for n, d in self.drag.items():
+            out[n] = {**d, "ci95": [d["value"] - 1.96 * d["std"], d["value"] + 1.96 * d["std"]],
+                      "determined_by": "data (equation error on velocity and specific force)"}
+        return out
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "free": self.free, "command_hz": self.command_hz, "estimates": self.estimates(),
+            "ratios": {r.name: r.as_dict() for r in self.ratios},
+            "not_identifiable": self.not_identifiable, "inertia_prior": dataclasses.asdict(self.prior),
+            "fit_segments": [str(s) for s in self.fit_segments],
+            "held_out_segments": [str(s) for s in self.held_out_segments],
+            "held_out_vs_persistence": self.held_out, "losing_outputs": self.losing_outputs,
+            "estimate": self.estimate.as_dict() if self.estimate is not None else None,
+            "notes": self.notes, "failures": self.failures, "exit_code": self.exit_code,
+        }
+
+    def summary(self) -> str:
+        lines = [f"motor commands logged at {self.command_hz:.0f} Hz; {len(self.fit_segments)} fit windows, "
+                 f"{len(self.held_out_segments)} held-out windows", f"inertia prior: {self.prior.source}"]
+        lines.append(f"{'parameter':<16} {'estimate':>11} {'95 % interval':>25}  determined by")
+        for n, e in self.estimates().items():
+            lo, hi = e["ci95"]
+            lines.append(f"{n:<16} {e['value']:11.4g} {f'[{lo:.4g}, {hi:.4g}]':>25}  {e['determined_by']}")
+        for r in self.ratios:
+            lines.append(f"{r.name:<16} {r.value:11.4g} "
+                         f"{f'[{r.value - 1.96 * r.std:.4g}, {r.value + 1.96 * r.std:.4g}]':>25}  data: {r.meaning}")
+        for why in dict.fromkeys(self.not_identifiable.values()):
+            names = [n for n, w in self.not_identifiable.items() if w == why]
+            kept = ", ".join(f"{n} = {getattr(self.params, n):.4g}" for n in names)
+            lines.append(f"NOT IDENTIFIABLE from this log: {', '.join(names)}: {why}; kept at the start values "
+                         f"({kept})")
+        for n, s in self.held_out.items():
+            word = {"win": "beats", "lose": "LOSES to", "tie": "ties with"}.get(s["outcome"], s["outcome"])
+            lines.append(f"held-out {n}: {word} persistence at {s['window_s']:g} s restarts (skill "
+                         f"{s['skill']:+.2f}, 90 % interval [{s['skill_lo']:+.2f}, {s['skill_hi']:+.2f}])")
+        if self.estimate is not None:
+            lines += [f"warning: {w}" for w in self.estimate.warnings]
+        lines += [f"note: {n}" for n in self.notes] + [f"FAILED after the solve: {f}" for f in self.failures]
+        return "\n".join(lines)
+
+
+def _determined(name: str, dominance: str) -> str:
+    if name == "Jz_kg_m2":
+        return (f"{dominance} (yaw fixes only (b/k)/Jz: Jz rests on the airframe inertia prior and the "
+                "gyroscopic cross-coupling of roll and pitch)")
+    if name in ("Jx_kg_m2", "Jy_kg_m2"):
+        return f"{dominance} (through the arm's moment effectiveness l/J, l from the parameter file)"
+    if name == "b_drag_N_m_s2":
+        return f"{dominance} (through (b/k)/Jz: its spread is mostly that of Jz)"
+    return dominance
+
+
+def command_rate_hz(log: FlightLog) -> float:
+    """Median rate [Hz] at which the log records motor 1's command."""
+    t = log.signal("motor_1_pwm_us").t_s
+    d = np.diff(t)
+    d = d[d > 0]
+    if not d.size:
+        raise LogError(f"{log.source}: motor_1_pwm_us has fewer than two samples")
+    return float(1.0 / np.median(d))
+
+
+def _inputs(log: FlightLog, params: QuadrotorParams, t_s: np.ndarray) -> np.ndarray:
+    """Model inputs (len(t) x 5): the motor PWMs held between samples, the battery voltage where logged."""
+    cols = [hold(log.signal(f"motor_{k}_pwm_us"), t_s) for k in range(1, N_MOTORS + 1)]
+    volt = log.signal(BATTERY_VOLTAGE).resample(t_s) if log.has(BATTERY_VOLTAGE) else \
+        np.full(len(t_s), params.battery_nominal_V)
+    return np.column_stack([*cols, volt])
+
+
+def manoeuvres(model: QuadrotorModel, p: np.ndarray, log: FlightLog, params: QuadrotorParams,
+               windows: Sequence[qseg.Segment], outputs: Sequence[str], rate_hz: float) -> list[Manoeuvre]:
+    """One :class:`Manoeuvre` per window: inputs at ``t_k``, measurements at ``t_{k+1}``, the initial state from
+    the log through the model's own initial-state function."""
+    init = init_function(model)
+    lag = MotorThrust(params) if params.tau_motor_s > 0 else None
+    i_lag = model.states.index["thrust_state_1_N"]
+    out = []
+    for w in windows:
+        n = math.floor((w.t1_s - w.t0_s) * rate_hz + 1e-9)
+        if n < 3:
+            continue
+        t = w.t0_s + np.arange(n + 1) / rate_hz
+        u = _inputs(log, params, t[:-1])
+        y = np.column_stack([log.signal(OUTPUT_TO_LOG[o]).resample(t[1:]) for o in outputs])
+        if not (np.all(np.isfinite(y)) and np.all(np.isfinite(u))):
+            continue
+        pp = p.copy()
+        for name, value in initial_values(log, w.t0_s, forward_from_airspeed=False).items():
+            pp[model.params.index[name]] = value
+        x0 = np.asarray(init(u[0], pp)[0]).ravel()
+        if lag is not None:  # the motors still lag behind the commands before the window
+            x0[i_lag:i_lag + N_MOTORS] = lag.at(log, w.t0_s)
+        out.append(Manoeuvre(x0, u, y, 1.0 / rate_hz, str(w)))
+    return out
+
+
+def _windows(logs: Sequence[FlightLog], params: QuadrotorParams, opt: QuadrotorOptions, notes: list[str]
+             ) -> tuple[list[tuple[int, qseg.Segment]], list[tuple[int, qseg.Segment]]]:
+    fit, val = [], []
+    for k, log in enumerate(logs):
+        if opt.segments:
+            segs = list(opt.segments)
+            how = "given segments"
+        else:
+            path = opt.blocks if (opt.blocks and len(logs) == 1) else qseg.blocks_beside(Path(log.source))
+            if path is not None:
+                segs = qseg.load_blocks(path, log)
+                how = f"excitation blocks of {Path(path).name}"
+            elif qseg.sysid_segments(log):
+                segs = qseg.sysid_segments(log)
+                how = "ArduCopter SystemId chirps (SIDD)"
+            else:
+                segs = qseg.airborne_segments(log, params.pwm_idle_us)
+                how = "airborne time cut into 6 s pieces (no blocks file, no SystemId chirps)"
+        f, v = qseg.hold_out(segs, opt.hold_out_every)
+        notes.append(f"{Path(log.source).name}: {len(f)} fit and {len(v)} held-out segments from {how}")
+        fit += [(k, w) for w in qseg.split_windows(f, opt.window_s)]
+        val += [(k, w) for w in qseg.split_windows(v, opt.score_window_s)]
+    if not fit:
+        raise QuadrotorInputError("no fit segment: give --segments or a blocks file, or a log with airborne time")
+    if len(fit) > qseg.MAX_WINDOWS:
+        step = math.ceil(len(fit) / qseg.MAX_WINDOWS)
+        notes.append(f"{len(fit)} fit windows; every {step}th kept (at most {qseg.MAX_WINDOWS})")
+        fit = fit[::step]
+    return fit, val
+
+
+#: drag regression: airborne time is cut into pieces of this length [s] (held-out ones dropped), and contiguous
+#: kept pieces are joined into blocks of at most DRAG_BLOCK_S, the units of its bootstrap
+DRAG_PIECE_S, DRAG_BLOCK_S = 0.5, 4.0
+#: moving average [s] applied to velocity and specific force alike before the drag regression: white velocity
+#: noise in the regressor biases a least-squares slope towards zero by var(noise) / var(velocity) (errors in
+#: variables; 4 % for 0.03 m/s noise on a 0.15 m/s vertical velocity), and drag acts over seconds
+DRAG_SMOOTH_S = 0.25
+
+
+def _drag_windows(logs: Sequence[FlightLog], params: QuadrotorParams, fit_w: list[tuple[int, qseg.Segment]],
+                  val_w: list[tuple[int, qseg.Segment]]) -> list[tuple[int, qseg.Segment]]:
+    """Windows for the drag regression: all airborne time (drag wants velocity change, which the whole flight
+    has more of than the excitation blocks) except the held-out windows; the fit windows when the airborne time
+    cannot be told."""
+    out = []
+    for k, log in enumerate(logs):
+        try:
+            air = qseg.airborne_segments(log, params.pwm_idle_us, piece_s=DRAG_PIECE_S)
+        except qseg.SegmentError:
+            air = []
+        held = [w for i, w in val_w if i == k]
+        kept = [a for a in air if not any(a.t0_s < h.t1_s and h.t0_s < a.t1_s for h in held)]
+        run: list[qseg.Segment] = []
+        for a in kept:
+            if run and (a.t0_s > run[-1].t1_s + 1e-6 or a.t1_s - run[0].t0_s > DRAG_BLOCK_S + 1e-6):
+                out.append((k, qseg.Segment(run[0].t0_s, run[-1].t1_s, "drag")))
+                run = []
+            run.append(a)
+        if run:
+            out.append((k, qseg.Segment(run[0].t0_s, run[-1].t1_s, "drag")))
+    return out if len(out) >= 2 else list(fit_w)
+
+
+def _velocity_logged(log: FlightLog) -> bool:
+    return all(log.has(f"vel_{a}_m_s") for a in ("north", "east", "down"))
+
+
+def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorParams,
+                       opt: QuadrotorOptions | None = None) -> QuadrotorIdResult:
+    """Identify the quadrotor of ``logs`` (one vehicle); raises ``QuadrotorInputError``, ``LogError`` or
+    ``SegmentError`` before a solve, ``EstimationError`` when the solve itself fails."""
+    opt = opt or QuadrotorOptions()
+    bad = opt.problems()
+    if bad:
+        raise QuadrotorInputError(f"identify quadrotor options: {'; '.join(bad)}")
+    logs = [logs] if isinstance(logs, FlightLog) else list(logs)
+    if not logs:
+        raise QuadrotorInputError("no log given")
+    for log in logs:
+        check_quality(log, opt.force)
+        missing = [n for n in (*[f"motor_{k}_pwm_us" for k in range(1, N_MOTORS + 1)],
+                               *[OUTPUT_TO_LOG[o] for o in (*RATE_OUTPUTS, *FORCE_OUTPUTS)],
+                               "roll_rad", "pitch_rad", "yaw_rad") if not log.has(n)]
+        if missing:
+            raise LogError(f"{log.source}: identify quadrotor needs {', '.join(missing)}")
+    prior = airframe_inertia(init.mass_kg, init.arm_length_m, opt.motor_mass_kg, opt.battery_mass_kg, init.frame)
+    command_hz = min(command_rate_hz(log) for log in logs)
+    notes: list[str] = []
+    fit_w, val_w = _windows(logs, init, opt, notes)
+    velocity = all(_velocity_logged(log) for log in logs)
+    not_ident: dict[str, str] = {}
+    if not velocity:
+        not_ident.update({n: "the log has no velocity: drag acts on it" for n in DRAG_PARAMS})
+    if command_hz < MIN_COMMAND_HZ:
+        why = (f"motor commands logged at {command_hz:.0f} Hz, below {MIN_COMMAND_HZ:g} Hz: the rate loop changes "
+               "the motors many times between two logged commands, so the moments that drive the body rates "
+               "are unknown")
+        not_ident.update({n: why for n in RATE_PARAMS})
+        if velocity:
+            not_ident["kd_z_N_s_m"] = ("vertical drag needs the thrust at the log's rate, which slow motor "
+                                       "commands do not give")
+        result = QuadrotorIdResult(init, [], None, prior, [w for _, w in fit_w], [w for _, w in val_w], command_hz,
+                                   not_ident, notes=notes)
+        if velocity:
+            result.drag = drag_equation_error(logs, _drag_windows(logs, init, fit_w, val_w), init,
+                                              rate_hz=opt.rate_hz)
+            result.free = list(result.drag)
+            result.params = dataclasses.replace(init, **{n: d["value"] for n, d in result.drag.items()})
+        return result
+    rate = min(opt.rate_hz, command_hz)
+    drag: dict[str, dict[str, float]] = {}
+    fit_list = _drag_windows(logs, init, fit_w, val_w)
+    if velocity:
+        drag = drag_equation_error(logs, fit_list, init, rate_hz=opt.rate_hz)
+    start = dataclasses.replace(
+        init, Jx_kg_m2=prior.Jx_kg_m2, Jy_kg_m2=prior.Jy_kg_m2, Jz_kg_m2=prior.Jz_kg_m2,
+        tau_motor_s=init.tau_motor_s if init.tau_motor_s > BOUNDS["tau_motor_s"][0] else TAU_START_S,
+        **{n: d["value"] for n, d in drag.items()})
+    model = QuadrotorModel(start)
+    p = np.array(model.params.starts(), dtype=float)
+    outputs = [*RATE_OUTPUTS, "accel_body_z_m_s2"]
+    free = list(RATE_PARAMS)
+    data = []
+    for k, log in enumerate(logs):
+        data += manoeuvres(model, p, log, start, [w for i, w in fit_w if i == k], outputs, rate)
+    if len(data) < 2:
+        raise QuadrotorInputError(f"only {len(data)} fit window(s) with finite data at {rate:g} Hz")
+    oe = OutputErrorEstimator(model, p, free, outputs, bounds={n: BOUNDS[n] for n in free},
+                              estimate_states=list(RATE_OUTPUTS), estimate_biases=["accel_body_z_m_s2"],
+                              prior=prior.as_priors())
+    est = oe.estimate(data, max_iter=opt.max_iter, progress=opt.progress)
+    params = dataclasses.replace(start, **dict(zip(free, map(float, est.values[:len(free)]), strict=True)))
+    # the windows' initial motor thrusts follow the lag: rebuild them with the fitted time constant, refit warm
+    data = []
+    for k, log in enumerate(logs):
+        data += manoeuvres(model, p, log, params, [w for i, w in fit_w if i == k], outputs, rate)
+    est = oe.estimate(data, theta0=est.values[:len(free)], max_iter=opt.max_iter, progress=opt.progress)
+    params = dataclasses.replace(start, **dict(zip(free, map(float, est.values[:len(free)]), strict=True)))
+    if velocity:
+        try:
+            drag.update(drag_equation_error(logs, fit_list, params, thrust_of=MotorThrust(params).total,
+                                            rate_hz=opt.rate_hz))
+            params = dataclasses.replace(params, **{n: d["value"] for n, d in drag.items()})
+        except QuadrotorInputError as err:
+            notes.append(str(err))
+    result = QuadrotorIdResult(params, free + list(drag), est, prior, [w for _, w in fit_w], [w for _, w in val_w],
+                               command_hz, not_ident, drag=drag, notes=notes)
+    if not est.converged:
+        notes.append(f"not converged within {opt.max_iter} iterations: the estimates are the last accepted iterate")
+    result.ratios = _ratios(est, params)
+    try:
+        result.held_out = _score_held_out(oe, est, logs, params, val_w, outputs, rate, opt.score_window_s)
+    except (ValueError, EstimationError) as err:
+        result.failures.append(f"held-out scoring: {err}")
+    return result
+
+
+class MotorThrust:
+    """Per-motor thrust [N] of the model with ``params`` over a log: the thrust map of the logged PWMs (the
+    model's own ``commanded_thrust``) through the first-order motor lag, discretised exactly between command
+    samples."""
+
+    def __init__(self, params: QuadrotorParams) -> None:
+        import casadi as ca
+
+        m = QuadrotorModel(params)
+        u = m.inputs.sym("u")
+        self.params = params
+        self.fn = ca.Function("cmd", [u], [ca.vertcat(*m.commanded_thrust(u, np.array(m.params.starts(), float)))])
+
+    def history(self, log: FlightLog, t0_s: float, t1_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Command sample times in ``[t0 - lead, t1]`` and the lagged thrust there (n x 4)."""
+        tau = max(self.params.tau_motor_s, 1e-6)
+        ts = log.signal("motor_1_pwm_us").t_s
+        ts = ts[(ts >= t0_s - 6 * tau - 0.05) & (ts <= t1_s)]
+        if not len(ts):
+            ts = np.array([t0_s])
+        cmd = np.asarray(self.fn.map(len(ts))(_inputs(log, self.params, ts).T)).T.reshape(len(ts), N_MOTORS)
+        out = np.empty_like(cmd)
+        out[0] = cmd[0]
+        for i in range(1, len(ts)):
+            a = 1.0 - math.exp(-(ts[i] - ts[i - 1]) / tau)
+            out[i] = out[i - 1] + a * (cmd[i - 1] - out[i - 1])
+        return ts, out
+
+    def at(self, log: FlightLog, t_s: float) -> np.ndarray:
+        """Per-motor lagged thrust at ``t_s`` (the state a replay starting there begins with)."""
+        ts, out = self.history(log, t_s, t_s)
+        return np.array([np.interp(t_s, ts, out[:, k]) for k in range(N_MOTORS)])
+
+    def total(self, log: FlightLog, t: np.ndarray) -> np.ndarray:
+        ts, out = self.history(log, float(t[0]), float(t[-1]))
+        return np.interp(t, ts, out.sum(axis=1))
+
+
+def _ratios(est: Estimate, params: QuadrotorParams) -> list[Ratio]:
+    """The combinations the data determine: ``l/Jx``, ``l/Jy`` and ``(b/k)/Jz`` (delta method on the printed
+    covariance)."""
+    cov = est.covariance_printed()
+    idx = {n: i for i, n in enumerate(est.names[:est.n_global])}
+    out = []
+    for ax in ("x", "y"):
+        i = idx[f"J{ax}_kg_m2"]
+        j = est.values[i]
+        v = params.arm_length_m / j
+        out.append(Ratio(f"l/J{ax}", v, v * math.sqrt(cov[i, i]) / j, "1/(kg m)",
+                         f"arm moment effectiveness about {ax} (angular acceleration per newton of differential "
+                         "thrust)"))
+    ib, iz = idx["b_drag_N_m_s2"], idx["Jz_kg_m2"]
+    b, jz = est.values[ib], est.values[iz]
+    v = b / params.k_thrust_N_s2 / jz
+    g = np.array([1.0 / b, -1.0 / jz]) * v  # d ratio / d (b, Jz)
+    c = cov[np.ix_([ib, iz], [ib, iz])]
+    out.append(Ratio("(b/k)/Jz", v, float(math.sqrt(max(g @ c @ g, 0.0))), "1/(kg m)",
+                     "yaw angular acceleration per newton of thrust moved between the spin directions"))
+    return out
+
+
+def _score_held_out(oe: OutputErrorEstimator, est: Estimate, logs: Sequence[FlightLog], params: QuadrotorParams,
+                    val_w: list[tuple[int, qseg.Segment]], outputs: list[str], rate: float, window_s: float
+                    ) -> dict[str, dict[str, Any]]:
+    """Held-out windows replayed from the logged state (restarts every ``window_s``) with the identified values
+    and the sensors' mean fitted biases, scored against persistence (each window's first measurement held)
+    with the block-bootstrap skill interval of ``identification.common.metrics``."""
+    if not val_w:
+        return {}
+    model = oe.model
+    p = oe.p_nominal.copy()
+    ng = est.n_global
+    p[oe.i_free] = est.values[:ng]
+    data = []
+    for k, log in enumerate(logs):
+        data += manoeuvres(model, p, log, params, [w for i, w in val_w if i == k], outputs, rate)
+    if not data:
+        return {}
+    n_local = oe.n_local
+    local = est.values[ng:].reshape(-1, n_local)
+    bias = local[:, len(oe.i_x0):].mean(axis=0)
+    theta = np.concatenate([est.values[:ng], *[np.concatenate([m.x0[oe.i_x0], bias]) for m in data]])
+    ys, ms, holds, starts, n0 = [], [], [], [], 0
+    for j, m in enumerate(data):
+        sim, _, _ = oe.simulate(theta, m, j, sensitivities=False)
+        ys.append(m.y)
+        ms.append(sim)
+        holds.append(np.repeat(m.y[:1], len(m.y), axis=0))
+        starts.append(n0)
+        n0 += len(m.y)
+    y, mm, hh = np.vstack(ys), np.vstack(ms), np.vstack(holds)
+    out = {}
+    for i, name in enumerate(outputs):
+        s = skill_interval(y[:, i], mm[:, i], hh[:, i], np.array(starts)).as_dict()
+        out[name] = {**s, "window_s": window_s, "windows": len(data),
+                     "rmse_model": float(np.sqrt(np.mean((y[:, i] - mm[:, i]) ** 2))),
+                     "rmse_persistence": float(np.sqrt(np.mean((y[:, i] - hh[:, i]) ** 2)))}
+    return out
+
+
+def _body_velocity(log: FlightLog, t: np.ndarray) -> np.ndarray:
+    """Logged NED velocity rotated into the body by the logged attitude (len(t) x 3) [m/s]."""
+    rows = euler_to_dcm_rows(*(log.signal(n).resample(t) for n in ("roll_rad", "pitch_rad", "yaw_rad")), NP)
+    v_ned = [log.signal(f"vel_{a}_m_s").resample(t) for a in ("north", "east", "down")]
+    return np.column_stack(transpose_apply(rows, v_ned))
+
+
+def drag_equation_error(logs: Sequence[FlightLog], windows: Sequence[tuple[int, qseg.Segment]],
+                        params: QuadrotorParams, thrust_of: Any = None, rate_hz: float = 50.0
+                        ) -> dict[str, dict[str, float]]:
+    """Drag per axis by least squares of ``a_b = -kd v_b / m + c_log`` over every fit window: one constant per
+    log and axis (the accelerometer's bias is constant over a flight), ``v_b`` the logged NED velocity rotated by
+    the logged attitude. Along z the model's thrust is taken out first (``thrust_of(log, t) -> N``, the fitted
+    model's total thrust; None: z is left out). Both sides are smoothed alike first (:data:`DRAG_SMOOTH_S`).
+    1-sigma from a bootstrap over windows (400 resamples, seeded)."""
+    rows: list[tuple[int, np.ndarray, np.ndarray]] = []
+    for k, w in windows:
+        log = logs[k]
+        t = np.arange(w.t0_s, w.t1_s, 1.0 / rate_hz)
+        if len(t) < 3:
+            continue
+        v_b = _body_velocity(log, t)
+        acc = np.column_stack([log.signal(f"accel_body_{a}_m_s2").resample(t) for a in "xyz"])
+        if thrust_of is not None:
+            acc[:, 2] += thrust_of(log, t) / params.mass_kg
+        else:
+            acc[:, 2] = np.nan
+        n = max(round(DRAG_SMOOTH_S * rate_hz), 1)
+        if len(t) > 2 * n:  # the same moving average on both sides keeps the relation linear
+            kernel = np.ones(n) / n
+            v_b = np.column_stack([np.convolve(v_b[:, i], kernel, "valid") for i in range(3)])
+            acc = np.column_stack([np.convolve(acc[:, i], kernel, "valid") for i in range(3)])
+        rows.append((k, v_b, acc))
+    if len(rows) < 2:
+        raise QuadrotorInputError("drag: fewer than two windows with velocity and specific force")
+    rng = np.random.default_rng(0)
+    out = {}
+    for a, name in enumerate(DRAG_PARAMS):
+        if thrust_of is None and a == 2:
+            continue
+
+        def slope(sel: Sequence[int], a: int = a) -> float:
+            xs, ys = [], []
+            for k in {rows[i][0] for i in sel}:  # one constant per log: centre each log's samples
+                x = np.concatenate([rows[i][1][:, a] for i in sel if rows[i][0] == k])
+                y = np.concatenate([rows[i][2][:, a] for i in sel if rows[i][0] == k])
+                ok = np.isfinite(x) & np.isfinite(y)
+                xs.append(x[ok] - x[ok].mean())
+                ys.append(y[ok] - y[ok].mean())
+            x, y = np.concatenate(xs), np.concatenate(ys)
+            return float(-(x @ y) / max(float(x @ x), 1e-12)) * params.mass_kg
+
+        value = slope(range(len(rows)))
+        boots = [slope(rng.integers(0, len(rows), len(rows))) for _ in range(400)]
+        out[name] = {"value": value, "std": float(np.std(boots))}
+    return out
+
+
+def parameter_file(result: QuadrotorIdResult, base: dict[str, Any] | None, log_names: Sequence[str]
+                   ) -> dict[str, Any]:
+    """The parameter file: ``quadrotor`` with the estimates written in, ``uncertainty`` with their covariance
+    (beside a thrust map's, when the start file carried one) and ``_identification`` saying how."""
+    est = result.estimate
+    names, mean, cov = [], [], np.zeros((0, 0))
+    if est is not None:
+        n = est.n_global
+        names, mean, cov = list(est.names[:n]), [float(v) for v in est.values[:n]], est.covariance_printed()
+    if result.drag:
+        dn = list(result.drag)
+        c = np.zeros((len(names) + len(dn),) * 2)
+        c[:len(names), :len(names)] = cov
+        c[len(names):, len(names):] = np.diag([result.drag[k]["std"] ** 2 for k in dn])
+        names, mean, cov = names + dn, mean + [result.drag[k]["value"] for k in dn], c
+    unc = (base or {}).get("uncertainty")
+    if isinstance(unc, dict) and unc.get("names"):
+        keep = [i for i, k in enumerate(unc["names"]) if k not in names]
+        old = np.asarray(unc["covariance"], float)[np.ix_(keep, keep)]
+        big = np.zeros((len(keep) + len(names),) * 2)
+        big[:len(keep), :len(keep)] = old
+        big[len(keep):, len(keep):] = cov
+        names = [unc["names"][i] for i in keep] + names
+        mean = [float(unc["mean"][i]) for i in keep] + mean
+        cov = big
+    out: dict[str, Any] = {"quadrotor": result.params.to_dict(), "_identification": {
+        "method": "output error (identification.estimation.oem) on body rates and specific force",
+        "logs": list(log_names), "free": result.free, "not_identifiable": result.not_identifiable,
+        "estimates": result.estimates(), "ratios": {r.name: r.as_dict() for r in result.ratios},
+        "inertia_prior": dataclasses.asdict(result.prior)}}
+    if names:
+        out["uncertainty"] = {"names": names, "mean": mean, "covariance": np.asarray(cov).tolist(),
+                              "note": "identify quadrotor: printed covariance of its estimates (and the thrust "
+                                      "map's, from the start file)"}
+    return out
+
+
+def write_results(result: QuadrotorIdResult, out: Path, metrics: Path, base: dict[str, Any] | None,
+                  log_names: Sequence[str]) -> None:
+    """Parameter file and metrics JSON."""
+    from identification.common.jsonio import write_json
+
+    write_json(out, parameter_file(result, base, log_names))
+    write_json(metrics, {"logs": list(log_names), **result.as_dict()})
