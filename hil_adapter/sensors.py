@@ -402,7 +402,7 @@ Vec3 = tuple[float, float, float]
 
 #: the FMU outputs ``interval_imu`` reads at each end of the interval, in one C call
 _IMU_ENDS = operator.itemgetter("quat_w", "quat_x", "quat_y", "quat_z", "vel_north_m_s", "vel_east_m_s",
-                                "vel_down_m_s", GRAVITY_OUTPUT)
+                                "vel_down_m_s")
 
 
 def interval_imu(before: Mapping[str, float], after: Mapping[str, float], dt_s: float) -> tuple[Vec3, Vec3]:
@@ -414,12 +414,11 @@ def interval_imu(before: Mapping[str, float], after: Mapping[str, float], dt_s: 
     the outputs at the end of the interval (the FMU's ``accel_body_*``, an instant) miss. Gravity: the FMU's
     ``gravity_m_s2`` (mean of both ends), else WGS-84 normal gravity at the end position. Plain floats: it runs
     once per lockstep step."""
-    try:
-        w0, x0, y0, z0, vn0, ve0, vd0, g0 = _IMU_ENDS(before)
-        w1, x1, y1, z1, vn1, ve1, vd1, g1 = _IMU_ENDS(after)
-    except KeyError:  # an FMU without the gravity output
-        g = float(normal_gravity(math.radians(after["lat_deg"]), after["height_m"]))
-        return interval_imu({**before, GRAVITY_OUTPUT: g}, {**after, GRAVITY_OUTPUT: g}, dt_s)
+    w0, x0, y0, z0, vn0, ve0, vd0 = _IMU_ENDS(before)
+    w1, x1, y1, z1, vn1, ve1, vd1 = _IMU_ENDS(after)
+    g0, g1 = before.get(GRAVITY_OUTPUT), after.get(GRAVITY_OUTPUT)
+    if g0 is None or g1 is None:  # an FMU without the gravity output: the same formula at the end position
+        g0 = g1 = normal_gravity(math.radians(after["lat_deg"]), float(after["height_m"]))
     # q0* q1: the rotation over the interval in the body frame (q and -q are one attitude: take the short way)
     dw = w0 * w1 + x0 * x1 + y0 * y1 + z0 * z1
     dx = w0 * x1 - x0 * w1 - y0 * z1 + z0 * y1
