@@ -280,12 +280,25 @@ def _source_segments(src: AeroSource, model: FixedWingModel, opt: AeroOptions, n
     log = src.log
     if src.segments:
         return list(src.segments), list(src.validate_segments or [])
+    name = Path(log.source).name
     timeline = src.timeline or aero_segments.timeline_beside(Path(log.source))
     if timeline is not None:
-        tl = aero_segments.load_timeline_blocks(timeline)
-        fit, val, extra = aero_segments.timeline_segments(tl, log.duration_s)
-        notes += [*extra, f"{Path(log.source).name}: {len(fit)} fit and {len(val)} held-out segments from the "
+        tl, extra = aero_segments.planned_on_log(aero_segments.load_timeline_blocks(timeline), log)
+        fit, val, more = aero_segments.timeline_segments(tl, log.duration_s)
+        notes += [*extra, *more, f"{name}: {len(fit)} fit and {len(val)} held-out segments from the "
                   f"timeline {timeline.name}"]
+        return fit, list(src.validate_segments or val)
+    flown = aero_segments.flown_blocks(log)
+    if flown is not None:
+        tl, blocks = flown
+        fit, val, more = aero_segments.timeline_segments(tl, log.duration_s)
+        role = {**{(s.t0_s, s.t1_s): "fit" for s in fit}, **{(s.t0_s, s.t1_s): "held out" for s in val}}
+        notes += [*more, f"{name}: {len(blocks)} blocks found in the log ({blocks[0].source}); "
+                  f"{len(fit)} fit, {len(val)} held out"]
+        for b, tb in zip(blocks, tl.blocks, strict=True):
+            seg = aero.Segment(round(max(tb.start_s, 0.0), 3),
+                               round(min(tb.end_s + aero_segments.TAIL_S, log.duration_s), 3))
+            notes.append(f"  {b.line()} -> {role.get((seg.t0_s, seg.t1_s), 'skipped')} {seg}")
         return fit, list(src.validate_segments or val)
     t = np.arange(0.0, log.duration_s, 0.04)
     surfaces = [n for n in model.inputs.index if n != "throttle"]

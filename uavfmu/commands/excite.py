@@ -2,13 +2,16 @@
 
 ``uavfmu excite --out flights/exc [--params plane.json] [--airspeed 25] [--inputs 3211,doublet,multisine]
 [--check]`` trims and linearises the model, prints its modes and the planned blocks, and writes
-``exc.lua`` (ArduPilot script: switch-triggered, attitude/airspeed/height limits abort to the recovery mode),
+``exc.lua`` (ArduPilot script: started by an ``RCx_OPTION`` Scripting switch only when flying; attitude, airspeed
+and height limits abort to the recovery mode; ``EXCT`` marks in the log for ``identify aero``),
 ``exc.rc_override.json``/``.csv`` (RC-override steps for a ground-station script, ArduPilot or PX4),
 ``exc.timeline.json`` (blocks for ``identify aero``) and ``exc.plan.json``. ``--check`` flies the plan in closed
 loop on the model (PD attitude hold, plan on top) and prints the condition number and largest correlation
-of the lateral and longitudinal derivative sets. The work is ``identification.excite.workflow``.
+of the lateral and longitudinal derivative sets, and dry-runs the Lua script on stand-in ArduPilot bindings
+(trigger refusals, marks, abort). The work is ``identification.excite.workflow``.
 
-Exit status: 0 done, 2 bad input, 3 ``--check`` found a set not well conditioned (files still written).
+Exit status: 0 done, 2 bad input, 3 ``--check`` found a set not well conditioned or a failed dry run (files
+still written).
 """
 
 from __future__ import annotations
@@ -42,7 +45,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-frequency", type=float, default=3.0, help="highest planned frequency [Hz] (3)")
     p.add_argument("--mode", default="MANUAL", help="ArduPlane mode the inputs are flown in (MANUAL)")
     p.add_argument("--recovery-mode", default="FBWA", help="ArduPlane mode between blocks and on abort (FBWA)")
-    p.add_argument("--trigger-channel", type=int, default=8, help="RC channel whose switch starts the script (8)")
+    p.add_argument("--trigger-option", type=int, default=300,
+                   help="RCx_OPTION of the trigger switch, 300..307 = Scripting1..8 (300)")
     p.add_argument("--min-height", type=float, default=40.0, help="abort below this height above home [m] (40)")
     p.add_argument("--rc-rate", type=float, default=20.0, help="RC-override row rate [Hz] (20)")
     p.add_argument("--mapping", type=Path, help="PWM mapping TOML (default: ArduPlane SERVO1-4, +/-0.35 rad)")
@@ -60,7 +64,7 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
                         tail_s=args.tail, recovery_s=args.recovery, multisine_period_s=args.multisine_period,
                         max_frequency_hz=args.max_frequency)
     out = OutputOptions(excite_mode=args.mode, recovery_mode=args.recovery_mode,
-                        trigger_channel=args.trigger_channel, min_height_m=args.min_height, rc_rate_hz=args.rc_rate)
+                        trigger_option=args.trigger_option, min_height_m=args.min_height, rc_rate_hz=args.rc_rate)
     return opt, out
 
 
@@ -88,4 +92,4 @@ def run(args: argparse.Namespace) -> int:
         paths += write_plots(result, args.plots, command)
     print(result.summary())
     print("wrote " + ", ".join(str(p) for p in paths))
-    return EXIT_ILL_CONDITIONED if result.well_conditioned is False else EXIT_OK
+    return EXIT_ILL_CONDITIONED if result.check_passed is False else EXIT_OK
