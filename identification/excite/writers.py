@@ -28,7 +28,7 @@ import numpy as np
 
 from fmu_models.config import bounded, range_problems
 from fmu_models.signals.pwm_mapping import PwmMapping, default_mapping
-from identification.excite.design import SURFACES, Block, ExcitationPlan
+from identification.excite.design import INPUT_INDEX, SURFACES, Block, ExcitationPlan
 from identification.logs.timeline import Timeline
 
 #: ArduPilot SERVOn_FUNCTION numbers (Plane): aileron, elevator, rudder, throttle
@@ -36,8 +36,10 @@ SERVO_FUNCTION = {"aileron": 4, "elevator": 19, "rudder": 21, "throttle": 70}
 #: ArduPlane mode numbers (Plane/mode.h): the ones a plan may use
 ARDUPLANE_MODES = {"MANUAL": 0, "STABILIZE": 2, "ACRO": 4, "FBWA": 5, "FBWB": 6, "CRUISE": 7}
 #: modes a ground-station script sets per autopilot (pymavlink mode names)
-AUTOPILOT_MODES = {"ardupilot": {"excite": "MANUAL", "recover": "FBWA"},
-                   "px4": {"excite": "MANUAL", "recover": "STABILIZED"}}
+AUTOPILOT_MODES = {"ardupilot": {"excite": "MANUAL", "hold": "FBWA", "recover": "FBWA"},
+                   "px4": {"excite": "MANUAL", "hold": "STABILIZED", "recover": "STABILIZED"}}
+#: block axes flown in the recovery (attitude-holding) mode instead of the excitation mode
+HOLD_AXES = ("throttle",)
 DEFAULT_RC_CHANNELS = {"aileron": 1, "elevator": 2, "throttle": 3, "rudder": 4}
 #: ArduPilot's RC auxiliary functions meant for scripts (RCx_OPTION 300..307 "Scripting1".."Scripting8")
 SCRIPTING_OPTIONS = tuple(range(300, 308))
@@ -115,11 +117,13 @@ def timeline_dict(plan: ExcitationPlan, out: OutputOptions = OutputOptions()) ->
         blocks.append({
             "index": b.index, "axis": b.axis, "axes": list(b.signals) if b.axis == "multi" else [],
             "channel": out.rc_channels.get(b.axis) if b.axis != "multi" else None,
-            "mode": out.excite_mode, "recovery_mode": out.recovery_mode, "input": b.input,
+            "mode": out.recovery_mode if b.axis in HOLD_AXES else out.excite_mode,
+            "recovery_mode": out.recovery_mode, "input": b.input,
             "pulse_unit_s": b.pulse_unit_s, "start_s": round(b.start_s, 4),
             "excitation_start_s": round(b.excitation_start_s, 4), "end_s": round(b.end_s, 4),
             "recovery_end_s": round(b.end_s + plan.options.recovery_s, 4),
-            "amplitude_rad": amp,
+            "amplitude_rad": {k: v for k, v in amp.items() if k != "throttle"},
+            "amplitude_throttle": amp.get("throttle"),
             "amplitude_servo_us": {s: abs(servo_offset_us(mapping, s, a)) for s, a in amp.items()},
             "predicted_linear_peak_deg": b.predicted_peak_deg,
         })
@@ -147,8 +151,12 @@ def rc_override(plan: ExcitationPlan, out: OutputOptions = OutputOptions()) -> d
         for s in SURFACES:
             servo = servo_offset_us(mapping, s, du[k, SURFACES.index(s)])
             offs[str(out.rc_channels[s])] = round(servo * out.rc_half_range_us / servo_half_range_us(mapping, s), 1)
-        offs[str(out.rc_channels["throttle"])] = 0.0
-        rows.append({"t_s": float(tk), "phase": "excite" if blk else "recover",
+        thr = servo_offset_us(mapping, "throttle", du[k, INPUT_INDEX["throttle"]])
+        thr_ch = next(c for c in mapping.channels if c.target == "throttle")  # one-sided: full stick = full range
+        offs[str(out.rc_channels["throttle"])] = round(thr * 2 * out.rc_half_range_us
+                                                       / (thr_ch.max_us - thr_ch.min_us), 1)
+        phase = "recover" if blk is None else "hold" if blk.axis in HOLD_AXES else "excite"
+        rows.append({"t_s": float(tk), "phase": phase,
                      "block": blk.index if blk else 0, "offset_us": offs})
     lim = limits(plan, out)
     warnings = []
@@ -190,7 +198,7 @@ def _lua_block(b: Block, mapping: PwmMapping) -> str:
             parts.append(f"{s} = {{duration_ms = {1000 * sig.duration_s:.0f}, sines = {{{sines}}}}}")
     return (f"  {{index = {b.index}, start_ms = {1000 * b.start_s:.0f}, excite_ms = {1000 * b.excitation_start_s:.0f}, "
             f"end_ms = {1000 * b.end_s:.0f}, input = \"{b.input}\", axis = \"{b.axis}\", "
-            f"axis_code = {AXIS_CODE[b.axis]},\n"
+            f"axis_code = {AXIS_CODE[b.axis]}, hold = {'true' if b.axis in HOLD_AXES else 'false'},\n"
             f"   signals = {{{', '.join(parts)}}}}},")
 
 
@@ -216,9 +224,10 @@ LUA_TEMPLATE = """\
 -- The script refuses a channel that is also FLTMODE_CH or a stick channel (RCMAP_*), needs the switch seen low
 -- after loading, and starts only when flying: armed, airspeed >= {vmin:.1f} m/s and height above home
 -- >= {hmin:.1f} m; otherwise it says why and waits for the switch to go low and high again.
--- For each block: the servo outputs are captured as trim, the mode becomes {excite_name}, the surfaces are
--- overridden (SRV_Channels:set_output_pwm_chan_timeout) with trim + the planned offsets; at the block's end the
--- mode becomes {recover_name} until the next block. Roll beyond {roll:.1f} deg, pitch outside
+-- For each block: the servo outputs are captured as trim, the mode becomes {excite_name} ({recover_name} for a
+-- throttle block: attitude held while the throttle moves), the surfaces and the throttle are overridden
+-- (SRV_Channels:set_output_pwm_chan_timeout) with trim + the planned offsets; at the block's end the mode
+-- becomes {recover_name} until the next block. Roll beyond {roll:.1f} deg, pitch outside
 -- [{pmin:.1f}, {pmax:.1f}] deg, airspeed below {vmin:.1f} m/s, height below {hmin:.1f} m, or the switch leaving
 -- high abort: overrides stop and the mode becomes {recover_name}. Times in ms from the trigger.
 -- Log: EXCT (Blk, Ph, Ax, Tms, Pms) = block, phase (0 start, 1 hand-over, 2 input, 3 recovery, 4 done,
@@ -383,7 +392,7 @@ local function run(t_ms)
     end
     if b ~= nil then
       capture_trim()
-      vehicle:set_mode(EXCITE_MODE)
+      vehicle:set_mode(b.hold and RECOVERY_MODE or EXCITE_MODE)
       mark(b.index, 1, b.axis_code, t_ms, b.start_ms)
       say(6, string.format("block %d %s %s", b.index, b.input, b.axis))
     end

@@ -43,6 +43,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--recovery", type=float, default=10.0, help="recovery between blocks [s] (10)")
     p.add_argument("--multisine-period", type=float, default=10.0, help="multisine period T [s] (10)")
     p.add_argument("--max-frequency", type=float, default=3.0, help="highest planned frequency [Hz] (3)")
+    p.add_argument("--throttle-blocks", type=int, default=2,
+                   help="throttle doublets at attitude hold, alternating sign; 0: none (2)")
+    p.add_argument("--throttle-amplitude", type=float, default=0.2, help="throttle doublet amplitude, fraction (0.2)")
+    p.add_argument("--throttle-pulse", type=float, default=2.0,
+                   help="throttle doublet time unit [s]; 0: from the phugoid (2)")
     p.add_argument("--mode", default="MANUAL", help="ArduPlane mode the inputs are flown in (MANUAL)")
     p.add_argument("--recovery-mode", default="FBWA", help="ArduPlane mode between blocks and on abort (FBWA)")
     p.add_argument("--trigger-option", type=int, default=300,
@@ -62,7 +67,8 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
                         roll_limit_deg=args.roll_limit, pitch_limit_deg=args.pitch_limit,
                         surface_limit_deg=args.surface_limit, rate_hz=args.rate, settle_s=args.settle,
                         tail_s=args.tail, recovery_s=args.recovery, multisine_period_s=args.multisine_period,
-                        max_frequency_hz=args.max_frequency)
+                        max_frequency_hz=args.max_frequency, throttle_blocks=args.throttle_blocks,
+                        throttle_amplitude=args.throttle_amplitude, throttle_pulse_s=args.throttle_pulse)
     out = OutputOptions(excite_mode=args.mode, recovery_mode=args.recovery_mode,
                         trigger_option=args.trigger_option, min_height_m=args.min_height, rc_rate_hz=args.rc_rate)
     return opt, out

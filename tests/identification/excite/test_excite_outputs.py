@@ -38,7 +38,7 @@ def test_files_are_written_and_the_timeline_reads_back(result, tmp_path: Path) -
     for got, b in zip(tl.blocks, result.plan.blocks, strict=True):
         assert (got.axis, got.start_s, got.excitation_start_s, got.end_s) == (
             b.axis, pytest.approx(b.start_s), pytest.approx(b.excitation_start_s), pytest.approx(b.end_s))
-    multi = tl.blocks[-1]
+    multi = next(b for b in tl.blocks if b.axis == "multi")
     assert multi.axis == "multi" and set(multi.excited_axes) == {"aileron", "elevator", "rudder"}
     assert {b.index for b in tl.blocks_for("rudder")} == {b.index for b in result.plan.blocks if "rudder" in b.signals}
 
@@ -65,18 +65,22 @@ def test_rc_override_rows_carry_the_plan(result) -> None:  # type: ignore[no-unt
     mapping = default_mapping("fixed_wing")
     for r in rows:
         blk = plan.active_block(r["t_s"])
-        assert r["phase"] == ("excite" if blk else "recover") and r["block"] == (blk.index if blk else 0)
+        want_phase = "recover" if blk is None else "hold" if blk.axis == "throttle" else "excite"
+        assert r["phase"] == want_phase and r["block"] == (blk.index if blk else 0)
         du = plan.deflection(np.array([r["t_s"]]))[0]
         for surface, k in (("aileron", 0), ("elevator", 1), ("rudder", 2)):
             want = servo_offset_us(mapping, surface, du[k]) * 500.0 / 400.0  # full stick = full servo throw
             assert r["offset_us"][str(rc["channels"][surface])] == pytest.approx(want, abs=0.06)
-        assert r["offset_us"]["3"] == 0.0  # throttle held where it was
+        thr = servo_offset_us(mapping, "throttle", du[3]) * 1000.0 / 1000.0  # one-sided: full stick = full range
+        assert r["offset_us"]["3"] == pytest.approx(thr, abs=0.06)  # zero outside the throttle blocks
     # inside the first 3-2-1-1 the aileron stick really moves by the planned amount
     b = plan.blocks[0]
     inside = [r for r in rows if b.excitation_start_s <= r["t_s"] < b.excitation_start_s + 0.3]
     amp_us = servo_offset_us(mapping, "aileron", b.signals["aileron"].peak_rad()) * 500 / 400
     assert inside and all(r["offset_us"]["1"] == pytest.approx(amp_us, abs=0.06) for r in inside)
-    assert rc["modes"]["ardupilot"] == {"excite": "MANUAL", "recover": "FBWA"}
+    assert rc["modes"]["ardupilot"] == {"excite": "MANUAL", "hold": "FBWA", "recover": "FBWA"}
+    thr_rows = [r for r in rows if r["phase"] == "hold"]
+    assert thr_rows and max(abs(r["offset_us"]["3"]) for r in thr_rows) > 50.0  # the throttle really moves
     assert rc["modes"]["px4"]["recover"] == "STABILIZED"
     lim = rc["limits"]
     assert lim["roll_deg"] == OPT.roll_limit_deg and lim["min_airspeed_m_s"] == pytest.approx(0.7 * 25.0, rel=1e-3)
@@ -119,7 +123,7 @@ def test_dry_run_trigger_marks_and_abort(result) -> None:  # type: ignore[no-unt
     assert [(m.block, m.phase, m.planned_ms) for m in run.marks] == expected_marks(result.plan)
     delays = [m.since_trigger_ms - m.planned_ms for m in run.marks]
     assert min(delays) >= 0 and max(delays) <= 20 + 8
-    assert {m.axis for m in run.marks if m.phase == 1} == {0, 1, 2, 4}  # aileron, elevator, rudder, multi
+    assert {m.axis for m in run.marks if m.phase == 1} == {0, 1, 2, 3, 4}  # aileron .. throttle, multi
 
 
 def test_dry_run_catches_a_mark_lost_to_a_late_tick(result) -> None:  # type: ignore[no-untyped-def]
@@ -168,12 +172,17 @@ def test_lua_outputs_are_the_captured_trim_plus_the_planned_offsets(result) -> N
     out = ap.outputs
     assert out[0] == round(want)  # aileron = captured trim + planned offset
     assert out[1] == 1520 and out[3] == 1490 and out[2] == 1600  # others held
-    m = plan.blocks[-1]  # the multisine block: the Lua sum of cosines equals the planned signal
+    m = next(b for b in plan.blocks if b.axis == "multi")  # the Lua sum of cosines equals the planned multisine
     for t in (0.37, 2.11, 5.5):
         ap.tick(2000 + 1000 * (m.excitation_start_s + t))
         du = m.deflection(np.array([m.excitation_start_s + t]))[0]
         assert ap.outputs[1] == round(1520 + servo_offset_us(mapping, "elevator", du[1]))
         assert ap.outputs[3] == round(1490 + servo_offset_us(mapping, "rudder", du[2]))
+    th = next(b for b in plan.blocks if b.axis == "throttle")  # throttle doublet at attitude hold (FBWA)
+    ap.tick(2000 + 1000 * th.start_s + 1)
+    ap.tick(2000 + 1000 * (th.excitation_start_s + 0.5))
+    du = th.deflection(np.array([th.excitation_start_s + 0.5]))[0]
+    assert ap.mode == 5 and du[3] != 0 and ap.outputs[2] == round(1600 + servo_offset_us(mapping, "throttle", du[3]))
 
 
 def test_lua_aborts_when_the_switch_leaves_high_and_on_low_airspeed(result) -> None:  # type: ignore[no-untyped-def]
