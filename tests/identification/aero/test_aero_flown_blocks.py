@@ -2,8 +2,9 @@
 on the stand-in ArduPilot bindings while the model flies the plan in closed loop, the script's EXCT marks and the
 flight written as one DataFlash log (starting 31.365 s after boot, as the shared SITL log does), then
 ``identify_aero`` with no timeline: the blocks come from the marks, on the log's time axis, and the derivatives
-come back. Also the other source: the MANUAL mode spans of the shared SITL excitation log, against its
-hand-made timeline."""
+come back. With the plan's throttle doublets, drag and static thrust come back and held-out airspeed beats
+persistence (without them, not). Also the other source: the MANUAL mode spans of the shared SITL excitation
+log, against its hand-made timeline."""
 
 from __future__ import annotations
 
@@ -43,19 +44,16 @@ FREE = ["C_ell_p", "C_ell_delta_a", "C_n_r", "C_n_delta_r"]
 LOGGED_EVERY = {"RCOU": 1, "ATT": 1}
 
 
-@pytest.fixture(scope="module")
-def flown(tmp_path_factory):  # type: ignore[no-untyped-def]
-    plan = plan_excitation(None, ExciteOptions(settle_s=1.0, tail_s=2.0, recovery_s=2.0, inputs=("3211", "doublet"),
-                                               surfaces=("aileron", "rudder")))
-    truth = FixedWingParams.from_dict({**FixedWingParams().to_dict(),
-                                       **{k: getattr(FixedWingParams(), k) * f for k, f in TRUTH.items()}})
+def fly_and_log(plan, truth: FixedWingParams, path):  # type: ignore[no-untyped-def]
+    """Fly ``plan`` on the model with ``truth`` in closed loop, the Lua script alongside on the stand-in bindings
+    (switch high at LEAD_S, ticks every 20 ms, attitude from the flight), and write flight and marks as one
+    DataFlash log; returns (marks, the trigger's time on the log's axis [s])."""
     p = np.array(FixedWingModel(truth).params.starts())
     late = dataclasses.replace(plan, blocks=[dataclasses.replace(
         b, start_s=b.start_s + LEAD_S, excitation_start_s=b.excitation_start_s + LEAD_S, end_s=b.end_s + LEAD_S)
         for b in plan.blocks])
     flight = fly_closed_loop(late, p=p)  # trim until LEAD_S, then the plan
     names = flight.output_names
-    # the script flies along: switch high at LEAD_S, ticks every 20 ms, attitude from the flight
     ap = FakeArduPlane(lua_script(plan, OutputOptions()), {f"RC{SWITCH_CHANNEL}_OPTION": 300})
     ap.set(armed=True, airspeed=25.0, height=100.0, switch_us=LOW_US)
     for k, t in enumerate(flight.t_s):
@@ -71,9 +69,25 @@ def flown(tmp_path_factory):  # type: ignore[no-untyped-def]
     exct = (np.array([m.t_ms / 1000 for m in marks]),
             {"Blk": [m.block for m in marks], "Ph": [m.phase for m in marks], "Ax": [m.axis for m in marks],
              "Tms": [m.since_trigger_ms for m in marks], "Pms": [m.planned_ms for m in marks]})
-    path = write_log(tmp_path_factory.mktemp("flown") / "flight.bin", rec, noise=True, seed=4, boot_s=BOOT_S,
-                     extra={"EXCT": exct}, layouts=[EXCT], decimation=LOGGED_EVERY)
-    return plan, truth, marks, path, LEAD_S - rec.t_s[0]  # the trigger's time on the log's axis
+    write_log(path, rec, noise=True, seed=4, boot_s=BOOT_S, extra={"EXCT": exct}, layouts=[EXCT],
+              decimation=LOGGED_EVERY)
+    return marks, LEAD_S - rec.t_s[0]
+
+
+def _truth(factors: dict[str, float], values: dict[str, float] | None = None) -> FixedWingParams:
+    base = FixedWingParams()
+    return FixedWingParams.from_dict({**base.to_dict(), **{k: getattr(base, k) * f for k, f in factors.items()},
+                                      **(values or {})})
+
+
+@pytest.fixture(scope="module")
+def flown(tmp_path_factory):  # type: ignore[no-untyped-def]
+    plan = plan_excitation(None, ExciteOptions(settle_s=1.0, tail_s=2.0, recovery_s=2.0, inputs=("3211", "doublet"),
+                                               surfaces=("aileron", "rudder")))
+    truth = _truth(TRUTH)
+    path = tmp_path_factory.mktemp("flown") / "flight.bin"
+    marks, t_trigger = fly_and_log(plan, truth, path)
+    return plan, truth, marks, path, t_trigger
 
 
 def test_marks_are_read_on_the_log_time_axis(flown) -> None:  # type: ignore[no-untyped-def]
@@ -123,3 +137,44 @@ def test_mode_spans_of_the_shared_sitl_log_match_its_timeline() -> None:
         assert got.end_s == pytest.approx(want.end_s - t0, abs=0.05)
         assert got.excitation_start_s == pytest.approx(want.excitation_start_s - t0, abs=0.05)
     assert json.loads(shared_data("fixed_wing", "arduplane_sitl_fmu_excitation.timeline.json").read_text())
+
+
+#: the speed truth: parasitic drag and static thrust away from the Aerosonde start values (0 and 0.0936)
+SPEED_TRUTH = {"C_D_p": 0.02, "C_T0": 0.085}
+SPEED_FREE = ["C_m_alpha", "C_m_q", "C_m_delta_e", "C_D_p", "C_T0"]
+
+
+@pytest.mark.parametrize("throttle_blocks", [2, 0])
+def test_held_out_airspeed_with_and_without_the_throttle_blocks(throttle_blocks, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    plan = plan_excitation(None, ExciteOptions(settle_s=1.0, tail_s=3.0, recovery_s=2.0, inputs=("3211", "doublet"),
+                                               surfaces=("elevator",), throttle_blocks=throttle_blocks))
+    truth = _truth({}, SPEED_TRUTH)
+    fly_and_log(plan, truth, tmp_path / "speed.bin")
+    log = read_log(tmp_path / "speed.bin")
+    res = identify_aero(log, PwmMapping.from_ardupilot(log.params), FixedWingParams(),
+                        AeroOptions(free=SPEED_FREE, max_delay_s=0.0, equation_error=False, priors="none"))
+    est = res.estimate
+    got = {n: est.values[est.names.index(n)] for n in SPEED_TRUTH}
+    sky = res.baselines["airspeed_m_s"]["skill"]["persistence"]
+    print(f"\nthrottle blocks {throttle_blocks}: {got} vs {SPEED_TRUTH}; held-out airspeed {sky['outcome']} "
+          f"(skill {sky['skill']:+.2f} [{sky['skill_lo']:+.2f}, {sky['skill_hi']:+.2f}])")
+    if throttle_blocks:  # drag and thrust come back; airspeed on the held-out throttle block beats persistence
+        assert got["C_D_p"] == pytest.approx(SPEED_TRUTH["C_D_p"], rel=0.1)
+        assert got["C_T0"] == pytest.approx(SPEED_TRUTH["C_T0"], rel=0.05)
+        assert sky["outcome"] == "win" and sky["skill_lo"] > 0.5
+    else:  # negative control: elevator blocks alone leave drag and thrust apart from the truth, airspeed barely moves
+        assert abs(got["C_D_p"] / SPEED_TRUTH["C_D_p"] - 1) > 0.5
+        assert sky["skill_hi"] < 0.5
+
+
+def test_a_planned_timeline_is_placed_on_the_log_by_the_trigger_mark(flown, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from identification.aero.segments import load_timeline_blocks, planned_on_log
+    from identification.excite.writers import timeline_dict
+
+    plan, _, _, path, t_trigger = flown
+    planned = tmp_path / "exc.timeline.json"
+    planned.write_text(json.dumps(timeline_dict(plan)))
+    tl, notes = planned_on_log(load_timeline_blocks(planned), read_log(path))
+    assert tl.log_start_s == pytest.approx(-t_trigger, abs=0.021) and "trigger mark" in notes[0]
+    for got, b in zip(tl.blocks, plan.blocks, strict=True):
+        assert got.start_s == pytest.approx(b.start_s)  # the plan's times, moved by log_start_s
