@@ -9,11 +9,15 @@ U(0.7, 1.3) from the Aerosonde set, seeded), through the chain of the shared SIT
 - a ``--loop-rate`` (50 Hz, SCHED_LOOP_RATE) loop computing the servo command, held until the next loop;
 - the gyro and accelerometer passed through a 2-pole low-pass at ``--gyro-filter`` (20 Hz, INS_GYRO_FILTER /
   INS_ACCEL_FILTER) at the physics rate, then logged once per loop; attitude and airspeed logged unfiltered;
-- white sensor noise (identification.flights.synthetic.NOISE).
+- white sensor noise (identification.flights.synthetic.NOISE);
+- with ``--servo-log-rate`` (25 Hz in the shared log) the servo commands logged at that rate only, each held
+  until the next log sample (a command that changed between log samples shows late).
 
 The estimator (the output-error estimator ``identify aero`` uses, the 11 primary derivatives free, started at
 the Aerosonde values) then fits the logged records twice: without the chain (model outputs compared with the log
-as they are) and with the sensor filter modelled (``output_filters``). Printed per derivative: the mean ratio
+as they are) and with the sensor filter modelled (``output_filters``; with ``--servo-log-rate`` also the logged
+commands moved earlier by whole loops up to one log interval, the shift of least cost kept, as ``identify aero``
+scans negative command -> surface delays). Printed per derivative: the mean ratio
 estimate / truth for each, the worst relative error, and the share of 95 % intervals (estimate +- 1.96 std)
 that cover the truth.
 
@@ -76,6 +80,8 @@ def main() -> int:
     parser.add_argument("--loop-rate", type=float, default=50.0)
     parser.add_argument("--physics-rate", type=float, default=250.0)
     parser.add_argument("--gyro-filter", type=float, default=20.0)
+    parser.add_argument("--servo-log-rate", type=float, default=0.0,
+                        help="log the servo commands at this rate (the shared SITL log: 25 Hz); 0: every loop")
     args = parser.parse_args()
     sub = round(args.physics_rate / args.loop_rate)
     loop_dt = 1.0 / args.loop_rate
@@ -103,10 +109,20 @@ def main() -> int:
             t = np.arange(round((b.end_s - b.start_s) / loop_dt)) * loop_dt
             u = tr.u + b.deflection(b.start_s + t)
             u_log, y_log = fly_block(sim, p, tr.x, u, loop_dt, sub, args.gyro_filter, rng)
+            if args.servo_log_rate:  # what the log shows: the command at each log sample, held until the next
+                every = round(args.loop_rate / args.servo_log_rate)
+                u_log = u_log[(np.arange(len(u_log)) // every) * every]
             data.append(Manoeuvre(tr.x, u_log, y_log, loop_dt, f"block {b.index}"))
         truth = p[i_free]
         for name, oe in est_oe.items():
             est = oe.estimate(data, weight=weight, max_iter=40, horizon_s=2.0)
+            if args.servo_log_rate and name != "chain not modelled":  # modelled: the best command shift (AIC)
+                every = round(args.loop_rate / args.servo_log_rate)
+                for shift in range(1, every):
+                    moved = [Manoeuvre(m.x0, np.vstack([m.u[shift:], np.repeat(m.u[-1:], shift, 0)]), m.y, m.dt_s)
+                             for m in data]
+                    alt = oe.estimate(moved, theta0=est.values, weight=weight, max_iter=40)
+                    est = alt if alt.history[-1].cost < est.history[-1].cost else est
             v, sd = est.values[:len(free)], est.std[:len(free)]
             ratios[name].append(v / truth)
             covered[name].append(np.abs(v - truth) <= 1.96 * sd)
