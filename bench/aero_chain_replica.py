@@ -122,9 +122,9 @@ def main() -> int:
                 every = round(args.loop_rate / args.servo_log_rate)
                 mid = []
                 for m in data:
-                    k = np.arange(len(m.u))
-                    nxt = np.minimum((k // every + 1) * every, len(m.u) - 1)
-                    w = (k % every / every)[:, None]
+                    loops = np.arange(len(m.u))
+                    nxt = np.minimum((loops // every + 1) * every, len(m.u) - 1)
+                    w = (loops % every / every)[:, None]
                     mid.append(Manoeuvre(m.x0, (1 - w) * m.u + w * m.u[nxt], m.y, m.dt_s))
                 est = oe.estimate(mid, weight=weight, max_iter=40, horizon_s=2.0)
             v, sd = est.values[:len(free)], est.std[:len(free)]
