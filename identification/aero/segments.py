@@ -1,4 +1,5 @@
-"""Fit and held-out segments that follow the manoeuvres: from a timeline file, else from the input activity.
+"""Fit and held-out segments that follow the manoeuvres: from a timeline file, the blocks the log itself shows,
+else the input activity.
 
 A timeline (``uavfmu excite`` writes one; ``*.timeline.json`` beside a log is found by name) lists blocks of
 ``axis, start_s, excitation_start_s, end_s`` in seconds since autopilot boot; ``log_first_sample_s`` in the
@@ -7,7 +8,10 @@ sample. Each block becomes one segment from ``start_s`` (the mode switch, trim h
 ``tail_s`` of the recovery. Per axis, every third block (the middle one of three repetitions) is held out for
 scoring; an axis flown once is fitted only.
 
-Without a timeline, segments are the spans where a control surface moves faster than its slow trend (a
+A timeline planned by ``uavfmu excite`` (times from the Lua script's trigger) is placed on the log by the
+script's trigger mark (:func:`planned_on_log`). Without a timeline, the blocks the log shows are used
+(:func:`flown_blocks`: the script's EXCT marks, else the ArduPlane MANUAL spans). Without those, segments are the
+spans where a control surface moves faster than its slow trend (a
 3-2-1-1, a doublet, a pilot's stick input), padded and merged; when none is found the airborne part is cut
 into windows as before, and the caller says so. Whatever cut them, segments are then reduced to the spans where
 the aircraft is airborne (:func:`airborne_parts`).
