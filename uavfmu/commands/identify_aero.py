@@ -20,11 +20,10 @@ equation-error estimate (smoothed states, stepwise regression of the measured ac
 output-error fit and is printed beside it. Per-segment initial rates and gyro/accelerometer biases are
 estimated when they lower the Akaike criterion (``--nuisance auto``; ``--estimate-initial``/``--biases``
 give them by hand), and a command -> surface delay is scanned from ``--min-delay`` (negative: the log shows the
-command after the surfaces moved; default one servo-log interval when servo outputs are logged below the loop
-rate) up to ``--max-delay``. The log's measurement chain is modelled: the gyro and accelerometer low-pass of
-its parameters (``INS_GYRO_FILTER``/``INS_ACCEL_FILTER``, PX4 ``IMU_GYRO_CUTOFF``/``IMU_ACCEL_CUTOFF``) filters
-the model's rate and specific-force outputs (``--no-sensor-filters`` turns it off); the console lists the
-chain's values read from the log. The work is
+command after the surfaces moved; 0 by default) up to ``--max-delay``. The log's measurement chain is
+modelled: the gyro and accelerometer low-pass of its parameters (``INS_GYRO_FILTER``/``INS_ACCEL_FILTER``, PX4
+``IMU_GYRO_CUTOFF``/``IMU_ACCEL_CUTOFF``) filters the model's rate and specific-force outputs
+(``--no-sensor-filters`` turns it off); the console lists the chain's values read from the log. The work is
 ``identification.aero.identify``; this module parses and prints.
 
 Exit status: 0 done, 2 bad input (unreadable log, a log damaged beyond ``--max-damage`` without ``--force``,
@@ -99,9 +98,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--biases", help="outputs given a constant bias per segment (by hand)")
     p.add_argument("--max-delay", type=_bounded(0.0, 1.0), default=0.1,
                    help="longest command -> surface delay scanned [s] (0 turns the scan off; 0.1)")
-    p.add_argument("--min-delay", type=_bounded(-1.0, 0.0), default=None,
-                   help="most negative command -> surface delay scanned [s] (default: one servo-log interval when "
-                        "the log's servo outputs are logged slower than its main loop, else 0)")
+    p.add_argument("--min-delay", type=_bounded(-1.0, 0.0), default=0.0,
+                   help="most negative command -> surface delay scanned [s] (0; the shared SITL excitation log, "
+                        "servo outputs logged at half the loop rate: -0.04)")
     p.add_argument("--no-sensor-filters", action="store_true",
                    help="compare the model with the log without the log's gyro/accelerometer low-pass")
     p.add_argument("--bounds", help="bounds name=lo:hi,... on free parameters")

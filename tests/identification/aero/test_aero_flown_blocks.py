@@ -44,10 +44,11 @@ FREE = ["C_ell_p", "C_ell_delta_a", "C_n_r", "C_n_delta_r"]
 LOGGED_EVERY = {"RCOU": 1, "ATT": 1}
 
 
-def fly_and_log(plan, truth: FixedWingParams, path):  # type: ignore[no-untyped-def]
+def fly_and_log(plan, truth: FixedWingParams, path, late_samples: int = 0):  # type: ignore[no-untyped-def]
     """Fly ``plan`` on the model with ``truth`` in closed loop, the Lua script alongside on the stand-in bindings
     (switch high at LEAD_S, ticks every 20 ms, attitude from the flight), and write flight and marks as one
-    DataFlash log; returns (marks, the trigger's time on the log's axis [s])."""
+    DataFlash log (servo commands logged ``late_samples`` after they took effect); returns (marks, the
+    trigger's time on the log's axis [s])."""
     p = np.array(FixedWingModel(truth).params.starts())
     late = dataclasses.replace(plan, blocks=[dataclasses.replace(
         b, start_s=b.start_s + LEAD_S, excitation_start_s=b.excitation_start_s + LEAD_S, end_s=b.end_s + LEAD_S)
@@ -63,8 +64,9 @@ def fly_and_log(plan, truth: FixedWingParams, path):  # type: ignore[no-untyped-
         ap.tick(1000 * (BOOT_S + t))
     marks = ap.marks
     # at t_k the servos hold u[k]; y[k] is the output after that step, at t_{k+1}
-    rec = Recording(flight.t_s[1:], {n: flight.u[1:, i] for i, n in enumerate(("aileron_rad", "elevator_rad",
-                                                                                 "rudder_rad", "throttle"))},
+    u = np.vstack([np.repeat(flight.u[:1], late_samples, 0), flight.u[:len(flight.u) - late_samples]])
+    rec = Recording(flight.t_s[1:], {n: u[1:, i] for i, n in enumerate(("aileron_rad", "elevator_rad",
+                                                                        "rudder_rad", "throttle"))},
                     {n: flight.y[:-1, i] for i, n in enumerate(names)})
     exct = (np.array([m.t_ms / 1000 for m in marks]),
             {"Blk": [m.block for m in marks], "Ph": [m.phase for m in marks], "Ax": [m.axis for m in marks],
@@ -178,3 +180,22 @@ def test_a_planned_timeline_is_placed_on_the_log_by_the_trigger_mark(flown, tmp_
     assert tl.log_start_s == pytest.approx(-t_trigger, abs=0.021) and "trigger mark" in notes[0]
     for got, b in zip(tl.blocks, plan.blocks, strict=True):
         assert got.start_s == pytest.approx(b.start_s)  # the plan's times, moved by log_start_s
+
+
+def test_a_command_logged_late_is_found_by_the_negative_delay_scan(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """Servo commands logged one sample (20 ms) after they took effect: with ``min_delay_s`` below zero the scan
+    finds -20 ms and the roll derivatives come back (from 0 it keeps 0 and C_ell_p comes out 8 % too large)."""
+    plan = plan_excitation(None, ExciteOptions(settle_s=1.0, tail_s=2.0, recovery_s=2.0, inputs=("3211", "doublet"),
+                                               surfaces=("aileron",), throttle_blocks=0))
+    truth = _truth(TRUTH)
+    fly_and_log(plan, truth, tmp_path / "late.bin", late_samples=1)
+    log = read_log(tmp_path / "late.bin")
+    free = ["C_ell_p", "C_ell_delta_a"]
+    res = identify_aero(log, PwmMapping.from_ardupilot(log.params), FixedWingParams(),
+                        AeroOptions(free=free, max_delay_s=0.04, min_delay_s=-0.04, equation_error=False,
+                                    priors="none", outputs=("roll_rad", "rate_body_x_rad_s")))
+    assert res.fit.delay_s == pytest.approx(-0.02) and res.delay_range_s == (-0.04, 0.04)
+    assert "scanned -40..40 ms" in res.summary()
+    est = res.estimate
+    for name in free:
+        assert est.values[est.names.index(name)] == pytest.approx(getattr(truth, name), rel=0.05), name
