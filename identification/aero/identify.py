@@ -105,8 +105,10 @@ class AeroOptions:
     timeline: Path | None = None  #: timeline file of the (single) log; else ``NAME.timeline.json`` beside it
     equation_error: bool = True  #: equation-error estimate as the output-error start and as a rival
     #: sensor low-pass per fitted output [Hz] applied to the model before it meets the log; None: the log's own
-    #: filter parameters (identification.logs.sensor_chain), {}: none
-    sensor_filters: dict[str, float] | None = None
+    #: filter parameters (identification.logs.sensor_chain); {} (default): none. Not the default: on the
+    #: closed-loop ArduPlane SITL takeoff log (SIM_Plane, not our model class) it moves C_n_r's interval off
+    #: SIM_Plane's value (tests/identification/aero/test_aero_sitl.py)
+    sensor_filters: dict[str, float] | None = field(default_factory=dict)
 
 
 @dataclass
@@ -508,16 +510,17 @@ def identify_aero(log: FlightLog | Sequence[AeroSource], mapping: PwmMapping | N
     _check_names(model, opt)
     notes: list[str] = []
     chains = [sensor_chain(src.log) for src in sources]
+    modelled = opt.sensor_filters is None
     if opt.min_delay_s is None:
         c = chains[0]
         slow = bool(c.loop_rate_hz and c.servo_log_rate_hz and c.servo_log_rate_hz < 0.9 * c.loop_rate_hz)
         opt = dataclasses.replace(opt, min_delay_s=-1.0 / c.servo_log_rate_hz if slow else 0.0)  # type: ignore[operator]
     if opt.sensor_filters is None:
         opt = dataclasses.replace(opt, sensor_filters=chains[0].output_filters(tuple(opt.outputs)))
-        notes += [f"measurement chain: {x}" for x in chains[0].lines()]
         if any(c.output_filters(tuple(opt.outputs)) != opt.sensor_filters for c in chains[1:]):
             notes.append("measurement chain: the logs' sensor filters differ; the first log's are modelled")
-    elif opt.sensor_filters:
+    notes += [f"measurement chain: {x}" for x in chains[0].lines(modelled)]
+    if opt.sensor_filters and not modelled:
         notes.append("measurement chain: sensor low-pass modelled as given: " + ", ".join(
             f"{n} {fc:g} Hz" for n, fc in opt.sensor_filters.items()))
     p = np.array(model.params.starts(), dtype=float)

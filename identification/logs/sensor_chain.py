@@ -44,15 +44,18 @@ class SensorChain:
                 out.update({n: fc for n in names if n in outputs})
         return out
 
-    def lines(self) -> list[str]:
-        """The chain in words, with the values read from the log."""
+    def lines(self, filters_modelled: bool = True) -> list[str]:
+        """The chain in words, with the values read from the log; ``filters_modelled``: whether the fit applies
+        the sensor filters."""
         def rate(v: float | None) -> str:
             return "not logged" if v is None else f"{v:.0f} Hz"
 
         out = []
         for what, fc, name in (("gyro", self.gyro_cutoff_hz, self.gyro_param),
                                ("accelerometer", self.accel_cutoff_hz, self.accel_param)):
-            out.append(f"{what} low-pass {fc:g} Hz ({name}, 2-pole): modelled on the fitted outputs" if fc else
+            use = ("modelled on the fitted outputs" if filters_modelled else
+                   "not modelled (identify aero --sensor-filters models it)")
+            out.append(f"{what} low-pass {fc:g} Hz ({name}, 2-pole): {use}" if fc else
                        f"{what} low-pass: {'off (' + name + ' = 0)' if name else 'no parameter in the log'}; "
                        "not modelled")
         if self.loop_rate_hz:
