@@ -92,9 +92,8 @@ class AeroOptions:
     max_delay_s: float = 0.1
     #: most negative delay scanned [s] (the surfaces act the logged command of a later time: servo outputs logged
     #: after they took effect, or below the loop rate); None: one servo-log interval when the servo outputs are
-    #: logged slower than the main loop (identification.logs.sensor_chain), else 0. Default 0: on the closed-loop
-    #: ArduPlane SITL takeoff log a negative scan trades the lag against the yaw damping (C_n_r's interval then
-    #: misses SIM_Plane's value)
+    #: logged slower than the main loop (identification.logs.sensor_chain), else 0. Default 0 (opt-in): the
+    #: negative scan has been checked on the shared excitation log and a synthetic flight only
     min_delay_s: float | None = 0.0
     progress: bool = False
     force: bool = False  #: use a log whose damage exceeds ``max_damage`` (its damage is still reported)
