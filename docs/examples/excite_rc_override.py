@@ -73,7 +73,7 @@ def run(master: Any, plan: dict[str, Any], autopilot: str, clock: Callable[[], f
             if row["phase"] != phase:
                 phase = row["phase"]
                 master.set_mode(modes[phase])
-            why = outside_limits(latest, plan["limits"]) if phase == "excite" else None
+            why = outside_limits(latest, plan["limits"]) if phase in ("excite", "hold") else None
             if why is not None:
                 master.set_mode(modes["recover"])
                 send(master, {})

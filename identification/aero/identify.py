@@ -18,6 +18,7 @@ solve, bounds, held-out scoring, files) share the option and result types; each 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -46,6 +47,7 @@ from identification.estimation.oem import (
     fixed_worth_freeing,
 )
 from identification.logs.flightlog import DEFAULT_MAX_DAMAGE, FlightLog, check_quality
+from identification.logs.sensor_chain import sensor_chain
 
 #: sign constraints that keep the identified model stable (paper 001 rejects diverging models)
 STABILITY_SIGNS = {"C_ell_p": -1, "C_m_q": -1, "C_n_r": -1, "C_m_alpha": -1, "C_n_beta": +1}
@@ -88,6 +90,11 @@ class AeroOptions:
     max_iter: int = 40
     horizon_s: float = 1.0
     max_delay_s: float = 0.1
+    #: most negative delay scanned [s] (the surfaces act the logged command of a later time: servo outputs logged
+    #: after they took effect, or below the loop rate); None: one servo-log interval when the servo outputs are
+    #: logged slower than the main loop (identification.logs.sensor_chain), else 0. Default 0 (opt-in): the
+    #: negative scan has been checked on the shared excitation log and a synthetic flight only
+    min_delay_s: float | None = 0.0
     progress: bool = False
     force: bool = False  #: use a log whose damage exceeds ``max_damage`` (its damage is still reported)
     max_damage: float = DEFAULT_MAX_DAMAGE  #: largest damaged or lost share of the log accepted (0..1)
@@ -96,6 +103,11 @@ class AeroOptions:
     consider: bool = True  #: fixed aerodynamic coefficients enter the bounds with their prior std
     timeline: Path | None = None  #: timeline file of the (single) log; else ``NAME.timeline.json`` beside it
     equation_error: bool = True  #: equation-error estimate as the output-error start and as a rival
+    #: sensor low-pass per fitted output [Hz] applied to the model before it meets the log; None: the log's own
+    #: filter parameters (identification.logs.sensor_chain); {} (default): none. Not the default: on the
+    #: closed-loop ArduPlane SITL takeoff log (SIM_Plane, not our model class) it moves C_n_r's interval off
+    #: SIM_Plane's value (tests/identification/aero/test_aero_sitl.py)
+    sensor_filters: dict[str, float] | None = field(default_factory=dict)
 
 
 @dataclass
@@ -128,6 +140,7 @@ class AeroResult:
     notes: list[str] = field(default_factory=list)
     baselines: dict[str, dict[str, Any]] = field(default_factory=dict)
     quality: dict[str, Any] | None = None  #: the log's data-quality summary (``DataQuality.to_dict``)
+    delay_range_s: tuple[float, float] | None = None  #: the command -> surface delays scanned [s]
     pool: Pool | None = None  #: the logs and their segments
     rival: Any = None  #: the equation-error estimate (``identification.aero.equation_error.EquationErrorResult``)
     consider: Consider | None = None  #: the fixed parameters and their effect on the bounds
@@ -182,7 +195,9 @@ class AeroResult:
         lines += ["identifiability before the solve:", *("  " + x for x in self.before.lines()), "", est.table()]
         if not est.converged:
             lines.append("NOT CONVERGED within max_iter; the estimates are the last accepted iterate")
-        lines.append(f"nuisance: {self.nuisance_choice}; command -> surface delay {self.fit.delay_s * 1e3:.0f} ms")
+        lines.append(f"nuisance: {self.nuisance_choice}; command -> surface delay {self.fit.delay_s * 1e3:.0f} ms"
+                     + (f" (scanned {self.delay_range_s[0] * 1e3:.0f}..{self.delay_range_s[1] * 1e3:.0f} ms; negative:"
+                        " the surfaces moved before the logged command)" if self.delay_range_s else ""))
         if self.scores:
             lines.append(f"{'output':<22} " + " ".join(f"{'Theil U ' + k:>20}" for k in self.scores))
             for name in next(iter(self.scores.values())):
@@ -280,12 +295,25 @@ def _source_segments(src: AeroSource, model: FixedWingModel, opt: AeroOptions, n
     log = src.log
     if src.segments:
         return list(src.segments), list(src.validate_segments or [])
+    name = Path(log.source).name
     timeline = src.timeline or aero_segments.timeline_beside(Path(log.source))
     if timeline is not None:
-        tl = aero_segments.load_timeline_blocks(timeline)
-        fit, val, extra = aero_segments.timeline_segments(tl, log.duration_s)
-        notes += [*extra, f"{Path(log.source).name}: {len(fit)} fit and {len(val)} held-out segments from the "
+        tl, extra = aero_segments.planned_on_log(aero_segments.load_timeline_blocks(timeline), log)
+        fit, val, more = aero_segments.timeline_segments(tl, log.duration_s)
+        notes += [*extra, *more, f"{name}: {len(fit)} fit and {len(val)} held-out segments from the "
                   f"timeline {timeline.name}"]
+        return fit, list(src.validate_segments or val)
+    flown = aero_segments.flown_blocks(log)
+    if flown is not None:
+        tl, blocks = flown
+        fit, val, more = aero_segments.timeline_segments(tl, log.duration_s)
+        role = {**{(s.t0_s, s.t1_s): "fit" for s in fit}, **{(s.t0_s, s.t1_s): "held out" for s in val}}
+        notes += [*more, f"{name}: {len(blocks)} blocks found in the log ({blocks[0].source}); "
+                  f"{len(fit)} fit, {len(val)} held out"]
+        for b, tb in zip(blocks, tl.blocks, strict=True):
+            seg = aero.Segment(round(max(tb.start_s, 0.0), 3),
+                               round(min(tb.end_s + aero_segments.TAIL_S, log.duration_s), 3))
+            notes.append(f"  {b.line()} -> {role.get((seg.t0_s, seg.t1_s), 'skipped')} {seg}")
         return fit, list(src.validate_segments or val)
     t = np.arange(0.0, log.duration_s, 0.04)
     surfaces = [n for n in model.inputs.index if n != "throttle"]
@@ -325,6 +353,8 @@ def _estimator(model: FixedWingModel, p: np.ndarray, free: list[str], opt: AeroO
                 constraints.append(lambda th, n=name, s=sign: s * th[n] > 0)
     return OutputErrorEstimator(model, p, free, list(opt.outputs), bounds=opt.bounds, constraints=constraints,
                                 estimate_states=list(states), estimate_biases=list(biases),
+                                output_filters={n: fc for n, fc in (opt.sensor_filters or {}).items()
+                                                if n in opt.outputs},
                                 prior={n: (v.value, v.sd) for n, v in _priors(model, free, opt).items()})
 
 
@@ -421,11 +451,13 @@ def _delay(model: FixedWingModel, p: np.ndarray, pool: Pool, fit: Fit, opt: Aero
     (one more parameter) and the refit makes no derivatives inseparable; a criterion still falling at
     ``max_delay_s`` means the lag trades against the dynamics (closed-loop data): no delay is kept."""
     steps = round(opt.max_delay_s * opt.rate_hz)
-    if steps < 1:
+    lowest = -round(-(opt.min_delay_s or 0.0) * opt.rate_hz)
+    if steps < 1 and lowest > -1:
         return fit
     oe, theta = fit.oe, fit.estimate.values
     trials: list[Fit | None] = [fit]
-    for d in range(1, steps + 1):
+    scanned = [d for d in range(min(lowest, 0), steps + 1) if d != 0]
+    for d in scanned:
         data = pool.manoeuvres(model, p, pool.fit, opt.outputs, opt.rate_hz, d / opt.rate_hz)
         try:  # a short refit from the estimate: the no-delay estimate has absorbed part of the lag
             est = oe.estimate(data, theta0=theta, weight=weight, max_iter=6)
@@ -436,7 +468,7 @@ def _delay(model: FixedWingModel, p: np.ndarray, pool: Pool, fit: Fit, opt: Aero
     k = int(np.argmin(aic))
     if k == 0:
         return fit
-    if k == steps and steps > 1:
+    if scanned[k - 1] == steps and steps > 1:
         notes.append(f"delay not identifiable: the criterion still falls at the longest scanned delay "
                      f"({opt.max_delay_s * 1e3:.0f} ms), the lag trades against the dynamics; none kept")
         return fit
@@ -475,10 +507,24 @@ def identify_aero(log: FlightLog | Sequence[AeroSource], mapping: PwmMapping | N
         check_quality(src.log, opt.force, opt.max_damage)  # a badly damaged log is refused unless forced
     model = FixedWingModel(init)
     _check_names(model, opt)
+    notes: list[str] = []
+    chains = [sensor_chain(src.log) for src in sources]
+    modelled = opt.sensor_filters is None
+    if opt.min_delay_s is None:
+        c = chains[0]
+        slow = bool(c.loop_rate_hz and c.servo_log_rate_hz and c.servo_log_rate_hz < 0.9 * c.loop_rate_hz)
+        opt = dataclasses.replace(opt, min_delay_s=-1.0 / c.servo_log_rate_hz if slow else 0.0)  # type: ignore[operator]
+    if opt.sensor_filters is None:
+        opt = dataclasses.replace(opt, sensor_filters=chains[0].output_filters(tuple(opt.outputs)))
+        if any(c.output_filters(tuple(opt.outputs)) != opt.sensor_filters for c in chains[1:]):
+            notes.append("measurement chain: the logs' sensor filters differ; the first log's are modelled")
+    notes += [f"measurement chain: {x}" for x in chains[0].lines(modelled)]
+    if opt.sensor_filters and not modelled:
+        notes.append("measurement chain: sensor low-pass modelled as given: " + ", ".join(
+            f"{n} {fc:g} Hz" for n, fc in opt.sensor_filters.items()))
     p = np.array(model.params.starts(), dtype=float)
     outputs = list(opt.outputs)
     weight = _weight(opt.sigma, outputs)
-    notes: list[str] = []
     pool = _pool(sources, model, opt, notes)
     data = pool.manoeuvres(model, p, pool.fit, outputs, opt.rate_hz)
     free = _choose_free(model, p, data, opt) if opt.free == "auto" else list(opt.free)
@@ -506,6 +552,8 @@ def identify_aero(log: FlightLog | Sequence[AeroSource], mapping: PwmMapping | N
                         choice, notes=notes, quality=quality[0] if len(quality) == 1 else
                         {"logs": quality, "lines": [x for q in quality for x in q.get("lines", [])]})
     result.pool, result.rival = pool, rival
+    if opt.max_delay_s > 0 or (opt.min_delay_s or 0.0) < 0:
+        result.delay_range_s = (min(opt.min_delay_s or 0.0, 0.0), opt.max_delay_s)
     result.identified = {**init.to_dict(), **fit.estimate.derivatives()}
     if opt.free == "auto":
         notes.append(f"free=auto started from {', '.join(free)} (the primary derivatives"

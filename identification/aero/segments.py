@@ -1,4 +1,5 @@
-"""Fit and held-out segments that follow the manoeuvres: from a timeline file, else from the input activity.
+"""Fit and held-out segments that follow the manoeuvres: from a timeline file, the blocks the log itself shows,
+else the input activity.
 
 A timeline (``uavfmu excite`` writes one; ``*.timeline.json`` beside a log is found by name) lists blocks of
 ``axis, start_s, excitation_start_s, end_s`` in seconds since autopilot boot; ``log_first_sample_s`` in the
@@ -7,7 +8,10 @@ sample. Each block becomes one segment from ``start_s`` (the mode switch, trim h
 ``tail_s`` of the recovery. Per axis, every third block (the middle one of three repetitions) is held out for
 scoring; an axis flown once is fitted only.
 
-Without a timeline, segments are the spans where a control surface moves faster than its slow trend (a
+A timeline planned by ``uavfmu excite`` (times from the Lua script's trigger) is placed on the log by the
+script's trigger mark (:func:`planned_on_log`). Without a timeline, the blocks the log shows are used
+(:func:`flown_blocks`: the script's EXCT marks, else the ArduPlane MANUAL spans). Without those, segments are the
+spans where a control surface moves faster than its slow trend (a
 3-2-1-1, a doublet, a pilot's stick input), padded and merged; when none is found the airborne part is cut
 into windows as before, and the caller says so. Whatever cut them, segments are then reduced to the spans where
 the aircraft is airborne (:func:`airborne_parts`).
@@ -25,6 +29,7 @@ import numpy as np
 from fmu_models.config import ConfigError
 from identification.aero.model import Segment, SegmentError
 from identification.logs.flightlog import FlightLog
+from identification.logs.flown_blocks import FlownBlock, flown_timeline, marked_blocks, mode_blocks, trigger_time_s
 from identification.logs.log_state import any_of, ground_level, parked_samples
 from identification.logs.timeline import load_timeline
 
@@ -60,6 +65,7 @@ class TimelineFile:
     path: Path
     blocks: list[Block]
     log_start_s: float | None
+    planned: bool = False  #: written by ``uavfmu excite``: times from the Lua script's trigger
 
 
 def load_timeline_blocks(path: Path) -> TimelineFile:
@@ -74,7 +80,33 @@ def load_timeline_blocks(path: Path) -> TimelineFile:
     span = (tl.model_extra or {}).get("log_span_s")
     if start is None and isinstance(span, list) and span and isinstance(span[0], (int, float)):
         start = float(span[0])
-    return TimelineFile(Path(path), blocks, None if start is None else float(start))
+    planned = (tl.model_extra or {}).get("plan") == "uavfmu excite"
+    return TimelineFile(Path(path), blocks, None if start is None else float(start), planned)
+
+
+def planned_on_log(tl: TimelineFile, log: FlightLog) -> tuple[TimelineFile, list[str]]:
+    """A timeline planned by ``uavfmu excite`` (times from the trigger, no ``log_first_sample_s``) placed on the
+    log's time axis by the Lua script's trigger mark (EXCT phase 0); other timelines are returned as they are."""
+    if tl.log_start_s is not None or not tl.planned:
+        return tl, []
+    t_trigger = trigger_time_s(log)
+    if t_trigger is None:
+        return tl, [f"timeline {tl.path.name} is a plan (times from the trigger) and the log has no EXCT trigger "
+                    "mark: block times taken as log times"]
+    return (TimelineFile(tl.path, tl.blocks, -t_trigger, planned=True),
+            [f"timeline {tl.path.name}: planned times placed on the log by its trigger mark at {t_trigger:.3f} s"])
+
+
+def flown_blocks(log: FlightLog) -> tuple[TimelineFile, list[FlownBlock]] | None:
+    """The blocks the log itself shows: the Lua script's EXCT marks, else the spans in ArduPlane MANUAL
+    (:mod:`identification.logs.flown_blocks`), as a timeline on the log's time axis; None when neither is there."""
+    for find, source in ((marked_blocks, "EXCT marks"), (mode_blocks, "MANUAL mode spans")):
+        blocks = find(log)
+        if blocks:
+            tl = flown_timeline(blocks, source)
+            return TimelineFile(Path(log.source), [Block(str(b.axis), float(b.start_s), float(b.excitation_start_s),
+                                                         float(b.end_s)) for b in tl.blocks], 0.0), blocks
+    return None
 
 
 def timeline_beside(log_path: Path) -> Path | None:

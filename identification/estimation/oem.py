@@ -400,12 +400,15 @@ class OutputErrorEstimator:
                  outputs: Sequence[str], bounds: dict[str, tuple[float, float]] | None = None,
                  constraints: Sequence[Callable[[dict[str, float]], bool]] = (),
                  estimate_states: Sequence[str] = (), estimate_biases: Sequence[str] = (),
-                 compile: bool = True, prior: dict[str, tuple[float, float]] | None = None) -> None:
+                 compile: bool = True, prior: dict[str, tuple[float, float]] | None = None,
+                 output_filters: dict[str, float] | None = None) -> None:
         unknown = [f"parameter {n!r}" for n in free if n not in model.params.index]
         unknown += [f"output {n!r}" for n in outputs if n not in model.outputs.index]
         unknown += [f"state {n!r}" for n in estimate_states if n not in model.states.index]
         unknown += [f"biased output {n!r} (not among the fitted outputs)" for n in estimate_biases
                     if n not in outputs]
+        unknown += [f"filtered output {n!r} (not among the fitted outputs, or a cut-off that is not > 0)"
+                    for n, fc in (output_filters or {}).items() if n not in outputs or not fc > 0]
         if unknown:
             raise EstimationError(f"not known to the {model.name} model: {', '.join(unknown)}")
         if len(set(free)) != len(free):
@@ -436,6 +439,8 @@ class OutputErrorEstimator:
         self.prior_mean = np.array([pr.get(n, (0.0, np.inf))[0] for n in free], dtype=float)
         self.prior_sd = np.array([pr.get(n, (0.0, np.inf))[1] for n in free], dtype=float)
         self.state_limits = np.asarray(model.state_limits, dtype=float)
+        #: sensor low-pass per output [Hz]: the model output passes the same filter before it meets the data
+        self.output_filters = dict(output_filters or {})
         plain = self._plain_step()
         sens = self._sensitivity_step()
         if compile:
@@ -581,20 +586,35 @@ class OutputErrorEstimator:
         p, x0, b = self._setup(theta, j, m)
         if not sensitivities:
             X, Y = self._run("plain", x0, m.u, p, m.dt_s)
-            y = Y + b
+            y = self._filtered(Y, m.dt_s) + b
             return y, None, self._diverged(X, y)
         nx = len(x0)
         S0 = np.zeros((nx, nth + nxe))
         S0[self.i_x0, nth + np.arange(nxe)] = 1.0
         Xa, out = self._run("sens", np.concatenate([x0, S0.ravel(order="F")]), m.u, p, m.dt_s)
         # out: N x (ny + ny*ns), dy/dθ column-major (ny x ns)
-        y = out[:, :ny] + b
-        dy = out[:, ny:].reshape(n, nth + nxe, ny).transpose(0, 2, 1)
+        y = self._filtered(out[:, :ny], m.dt_s) + b
+        dy = self._filtered(out[:, ny:].reshape(n, nth + nxe, ny).transpose(0, 2, 1), m.dt_s)
         jac = np.zeros((n, ny, nth + self.n_local))
         jac[:, :, :nth + nxe] = dy
         for k, i in enumerate(self.i_bias):
             jac[:, i, nth + nxe + k] = 1.0
         return y, jac, self._diverged(Xa[:, :nx], y)
+
+    def _filtered(self, y: np.ndarray, dt_s: float) -> np.ndarray:
+        """``y`` (N x ny or N x ny x ns, time first) with each filtered output column through its sensor low-pass,
+        started in steady state at its first sample (linear: the sensitivities pass the same filter)."""
+        if not self.output_filters or not np.all(np.isfinite(y)):
+            return y
+        from scipy.signal import lfilter
+
+        y = y.copy()
+        for name, fc in self.output_filters.items():
+            bz, az, zi = sensor_lowpass(fc, dt_s)
+            i = self.outputs.index(name)
+            col = y[:, i]
+            y[:, i] = lfilter(bz, az, col, axis=0, zi=np.multiply.outer(zi, col[0]))[0]
+        return y
 
     def _diverged(self, X: np.ndarray, y: np.ndarray) -> bool:
         if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
@@ -909,6 +929,21 @@ class Consider:
     informed: np.ndarray  #: posterior std / given std of each fixed parameter were it freed (1: data silent)
 
 
+def sensor_lowpass(cutoff_hz: float, dt_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A sensor's 2-pole Butterworth low-pass (ArduPilot's ``LowPassFilter2p`` on gyro and accelerometer, PX4's
+    ``IMU_GYRO_CUTOFF``/``IMU_ACCEL_CUTOFF``; both run it at the IMU rate, far above the log rate), seen at the
+    samples ``dt_s`` apart: the continuous filter ``ωc² / (s² + √2 ωc s + ωc²)`` discretised exactly for an input
+    linear between samples (first-order hold). Returns ``(b, a, zi)`` for ``scipy.signal.lfilter``, ``zi`` the
+    steady state for a unit input."""
+    from scipy.signal import cont2discrete, lfilter_zi
+
+    w = 2 * np.pi * cutoff_hz
+    num, den, _ = cont2discrete(([w * w], [1.0, np.sqrt(2.0) * w, w * w]), dt_s, method="foh")
+    bz, az = np.asarray(num, float).ravel(), np.asarray(den, float).ravel()
+    bz = bz * az.sum() / bz.sum()  # unit DC gain exactly
+    return bz, az, lfilter_zi(bz, az)
+
+
 def consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Sequence[Manoeuvre],
                         consider: dict[str, float], weight: np.ndarray | None = None, compile: bool = False
                         ) -> Consider:
@@ -926,7 +961,7 @@ def consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Sequence[
     p[oe.i_free] = est.values[:ng]
     # one pass with sensitivities: by default CasADi's virtual machine, not a C compile of a function used once
     big = OutputErrorEstimator(oe.model, p, oe.free + names, oe.outputs, estimate_states=oe.states_est,
-                               estimate_biases=oe.biases, compile=compile)
+                               estimate_biases=oe.biases, compile=compile, output_filters=oe.output_filters)
     nc = len(names)
     theta = np.concatenate([est.values[:ng], p[big.i_free[ng:]], est.values[ng:]])
     sims = [big.simulate(theta, m, j) for j, m in enumerate(data)]

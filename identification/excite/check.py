@@ -37,6 +37,9 @@ from identification.excite.design import ExcitationPlan
 
 LATERAL_SET = ("C_ell_p", "C_ell_beta", "C_ell_r", "C_ell_delta_a", "C_n_beta", "C_n_r", "C_n_delta_r", "C_Y_beta")
 LONGITUDINAL_SET = ("C_m_alpha", "C_m_q", "C_m_delta_e", "C_L_alpha")
+#: airspeed: parasitic and induced drag, static thrust (seen in airspeed and longitudinal specific force); from the
+#: throttle and elevator blocks. Without a throttle block C_D_p ~ C_T0 reach |r| 0.96 on the Aerosonde test plan
+SPEED_SET = ("C_D_p", "e_oswald", "C_T0")
 #: measurement standard deviations (small-UAV autopilot: EKF attitude, gyros, accelerometers, airspeed)
 NOISE_SIGMA = {"roll_rad": 0.01, "pitch_rad": 0.01, "rate_body_x_rad_s": 0.01, "rate_body_y_rad_s": 0.01,
                "rate_body_z_rad_s": 0.01, "accel_body_x_m_s2": 0.2, "accel_body_y_m_s2": 0.2,
@@ -175,15 +178,18 @@ def conditioning(M: np.ndarray, all_names: Sequence[str], names: Sequence[str], 
 
 
 def check_plan(plan: ExcitationPlan, gains: Gains = Gains()) -> tuple[Flight, dict[str, SetCheck]]:
-    """Fly ``plan`` in closed loop and check the lateral and the longitudinal set."""
+    """Fly ``plan`` in closed loop and check the lateral and the longitudinal set, and the speed set when the
+    plan has a throttle block."""
     flight = fly_closed_loop(plan, gains)
     checks = {}
     if set(plan.options.surfaces) & {"aileron", "rudder"}:
         checks["lateral"] = check_set(plan, flight, LATERAL_SET, ("aileron", "rudder"))
     if "elevator" in plan.options.surfaces:
         checks["longitudinal"] = check_set(plan, flight, LONGITUDINAL_SET, ("elevator",))
+    if any(b.axis == "throttle" for b in plan.blocks):
+        checks["speed"] = check_set(plan, flight, SPEED_SET, ("throttle", "elevator"))
     return flight, checks
 
 
-__all__ = ["LATERAL_SET", "LONGITUDINAL_SET", "Flight", "Gains", "SetCheck", "check_plan", "check_set",
+__all__ = ["LATERAL_SET", "LONGITUDINAL_SET", "SPEED_SET", "Flight", "Gains", "SetCheck", "check_plan", "check_set",
            "conditioning", "fly_closed_loop"]

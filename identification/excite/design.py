@@ -41,7 +41,7 @@ SURFACES = ("aileron", "elevator", "rudder")
 INPUT_KINDS = ("3211", "doublet", "multisine")
 #: pulse levels of one time unit each
 PULSES = {"3211": (1, 1, 1, -1, -1, 1, -1), "doublet": (1, -1)}
-INPUT_INDEX = {s: INPUTS.index(f"{s}_rad") for s in SURFACES}
+INPUT_INDEX = {**{s: INPUTS.index(f"{s}_rad") for s in SURFACES}, "throttle": INPUTS.index("throttle")}
 ROLL, PITCH = 3, 4  #: reduced-state indices of roll and pitch angle (fmu_models.fixed_wing.linear.STATES)
 
 
@@ -71,6 +71,14 @@ class ExciteOptions:
     band_low: float = bounded(0.3, 0.01, 1.0)
     band_high: float = bounded(2.5, 1.0, 20.0)
     max_frequency_hz: float = bounded(3.0, 0.1, 50.0, "Hz")
+    #: throttle doublets flown at attitude hold (airspeed, drag and thrust), alternating sign; 0: none. Two,
+    #: so that ``identify aero`` can hold one out and score airspeed on it
+    throttle_blocks: int = bounded(2, 0, 4)
+    throttle_amplitude: float = bounded(0.2, 0.02, 0.5)  #: throttle doublet amplitude, fraction of full throttle
+    #: throttle doublet time unit; 0: the doublet's spectrum centre on the phugoid (about 4 s on the Aerosonde,
+    #: where the phugoid's pitch response caps the amplitude at 0.13 and C_D_p ~ C_T0 stay at |r| 0.98 on the
+    #: SITL plane; 2 s allows 0.2 and brings it to 0.88: docs/excitation.md)
+    throttle_pulse_s: float = bounded(2.0, 0.0, 20.0, "s")
 
     def problems(self) -> list[str]:
         out = range_problems(self)
@@ -179,7 +187,8 @@ class ExcitationPlan:
                          f"{'' if md.stable else '  (unstable)'}")
         lines.append("target frequencies: " + ", ".join(f"{k} {v:.3g} rad/s" for k, v in self.targets_rad_s.items()))
         for b in self.blocks:
-            amp = ", ".join(f"{s} {math.degrees(sig.peak_rad()):.1f} deg" for s, sig in b.signals.items())
+            amp = ", ".join(f"{s} {sig.peak_rad():.2f} of full" if s == "throttle" else
+                            f"{s} {math.degrees(sig.peak_rad()):.1f} deg" for s, sig in b.signals.items())
             dt = f", dt {b.pulse_unit_s:.2f} s" if b.pulse_unit_s else ""
             peak = ", ".join(f"{k} {v:.1f}" for k, v in b.predicted_peak_deg.items())
             lines.append(f"  block {b.index}: {b.input:9s} {b.axis:8s} {b.start_s:7.1f}..{b.end_s:7.1f} s "
@@ -297,8 +306,14 @@ def amplitudes(plan_lin: LinearModel, tr: Trim, signals: dict[str, Signal], leng
                opt: ExciteOptions) -> tuple[dict[str, float], np.ndarray]:
     """Common scale [rad] per surface within surface and attitude limits; and the predicted peaks [rad]."""
     trim_rad = {"aileron": tr.aileron_rad, "elevator": tr.elevator_rad, "rudder": tr.rudder_rad}
-    cap = {s: opt.surface_margin * (math.radians(opt.surface_limit_deg) - abs(trim_rad[s])) for s in signals}
-    bad = [f"{s} {math.degrees(trim_rad[s]):.1f} deg" for s in signals if cap[s] <= 0]
+    cap = {s: opt.surface_margin * (math.radians(opt.surface_limit_deg) - abs(trim_rad[s])) for s in signals
+           if s != "throttle"}
+    if "throttle" in signals:  # a fraction of full throttle, within [0, 1] about the trim throttle
+        cap["throttle"] = min(opt.throttle_amplitude, opt.surface_margin * min(tr.throttle, 1.0 - tr.throttle))
+        if cap["throttle"] <= 0:
+            raise ExciteError(f"at {opt.airspeed_m_s:g} m/s the trim throttle {tr.throttle:.2f} leaves no room for a "
+                              "throttle doublet; fly at another airspeed or set throttle_blocks = 0")
+    bad = [f"{s} {math.degrees(trim_rad[s]):.1f} deg" for s in signals if s != "throttle" and cap[s] <= 0]
     if bad:
         raise ExciteError(f"at {opt.airspeed_m_s:g} m/s the trim deflection ({', '.join(bad)}) leaves no room within "
                           f"surface_limit_deg = {opt.surface_limit_deg:g}; fly faster or raise the surface limit")
@@ -357,7 +372,24 @@ def plan_excitation(params: FixedWingParams | None = None, opt: ExciteOptions | 
         blocks.append(Block(i, axis, kind, scale_signals(sig, amp), t, t_exc, end, dt,
                             {"roll": math.degrees(peak[0]), "pitch": math.degrees(peak[1])}))
         t = end + opt.recovery_s
+    for k in range(opt.throttle_blocks):
+        dt = throttle_pulse(md, opt)
+        sig = {"throttle": steps("doublet", dt, sign=1.0 if k % 2 == 0 else -1.0)}
+        input_s = sig["throttle"].duration_s
+        amp, peak = amplitudes(lin, tr, sig, input_s + opt.tail_s, opt)
+        t_exc = t + opt.settle_s
+        end = t_exc + input_s + opt.tail_s
+        blocks.append(Block(len(blocks) + 1, "throttle", "doublet", scale_signals(sig, amp), t, t_exc, end, dt,
+                            {"roll": math.degrees(peak[0]), "pitch": math.degrees(peak[1])}))
+        t = end + opt.recovery_s
     return ExcitationPlan(params, opt, tr, lin, md, targets, blocks)
+
+
+def throttle_pulse(m: Modes, opt: ExciteOptions) -> float:
+    """Throttle doublet time unit [s]: ``throttle_pulse_s``, or with 0 the doublet's spectrum centre on the
+    phugoid (the speed mode the throttle moves), at least 2 s; rounded to whole samples."""
+    dt = opt.throttle_pulse_s or max(2.0, spectrum_centre(PULSES["doublet"]) / m.phugoid.wn_rad_s)
+    return max(round(dt * opt.rate_hz), 1) / opt.rate_hz
 
 
 def as_dict(plan: ExcitationPlan) -> dict[str, Any]:

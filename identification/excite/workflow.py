@@ -16,6 +16,7 @@ from typing import Any
 from fmu_models.fixed_wing.params import FixedWingParams
 from identification.excite.check import Flight, Gains, SetCheck, check_plan
 from identification.excite.design import ExcitationPlan, ExciteError, ExciteOptions, as_dict, plan_excitation
+from identification.excite.dry_run import DryRun, LuaScriptError, dry_run
 from identification.excite.writers import OutputOptions, lua_script, rc_override, rc_override_csv, timeline_dict
 
 
@@ -29,11 +30,19 @@ class ExciteResult:
     files: dict[str, str] = field(default_factory=dict)
     flight: Flight | None = None
     warnings: list[str] = field(default_factory=list)
+    dry_run: DryRun | None = None  #: the Lua script flown on the stand-in bindings (with ``check``)
 
     @property
     def well_conditioned(self) -> bool | None:
         """True/False after a check, None without one."""
         return all(c.ok for c in self.checks.values()) if self.checks else None
+
+    @property
+    def check_passed(self) -> bool | None:
+        """After a check: every set well conditioned and the dry run of the script passed; None without one."""
+        if not self.checks:
+            return None
+        return bool(self.well_conditioned) and (self.dry_run is None or self.dry_run.ok)
 
     def summary(self) -> str:
         lines = [self.plan.summary()]
@@ -41,6 +50,9 @@ class ExciteResult:
             lines.append(f"closed-loop check (PD attitude hold + plan): peak roll {self.flight_peaks_deg['roll']:.1f}"
                          f" deg, peak pitch change {self.flight_peaks_deg['pitch']:.1f} deg")
             lines += [f"  {k}: {c.line()}" for k, c in self.checks.items()]
+        if self.dry_run is not None:
+            lines.append("dry run of the Lua script (Lua 5.3, stand-in ArduPilot bindings, ticks late by 0..8 ms):")
+            lines += [f"  {x}" for x in self.dry_run.lines]
         lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
@@ -69,8 +81,17 @@ def excite(params: FixedWingParams | None = None, opt: ExciteOptions | None = No
         result.flight_peaks_deg = {"roll": flight.max_roll_deg, "pitch": flight.max_pitch_dev_deg}
     rc = rc_override(plan, out)
     result.warnings = list(rc["warnings"])
+    script = lua_script(plan, out, command)
+    if check and result.flight is not None:
+        names = result.flight.output_names
+        attitude = (result.flight.t_s, result.flight.y[:, names.index("roll_rad")],
+                    result.flight.y[:, names.index("pitch_rad")])
+        try:
+            result.dry_run = dry_run(plan, script, out, attitude)
+        except LuaScriptError as err:
+            result.dry_run = DryRun(False, [f"FAILED: {err}"])
     result.files = {
-        ".lua": lua_script(plan, out, command),
+        ".lua": script,
         ".timeline.json": json.dumps(timeline_dict(plan, out), indent=1),
         ".rc_override.json": json.dumps(rc, indent=None, separators=(",", ":")),
         ".rc_override.csv": rc_override_csv(rc),

@@ -28,7 +28,7 @@ import numpy as np
 
 from fmu_models.config import bounded, range_problems
 from fmu_models.signals.pwm_mapping import PwmMapping, default_mapping
-from identification.excite.design import SURFACES, Block, ExcitationPlan
+from identification.excite.design import INPUT_INDEX, SURFACES, Block, ExcitationPlan
 from identification.logs.timeline import Timeline
 
 #: ArduPilot SERVOn_FUNCTION numbers (Plane): aileron, elevator, rudder, throttle
@@ -36,9 +36,15 @@ SERVO_FUNCTION = {"aileron": 4, "elevator": 19, "rudder": 21, "throttle": 70}
 #: ArduPlane mode numbers (Plane/mode.h): the ones a plan may use
 ARDUPLANE_MODES = {"MANUAL": 0, "STABILIZE": 2, "ACRO": 4, "FBWA": 5, "FBWB": 6, "CRUISE": 7}
 #: modes a ground-station script sets per autopilot (pymavlink mode names)
-AUTOPILOT_MODES = {"ardupilot": {"excite": "MANUAL", "recover": "FBWA"},
-                   "px4": {"excite": "MANUAL", "recover": "STABILIZED"}}
+AUTOPILOT_MODES = {"ardupilot": {"excite": "MANUAL", "hold": "FBWA", "recover": "FBWA"},
+                   "px4": {"excite": "MANUAL", "hold": "STABILIZED", "recover": "STABILIZED"}}
+#: block axes flown in the recovery (attitude-holding) mode instead of the excitation mode
+HOLD_AXES = ("throttle",)
 DEFAULT_RC_CHANNELS = {"aileron": 1, "elevator": 2, "throttle": 3, "rudder": 4}
+#: ArduPilot's RC auxiliary functions meant for scripts (RCx_OPTION 300..307 "Scripting1".."Scripting8")
+SCRIPTING_OPTIONS = tuple(range(300, 308))
+#: EXCT.Ax code of each block axis (the order of identification.logs.flown_blocks.AXIS_CODES)
+AXIS_CODE = {"aileron": 0, "elevator": 1, "rudder": 2, "throttle": 3, "multi": 4}
 _INPUT = {"aileron": "aileron_rad", "elevator": "elevator_rad", "rudder": "rudder_rad", "throttle": "throttle"}
 
 
@@ -59,8 +65,8 @@ class OutputOptions:
 
     excite_mode: str = "MANUAL"
     recovery_mode: str = "FBWA"
-    trigger_channel: int = bounded(8, 1, 18)
-    trigger_pwm_us: int = bounded(1700, 1000, 2200, "us")
+    #: ArduPilot RCx_OPTION of the trigger switch: 300..307 = "Scripting1".."Scripting8" (RC_Channel.h)
+    trigger_option: int = bounded(SCRIPTING_OPTIONS[0], SCRIPTING_OPTIONS[0], SCRIPTING_OPTIONS[-1])
     rc_channels: Mapping[str, int] = field(default_factory=lambda: dict(DEFAULT_RC_CHANNELS))
     rc_half_range_us: float = bounded(500.0, 50.0, 1000.0, "us")
     rc_rate_hz: float = bounded(20.0, 1.0, 100.0, "Hz")
@@ -111,11 +117,13 @@ def timeline_dict(plan: ExcitationPlan, out: OutputOptions = OutputOptions()) ->
         blocks.append({
             "index": b.index, "axis": b.axis, "axes": list(b.signals) if b.axis == "multi" else [],
             "channel": out.rc_channels.get(b.axis) if b.axis != "multi" else None,
-            "mode": out.excite_mode, "recovery_mode": out.recovery_mode, "input": b.input,
+            "mode": out.recovery_mode if b.axis in HOLD_AXES else out.excite_mode,
+            "recovery_mode": out.recovery_mode, "input": b.input,
             "pulse_unit_s": b.pulse_unit_s, "start_s": round(b.start_s, 4),
             "excitation_start_s": round(b.excitation_start_s, 4), "end_s": round(b.end_s, 4),
             "recovery_end_s": round(b.end_s + plan.options.recovery_s, 4),
-            "amplitude_rad": amp,
+            "amplitude_rad": {k: v for k, v in amp.items() if k != "throttle"},
+            "amplitude_throttle": amp.get("throttle"),
             "amplitude_servo_us": {s: abs(servo_offset_us(mapping, s, a)) for s, a in amp.items()},
             "predicted_linear_peak_deg": b.predicted_peak_deg,
         })
@@ -143,8 +151,12 @@ def rc_override(plan: ExcitationPlan, out: OutputOptions = OutputOptions()) -> d
         for s in SURFACES:
             servo = servo_offset_us(mapping, s, du[k, SURFACES.index(s)])
             offs[str(out.rc_channels[s])] = round(servo * out.rc_half_range_us / servo_half_range_us(mapping, s), 1)
-        offs[str(out.rc_channels["throttle"])] = 0.0
-        rows.append({"t_s": float(tk), "phase": "excite" if blk else "recover",
+        thr = servo_offset_us(mapping, "throttle", du[k, INPUT_INDEX["throttle"]])
+        thr_ch = next(c for c in mapping.channels if c.target == "throttle")  # one-sided: full stick = full range
+        offs[str(out.rc_channels["throttle"])] = round(thr * 2 * out.rc_half_range_us
+                                                       / (thr_ch.max_us - thr_ch.min_us), 1)
+        phase = "recover" if blk is None else "hold" if blk.axis in HOLD_AXES else "excite"
+        rows.append({"t_s": float(tk), "phase": phase,
                      "block": blk.index if blk else 0, "offset_us": offs})
     lim = limits(plan, out)
     warnings = []
@@ -185,7 +197,8 @@ def _lua_block(b: Block, mapping: PwmMapping) -> str:
             sines = ", ".join(f"{{{w:.6f}, {ph:.6f}, {servo_offset_us(mapping, s, a):.4f}}}" for w, ph, a in sig.sines)
             parts.append(f"{s} = {{duration_ms = {1000 * sig.duration_s:.0f}, sines = {{{sines}}}}}")
     return (f"  {{index = {b.index}, start_ms = {1000 * b.start_s:.0f}, excite_ms = {1000 * b.excitation_start_s:.0f}, "
-            f"end_ms = {1000 * b.end_s:.0f}, input = \"{b.input}\", axis = \"{b.axis}\",\n"
+            f"end_ms = {1000 * b.end_s:.0f}, input = \"{b.input}\", axis = \"{b.axis}\", "
+            f"axis_code = {AXIS_CODE[b.axis]}, hold = {'true' if b.axis in HOLD_AXES else 'false'},\n"
             f"   signals = {{{', '.join(parts)}}}}},")
 
 
@@ -198,26 +211,33 @@ def lua_script(plan: ExcitationPlan, out: OutputOptions = OutputOptions(), comma
     blocks = "\n".join(_lua_block(b, out.servo_mapping()) for b in plan.blocks)
     return LUA_TEMPLATE.format(
         command=command, blocks=blocks, excite=ARDUPLANE_MODES[out.excite_mode], excite_name=out.excite_mode,
-        recover=ARDUPLANE_MODES[out.recovery_mode], recover_name=out.recovery_mode, trigger=out.trigger_channel,
-        trigger_pwm=out.trigger_pwm_us, roll=lim.roll_deg, pmin=lim.pitch_min_deg, pmax=lim.pitch_max_deg,
+        recover=ARDUPLANE_MODES[out.recovery_mode], recover_name=out.recovery_mode, option=out.trigger_option,
+        scripting=out.trigger_option - SCRIPTING_OPTIONS[0] + 1, roll=lim.roll_deg, pmin=lim.pitch_min_deg,
+        pmax=lim.pitch_max_deg,
         vmin=lim.min_airspeed_m_s, hmin=lim.min_height_m, end_ms=round(1000 * plan.duration_s),
         period_ms=max(10, round(1000 / plan.options.rate_hz)))
 
 
 LUA_TEMPLATE = """\
 -- Identification manoeuvres for ArduPlane, written by `{command}` (uavfmu).
--- Switch RC{trigger} above {trigger_pwm} us (armed, flying, in any mode) to start; the sequence runs its blocks:
--- at each block's start the servo outputs are captured as trim and the mode becomes {excite_name}; the surfaces
--- are overridden (SRV_Channels:set_output_pwm_chan_timeout) with trim + the planned offsets; at the block's end
--- the mode becomes {recover_name} until the next block. Roll beyond {roll:.1f} deg, pitch outside
--- [{pmin:.1f}, {pmax:.1f}] deg, airspeed below {vmin:.1f} m/s, height above home below {hmin:.1f} m, or the switch
--- going low abort: overrides stop and the mode becomes {recover_name}. Times in ms from the trigger; EXCT log
--- messages (block, phase: 0 start, 1 hand-over, 2 input, 3 recovery, 4 done, 5 abort) mark them in the log.
+-- Trigger: the RC channel whose RCx_OPTION is {option} ("Scripting{scripting}"), switched high (above 1800 us).
+-- The script refuses a channel that is also FLTMODE_CH or a stick channel (RCMAP_*), needs the switch seen low
+-- after loading, and starts only when flying: armed, airspeed >= {vmin:.1f} m/s and height above home
+-- >= {hmin:.1f} m; otherwise it says why and waits for the switch to go low and high again.
+-- For each block: the servo outputs are captured as trim, the mode becomes {excite_name} ({recover_name} for a
+-- throttle block: attitude held while the throttle moves), the surfaces and the throttle are overridden
+-- (SRV_Channels:set_output_pwm_chan_timeout) with trim + the planned offsets; at the block's end the mode
+-- becomes {recover_name} until the next block. Roll beyond {roll:.1f} deg, pitch outside
+-- [{pmin:.1f}, {pmax:.1f}] deg, airspeed below {vmin:.1f} m/s, height below {hmin:.1f} m, or the switch leaving
+-- high abort: overrides stop and the mode becomes {recover_name}. Times in ms from the trigger.
+-- Log: EXCT (Blk, Ph, Ax, Tms, Pms) = block, phase (0 start, 1 hand-over, 2 input, 3 recovery, 4 done,
+-- 5 abort), axis code (0 aileron, 1 elevator, 2 rudder, 3 throttle, 4 multi), the time since the trigger and
+-- the planned time [ms]; written at the first tick at or after the planned time (TimeUS: the actual time).
 
 local EXCITE_MODE = {excite}    -- {excite_name}
 local RECOVERY_MODE = {recover}  -- {recover_name}
-local TRIGGER_CHANNEL = {trigger}
-local TRIGGER_PWM = {trigger_pwm}
+local TRIGGER_OPTION = {option}  -- RCx_OPTION "Scripting{scripting}"
+local SWITCH_HIGH = 2           -- RC_Channel_ud:get_aux_switch_pos(): 0 low, 1 middle, 2 high
 local ROLL_LIMIT = math.rad({roll:.3f})
 local PITCH_MIN = math.rad({pmin:.3f})
 local PITCH_MAX = math.rad({pmax:.3f})
@@ -225,20 +245,69 @@ local MIN_AIRSPEED = {vmin:.3f}
 local MIN_HEIGHT = {hmin:.3f}
 local END_MS = {end_ms}
 local PERIOD_MS = {period_ms}
+local CHECK_MS = 1000  -- how often the trigger channel's parameters are read while waiting
 local FUNCTIONS = {{aileron = 4, elevator = 19, rudder = 21, throttle = 70}}
 local ORDER = {{"aileron", "elevator", "rudder", "throttle"}}
+local STICKS = {{"RCMAP_ROLL", "RCMAP_PITCH", "RCMAP_THROTTLE", "RCMAP_YAW"}}
 
 local BLOCKS = {{
 {blocks}
 }}
 
-local state = "idle"
+local state = "wait_low"  -- wait_low -> idle -> running -> done/aborted/refused -> (switch low) idle
 local t0 = nil
 local current = nil
+local input_marked = false
 local trim = {{}}
+local switch = nil
+local said = {{}}
 
-local function log_phase(index, phase)
-  logger:write("EXCT", "Blk,Ph", "BB", index, phase)
+local function say(severity, text)
+  gcs:send_text(severity, "excite: " .. text)
+end
+
+local function say_once(key, severity, text)
+  if not said[key] then say(severity, text) end
+  said[key] = true
+end
+
+local function mark(index, phase, axis_code, t_ms, planned_ms)
+  logger:write("EXCT", "Blk,Ph,Ax,Tms,Pms", "BBBII", index, phase, axis_code,
+               math.floor(math.max(t_ms, 0)), math.floor(math.max(planned_ms, 0)))
+end
+
+local function trigger_channel_number()
+  for n = 1, 16 do
+    local opt = param:get("RC" .. n .. "_OPTION")
+    if opt ~= nil and math.floor(opt + 0.5) == TRIGGER_OPTION then return n end
+  end
+  return nil
+end
+
+-- nil when the switch can be used, else why not
+local function switch_problem()
+  local n = trigger_channel_number()
+  if n == nil then
+    return string.format("no RC channel has RCx_OPTION %d (Scripting{scripting}): set one on a free switch",
+                         TRIGGER_OPTION)
+  end
+  local fltmode = param:get("FLTMODE_CH")
+  if fltmode ~= nil and math.floor(fltmode + 0.5) == n then
+    return string.format("RC%d is FLTMODE_CH: the switch would change the flight mode; use another channel", n)
+  end
+  for _, name in ipairs(STICKS) do
+    local stick = param:get(name)
+    if stick ~= nil and math.floor(stick + 0.5) == n then
+      return string.format("RC%d is %s, a stick channel; use a switch channel", n, name)
+    end
+  end
+  switch = rc:find_channel_for_option(TRIGGER_OPTION)
+  if switch == nil then return "the trigger channel is not available" end
+  return nil
+end
+
+local function switch_high()
+  return switch ~= nil and switch:get_aux_switch_pos() == SWITCH_HIGH
 end
 
 local function offset(sig, t_ms)
@@ -274,22 +343,33 @@ local function drive(block, t_ms)
   end
 end
 
+-- nil when flying within the limits, else why not
+local function not_flying()
+  if not arming:is_armed() then return "not armed" end
+  local airspeed = ahrs:airspeed_estimate()
+  if airspeed == nil or airspeed < MIN_AIRSPEED then
+    return string.format("airspeed %.1f m/s below %.1f", airspeed or 0, MIN_AIRSPEED)
+  end
+  local down = ahrs:get_relative_position_D_home()
+  if down == nil or -down < MIN_HEIGHT then
+    return string.format("height %.0f m below %.0f", down and -down or 0, MIN_HEIGHT)
+  end
+  return nil
+end
+
 local function outside_limits()
   local roll = ahrs:get_roll()
   local pitch = ahrs:get_pitch()
   if math.abs(roll) > ROLL_LIMIT then return string.format("roll %.0f deg", math.deg(roll)) end
   if pitch < PITCH_MIN or pitch > PITCH_MAX then return string.format("pitch %.0f deg", math.deg(pitch)) end
-  local airspeed = ahrs:airspeed_estimate()
-  if airspeed ~= nil and airspeed < MIN_AIRSPEED then return string.format("airspeed %.1f m/s", airspeed) end
-  local down = ahrs:get_relative_position_D_home()
-  if down ~= nil and -down < MIN_HEIGHT then return string.format("height %.0f m", -down) end
-  return nil
+  return not_flying()
 end
 
-local function stop(reason, phase)
+local function stop(reason, phase, t_ms)
   vehicle:set_mode(RECOVERY_MODE)
-  log_phase(current and current.index or 0, phase)
-  gcs:send_text(phase == 5 and 2 or 6, "excite: " .. reason)
+  local planned = (phase == 4) and END_MS or t_ms
+  mark(current and current.index or 0, phase, current and current.axis_code or 0, t_ms, planned)
+  say(phase == 5 and 2 or 6, reason)
   state = (phase == 5) and "aborted" or "done"
   current = nil
 end
@@ -302,48 +382,73 @@ local function find_block(t_ms)
 end
 
 local function run(t_ms)
-  local sw = rc:get_pwm(TRIGGER_CHANNEL)
-  if sw == nil or sw < TRIGGER_PWM then return stop("switch low", 5) end
-  if t_ms >= END_MS then return stop("sequence done", 4) end
+  if not switch_high() then return stop("abort, switch left high", 5, t_ms) end
+  if t_ms >= END_MS then return stop("sequence done", 4, t_ms) end
   local b = find_block(t_ms)
   if b ~= current then
     if current ~= nil then
       vehicle:set_mode(RECOVERY_MODE)
-      log_phase(current.index, 3)
+      mark(current.index, 3, current.axis_code, t_ms, current.end_ms)
     end
     if b ~= nil then
       capture_trim()
-      vehicle:set_mode(EXCITE_MODE)
-      log_phase(b.index, 1)
-      gcs:send_text(6, string.format("excite: block %d %s %s", b.index, b.input, b.axis))
+      vehicle:set_mode(b.hold and RECOVERY_MODE or EXCITE_MODE)
+      mark(b.index, 1, b.axis_code, t_ms, b.start_ms)
+      say(6, string.format("block %d %s %s", b.index, b.input, b.axis))
     end
     current = b
+    input_marked = false
   end
   if current == nil then return end
   local why = outside_limits()
-  if why ~= nil then return stop("abort, " .. why, 5) end
-  if t_ms >= current.excite_ms and t_ms - PERIOD_MS < current.excite_ms then log_phase(current.index, 2) end
+  if why ~= nil then return stop("abort, " .. why, 5, t_ms) end
+  if not input_marked and t_ms >= current.excite_ms then
+    mark(current.index, 2, current.axis_code, t_ms, current.excite_ms)
+    input_marked = true
+  end
   drive(current, t_ms)
 end
 
+local last_check_ms = nil
+local problem = nil
+
 function update()
-  if state == "idle" then
-    local sw = rc:get_pwm(TRIGGER_CHANNEL)
-    if sw ~= nil and sw >= TRIGGER_PWM and arming:is_armed() then
+  if state == "running" then
+    run((millis() - t0):tofloat())
+    return update, PERIOD_MS
+  end
+  local now = millis():tofloat()
+  if last_check_ms == nil or now - last_check_ms >= CHECK_MS then  -- parameters read every CHECK_MS only
+    problem = switch_problem()
+    if problem ~= nil then switch = nil end
+    last_check_ms = now
+  end
+  if problem ~= nil then
+    say_once(problem, 3, problem)
+    state = "wait_low"
+    return update, PERIOD_MS
+  end
+  if not switch_high() then
+    if state ~= "idle" then say(6, "ready: switch high to start (flying only)") end
+    state = "idle"
+  elseif state == "wait_low" then
+    say_once("wait_low", 4, "the trigger switch is high: switch it low first")
+  elseif state == "idle" then
+    local why = not_flying()
+    if why ~= nil then
+      say(4, "not started, not flying: " .. why .. "; switch low, then high again when flying")
+      state = "refused"
+    else
       state = "running"
       t0 = millis()
-      log_phase(0, 0)
-      gcs:send_text(6, "excite: sequence started")
+      current = nil
+      mark(0, 0, 0, 0, 0)
+      say(6, "sequence started")
     end
-  elseif state == "running" then
-    run((millis() - t0):tofloat())
-  else
-    local sw = rc:get_pwm(TRIGGER_CHANNEL)
-    if sw ~= nil and sw < TRIGGER_PWM then state = "idle" end  -- re-arm: switch low, then high again
   end
   return update, PERIOD_MS
 end
 
-gcs:send_text(6, "excite: loaded, switch RC" .. TRIGGER_CHANNEL .. " high to start")
+say(6, string.format("loaded: switch the RCx_OPTION %d channel low, then high to start", TRIGGER_OPTION))
 return update, PERIOD_MS
 """

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import itertools
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +25,7 @@ from fmu_models.signals.names import OUTPUT_TO_LOG
 from fmu_models.signals.pwm_mapping import PwmMapping, ardupilot_servo_reversed, default_mapping
 from identification.estimation.oem import Manoeuvre, OutputErrorEstimator
 from identification.flights.scenarios import Recording
+from identification.logs.dataflash_writer import MessageLayout, Stream
 
 #: ArduPlane's default outputs: SERVO1 aileron, SERVO2 elevator, SERVO3 throttle, SERVO4 rudder
 MAPPING = default_mapping("fixed_wing")
@@ -201,14 +203,19 @@ def ardupilot_params(vehicle: str) -> dict[str, float]:
 LOG_DECIMATION = {"IMU": 1, "ATT": 2, "RCOU": 2, "GPS": 20, "CTUN": 4, "BARO": 2, "ARSP": 4}
 
 
-def write_log(path: str | Path, rec: Recording, noise: bool = False, seed: int = 0) -> Path:
+def write_log(path: str | Path, rec: Recording, noise: bool = False, seed: int = 0, boot_s: float = 0.0,
+              extra: Mapping[str, Stream] | None = None, layouts: Sequence[MessageLayout] = (),
+              decimation: Mapping[str, int] | None = None) -> Path:
     """An ArduPilot DataFlash ``.bin`` log of an FMU flight, as the autopilot would have written it: IMU, ATT
     (degrees), RCOU (integer PWM), CTUN/BARO altitude, GPS, ARSP for the wing, at the rates of
-    ``LOG_DECIMATION``, the ``SERVOn_*`` parameters, and seeded white sensor noise when ``noise``."""
+    ``LOG_DECIMATION``, the ``SERVOn_*`` parameters, and seeded white sensor noise when ``noise``. The recording
+    starts ``boot_s`` [s] after boot (TimeUS); ``extra`` adds messages ``{name: (t_s since boot, columns)}``
+    (e.g. EXCT marks, MODE), with their ``layouts`` when they are not standard ones; ``decimation`` overrides
+    entries of ``LOG_DECIMATION`` (e.g. ``{"RCOU": 1}``: every servo command logged)."""
     from identification.logs.dataflash_writer import write_log as write_dataflash
 
     sig = recording_signals(rec, noise=noise, seed=seed)
-    t = np.asarray(rec.t_s, dtype=float)
+    t = np.asarray(rec.t_s, dtype=float) + boot_s
     vehicle = "quadrotor" if "pwm_1_us" in rec.inputs else "fixed_wing"
     deg = RAD_TO_DEG
     columns: dict[str, dict[str, Any]] = {
@@ -228,7 +235,8 @@ def write_log(path: str | Path, rec: Recording, noise: bool = False, seed: int =
         columns["ARSP"] = {"I": 0, "Airspeed": sig["airspeed_m_s"], "U": 1, "H": 1}
     streams: dict[str, Any] = {}
     for name, cols in columns.items():
-        k = LOG_DECIMATION[name]
+        k = {**LOG_DECIMATION, **(decimation or {})}[name]
         streams[name] = (t[::k], {c: (v[::k] if isinstance(v, np.ndarray) else v) for c, v in cols.items()})
     streams["EV"] = (t[:1], {"Id": 10})  # armed at the start
-    return write_dataflash(path, streams, ardupilot_params(vehicle))
+    streams.update(extra or {})
+    return write_dataflash(path, streams, ardupilot_params(vehicle), layouts)

@@ -87,9 +87,15 @@ def ground_level(log: FlightLog, vehicle: str, t_s: np.ndarray, parked: np.ndarr
     return None
 
 
+#: a log sample within this much after a query time counts as at it [s]: half the 1 us resolution of log time
+#: stamps, so that a query on a sample's time (a grid plus a whole-sample delay) is not lost to rounding
+HOLD_TOLERANCE_S = 5e-7
+
+
 def hold(sig: Signal, t_s: np.ndarray) -> np.ndarray:
     """Zero-order hold of ``sig`` at ``t_s``: commanded outputs (servo PWM) hold between log samples."""
-    idx = np.clip(np.searchsorted(sig.t_s, t_s, side="right") - 1, 0, len(sig.t_s) - 1)
+    idx = np.clip(np.searchsorted(sig.t_s, np.asarray(t_s) + HOLD_TOLERANCE_S, side="right") - 1, 0,
+                  len(sig.t_s) - 1)
     return sig.values[idx]
 
 

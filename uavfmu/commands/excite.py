@@ -3,13 +3,16 @@
 
 ``uavfmu excite --out flights/exc [--params plane.json] [--airspeed 25] [--inputs 3211,doublet,multisine]
 [--check]`` trims and linearises the model, prints its modes and the planned blocks, and writes
-``exc.lua`` (ArduPilot script: switch-triggered, attitude/airspeed/height limits abort to the recovery mode),
+``exc.lua`` (ArduPilot script: started by an ``RCx_OPTION`` Scripting switch only when flying; attitude, airspeed
+and height limits abort to the recovery mode; ``EXCT`` marks in the log for ``identify aero``),
 ``exc.rc_override.json``/``.csv`` (RC-override steps for a ground-station script, ArduPilot or PX4),
 ``exc.timeline.json`` (blocks for ``identify aero``) and ``exc.plan.json``. ``--check`` flies the plan in closed
 loop on the model (PD attitude hold, plan on top) and prints the condition number and largest correlation
-of the lateral and longitudinal derivative sets. The work is ``identification.excite.workflow``.
+of the lateral and longitudinal derivative sets, and dry-runs the Lua script on stand-in ArduPilot bindings
+(trigger refusals, marks, abort). The work is ``identification.excite.workflow``.
 
-Exit status: 0 done, 2 bad input, 3 ``--check`` found a set not well conditioned (files still written).
+Exit status: 0 done, 2 bad input, 3 ``--check`` found a set not well conditioned or a failed dry run (files
+still written).
 """
 
 from __future__ import annotations
@@ -50,9 +53,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--multisine-period", type=float, default=10.0, help="multisine period T [s] (10)")
     p.add_argument("--max-frequency", type=float, default=None,
                    help="highest planned frequency [Hz] (3; quadrotor 5)")
+    p.add_argument("--throttle-blocks", type=int, default=2,
+                   help="fixed wing: throttle doublets at attitude hold, alternating sign; 0: none (2)")
+    p.add_argument("--throttle-amplitude", type=float, default=0.2,
+                   help="fixed wing: throttle doublet amplitude, fraction (0.2)")
+    p.add_argument("--throttle-pulse", type=float, default=2.0,
+                   help="fixed wing: throttle doublet time unit [s]; 0: from the phugoid (2)")
     p.add_argument("--mode", default="MANUAL", help="ArduPlane mode the inputs are flown in (MANUAL)")
     p.add_argument("--recovery-mode", default="FBWA", help="ArduPlane mode between blocks and on abort (FBWA)")
-    p.add_argument("--trigger-channel", type=int, default=8, help="RC channel whose switch starts the script (8)")
+    p.add_argument("--trigger-option", type=int, default=300,
+                   help="RCx_OPTION of the trigger switch, 300..307 = Scripting1..8 (300)")
     p.add_argument("--min-height", type=float, default=40.0, help="abort below this height above home [m] (40)")
     p.add_argument("--rc-rate", type=float, default=None, help="RC-override row rate [Hz] (20; quadrotor 50)")
     p.add_argument("--mapping", type=Path, help="PWM mapping TOML (default: ArduPlane SERVO1-4, +/-0.35 rad)")
@@ -72,9 +82,10 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
                         roll_limit_deg=args.roll_limit, pitch_limit_deg=args.pitch_limit,
                         surface_limit_deg=args.surface_limit, rate_hz=_or(args.rate, 50.0), settle_s=args.settle,
                         tail_s=args.tail, recovery_s=_or(args.recovery, 10.0), multisine_period_s=args.multisine_period,
-                        max_frequency_hz=_or(args.max_frequency, 3.0))
+                        max_frequency_hz=_or(args.max_frequency, 3.0), throttle_blocks=args.throttle_blocks,
+                        throttle_amplitude=args.throttle_amplitude, throttle_pulse_s=args.throttle_pulse)
     out = OutputOptions(excite_mode=args.mode, recovery_mode=args.recovery_mode,
-                        trigger_channel=args.trigger_channel, min_height_m=args.min_height,
+                        trigger_option=args.trigger_option, min_height_m=args.min_height,
                         rc_rate_hz=_or(args.rc_rate, 20.0))
     return opt, out
 
@@ -108,4 +119,4 @@ def run(args: argparse.Namespace) -> int:
         paths += write_plots(result, args.plots, command)
     print(result.summary())
     print("wrote " + ", ".join(str(p) for p in paths))
-    return EXIT_ILL_CONDITIONED if result.well_conditioned is False else EXIT_OK
+    return EXIT_ILL_CONDITIONED if result.check_passed is False else EXIT_OK

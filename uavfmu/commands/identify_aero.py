@@ -19,7 +19,11 @@ coefficients enter the bounds with their prior std (consider covariance; ``--no-
 equation-error estimate (smoothed states, stepwise regression of the measured accelerations) starts the
 output-error fit and is printed beside it. Per-segment initial rates and gyro/accelerometer biases are
 estimated when they lower the Akaike criterion (``--nuisance auto``; ``--estimate-initial``/``--biases``
-give them by hand), and a command -> surface delay is scanned up to ``--max-delay``. The work is
+give them by hand), and a command -> surface delay is scanned from ``--min-delay`` (negative: the log shows the
+command after the surfaces moved; 0 by default) up to ``--max-delay``. The console lists the log's measurement
+chain with the values read from it; ``--sensor-filters`` models its gyro and accelerometer low-pass
+(``INS_GYRO_FILTER``/``INS_ACCEL_FILTER``, PX4 ``IMU_GYRO_CUTOFF``/``IMU_ACCEL_CUTOFF``) on the model's rate
+and specific-force outputs. The work is
 ``identification.aero.identify``; this module parses and prints.
 
 Exit status: 0 done, 2 bad input (unreadable log, a log damaged beyond ``--max-damage`` without ``--force``,
@@ -94,6 +98,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--biases", help="outputs given a constant bias per segment (by hand)")
     p.add_argument("--max-delay", type=_bounded(0.0, 1.0), default=0.1,
                    help="longest command -> surface delay scanned [s] (0 turns the scan off; 0.1)")
+    p.add_argument("--min-delay", type=_bounded(-1.0, 0.0), default=0.0,
+                   help="most negative command -> surface delay scanned [s] (0; the shared SITL excitation log, "
+                        "servo outputs logged at half the loop rate: -0.04)")
+    p.add_argument("--sensor-filters", action="store_true",
+                   help="pass the model's rates and specific forces through the log's gyro/accelerometer low-pass "
+                        "(INS_GYRO_FILTER/INS_ACCEL_FILTER, PX4 IMU_GYRO_CUTOFF/IMU_ACCEL_CUTOFF)")
     p.add_argument("--bounds", help="bounds name=lo:hi,... on free parameters")
     p.add_argument("--sigma", help="fixed weighting B = diag(sigma^2): output=sigma,... for every fitted output "
                    "(default: maximum likelihood)")
@@ -168,7 +178,8 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         window_s=args.window, rate_hz=args.rate, nuisance="given" if given else args.nuisance,
         estimate_initial=_names(args.estimate_initial), biases=_names(args.biases), bounds=bounds, sigma=sigma,
         stability_constraints=not args.no_stability_constraints, max_iter=args.max_iter, horizon_s=args.horizon,
-        max_delay_s=args.max_delay, progress=not args.quiet, force=args.force, max_damage=args.max_damage,
+        max_delay_s=args.max_delay, min_delay_s=args.min_delay, sensor_filters=None if args.sensor_filters else {},
+        progress=not args.quiet, force=args.force, max_damage=args.max_damage,
         priors=args.priors, prior_values=priors, consider=not args.no_consider, timeline=args.timeline,
         equation_error=not args.no_equation_error)
 

@@ -114,7 +114,7 @@ def test_doublet_spectrum_peak_and_design_centres() -> None:
 def test_pulse_widths_follow_the_modes() -> None:
     opt = ExciteOptions(inputs=("3211", "doublet"), min_pulse_s=0.02, max_frequency_hz=50.0, rate_hz=400.0)
     plan = plan_excitation(None, opt)
-    for b in plan.blocks:
+    for b in (b for b in plan.blocks if b.axis != "throttle"):
         w = plan.targets_rad_s[b.axis]
         assert b.pulse_unit_s == pytest.approx(spectrum_centre(PULSES[b.input]) / w, abs=0.5 / opt.rate_hz)
     assert plan.targets_rad_s["rudder"] == pytest.approx(plan.modes.dutch_roll.wn_rad_s)
@@ -124,6 +124,25 @@ def test_pulse_widths_follow_the_modes() -> None:
     default = plan_excitation()
     assert min(b.pulse_unit_s for b in default.blocks if b.pulse_unit_s) >= 0.1 - 1e-9
     assert default.targets_rad_s["aileron"] == pytest.approx(2 * math.pi * 3.0)
+
+
+def test_throttle_doublets_at_attitude_hold_alternate_and_stay_within_the_throttle_range() -> None:
+    from identification.excite.design import throttle_pulse
+
+    plan = plan_excitation()
+    thr = [b for b in plan.blocks if b.axis == "throttle"]
+    assert len(thr) == 2 and all(b.input == "doublet" and set(b.signals) == {"throttle"} for b in thr)
+    first = [sig.steps[0][1] for b in thr for sig in b.signals.values()]
+    assert first[0] == -first[1] and abs(first[0]) <= 0.2 + 1e-12  # alternating sign, within the amplitude
+    assert all(b.pulse_unit_s == pytest.approx(2.0) for b in thr)
+    assert 0 < plan.trim.throttle - abs(first[0]) and plan.trim.throttle + abs(first[0]) < 1
+    du = plan.deflection(np.array([thr[0].excitation_start_s + 0.5]))[0]
+    assert du[3] == pytest.approx(first[0]) and not du[:3].any()  # only the throttle moves
+    # 0: the doublet's spectrum centre on the phugoid, at least 2 s
+    opt = ExciteOptions(throttle_pulse_s=0.0)
+    want = max(2.0, spectrum_centre(PULSES["doublet"]) / plan.modes.phugoid.wn_rad_s)
+    assert throttle_pulse(plan.modes, opt) == pytest.approx(want, abs=0.5 / opt.rate_hz)
+    assert not [b for b in plan_excitation(None, ExciteOptions(throttle_blocks=0)).blocks if b.axis == "throttle"]
 
 
 def test_schroeder_multisine_is_orthogonal_low_peak_and_starts_at_zero() -> None:
@@ -158,18 +177,21 @@ def test_amplitudes_respect_surface_and_attitude_limits() -> None:
     opt = ExciteOptions(roll_limit_deg=30.0, pitch_limit_deg=10.0, surface_limit_deg=15.0)
     plan = plan_excitation(None, opt)
     trim_deg = {"aileron": plan.trim.aileron_rad, "elevator": plan.trim.elevator_rad, "rudder": plan.trim.rudder_rad}
+
+    def cap(s: str) -> float:  # throttle: a fraction of full throttle within [0, 1] about the trim throttle
+        if s == "throttle":
+            return min(opt.throttle_amplitude, opt.surface_margin * min(plan.trim.throttle, 1 - plan.trim.throttle))
+        return opt.surface_margin * (math.radians(opt.surface_limit_deg) - abs(trim_deg[s]))
+
     for b in plan.blocks:
         for s, sig in b.signals.items():
-            cap = opt.surface_margin * (math.radians(opt.surface_limit_deg) - abs(trim_deg[s]))
-            assert 0 < sig.peak_rad() <= cap * (1 + 1e-9)
+            assert 0 < sig.peak_rad() <= cap(s) * (1 + 1e-9)
         assert b.predicted_peak_deg["roll"] <= opt.attitude_fraction * opt.roll_limit_deg * (1 + 1e-9)
         assert b.predicted_peak_deg["pitch"] <= opt.attitude_fraction * opt.pitch_limit_deg * (1 + 1e-9)
         # one limit is active: the amplitude is as large as the limits allow
         assert (max(b.predicted_peak_deg["roll"] / (opt.attitude_fraction * opt.roll_limit_deg),
                     b.predicted_peak_deg["pitch"] / (opt.attitude_fraction * opt.pitch_limit_deg)) > 0.999
-                or any(sig.peak_rad() >= 0.999 * opt.surface_margin * (math.radians(opt.surface_limit_deg)
-                                                                        - abs(trim_deg[s]))
-                       for s, sig in b.signals.items()))
+                or any(sig.peak_rad() >= 0.999 * cap(s) for s, sig in b.signals.items()))
     # blocks are in order, each with its settle, input and recovery
     for a, b in zip(plan.blocks, plan.blocks[1:], strict=False):
         assert a.start_s < a.excitation_start_s < a.end_s < b.start_s

@@ -1,6 +1,7 @@
 """What ``uavfmu excite`` writes: the timeline (read back by identification.logs.timeline), the RC-override steps,
-and the ArduPilot Lua script (compiled by a real Lua 5.3, then run against a stand-in of the ArduPilot scripting
-API whose bindings are the ones of ArduPilot's libraries/AP_Scripting/docs/docs.lua)."""
+and the ArduPilot Lua script (compiled by a real Lua 5.3, then run against the stand-in of the ArduPilot scripting
+API in identification.excite.dry_run, whose bindings are the ones of ArduPilot's
+libraries/AP_Scripting/docs/docs.lua): trigger refusals, marks at the first tick after their time, aborts."""
 
 from __future__ import annotations
 
@@ -37,7 +38,7 @@ def test_files_are_written_and_the_timeline_reads_back(result, tmp_path: Path) -
     for got, b in zip(tl.blocks, result.plan.blocks, strict=True):
         assert (got.axis, got.start_s, got.excitation_start_s, got.end_s) == (
             b.axis, pytest.approx(b.start_s), pytest.approx(b.excitation_start_s), pytest.approx(b.end_s))
-    multi = tl.blocks[-1]
+    multi = next(b for b in tl.blocks if b.axis == "multi")
     assert multi.axis == "multi" and set(multi.excited_axes) == {"aileron", "elevator", "rudder"}
     assert {b.index for b in tl.blocks_for("rudder")} == {b.index for b in result.plan.blocks if "rudder" in b.signals}
 
@@ -64,18 +65,22 @@ def test_rc_override_rows_carry_the_plan(result) -> None:  # type: ignore[no-unt
     mapping = default_mapping("fixed_wing")
     for r in rows:
         blk = plan.active_block(r["t_s"])
-        assert r["phase"] == ("excite" if blk else "recover") and r["block"] == (blk.index if blk else 0)
+        want_phase = "recover" if blk is None else "hold" if blk.axis == "throttle" else "excite"
+        assert r["phase"] == want_phase and r["block"] == (blk.index if blk else 0)
         du = plan.deflection(np.array([r["t_s"]]))[0]
         for surface, k in (("aileron", 0), ("elevator", 1), ("rudder", 2)):
             want = servo_offset_us(mapping, surface, du[k]) * 500.0 / 400.0  # full stick = full servo throw
             assert r["offset_us"][str(rc["channels"][surface])] == pytest.approx(want, abs=0.06)
-        assert r["offset_us"]["3"] == 0.0  # throttle held where it was
+        thr = servo_offset_us(mapping, "throttle", du[3]) * 1000.0 / 1000.0  # one-sided: full stick = full range
+        assert r["offset_us"]["3"] == pytest.approx(thr, abs=0.06)  # zero outside the throttle blocks
     # inside the first 3-2-1-1 the aileron stick really moves by the planned amount
     b = plan.blocks[0]
     inside = [r for r in rows if b.excitation_start_s <= r["t_s"] < b.excitation_start_s + 0.3]
     amp_us = servo_offset_us(mapping, "aileron", b.signals["aileron"].peak_rad()) * 500 / 400
     assert inside and all(r["offset_us"]["1"] == pytest.approx(amp_us, abs=0.06) for r in inside)
-    assert rc["modes"]["ardupilot"] == {"excite": "MANUAL", "recover": "FBWA"}
+    assert rc["modes"]["ardupilot"] == {"excite": "MANUAL", "hold": "FBWA", "recover": "FBWA"}
+    thr_rows = [r for r in rows if r["phase"] == "hold"]
+    assert thr_rows and max(abs(r["offset_us"]["3"]) for r in thr_rows) > 50.0  # the throttle really moves
     assert rc["modes"]["px4"]["recover"] == "STABILIZED"
     lim = rc["limits"]
     assert lim["roll_deg"] == OPT.roll_limit_deg and lim["min_airspeed_m_s"] == pytest.approx(0.7 * 25.0, rel=1e-3)
@@ -87,129 +92,118 @@ def test_rc_override_rows_carry_the_plan(result) -> None:  # type: ignore[no-unt
 # ------------------------------------------------------------------ Lua
 lupa = pytest.importorskip("lupa.lua53", reason="lupa (Lua 5.3 for Python) not installed: pip install lupa")
 
-#: the ArduPilot scripting bindings the script may use (names and argument order as in docs.lua); anything else
-#: is nil here and the script fails
-MOCK = """
-local M = {now = 0, pwm = {}, roll = 0, pitch = 0.05, airspeed = 25, down = -100, mode = 5, modes = {},
-           outputs = {}, texts = {}, logs = {}, armed = true,
-           servo = {[4] = 1500, [19] = 1520, [21] = 1490, [70] = 1600},
-           channel_of = {[4] = 0, [19] = 1, [21] = 3, [70] = 2}}
-local U = {}
-U.__index = U
-U.__sub = function(a, b) return setmetatable({v = a.v - b.v}, U) end
-function U:tofloat() return self.v end
-function millis() return setmetatable({v = M.now}, U) end
-rc = {}
-function rc:get_pwm(chan) return M.pwm[chan] end
-ahrs = {}
-function ahrs:get_roll() return M.roll end
-function ahrs:get_pitch() return M.pitch end
-function ahrs:airspeed_estimate() return M.airspeed end
-function ahrs:get_relative_position_D_home() return M.down end
-vehicle = {}
-function vehicle:set_mode(m) M.mode = m; table.insert(M.modes, m); return true end
-function vehicle:get_mode() return M.mode end
-arming = {}
-function arming:is_armed() return M.armed end
-gcs = {}
-function gcs:send_text(sev, text) table.insert(M.texts, text) end
-logger = {}
-function logger:write(name, labels, fmt, a, b) table.insert(M.logs, {a, b}) end
-SRV_Channels = {}
-function SRV_Channels:find_channel(fn) return M.channel_of[fn] end
-function SRV_Channels:get_output_pwm(fn) return M.servo[fn] end
-function SRV_Channels:set_output_pwm_chan_timeout(chan, pwm, timeout_ms)
-  assert(math.type(pwm) == "integer" and timeout_ms > 0)
-  M.outputs[chan] = pwm
-end
-return M
-"""
-
-
-def _load(rt, text: str):  # type: ignore[no-untyped-def]
-    """Lua's ``load``: (chunk, None) or (None, message)."""
-    res = rt.globals().load(text)
-    return res if isinstance(res, tuple) else (res, None)
-
-
-def _runtime(script: str):  # type: ignore[no-untyped-def]
-    rt = lupa.LuaRuntime(unpack_returned_tuples=True)
-    mock = rt.execute(MOCK)
-    chunk, err = _load(rt, script)
-    assert chunk is not None, err
-    update, period = chunk()
-    return rt, mock, update, period
+from identification.excite.dry_run import (  # noqa: E402 - only with lupa
+    HIGH_US,
+    LOW_US,
+    SWITCH_CHANNEL,
+    FakeArduPlane,
+    LuaScriptError,
+    dry_run,
+    expected_marks,
+)
 
 
 def test_lua_script_compiles_and_syntax_errors_are_caught(result) -> None:  # type: ignore[no-untyped-def]
-    rt = lupa.LuaRuntime(unpack_returned_tuples=True)
-    chunk, err = _load(rt, result.files[".lua"])
-    assert chunk is not None, err
-    broken, err = _load(rt, result.files[".lua"].replace("  return u\nend\n", "  return u\n", 1))
-    assert broken is None and "expected" in err
+    FakeArduPlane(result.files[".lua"])
+    with pytest.raises(LuaScriptError, match="does not compile"):
+        FakeArduPlane(result.files[".lua"].replace("  return u\nend\n", "  return u\n", 1))
 
 
-def _step(mock, update, t_ms: float) -> None:  # type: ignore[no-untyped-def]
-    mock.now = t_ms
-    update()
+def test_a_binding_ardupilot_does_not_have_fails_the_script(result) -> None:  # type: ignore[no-untyped-def]
+    """The stand-in knows only docs.lua's bindings: a misspelt one is an error, not a silent nil."""
+    bad = result.files[".lua"].replace("rc:find_channel_for_option(", "rc:find_channel_for_aux(", 1)
+    ap = FakeArduPlane(bad, {f"RC{SWITCH_CHANNEL}_OPTION": 300})
+    with pytest.raises(LuaScriptError, match="find_channel_for_aux"):
+        ap.tick(0)
 
 
-def test_lua_runs_the_plan_and_aborts_on_the_roll_limit(result) -> None:  # type: ignore[no-untyped-def]
+def test_dry_run_trigger_marks_and_abort(result) -> None:  # type: ignore[no-untyped-def]
+    run = dry_run(result.plan, result.files[".lua"], jitter_ms=8, seed=3)
+    assert run.ok, run.lines
+    assert [(m.block, m.phase, m.planned_ms) for m in run.marks] == expected_marks(result.plan)
+    delays = [m.since_trigger_ms - m.planned_ms for m in run.marks]
+    assert min(delays) >= 0 and max(delays) <= 20 + 8
+    assert {m.axis for m in run.marks if m.phase == 1} == {0, 1, 2, 3, 4}  # aileron .. throttle, multi
+
+
+def test_dry_run_catches_a_mark_lost_to_a_late_tick(result) -> None:  # type: ignore[no-untyped-def]
+    """Negative control: the old rule (input mark only if a tick falls within one period after the planned time)
+    loses marks when ticks run late; the dry run must say so."""
+    old = result.files[".lua"].replace(
+        "if not input_marked and t_ms >= current.excite_ms then",
+        "if t_ms >= current.excite_ms and t_ms - PERIOD_MS < current.excite_ms and not input_marked then")
+    assert old != result.files[".lua"]
+    run = dry_run(result.plan, old, jitter_ms=15, seed=1)
+    assert not run.ok and any(line.startswith("FAILED") and "marks in order" in line for line in run.lines)
+
+
+@pytest.mark.parametrize("params, word", [({"RC8_OPTION": 300}, "FLTMODE_CH"), ({"RC1_OPTION": 300}, "RCMAP_ROLL"),
+                                          ({}, "no RC channel has RCx_OPTION 300")])
+def test_a_trigger_that_could_surprise_is_refused(result, params, word) -> None:  # type: ignore[no-untyped-def]
+    ap = FakeArduPlane(result.files[".lua"], params)
+    ap.set(armed=True, airspeed=25.0, height=100.0, switch_us=LOW_US)
+    ap.m.pwm[8] = ap.m.pwm[1] = LOW_US
+    ap.tick(0)
+    ap.m.pwm[8] = ap.m.pwm[1] = HIGH_US
+    ap.set(switch_us=HIGH_US)
+    ap.tick(1000)
+    assert not ap.marks and ap.mode == 5 and any(word in t for t in ap.texts), ap.texts
+
+
+def _flying(script: str) -> FakeArduPlane:
+    ap = FakeArduPlane(script, {f"RC{SWITCH_CHANNEL}_OPTION": 300})
+    ap.set(armed=True, airspeed=25.0, height=100.0, pitch=0.05, switch_us=LOW_US)
+    ap.tick(0)
+    return ap
+
+
+def test_lua_outputs_are_the_captured_trim_plus_the_planned_offsets(result) -> None:  # type: ignore[no-untyped-def]
     plan = result.plan
-    _rt, mock, update, period = _runtime(result.files[".lua"])
-    assert period == round(1000 / plan.options.rate_hz)
-    _step(mock, update, 1000)  # switch low: nothing happens
-    assert len(mock.modes) == 0 and len(mock.outputs) == 0
-    mock.pwm[8] = 1900
-    _step(mock, update, 2000)  # trigger: t0 = 2000 ms
+    ap = _flying(result.files[".lua"])
+    assert ap.period_ms == round(1000 / plan.options.rate_hz)
+    ap.set(switch_us=HIGH_US)
+    ap.tick(2000)  # trigger: t0 = 2000 ms
     b = plan.blocks[0]
-    _step(mock, update, 2000 + 1)  # block 1 hand-over: trims captured, MANUAL
-    assert mock.mode == 0
-    t_in = b.excitation_start_s + 0.05  # inside the first "3" pulse
-    _step(mock, update, 2000 + 1000 * t_in)
+    ap.tick(2000 + 1)  # block 1 hand-over: trims captured, MANUAL
+    assert ap.mode == 0
+    ap.tick(2000 + 1000 * (b.excitation_start_s + 0.05))  # inside the first "3" pulse
     mapping = default_mapping("fixed_wing")
     want = 1500 + servo_offset_us(mapping, "aileron", b.signals["aileron"].peak_rad())
-    assert mock.outputs[0] == round(want)  # aileron = captured trim + planned offset
-    assert mock.outputs[1] == 1520 and mock.outputs[3] == 1490 and mock.outputs[2] == 1600  # others held
-    # the multisine block: the Lua sum of cosines equals the planned signal
-    m = plan.blocks[-1]
+    out = ap.outputs
+    assert out[0] == round(want)  # aileron = captured trim + planned offset
+    assert out[1] == 1520 and out[3] == 1490 and out[2] == 1600  # others held
+    m = next(b for b in plan.blocks if b.axis == "multi")  # the Lua sum of cosines equals the planned multisine
     for t in (0.37, 2.11, 5.5):
-        _step(mock, update, 2000 + 1000 * (m.excitation_start_s + t))
+        ap.tick(2000 + 1000 * (m.excitation_start_s + t))
         du = m.deflection(np.array([m.excitation_start_s + t]))[0]
-        assert mock.outputs[1] == round(1520 + servo_offset_us(mapping, "elevator", du[1]))
-        assert mock.outputs[3] == round(1490 + servo_offset_us(mapping, "rudder", du[2]))
-    # between blocks: recovery mode
-    _step(mock, update, 2000 + 1000 * (plan.blocks[1].start_s - 0.5))
-    assert mock.mode == 5
-    # roll beyond the limit inside a block aborts to FBWA and stops overriding
-    _step(mock, update, 2000 + 1000 * (plan.blocks[1].excitation_start_s + 0.1))
-    assert mock.mode == 0
-    mock.roll = math.radians(OPT.roll_limit_deg + 1)
-    _step(mock, update, 2000 + 1000 * (plan.blocks[1].excitation_start_s + 0.12))
-    assert mock.mode == 5 and any("abort, roll" in str(t) for t in mock.texts.values())
-    n_out = dict(mock.outputs)
-    _step(mock, update, 2000 + 1000 * (plan.blocks[2].excitation_start_s + 0.1))
-    assert dict(mock.outputs) == n_out and mock.mode == 5  # aborted: no more blocks until re-armed
+        assert ap.outputs[1] == round(1520 + servo_offset_us(mapping, "elevator", du[1]))
+        assert ap.outputs[3] == round(1490 + servo_offset_us(mapping, "rudder", du[2]))
+    th = next(b for b in plan.blocks if b.axis == "throttle")  # throttle doublet at attitude hold (FBWA)
+    ap.tick(2000 + 1000 * th.start_s + 1)
+    ap.tick(2000 + 1000 * (th.excitation_start_s + 0.5))
+    du = th.deflection(np.array([th.excitation_start_s + 0.5]))[0]
+    assert ap.mode == 5 and du[3] != 0 and ap.outputs[2] == round(1600 + servo_offset_us(mapping, "throttle", du[3]))
 
 
-def test_lua_aborts_when_the_switch_goes_low_and_on_low_airspeed(result) -> None:  # type: ignore[no-untyped-def]
+def test_lua_aborts_when_the_switch_leaves_high_and_on_low_airspeed(result) -> None:  # type: ignore[no-untyped-def]
     plan = result.plan
-    _rt, mock, update, _ = _runtime(result.files[".lua"])
-    mock.pwm[8] = 1900
-    _step(mock, update, 0)
-    _step(mock, update, 1000 * (plan.blocks[0].excitation_start_s + 0.05))
-    assert mock.mode == 0
-    mock.pwm[8] = 1000
-    _step(mock, update, 1000 * (plan.blocks[0].excitation_start_s + 0.1))
-    assert mock.mode == 5 and any("switch low" in str(t) for t in mock.texts.values())
-    _step(mock, update, 90000)  # still low: ready again
-    mock.pwm[8] = 1900  # re-arm (low, then high): starts over
-    _step(mock, update, 100000)
-    _step(mock, update, 100001)
-    assert mock.mode == 0
-    mock.airspeed = 10.0
-    _step(mock, update, 100000 + 1000 * (plan.blocks[0].excitation_start_s + 0.05))
-    assert mock.mode == 5 and any("airspeed" in str(t) for t in mock.texts.values())
+    ap = _flying(result.files[".lua"])
+    ap.set(switch_us=HIGH_US)
+    ap.tick(20)
+    ap.tick(20 + 1000 * (plan.blocks[0].excitation_start_s + 0.05))
+    assert ap.mode == 0
+    ap.set(switch_us=1500)  # middle position: not high any more
+    ap.tick(20 + 1000 * (plan.blocks[0].excitation_start_s + 0.1))
+    assert ap.mode == 5 and any("switch left high" in t for t in ap.texts) and ap.marks[-1].phase == 5
+    ap.set(switch_us=LOW_US)
+    ap.tick(90000)
+    ap.set(switch_us=HIGH_US)  # re-armed (low, then high): starts over
+    ap.tick(100000)
+    ap.tick(100001)
+    assert ap.mode == 0
+    ap.set(airspeed=10.0)
+    ap.tick(100000 + 1000 * (plan.blocks[0].excitation_start_s + 0.05))
+    assert ap.mode == 5 and any("airspeed" in t for t in ap.texts) and ap.marks[-1].phase == 5
 
 
 # ------------------------------------------------------------------ ground-station example (docs/examples)
@@ -285,3 +279,16 @@ def test_ground_station_example_sends_the_rows_and_aborts_on_roll(result) -> Non
     assert out.startswith("abort: roll 60")
     assert master.modes[-1][1] == "STABILIZED" and master.sent[-1][1] == (0,) * 8
     assert master.sent[-1][0] < 3.0
+
+
+def test_check_dry_runs_the_script_and_a_failed_dry_run_fails_the_check(monkeypatch) -> None:
+    import identification.excite.workflow as wf
+
+    res = excite(None, OPT, check=True)
+    assert res.dry_run is not None and res.dry_run.ok and res.check_passed is True
+    assert "dry run of the Lua script" in res.summary() and "FAILED" not in res.summary()
+    broken = wf.lua_script  # a script whose input mark never comes: the check must fail
+    monkeypatch.setattr(wf, "lua_script", lambda *a, **k: broken(*a, **k).replace(
+        "t_ms >= current.excite_ms then", "t_ms >= current.excite_ms + END_MS then"))
+    bad = wf.excite(None, OPT, check=True)
+    assert bad.dry_run is not None and not bad.dry_run.ok and bad.check_passed is False
