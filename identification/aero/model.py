@@ -23,6 +23,7 @@ from identification.common.metrics import FitMetrics, fit_metrics
 from identification.estimation.oem import Manoeuvre
 from identification.logs.flightlog import FlightLog, LogError
 from identification.logs.log_state import initial_values, mapped_inputs
+from identification.logs.timeline import SpanError, parse_spans
 
 #: outputs fitted by default: attitude, body rates, specific force, airspeed
 DEFAULT_OUTPUTS = FIXED_WING_FIT_OUTPUTS
@@ -45,15 +46,10 @@ class Segment:
 
 def parse_segments(text: str, option: str = "--segments") -> list[Segment]:
     """``"t0:t1,t0:t1"`` (seconds from log start) into segments; errors name the option and the item."""
-    out = []
-    for item in filter(None, (s.strip() for s in text.split(","))):
-        try:
-            a, b = (float(v) for v in item.split(":"))
-        except ValueError:
-            raise SegmentError(f"{option}: {item!r} is not t0:t1 in seconds") from None
-        if not (math.isfinite(a) and math.isfinite(b) and b > a >= 0):
-            raise SegmentError(f"{option}: {item!r} needs 0 <= t0 < t1")
-        out.append(Segment(a, b))
+    try:
+        out = [Segment(a, b) for a, b in parse_spans(text, option)]
+    except SpanError as err:
+        raise SegmentError(str(err)) from None
     if not out:
         raise SegmentError(f"{option}: no segment in {text!r}")
     return out

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from fmu_models.quadrotor.params import QuadrotorParams
@@ -27,6 +26,7 @@ from identification.excite.quadrotor_writers import (
     sid_parameters,
     sid_values,
 )
+from identification.excite.workflow import write_files
 
 
 @dataclass
@@ -95,17 +95,6 @@ def excite_quadrotor(params: QuadrotorParams | None = None, opt: QuadExciteOptio
                                "this airframe (raise --rate, lower --max-stick)")
     result.files[".plan.json"] = json.dumps(result.plan_dict(out), indent=1)
     return result
-
-
-def write_files(result: QuadExciteResult, prefix: Path) -> list[Path]:
-    """Write every rendered file as ``prefix`` + its suffix; returns the paths."""
-    prefix.parent.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for suffix, text in result.files.items():
-        path = prefix.parent / (prefix.name + suffix)
-        path.write_text(text, encoding="utf-8")
-        paths.append(path)
-    return paths
 
 
 __all__ = ["QuadExciteResult", "excite_quadrotor", "write_files"]

@@ -11,13 +11,19 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from fmu_models.fixed_wing.params import FixedWingParams
 from identification.excite.check import Flight, Gains, SetCheck, check_plan
 from identification.excite.design import ExcitationPlan, ExciteError, ExciteOptions, as_dict, plan_excitation
 from identification.excite.dry_run import DryRun, LuaScriptError, dry_run
 from identification.excite.writers import OutputOptions, lua_script, rc_override, rc_override_csv, timeline_dict
+
+
+class Rendered(Protocol):
+    """A plan's rendered files, suffix -> text (``ExciteResult`` and the quadrotor's ``QuadExciteResult``)."""
+
+    files: dict[str, str]
 
 
 @dataclass
@@ -100,8 +106,9 @@ def excite(params: FixedWingParams | None = None, opt: ExciteOptions | None = No
     return result
 
 
-def write_files(result: ExciteResult, prefix: Path) -> list[Path]:
-    """Write every rendered file as ``prefix`` + its suffix; returns the paths."""
+def write_files(result: Rendered, prefix: Path) -> list[Path]:
+    """Write every rendered file of a plan (fixed wing or quadrotor) as ``prefix`` + its suffix; returns the
+    paths."""
     prefix.parent.mkdir(parents=True, exist_ok=True)
     paths = []
     for suffix, text in result.files.items():

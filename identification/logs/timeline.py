@@ -18,6 +18,8 @@ Use::
 
 from __future__ import annotations
 
+import math
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Literal
 
@@ -102,3 +104,23 @@ class Timeline(_Open):
 def load_timeline(path: str | Path) -> Timeline:
     """Read a timeline JSON (flown or planned); :class:`fmu_models.config.ConfigError` lists every problem."""
     return load_config(path, Timeline)
+
+
+class SpanError(ValueError):
+    """A time span given as text (``t0:t1``) that does not parse or is not a forward span from the log start."""
+
+
+def parse_spans(items: str | Iterable[str], option: str = "--segments") -> list[tuple[float, float]]:
+    """``"t0:t1,t0:t1"`` (or the items already split) into (t0, t1) pairs [s from the log start]; errors name the
+    option and the item. Empty input gives an empty list (the caller decides whether that is an error)."""
+    parts = items.split(",") if isinstance(items, str) else list(items)
+    out = []
+    for item in filter(None, (s.strip() for s in parts)):
+        try:
+            a, b = (float(v) for v in item.split(":"))
+        except ValueError:
+            raise SpanError(f"{option}: {item!r} is not t0:t1 in seconds") from None
+        if not (math.isfinite(a) and math.isfinite(b) and b > a >= 0):
+            raise SpanError(f"{option}: {item!r} needs 0 <= t0 < t1")
+        out.append((a, b))
+    return out

@@ -12,7 +12,6 @@ open-loop unstable, so a long open-loop record drifts away whatever the paramete
 from __future__ import annotations
 
 import itertools
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +24,7 @@ from fmu_models.config import ConfigError, Schema, validate_config
 from fmu_models.quadrotor.constants import N_MOTORS
 from identification.logs.flightlog import FlightLog
 from identification.logs.log_state import any_of, ground_samples
+from identification.logs.timeline import SpanError, parse_spans
 
 #: rest kept after a block without ``rest_end_s`` [s]
 REST_S = 3.0
@@ -73,15 +73,10 @@ class Segment:
 
 def parse_windows(text: str, option: str = "--segments") -> list[Segment]:
     """``"t0:t1,t0:t1"`` (seconds from log start) into segments; errors name the option and the item."""
-    out = []
-    for item in filter(None, (s.strip() for s in text.split(","))):
-        try:
-            a, b = (float(v) for v in item.split(":"))
-        except ValueError:
-            raise SegmentError(f"{option}: {item!r} is not t0:t1 in seconds") from None
-        if not (math.isfinite(a) and math.isfinite(b) and b > a >= 0):
-            raise SegmentError(f"{option}: {item!r} needs 0 <= t0 < t1")
-        out.append(Segment(a, b, "given"))
+    try:
+        out = [Segment(a, b, "given") for a, b in parse_spans(text, option)]
+    except SpanError as err:
+        raise SegmentError(str(err)) from None
     if not out:
         raise SegmentError(f"{option}: no segment in {text!r}")
     return out

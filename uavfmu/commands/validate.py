@@ -128,14 +128,9 @@ def _segments(args: argparse.Namespace) -> list[tuple[float, float]] | None:
         items += held
     if not items:
         return None
-    out = []
-    for item in items:
-        try:
-            a, b = (float(v) for v in item.split(":"))
-        except ValueError:
-            raise ValueError(f"--segments: {item!r} is not t0:t1 in seconds") from None
-        out.append((a, b))
-    return out
+    from identification.logs.timeline import parse_spans
+
+    return parse_spans(items, "--segments")
 
 
 def run(args: argparse.Namespace) -> int:
