@@ -16,6 +16,9 @@ the model with every baseline by :func:`identification.common.metrics.skill_inte
 :class:`identification.common.metrics.SkillInterval`): ``lose`` when the baseline's RMSE is lower by more than 0.1 %
 pooled or on any held-out set, whatever the interval; ``win`` when every pooled interval lies above zero; else
 ``tie``.
+
+Longer than 700 lines because the folds, the baselines at each level of side information and the verdict share
+one data layout; the map itself, the battery state and the data set live in their own modules.
 """
 
 from __future__ import annotations
