@@ -238,6 +238,20 @@ class HeightFilter:
         self.offset += (self.baro_h - alt_m - self.offset) * min(dt_fix / self.offset_tau_s, 1.0)
 
 
+
+def receive_step(sock: socket.socket, mav: mavlink2.MAVLink, pending: list) -> dict[str, object]:
+    """The messages of one lockstep step as PX4 reads them, by type, up to its HIL_STATE_QUATERNION (the last one
+    the adapter sends per step); ``pending`` keeps what was parsed beyond it for the next call."""
+    got: dict[str, object] = {}
+    while "HIL_STATE_QUATERNION" not in got:
+        if not pending:
+            pending += mav.parse_buffer(sock.recv(65536)) or []
+            continue
+        m = pending.pop(0)
+        got[m.get_type()] = m
+    return got
+
+
 def fly_px4_altitude(server: Any, altitude_m: Callable[[float], float], seconds: float,
                      filt: HeightFilter | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Fly the quadrotor through a lockstep ``Px4Server`` as a fake PX4 would: altitude reference
@@ -255,13 +269,7 @@ def fly_px4_altitude(server: Any, altitude_m: Callable[[float], float], seconds:
     times, truth, est, pending, sensor, last_fix, last_baro = [], [], [], [], None, None, None
     try:
         for k in range(round(seconds / server.dt_s)):
-            got: dict[str, object] = {}
-            while "HIL_STATE_QUATERNION" not in got:
-                if not pending:
-                    pending += mav.parse_buffer(sock.recv(65536)) or []
-                    continue
-                m = pending.pop(0)
-                got[m.get_type()] = m
+            got = receive_step(sock, mav, pending)
             sensor, state = got["HIL_SENSOR"], got["HIL_STATE_QUATERNION"]
             q = tuple(state.attitude_quaternion)
             filt.predict(server.dt_s, q, (sensor.xacc, sensor.yacc, sensor.zacc))

@@ -20,7 +20,7 @@ from hil_adapter.ardupilot_json import ArduPilotJsonServer, UdpTransport
 from hil_adapter.core import Plant, Watchdog
 from hil_adapter.px4 import Px4Server
 from hil_adapter.sensors import SensorConfig, SensorSuite, interval_imu
-from tests.fakes.hil import DT, FakeSitl, HeightFilter, fly_px4_altitude, serving
+from tests.fakes.hil import DT, FakeSitl, HeightFilter, fly_px4_altitude, receive_step, serving
 
 DROP_M = 0.5  #: start height of the touchdown tests [m]: about 3 m/s at contact, motors off
 MG_TO_M_S2 = G0_M_S2 / 1000.0
@@ -93,13 +93,7 @@ def _px4_drop(fmu: Path, seconds: float) -> np.ndarray:
             pending: list = []
             try:
                 for _ in range(round(seconds / DT)):
-                    got: dict = {}
-                    while "HIL_STATE_QUATERNION" not in got:
-                        if not pending:
-                            pending += mav.parse_buffer(sock.recv(65536)) or []
-                            continue
-                        m = pending.pop(0)
-                        got[m.get_type()] = m
+                    got = receive_step(sock, mav, pending)
                     sens, st = got["HIL_SENSOR"], got["HIL_STATE_QUATERNION"]
                     q = tuple(st.attitude_quaternion)
                     rows.append((_down(q, (sens.xacc, sens.yacc, sens.zacc)),
