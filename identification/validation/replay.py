@@ -483,6 +483,8 @@ def replay_setup(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[S
         raise ValidationInputError(str(err)) from err
     more, notes = other_inputs(host, log, t, inputs)
     inputs.update(more)
+    if vehicle == "quadrotor":
+        notes += command_rate_notes(log, opts.rate_hz)
     params = {n: host.start_value(n) for n, v in host.variables.items() if v.causality == "parameter"}
     params.update(overrides)
     source = None
@@ -531,6 +533,22 @@ def replay_setup(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[S
     findings = check_inputs(vehicle, inputs, _servo_pwm(vehicle, log, mapping, t), params, logged_v, fed, scored)
     return ReplaySetup(vehicle, t, inputs, measured, edges, included, ground, gaps, on_ground, starts, extra, params,
                        notes, opts, source, findings)
+
+
+#: motor commands logged more than this many times faster than the replay grid are named in a note
+COMMAND_RATE_MARGIN = 1.5
+
+
+def command_rate_notes(log: FlightLog, rate_hz: float) -> list[str]:
+    """A note when the log records motor commands much faster than the replay grid [Hz]: the grid holds one
+    command per step, so a rate loop's changes in between never reach the FMU."""
+    d = np.diff(log.signal("motor_1_pwm_us").t_s)
+    d = d[d > 0]
+    if not d.size or 1.0 / np.median(d) <= COMMAND_RATE_MARGIN * rate_hz:
+        return []
+    hz = float(1.0 / np.median(d))
+    return [f"motor commands logged at {hz:.0f} Hz, replayed on a {rate_hz:g} Hz grid: each one held "
+            f"{1000.0 / rate_hz:g} ms, the commands in between are not replayed (--rate-hz {hz:.0f} replays them)"]
 
 
 def _set_inputs(host: FmuHost, inputs: dict[str, np.ndarray], overrides: Mapping[str, float], notes: list[str]

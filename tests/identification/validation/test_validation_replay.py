@@ -174,3 +174,12 @@ def test_lagged_thrust_is_the_first_order_lag_of_the_commands(quadrotor_fmu: Pat
             lag += alpha * (c[k + 1] - lag)
         assert got[name] == pytest.approx(lag, rel=1e-4)
         assert abs(got[name] - c[a]) > 1e-3  # the lagged thrust is not the command: the case that matters
+
+
+def test_commands_faster_than_the_grid_are_named(quad_log: Path) -> None:
+    from identification.validation.replay import command_rate_notes
+
+    log = read_log(quad_log)  # motor commands at 50 Hz
+    assert command_rate_notes(log, 50.0) == []
+    (note,) = command_rate_notes(log, 10.0)
+    assert "logged at 50 Hz, replayed on a 10 Hz grid" in note and "--rate-hz 50" in note
