@@ -23,5 +23,6 @@ LOG_UNITS: dict[str, tuple[str, float]] = {
     "deg": ("rad", DEG_TO_RAD), "cdeg": ("rad", CDEG_TO_RAD), "deg/s": ("rad/s", DEG_TO_RAD),
     "cm": ("m", 0.01), "mm": ("m", 0.001), "ft": ("m", FT_TO_M), "km": ("m", 1000.0),
     "cm/s": ("m/s", 0.01), "kn": ("m/s", KN_TO_M_S), "km/h": ("m/s", KMH_TO_M_S), "ft/s": ("m/s", FT_TO_M),
+    "cm/s2": ("m/s2", 0.01),
     "g": ("m/s2", G0_M_S2), "mG": ("m/s2", G0_M_S2 / 1000.0), "kN": ("N", 1000.0),
 }

@@ -36,6 +36,11 @@ from fmu_models.quadrotor.thrust import (
 
 PWM_INPUT_MIN_US = 0.0  #: 0 us = no pulse (motor off); below idle thrust is zero anyway
 PWM_INPUT_MAX_US = 2500.0
+#: initial motor-lag states [N]: a restart in the middle of a manoeuvre (a replay window) starts each motor at the
+#: thrust it lags at there, not at the thrust its PWM commands (negative: the commanded thrust, a start at rest)
+INIT_THRUST_PARAMS: tuple[Variable, ...] = tuple(
+    Variable(f"init_thrust_{i}_N", "N", f"initial thrust of motor {i} (lag state; negative: at the commanded thrust)",
+             -1.0, -1.0, 1000.0) for i in range(1, N_MOTORS + 1))
 OMEGA_EPS_N = 1e-6  #: below this thrust [N] the motor speed goes linearly to 0 (finite derivative at idle)
 
 
@@ -73,7 +78,7 @@ class QuadrotorModel(vehicle.BodyVehicleModel):
             states=tuple(Variable(f"thrust_state_{i}_N", "N", f"motor {i} thrust (lag state)")
                          for i in range(1, N_MOTORS + 1)),
             state_limits=(1e4,) * N_MOTORS,
-            params=map_param_variables(defaults.thrust_map),
+            params=(*map_param_variables(defaults.thrust_map), *INIT_THRUST_PARAMS),
             outputs=outputs,
         )
         self.gear_points = self._gear_points()
@@ -166,8 +171,13 @@ class QuadrotorModel(vehicle.BodyVehicleModel):
         return ca.vertcat(*nav, *ex["thrust"], ex["total"], *ex["omega"], self.out_of_range(u, p))
 
     def initial_state(self, p: Any, u: Any) -> Any:
-        """Initial state from the ``init_*``/``home_*`` parameters; motor lags at the commanded thrust."""
-        return ca.vertcat(vehicle.initial_body_state(self.params.view(p)), *self.commanded_thrust(u, p))
+        """Initial state from the ``init_*``/``home_*`` parameters; each motor lag at ``init_thrust_<i>_N`` when
+        that is not negative, else at the commanded thrust of the first input."""
+        pv = self.params.view(p)
+        cmd = self.commanded_thrust(u, p)
+        lag = [ca.if_else(getattr(pv, f"init_thrust_{i + 1}_N") >= 0, getattr(pv, f"init_thrust_{i + 1}_N"), cmd[i])
+               for i in range(N_MOTORS)]
+        return ca.vertcat(vehicle.initial_body_state(pv), *lag)
 
     def post_step(self, x: Any, u: Any, p: Any) -> Any:
         """Renormalise the quaternion; without a motor lag, keep the lag states equal to the command."""

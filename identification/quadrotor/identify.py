@@ -37,6 +37,7 @@ from identification.common.metrics import skill_interval
 from identification.estimation.oem import Estimate, EstimationError, Manoeuvre, OutputErrorEstimator
 from identification.logs.flightlog import BATTERY_VOLTAGE, FlightLog, LogError, check_quality
 from identification.logs.log_state import hold, initial_values
+from identification.quadrotor import rate_commands
 from identification.quadrotor import segments as qseg
 from identification.quadrotor.priors import BATTERY_MASS_KG, MOTOR_MASS_KG, InertiaPrior, airframe_inertia
 
@@ -337,6 +338,9 @@ def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorPar
     prior = airframe_inertia(init.mass_kg, init.arm_length_m, opt.motor_mass_kg, opt.battery_mass_kg, init.frame)
     command_hz = min(command_rate_hz(log) for log in logs)
     notes: list[str] = []
+    slow_why = ""
+    if command_hz < MIN_COMMAND_HZ:  # ArduCopter's RATE mixer inputs, where logged fast, give the commands between
+        logs, command_hz, slow_why = rate_commands.fill_in(logs, command_hz, MIN_COMMAND_HZ, notes)
     fit_w, val_w = _windows(logs, init, opt, notes)
     velocity = all(_velocity_logged(log) for log in logs)
     not_ident: dict[str, str] = {}
@@ -345,7 +349,7 @@ def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorPar
     if command_hz < MIN_COMMAND_HZ:
         why = (f"motor commands logged at {command_hz:.0f} Hz, below {MIN_COMMAND_HZ:g} Hz: the rate loop changes "
                "the motors many times between two logged commands, so the moments that drive the body rates "
-               "are unknown")
+               "are unknown" + (f" (no rebuilt commands: {slow_why})" if slow_why else ""))
         not_ident.update({n: why for n in RATE_PARAMS})
         if velocity:
             not_ident["kd_z_N_s_m"] = ("vertical drag needs the thrust at the log's rate, which slow motor "

@@ -378,13 +378,44 @@ def _simulate_windows(host: FmuHost, t: np.ndarray, inputs: Mapping[str, np.ndar
     names = [m.fmu for m in maps] + [e for e in extra if e not in {m.fmu for m in maps}]
     for i, (a, b) in enumerate(itertools.pairwise(edges)):
         if included[i]:
-            res = host.simulate(t[a:b + 1], {k: v[a:b + 1] for k, v in inputs.items()}, names, starts[i])
+            start = {**starts[i], **lagged_thrust(host, t, inputs, a, starts[i])}
+            res = host.simulate(t[a:b + 1], {k: v[a:b + 1] for k, v in inputs.items()}, names, start)
             for m in maps:  # sample a is the re-initialisation itself: score the predicted samples a+1..b
                 model[m.fmu][a + 1:b + 1] = m.align(res[m.fmu][1:], measured[m.fmu][a + 1:b + 1])
             first[i] = [res[e][0] for e in extra]
         if progress:
             progress(i + 1, len(edges) - 1)
     return model, first
+
+
+#: a quadrotor restart's motor lags are run this many motor time constants over the logged commands before it (the
+#: warm-up's own start at the commanded thrust then weighs exp(-8) = 3e-4), and at most this long [s]
+LAG_WARMUP_TAUS, LAG_WARMUP_MAX_S = 8.0, 2.0
+INIT_THRUST = tuple(f"init_thrust_{k}_N" for k in range(1, N_MOTORS + 1))
+
+
+def lagged_thrust(host: FmuHost, t: np.ndarray, inputs: Mapping[str, np.ndarray], a: int,
+                  start: Mapping[str, float]) -> dict[str, float]:
+    """``init_thrust_<k>_N`` [N] of a restart at grid sample ``a``: the thrust each motor lags at there.
+
+    A restart in the middle of a manoeuvre otherwise begins with every motor at the thrust its PWM commands, as
+    if the commands had been steady for ever: with a 25 ms motor lag and a rate loop swinging the commands, the
+    moment of that false start alone loses a 0.5 s replay of the body rates. The FMU's own motor lag (its
+    thrust outputs, which depend on the PWM and voltage inputs alone) is run over the grid's inputs of the
+    ``LAG_WARMUP_TAUS`` time constants before ``a`` (``start`` gives ``tau_motor_s`` and the body state, which
+    the thrust does not depend on). Empty when the FMU has no such parameters (built before them), no motor
+    lag, or no sample before ``a``."""
+    if INIT_THRUST[0] not in host.variables or a < 1:
+        return {}
+    tau = float(start.get("tau_motor_s", host.start_value("tau_motor_s")))
+    dt = float(t[1] - t[0])
+    if not tau > 0:
+        return {}
+    k = min(a, max(1, int(np.ceil(min(LAG_WARMUP_TAUS * tau, LAG_WARMUP_MAX_S) / dt))))
+    outs = [f"thrust_{j}_N" for j in range(1, N_MOTORS + 1)]
+    res = host.simulate(t[a - k:a + 1], {n: v[a - k:a + 1] for n, v in inputs.items()}, outs,
+                        {**start, **dict.fromkeys(INIT_THRUST, -1.0)})
+    return {p: float(res[o][-1]) for p, o in zip(INIT_THRUST, outs, strict=True)}
 
 
 def _windows_to_score(log: FlightLog, log_path: Path, vehicle: str, maps: Sequence[SignalMap],
@@ -452,6 +483,8 @@ def replay_setup(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[S
         raise ValidationInputError(str(err)) from err
     more, notes = other_inputs(host, log, t, inputs)
     inputs.update(more)
+    if vehicle == "quadrotor":
+        notes += command_rate_notes(log, opts.rate_hz)
     params = {n: host.start_value(n) for n, v in host.variables.items() if v.causality == "parameter"}
     params.update(overrides)
     source = None
@@ -500,6 +533,22 @@ def replay_setup(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[S
     findings = check_inputs(vehicle, inputs, _servo_pwm(vehicle, log, mapping, t), params, logged_v, fed, scored)
     return ReplaySetup(vehicle, t, inputs, measured, edges, included, ground, gaps, on_ground, starts, extra, params,
                        notes, opts, source, findings)
+
+
+#: motor commands logged more than this many times faster than the replay grid are named in a note
+COMMAND_RATE_MARGIN = 1.5
+
+
+def command_rate_notes(log: FlightLog, rate_hz: float) -> list[str]:
+    """A note when the log records motor commands much faster than the replay grid [Hz]: the grid holds one
+    command per step, so a rate loop's changes in between never reach the FMU."""
+    d = np.diff(log.signal("motor_1_pwm_us").t_s)
+    d = d[d > 0]
+    if not d.size or 1.0 / np.median(d) <= COMMAND_RATE_MARGIN * rate_hz:
+        return []
+    hz = float(1.0 / np.median(d))
+    return [f"motor commands logged at {hz:.0f} Hz, replayed on a {rate_hz:g} Hz grid: each one held "
+            f"{1000.0 / rate_hz:g} ms, the commands in between are not replayed (--rate-hz {hz:.0f} replays them)"]
 
 
 def _set_inputs(host: FmuHost, inputs: dict[str, np.ndarray], overrides: Mapping[str, float], notes: list[str]

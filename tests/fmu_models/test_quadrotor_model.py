@@ -245,3 +245,15 @@ def test_params_load_reports_all_problems(tmp_path) -> None:
     text = str(err.value)
     assert str(f) in text and "mass_kg = -1.0" in text and "arm_lenght_m is not a parameter" in text
     assert "frame = 'hexa'" in text
+
+
+def test_initial_motor_lag_states_from_init_thrust(sim: Simulator) -> None:
+    """``init_thrust_<i>_N`` >= 0 starts motor i's lag there (a restart in mid-manoeuvre); negative (the default)
+    at the thrust the first PWM commands."""
+    u0 = np.full(4, 1600.0)
+    p = sim.params(init_pos_down_m=-100.0, tau_motor_s=0.05, init_thrust_2_N=1.25, init_thrust_4_N=0.0)
+    x0, _ = sim.initial(u0, p)
+    cmd = [float(v) for v in sim.model.commanded_thrust(u0, p)]
+    i = sim.model.states.index["thrust_state_1_N"]
+    np.testing.assert_allclose(x0[i:i + 4], [cmd[0], 1.25, cmd[2], 0.0], rtol=1e-12)
+    assert cmd[1] > 2.0  # the commanded thrust is far from the given one: the parameter decided

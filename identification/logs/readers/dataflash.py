@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fmu_models.common.units import DEG_TO_RAD, DEGE7_TO_DEG
+from fmu_models.common.units import DEG_TO_RAD, DEGE7_TO_DEG, LOG_UNITS
 from fmu_models.quadrotor.constants import N_MOTORS
 from identification.logs.flightlog import DataQuality, FlightLog, LogError, Signal, add_battery, sanitize_log
 
@@ -30,6 +30,11 @@ CANONICAL: list[tuple[str, str, str, float, str]] = [
     ("gyro_body_x_rad_s", "IMU", "GyrX", 1.0, "rad/s"),
     ("gyro_body_y_rad_s", "IMU", "GyrY", 1.0, "rad/s"),
     ("gyro_body_z_rad_s", "IMU", "GyrZ", 1.0, "rad/s"),
+    # without an IMU message, the rates ArduCopter's rate controller feeds back (RATE R, P, Y [deg/s]: the AHRS's
+    # bias-corrected gyro)
+    ("gyro_body_x_rad_s", "RATE", "R", DEG_TO_RAD, "rad/s"),
+    ("gyro_body_y_rad_s", "RATE", "P", DEG_TO_RAD, "rad/s"),
+    ("gyro_body_z_rad_s", "RATE", "Y", DEG_TO_RAD, "rad/s"),
     ("roll_rad", "ATT", "Roll", DEG_TO_RAD, "rad"),
     ("pitch_rad", "ATT", "Pitch", DEG_TO_RAD, "rad"),
     ("yaw_rad", "ATT", "Yaw", DEG_TO_RAD, "rad"),
@@ -38,7 +43,23 @@ CANONICAL: list[tuple[str, str, str, float, str]] = [
     ("height_m", "GPS", "Alt", 1.0, "m"),
     ("altitude_m", "CTUN", "Alt", 1.0, "m"),
     ("airspeed_m_s", "ARSP", "Airspeed", 1.0, "m/s"),
+    # ArduCopter's rate controller (AC_AttitudeControl, RATE: TimeUS,RDes,R,ROut,PDes,P,POut,YDes,Y,YOut,ADes,A,
+    # AOut; units deg/s, normalised outputs, vertical accelerations in cm/s/s, up positive, gravity removed)
+    ("rate_target_body_x_rad_s", "RATE", "RDes", DEG_TO_RAD, "rad/s"),
+    ("rate_target_body_y_rad_s", "RATE", "PDes", DEG_TO_RAD, "rad/s"),
+    ("rate_target_body_z_rad_s", "RATE", "YDes", DEG_TO_RAD, "rad/s"),
+    ("rate_achieved_body_x_rad_s", "RATE", "R", DEG_TO_RAD, "rad/s"),
+    ("rate_achieved_body_y_rad_s", "RATE", "P", DEG_TO_RAD, "rad/s"),
+    ("rate_achieved_body_z_rad_s", "RATE", "Y", DEG_TO_RAD, "rad/s"),
+    ("rate_out_roll", "RATE", "ROut", 1.0, "1"),
+    ("rate_out_pitch", "RATE", "POut", 1.0, "1"),
+    ("rate_out_yaw", "RATE", "YOut", 1.0, "1"),
+    ("throttle_out", "RATE", "AOut", 1.0, "1"),
+    ("accel_target_up_m_s2", "RATE", "ADes", LOG_UNITS["cm/s2"][1], "m/s2"),
+    ("accel_up_m_s2", "RATE", "A", LOG_UNITS["cm/s2"][1], "m/s2"),
 ]
+#: the rate controller's outputs to the motor mixer (RATE ROut, POut, YOut, AOut; -1..1, throttle 0..1)
+RATE_OUTPUTS = ("rate_out_roll", "rate_out_pitch", "rate_out_yaw", "throttle_out")
 
 
 #: DataFlash format character -> (numpy dtype, multiplier) for the numeric columns (DFReader's FORMAT_TO_STRUCT)

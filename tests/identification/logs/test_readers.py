@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -456,3 +457,33 @@ def test_sanitiser_counts_non_finite_and_clipped_canonical_samples() -> None:
     kept = out.signal("accel_body_z_m_s2").values
     assert kept.size == 8 and np.isfinite(kept).all()
     assert out.signal("IMU.AccZ").values.size == 10
+
+
+#: ArduCopter's RATE message (AC_AttitudeControl / AP_AHRS_View::Write_Rate, ArduCopter 4.x layout)
+RATE_LAYOUT = ("RATE", "Qffffffffffff", "TimeUS,RDes,R,ROut,PDes,P,POut,YDes,Y,YOut,ADes,A,AOut")
+
+
+def test_rate_controller_message_dataflash(tmp_path: Path) -> None:
+    """RATE: targets and achieved rates [deg/s] -> rad/s, mixer inputs as logged, vertical accelerations
+    [cm/s/s, up] -> m/s2; the achieved rates stand in for the gyro only where no IMU message is logged."""
+    from identification.logs.dataflash_writer import MessageLayout, write_log
+
+    t = np.arange(40) * 0.0025  # 400 Hz, ArduCopter's fast loop
+    cols = {"RDes": 30.0 * np.sin(t), "R": 28.0 * np.sin(t), "ROut": 0.1, "PDes": -10.0, "P": -9.0, "POut": -0.05,
+            "YDes": 5.0, "Y": 4.0, "YOut": 0.02, "ADes": 150.0, "A": 120.0, "AOut": 0.45}
+    rate = MessageLayout(*RATE_LAYOUT)
+    only = read_log(write_log(tmp_path / "rate.bin", {"RATE": (t, cols)}, layouts=[rate]))
+    d2r = math.pi / 180.0
+    np.testing.assert_allclose(only.signal("rate_target_body_x_rad_s").values, 30.0 * np.sin(t) * d2r, rtol=1e-6)
+    np.testing.assert_allclose(only.signal("rate_achieved_body_y_rad_s").values, -9.0 * d2r, rtol=1e-6)
+    np.testing.assert_allclose(only.signal("rate_target_body_z_rad_s").values, 5.0 * d2r, rtol=1e-6)
+    np.testing.assert_allclose(only.signal("rate_out_roll").values, 0.1, rtol=1e-6)
+    np.testing.assert_allclose(only.signal("throttle_out").values, 0.45, rtol=1e-6)
+    np.testing.assert_allclose(only.signal("accel_target_up_m_s2").values, 1.5, rtol=1e-6)
+    np.testing.assert_allclose(only.signal("accel_up_m_s2").values, 1.2, rtol=1e-6)
+    np.testing.assert_allclose(only.signal("gyro_body_x_rad_s").values, 28.0 * np.sin(t) * d2r, rtol=1e-6, atol=1e-9)
+    assert only.signal("gyro_body_z_rad_s").description == "from RATE.Y" and only.signal("rate_out_yaw").unit == "1"
+    both = read_log(write_log(tmp_path / "both.bin", {"RATE": (t, cols), "IMU": (t[::8], {"I": 0, "GyrX": 0.7})},
+                              layouts=[rate]))
+    np.testing.assert_allclose(both.signal("gyro_body_x_rad_s").values, 0.7, rtol=1e-6)  # the IMU wins
+    assert both.signal("gyro_body_x_rad_s").description == "from IMU.GyrX"
