@@ -2,6 +2,8 @@
 PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
+# test processes (pytest-xdist): one per core; the wall-clock pacing tests (marker `realtime`) then run alone
+TEST_WORKERS ?= auto
 STAMP  := $(VENV)/.installed-test
 BENCH_STAMP := $(VENV)/.installed-bench
 MUT_STAMP := $(VENV)/.installed-mutation
@@ -46,9 +48,11 @@ fmus: $(STAMP)
 test: $(STAMP) libtbb
 	$(PY) -m ruff check .
 	$(VENV)/bin/lint-imports
-	@$(PY) -m pytest -q; rc=$$?; \
+	@$(PY) -m pytest -q -n $(TEST_WORKERS) -m "not realtime"; rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "make test: pytest collected no tests - the suite is missing" >&2; fi; \
-	exit $$rc
+	$(PY) -m pytest -q -m realtime; rt=$$?; \
+	if [ $$rt -eq 5 ]; then echo "make test: no wall-clock pacing tests collected" >&2; fi; \
+	if [ $$rc -ne 0 ]; then exit $$rc; fi; exit $$rt
 
 lint: $(STAMP)
 	$(PY) -m ruff check .

@@ -16,6 +16,9 @@ from hil_adapter.core import MAX_LAG_S, SimClockPacer, Stats
 from hil_adapter.session import HilSetupError, parse_speed, serve
 from tests.fakes.hil import DT, LockstepPx4Client, free_tcp_port, json_pace, px4_pace
 
+#: wall-clock pacing: `make test` runs these on their own, after the parallel run, so no other test shares the cores
+pytestmark = pytest.mark.realtime
+
 #: how long each paced test runs [s]; the 30 s runs are bench/hil_realtime.py
 PACED_S = 3.0
 

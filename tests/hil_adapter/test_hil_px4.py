@@ -181,6 +181,7 @@ def realtime_server(quadrotor_fmu: Path, tmp_path: Path):
     plant.close()
 
 
+@pytest.mark.realtime
 def test_realtime_mode_paces_steps_and_watchdog_cuts_throttle(realtime_server) -> None:
     from identification.logs.readers import read_log
 

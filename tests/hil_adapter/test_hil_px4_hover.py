@@ -70,6 +70,7 @@ def test_the_filter_check_can_fail_metre_gps_errors_break_it(seed: int) -> None:
     assert _offline_filter_error(SensorConfig(), 60.0, seed) < 0.15  # the accelerometer turn-on bias transient
 
 
+@pytest.mark.realtime
 def test_fast_start_runs_at_wall_clock_pace_until_the_first_actuator_message(quadrotor_fmu: Path) -> None:
     """PX4 boots without answering: the adapter steps on at about real time instead of one watchdog timeout
     per step (the old behaviour: 2 steps per second), counts no failsafe, then locks step to the answers."""
