@@ -70,7 +70,9 @@ def read_ulog(path: Path) -> FlightLog:
     alias(signals, "lat_deg", "vehicle_gps_position.lat", "deg", DEGE7_TO_DEG)
     alias(signals, "lon_deg", "vehicle_gps_position.lon", "deg", DEGE7_TO_DEG)
     alias(signals, "height_m", "vehicle_gps_position.alt", "m", 1e-3)
-    for a, full in (("n", "north"), ("e", "east"), ("d", "down")):
+    for a, full, local in (("n", "north", "vx"), ("e", "east", "vy"), ("d", "down", "vz")):
+        # the estimator's fused NED velocity (the altitude's source) before the receiver's raw one
+        alias(signals, f"vel_{full}_m_s", f"vehicle_local_position.{local}", "m/s")
         alias(signals, f"vel_{full}_m_s", f"vehicle_gps_position.vel_{a}_m_s", "m/s")
     add_local_position(signals)
     _battery(signals)

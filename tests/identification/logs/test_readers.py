@@ -74,6 +74,11 @@ def test_px4_ulog_canonical_signals() -> None:
     assert log.signal("altitude_m").values.max() == pytest.approx(2.0, abs=0.5)  # takeoff to ~2 m
     assert np.mean(log.signal("accel_body_z_m_s2").values) == pytest.approx(-9.8, abs=0.2)
     assert log.signal("armed").values.max() == 1.0
+    # velocity from the estimator (vehicle_local_position, NED, the altitude's source), not the receiver's
+    vel = log.signal("vel_down_m_s")
+    assert vel.t_s.size == log.signal("vehicle_local_position.vz").t_s.size != log.signal(
+        "vehicle_gps_position.vel_d_m_s").t_s.size
+    np.testing.assert_array_equal(vel.values, -log.signal("climb_rate_m_s").values)
 
 
 def test_csv_with_column_map_and_truncated_last_line(tmp_path: Path) -> None:
