@@ -191,6 +191,14 @@ def prediction_band(ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return srt[j], srt[k]
 
 
+def inside_band(y: np.ndarray, lo: np.ndarray, hi: np.ndarray, wrap: bool = False) -> np.ndarray:
+    """Which samples ``y`` lie in [lo, hi]; for an angle (``wrap``) on the arc from ``lo`` to ``hi`` modulo 2 pi
+    (a logged -3.1 rad is inside a band 3.0..3.3 rad; a band 2 pi wide or more holds every angle)."""
+    if not wrap:
+        return (y >= lo) & (y <= hi)
+    return (hi - lo >= 2.0 * math.pi) | (np.mod(y - lo, 2.0 * math.pi) <= hi - lo)
+
+
 def check_draws(draws: int, n_samples: int, n_signals: int, max_memory_mb: float) -> None:
     """``ValidationInputError`` before anything is allocated when ``draws`` is out of range or the draws
     would not fit in ``max_memory_mb``."""
@@ -235,13 +243,15 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
         if len(ys) < MIN_DRAWS:
             raise ValidationInputError(f"Monte Carlo: fewer than {MIN_DRAWS} of {draws} draws ran "
                                        f"({'; '.join(failed[:3])})")
+        if m.wrap:  # an angle: each draw the short way round from the nominal replay, so the band is an arc
+            ys = res.model[m.fmu] + ((ys - res.model[m.fmu] + math.pi) % (2.0 * math.pi) - math.pi)
         if m.fmu in learned:
             rng = np.random.default_rng([seed, DISCREPANCY_STREAM, len(lo)])
             ys = ys + discrepancy_draws(discrepancy, m.fmu, horizon, len(ys), rng, res)  # type: ignore[arg-type]
         lo[m.fmu], hi[m.fmu] = prediction_band(ys)
         y = res.measured[m.fmu]
         ok = np.isfinite(y) & np.isfinite(lo[m.fmu]) & np.isfinite(res.model[m.fmu])
-        inside = (y[ok] >= lo[m.fmu][ok]) & (y[ok] <= hi[m.fmu][ok])
+        inside = inside_band(y[ok], lo[m.fmu][ok], hi[m.fmu][ok], m.wrap)
         cov[m.fmu] = float(inside.mean()) if ok.any() else float("nan")
     info = {"draws": draws, "draws_run": len(ys), "seed": seed, "band": list(BAND), "parameters": unc.names,
             "mean": unc.mean, "std": list(unc.std.values()), "output_noise_std": out_std, "state_noise_std": state_std,

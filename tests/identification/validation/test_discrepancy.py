@@ -158,3 +158,50 @@ def test_the_scale_follows_the_models_own_departure_and_narrows_the_band_where_i
     assert 0.86 <= float(((r >= lo) & (r <= hi)).mean()) <= 0.97
     width = hi - lo
     assert width[~new.swing].mean() < 0.5 * width[new.swing].mean()
+
+
+def test_the_band_is_symmetric_so_a_drift_of_the_other_sign_on_a_new_flight_stays_covered() -> None:
+    """The learning flight drifts one way (residual +|N(0, 1)| h), the new flight the other way: the quantiles
+    are antisymmetric and the band covers the new flight at about its level (a band with the learning flight's
+    sign would cover almost nothing of it)."""
+    res, _ = _replay(21)
+    res.measured["roll_rad"] = np.abs(res.measured["roll_rad"])
+    disc = learn([res], ["synthetic"])
+    for row in disc.signals["roll_rad"].quantiles:
+        np.testing.assert_allclose(row, -np.asarray(row[::-1]), atol=1e-12)
+    new, _ = _replay(22)
+    new.measured["roll_rad"] = -np.abs(new.measured["roll_rad"])
+    lo, hi = prediction_band(draws(disc, "roll_rad", horizons_s(new), 40, np.random.default_rng(6), new))
+    y = new.measured["roll_rad"]
+    assert 0.85 <= float(((y >= lo) & (y <= hi)).mean()) <= 0.97
+
+
+def test_a_lagging_model_is_scaled_by_its_slope_and_its_band_narrows_where_the_output_holds_still() -> None:
+    """The log lags the model by 40 ms: the residual is -0.04 s x dFMU/dt. Half the windows oscillate, half hold
+    still; the learned form is the slope's, and the band is far narrower where the output holds still."""
+    def replay(seed: int) -> SimpleNamespace:
+        res, _ = _replay(seed, n_windows=200)
+        rng = np.random.default_rng(seed + 200)
+        amp = np.repeat(np.where(np.arange(200) % 2 == 0, rng.uniform(0.5, 1.5, 200), 0.0), 100)
+        t = res.t_s
+        res.model["roll_rad"] = amp * np.sin(2 * math.pi * 1.3 * t)
+        res.measured["roll_rad"] = amp * np.sin(2 * math.pi * 1.3 * (t - 0.04)) + 0.002 * rng.standard_normal(t.size)
+        res.still = amp == 0.0
+        return res
+
+    disc = learn([replay(31)], ["synthetic"])
+    assert disc.signals["roll_rad"].scale_by == "slope" and disc.signals["roll_rad"].scale_floor is not None
+    new = replay(32)
+    lo, hi = prediction_band(draws(disc, "roll_rad", horizons_s(new), 40, np.random.default_rng(7), new))
+    r = new.measured["roll_rad"] - new.model["roll_rad"]
+    assert 0.85 <= float(((r >= lo) & (r <= hi)).mean()) <= 0.98
+    assert (hi - lo)[new.still].mean() < 0.5 * (hi - lo)[~new.still].mean()
+
+
+def test_an_angle_is_inside_its_band_modulo_two_pi() -> None:
+    from identification.validation.mc_bands import inside_band
+
+    y, lo, hi = np.array([-3.1, 3.2, 0.0]), np.array([3.0, 3.0, 3.0]), np.array([3.3, 3.3, 3.3])
+    assert inside_band(y, lo, hi, wrap=True).tolist() == [True, True, False]
+    assert inside_band(y, lo, hi).tolist() == [False, True, False]
+    assert inside_band(y, lo - 3.2, hi + 3.2, wrap=True).all()  # 2 pi wide or more: every angle
