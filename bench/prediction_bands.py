@@ -110,8 +110,8 @@ def _fold(train: list[tuple[Path, float]], test: tuple[Path, float], work: Path,
     from build_fmus import build
     from fmu_models.common.params import read_uncertainty
     from identification.thrust.workflow import FlightSpec, ThrustConfig, identify_thrust
-    from identification.validation.discrepancy import learn, read_discrepancy, write_discrepancy
-    from identification.validation.workflow import ValidationJob, validate, validate_mc
+    from identification.validation.discrepancy import read_discrepancy
+    from identification.validation.workflow import ValidationJob, learn_discrepancy_jobs, validate_mc
 
     params = work / "params.json"
     r = identify_thrust(ThrustConfig(flights=tuple(FlightSpec(p, m) for p, m in train), out=params,
@@ -122,10 +122,9 @@ def _fold(train: list[tuple[Path, float]], test: tuple[Path, float], work: Path,
     def job(log: Path, mass_kg: float) -> ValidationJob:
         return ValidationJob(fmu, log, output_map=output_map, params_file=params, start_values={"mass_kg": mass_kg})
 
-    learned = [validate(job(p, m)).replay for p, m in train]
-    write_discrepancy(params, learn(learned, [p.name for p, _ in train]))  # type: ignore[arg-type]
-    return validate_mc(job(*test), read_uncertainty(params), draws, workers=2,
-                       discrepancy=read_discrepancy(params)).replay
+    unc = read_uncertainty(params)
+    learn_discrepancy_jobs([job(p, m) for p, m in train], params, unc, draws)
+    return validate_mc(job(*test), unc, draws, workers=2, discrepancy=read_discrepancy(params)).replay
 
 
 def quadrotor(name: str, flights: list[tuple[Path, float]], draws: int, fmu_mass: float | None,
@@ -150,8 +149,7 @@ def fixed_wing(draws: int, parameter_spread: bool = True, learn_on: str = "held"
     from identification.aero.identify import AeroOptions, AeroSource, identify_aero, write_results
     from identification.aero.model import parse_segments
     from identification.logs.readers import read_log
-    from identification.validation.discrepancy import learn
-    from identification.validation.workflow import ValidationJob, validate, validate_mc
+    from identification.validation.workflow import ValidationJob, learn_discrepancy_jobs, validate_mc
 
     log = read_log(WING)
     with tempfile.TemporaryDirectory() as tmp:
@@ -169,15 +167,14 @@ def fixed_wing(draws: int, parameter_spread: bool = True, learn_on: str = "held"
         def job(span: tuple[float, float]) -> ValidationJob:
             return ValidationJob(fmu, WING, t_range_s=span, embedded_params=False)
 
-        replays = {s: validate(job(s)).replay for s in [*held, *(fit if learn_on == "fit" else [])]}
         unc = read_uncertainty(params)
         if not parameter_spread:  # a study: the discrepancy alone, the parameters at their estimate
             unc = Uncertainty(names=unc.names, mean=unc.mean, covariance=[[0.0] * len(unc.names)] * len(unc.names))
         pool = Pool()
+        learned_on_fit = learn_discrepancy_jobs([job(x) for x in fit], None, unc, draws) if learn_on == "fit" else None
         for s in held:
-            spans = [x for x in held if x != s] if learn_on == "held" else fit
-            disc = learn([replays[x] for x in spans], [f"{WING.name} {a:.1f}-{b:.1f} s" for a, b in spans])
-            pool.add(validate_mc(job(s), unc, draws, workers=2, discrepancy=disc).replay)
+            learned = learned_on_fit or learn_discrepancy_jobs([job(x) for x in held if x != s], None, unc, draws)
+            pool.add(validate_mc(job(s), unc, draws, workers=2, discrepancy=learned.discrepancy).replay)
     return pool.table(f"fixed-wing excitation log, held-out segments of identify aero (discrepancy from the "
                       f"{'other held-out' if learn_on == 'held' else 'fit'} segments"
                       + (")" if parameter_spread else "; no parameter spread)"))

@@ -301,6 +301,11 @@ class SignalDiscrepancy(Schema):
     scale_by: Literal["departure", "magnitude", "slope"] = "departure"
     #: an angle compared modulo 2 pi (residual and departure taken the short way round)
     wrap: bool = False
+    #: ``validate --mc``: every draw's deviation from the nominal replay (parameters, restart states and this
+    #: discrepancy together) is multiplied by this, chosen on the learning replays so that their band covers its
+    #: nominal level (the parameter spread is otherwise counted twice: the residuals learned already carry the
+    #: parameters' error). None: 1 (learned without parameter draws)
+    band_factor: float | None = Field(None, gt=0.0, le=100.0, allow_inf_nan=False)
 
     @model_validator(mode="after")
     def _consistent(self) -> SignalDiscrepancy:

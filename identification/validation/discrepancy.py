@@ -234,7 +234,8 @@ class DiscrepancyResult:
                     else f"(logged - FMU) / ({s.scale_by} + {s.scale_floor:.3g})")
             out.append(f"  {name:<18} 5-95 % of {what}: [{first[i5]:+.3g}, {first[i95]:+.3g}] at "
                        f"{s.horizon_edges_s[0]:g}-{s.horizon_edges_s[1]:.2g} s, [{last[i5]:+.3g}, {last[i95]:+.3g}] at "
-                       f"{s.horizon_edges_s[-2]:.2g}-{s.horizon_edges_s[-1]:.2g} s ({sum(s.samples)} samples)")
+                       f"{s.horizon_edges_s[-2]:.2g}-{s.horizon_edges_s[-1]:.2g} s ({sum(s.samples)} samples)"
+                       + (f"; band factor {s.band_factor:.3g}" if s.band_factor is not None else ""))
         if self.written:
             out.append(f"written to {self.written} (key 'discrepancy', beside 'uncertainty')")
         return out

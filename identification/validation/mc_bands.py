@@ -22,6 +22,7 @@ whichever worker runs which draw. Draws run in chunks as tasks of ``identificati
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
@@ -214,11 +215,14 @@ def check_draws(draws: int, n_samples: int, n_signals: int, max_memory_mb: float
 
 def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: FlightLog, draws: int, seed: int,
                 executor: Executor, units: dict[str, str | None], progress: Any = False,
-                discrepancy: Discrepancy | None = None) -> Bands:
+                discrepancy: Discrepancy | None = None, keep: dict[str, np.ndarray] | None = None) -> Bands:
     """Run ``draws`` draws of ``job`` (whose nominal replay is ``res``) on ``executor``; the bands. With
     ``discrepancy`` (``identification.validation.discrepancy``) each draw of a signal it covers gets a draw of
     the model's discrepancy at each sample's horizon added, instead of the white sensor noise (the learned
-    residuals are against the logged signal: they carry its noise)."""
+    residuals are against the logged signal: they carry its noise), and the deviations from the nominal replay are
+    multiplied by the discrepancy's ``band_factor`` where it has one. ``keep``: filled with each signal's draws
+    minus the nominal replay (draws x samples) before that factor (what :func:`identification.validation.
+    mc_bands.calibrate` calibrates it on)."""
     from identification.validation.discrepancy import draws as discrepancy_draws
     from identification.validation.discrepancy import horizons_s
     from identification.validation.job import job_files
@@ -248,6 +252,11 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
         if m.fmu in learned:
             rng = np.random.default_rng([seed, DISCREPANCY_STREAM, len(lo)])
             ys = ys + discrepancy_draws(discrepancy, m.fmu, horizon, len(ys), rng, res)  # type: ignore[arg-type]
+        if keep is not None:
+            keep[m.fmu] = ys - res.model[m.fmu]
+        factor = discrepancy.signals[m.fmu].band_factor if m.fmu in learned else None  # type: ignore[union-attr]
+        if factor is not None:
+            ys = res.model[m.fmu] + factor * (ys - res.model[m.fmu])
         lo[m.fmu], hi[m.fmu] = prediction_band(ys)
         y = res.measured[m.fmu]
         ok = np.isfinite(y) & np.isfinite(lo[m.fmu]) & np.isfinite(res.model[m.fmu])
@@ -259,9 +268,50 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
             "min_coverage": MIN_COVERAGE, "max_coverage": MAX_COVERAGE,
             "discrepancy": {"signals": learned, "logs": discrepancy.logs if discrepancy else [],
                             "window_s": discrepancy.window_s if discrepancy else None,
+                            "band_factor": {k: discrepancy.signals[k].band_factor for k in learned}
+                            if discrepancy else {},
                             "same_windows": discrepancy is None or (
                                 discrepancy.window_s == res.options.get("window_s")
                                 and discrepancy.rate_hz == res.options.get("rate_hz")),
                             "parts": "parameters + restart-state noise + learned discrepancy (carries the sensor "
                                      "noise)" if learned else "parameters + restart-state noise + sensor noise"}}
     return Bands(lo, hi, cov, info)
+
+
+#: the band factor searched between these (a ratio of band widths)
+FACTOR_RANGE = (0.05, 20.0)
+
+
+def calibrate(disc: Discrepancy, kept: Sequence[tuple[ReplayResult, dict[str, np.ndarray]]],
+              level: float = 0.90) -> Discrepancy:
+    """``disc`` with each signal's ``band_factor``: the smallest factor (bisection, 1 % steps) by which the Monte
+    Carlo draws' deviations from the nominal replay (parameters + restart states + this discrepancy, ``kept`` per
+    learning replay by :func:`monte_carlo`) must be multiplied for the band to cover ``level`` of the
+    learning replays' logged samples, pooled. The discrepancy alone covers them at its level by construction:
+    the parameter draws on top count the parameters' error twice (the residuals carry it) and the factor takes
+    that back, or widens the band where the draws' spread and the discrepancy do not add up to the residuals'."""
+    from identification.validation.discrepancy import residuals
+
+    signals = dict(disc.signals)
+    for name, s in disc.signals.items():
+        parts = [(residuals(res, name), prediction_band(devs[name])) for res, devs in kept if name in devs]
+        if not parts:
+            continue
+
+        def covered(f: float, parts: list = parts) -> float:
+            inside = n = 0
+            for r, (lo, hi) in parts:
+                ok = np.isfinite(r) & np.isfinite(lo) & np.isfinite(hi)
+                inside += int(inside_band(r[ok], f * lo[ok], f * hi[ok]).sum())
+                n += int(ok.sum())
+            return inside / n if n else math.nan
+
+        a, b = FACTOR_RANGE
+        if not covered(b) >= level:  # NaN or short even at the widest: keep the widest
+            signals[name] = s.model_copy(update={"band_factor": b})
+            continue
+        while b / a > 1.01:
+            mid = math.sqrt(a * b)
+            a, b = (a, mid) if covered(mid) >= level else (mid, b)
+        signals[name] = s.model_copy(update={"band_factor": round(b, 4)})
+    return disc.model_copy(update={"signals": signals})

@@ -205,3 +205,46 @@ def test_an_angle_is_inside_its_band_modulo_two_pi() -> None:
     assert inside_band(y, lo, hi, wrap=True).tolist() == [True, True, False]
     assert inside_band(y, lo, hi).tolist() == [False, True, False]
     assert inside_band(y, lo - 3.2, hi + 3.2, wrap=True).all()  # 2 pi wide or more: every angle
+
+
+def test_the_band_factor_brings_the_learning_replays_combined_band_to_its_level() -> None:
+    """Draws twice as wide as the residuals (a parameter spread counted on top of residuals that carry it): the
+    factor is about 1/2; draws half as wide: about 2. Either way the calibrated band covers 90 % of the
+    learning samples, and validate's Monte Carlo applies it."""
+    from identification.validation.mc_bands import calibrate
+
+    res, _ = _replay(41, sigma_per_s=1.0)
+    disc = learn([res], ["synthetic"])
+    rng = np.random.default_rng(42)
+    h = horizons_s(res)
+    for spread, expected in ((2.0, 0.5), (0.5, 2.0)):
+        devs = spread * h * rng.standard_normal((40, h.size))  # residual sd is 1 x h
+        s = calibrate(disc, [(res, {"roll_rad": devs})]).signals["roll_rad"]
+        assert s.band_factor == pytest.approx(expected, rel=0.1)
+        lo, hi = prediction_band(s.band_factor * devs)
+        r = res.measured["roll_rad"] - res.model["roll_rad"]
+        assert float(((r >= lo) & (r <= hi)).mean()) == pytest.approx(0.90, abs=0.01)
+    assert disc.signals["roll_rad"].band_factor is None  # calibrate returns a copy
+
+
+def test_learning_with_parameter_draws_stores_a_factor_that_validate_applies(
+    fixed_wing_fmu: Path, wing: dict[str, Path], tmp_path: Path  # noqa: F811 - the fixture
+) -> None:
+    """The discrepancy learned with the parameter draws of the learning flight stores one band factor per signal;
+    validate --mc applies it (the metrics name it) and the held-out flight's bands stay near their level."""
+    from identification.flights import synthetic
+    from identification.validation.workflow import learn_discrepancy, validate_mc
+
+    wrong = identified(scale=1.3)
+    t, sig = synthetic.fixed_wing_flight(seconds=40.0, rate_hz=50.0, noise=True, seed=7)
+    other = synthetic.write_csv_log(tmp_path / "other.csv", t, sig)
+    job = _job(fixed_wing_fmu, wing, None)
+    learn_job = job.__class__(fixed_wing_fmu, other, job.options, mapping=job.mapping)
+    learned = learn_discrepancy(learn_job, [other], uncertainty=wrong, draws=19)
+    factors = {k: s.band_factor for k, s in learned.discrepancy.signals.items()}
+    assert all(f is not None and 0.05 <= f <= 20.0 for f in factors.values()), factors
+    assert any("band factor" in line for line in learned.lines())
+    out = validate_mc(job, wrong, 19, seed=3, workers=2, discrepancy=learned.discrepancy)
+    assert out.replay.bands.info["discrepancy"]["band_factor"] == factors
+    cov = {s: v["band_coverage"] for s, v in out.signals.items()}
+    assert all(0.8 <= cov[s] <= 0.98 for s in IDENTIFIED), cov
