@@ -301,6 +301,9 @@ class SignalDiscrepancy(Schema):
     scale_by: Literal["departure", "magnitude", "slope"] = "departure"
     #: an angle compared modulo 2 pi (residual and departure taken the short way round)
     wrap: bool = False
+    #: the quantiles are of the residuals with both signs (a band centred on the FMU); False: of the residuals as
+    #: they are, kept where their sign carries from one learning replay to another (informative, not read)
+    symmetric: bool = True
     #: ``validate --mc``: every draw's deviation from the nominal replay (parameters, restart states and this
     #: discrepancy together) is multiplied by this, chosen on the learning replays so that their band covers its
     #: nominal level (the parameter spread is otherwise counted twice: the residuals learned already carry the

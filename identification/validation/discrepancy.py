@@ -18,12 +18,13 @@ unstable vehicle is not Gaussian or stationary: it grows with the horizon and is
 with a manoeuvre carry most of the error). Quantiles need no distribution, cost nothing to evaluate and say how
 many samples they rest on; the horizon bins carry the growth, the scale the state.
 
-**Symmetric**: the residuals enter with both signs, so the band is centred on the FMU. Measured on the two PX4
-csv flights (``bench/prediction_bands.py``): the sign of a replay's drift does not carry from one flight to the
-next (the x body rate's residual, 5-95 %, is -0.87..+5.58 rad/s on drone1-8 and -3.44..+1.46 on drone1-10), and
-a band learned with the other flight's sign covered 74-79 % of roll, x rate and thrust; symmetric, 85-94 %. The
-price: a bias that does carry (the fixed wing's airspeed, -0.78 m/s on every segment) widens the band from 0.3x
-to 2.3x the RMSE, still inside the 3x target.
+**Symmetric unless the sign carries**: the residuals enter with both signs (a band centred on the FMU) unless,
+each learning replay left out in turn, the band keeping their sign covers the left-out replays as well as the
+symmetric one (within ``SIGN_TOLERANCE``; never with a single replay); per signal the narrowest form is then kept.
+Measured on the two PX4 csv flights (``bench/prediction_bands.py``): the sign of a replay's drift does not carry
+from one flight to the next (the x body rate's residual, 5-95 %, is -1.79..+6.51 rad/s on drone1-10 and
+-3.30..+0.95 rad/s on drone1-8), and a band keeping the other flight's sign covered 76.8 % of the x rate; on the
+Erle flights the thrust's sign does carry between two of them, and a symmetric band was 4.2x its RMSE wide.
 
 The residuals are against the logged, noisy signal, so they carry the sensor noise too: a signal with a
 discrepancy gets no second white-noise term in the Monte Carlo. The scale and the quantile lookup are
@@ -57,6 +58,9 @@ LEVELS = (0.005, 0.01, 0.025, 0.05, 0.075, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.
           0.995)
 N_BINS = 10  #: horizon bins over a window (full-length replays: over the longest horizon)
 MIN_BIN_SAMPLES = 20  #: a horizon bin with fewer residuals is merged into its neighbour
+#: the residual's sign is kept unless dropping it raises the coverage of the replays left out in turn by more than
+#: this (two points: about the scatter of a pooled coverage of a few thousand autocorrelated samples)
+SIGN_TOLERANCE = 0.02
 
 
 def horizons_s(res: ReplayResult) -> np.ndarray:
@@ -129,11 +133,11 @@ def _edges(h: np.ndarray, span_s: float) -> np.ndarray:
     return np.asarray(edges)
 
 
-def _fit(results: Sequence[ReplayResult], name: str, form: SignalDiscrepancy, window_s: float
-         ) -> tuple[SignalDiscrepancy, float] | None:
+def _fit(results: Sequence[ReplayResult], name: str, form: SignalDiscrepancy, window_s: float,
+         signed: bool = False) -> tuple[SignalDiscrepancy, float] | None:
     """The quantile table of signal ``name`` in the form of ``form`` (its scale basis and floor; its quantiles
     are ignored) and the mean width of its 90 % band over the learning samples (None: too few samples). The
-    residuals enter with both signs (see the module docstring: the band is symmetric about the FMU)."""
+    residuals enter with both signs (the band symmetric about the FMU) unless ``signed``."""
     hs, rs, ss = [], [], []
     for res in results:
         scale = scale_of(res, name, form)
@@ -151,14 +155,48 @@ def _fit(results: Sequence[ReplayResult], name: str, form: SignalDiscrepancy, wi
     for a, b in itertools.pairwise(edges):
         sel = (h >= a) & (h < b)
         counts.append(int(sel.sum()))
-        both = np.concatenate([r[sel], -r[sel]])
+        both = r[sel] if signed else np.concatenate([r[sel], -r[sel]])
         q = [float(v) for v in np.quantile(both, LEVELS)] if sel.any() else [0.0] * len(LEVELS)
-        q = [0.5 * (v - w) for v, w in zip(q, q[::-1], strict=True)]  # exactly antisymmetric (rounding)
+        if not signed:
+            q = [0.5 * (v - w) for v, w in zip(q, q[::-1], strict=True)]  # exactly antisymmetric (rounding)
         rows.append(q)
         width += float(np.sum((q[i95] - q[i5]) * sc[sel]))
     table = form.model_copy(update={"horizon_edges_s": [float(e) for e in edges], "quantiles": rows,
-                                    "samples": counts})
+                                    "samples": counts, "symmetric": not signed})
     return table, width / r.size
+
+
+def _covered(table: SignalDiscrepancy, res: ReplayResult, name: str) -> tuple[int, int]:
+    """Samples of ``res`` whose residual lies in the 5-95 % of ``table`` (scaled as it says), and samples scored."""
+    i5, i95 = LEVELS.index(0.05), LEVELS.index(0.95)
+    q = np.asarray(table.quantiles)[discrepancy_bins(table, horizons_s(res))]
+    scale = scale_of(res, name, table)
+    r = residuals(res, name)
+    ok = np.isfinite(r) & np.isfinite(scale)
+    inside = (r[ok] >= q[ok, i5] * scale[ok]) & (r[ok] <= q[ok, i95] * scale[ok])
+    return int(inside.sum()), int(ok.sum())
+
+
+def sign_carries(results: Sequence[ReplayResult], name: str, form: SignalDiscrepancy, window_s: float) -> bool:
+    """Whether the residual's sign carries from replay to replay: each replay left out in turn, the signed band
+    learned on the others (same form) covers the left-out samples, pooled, within ``SIGN_TOLERANCE`` of what the
+    symmetric band learned on them covers (dropping the sign would buy no coverage, only width). Never with one
+    replay: nothing shows it, and the symmetric band is the safe side."""
+    if len(results) < 2:
+        return False
+    counts = {True: [0, 0], False: [0, 0]}
+    for i, res in enumerate(results):
+        others = [x for j, x in enumerate(results) if j != i]
+        for signed in (True, False):
+            fit = _fit(others, name, form, window_s, signed=signed)
+            if fit is None:
+                return False
+            a, n = _covered(fit[0], res, name)
+            counts[signed][0] += a
+            counts[signed][1] += n
+    if not counts[True][1]:
+        return False
+    return counts[True][0] / counts[True][1] >= counts[False][0] / counts[False][1] - SIGN_TOLERANCE
 
 
 def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "") -> Discrepancy:
@@ -182,14 +220,16 @@ def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "") 
             floor = float(np.nanmean(b)) if np.isfinite(b).any() else 0.0
             if floor > 0.0:
                 forms.append(raw.model_copy(update={"scale_floor": floor}))
-        fits = [f for f in (_fit(results, m.fmu, form, window_s) for form in forms) if f is not None]
+        fits = [f for f in (_fit(results, m.fmu, form, window_s, sign_carries(results, m.fmu, form, window_s))
+                            for form in forms) if f is not None]
         if fits:
             signals[m.fmu] = min(fits, key=lambda f: f[1])[0]
     if not signals:
         raise ValidationInputError(f"discrepancy: fewer than {MIN_BIN_SAMPLES} scored samples in every signal")
     return Discrepancy(levels=list(LEVELS), signals=signals, window_s=window_s, rate_hz=rate_hz,
                        logs=[str(x) for x in logs], note=note or (
-                           "empirical quantiles of +-(logged - FMU) per horizon bin, where scale_floor is given "
+                           "empirical quantiles of logged - FMU (with both signs where symmetric) per horizon bin, "
+                           "where scale_floor is given "
                            "divided by (|FMU - FMU at the window start| or |FMU|, per scale_by, + scale_floor) "
                            "(identification.validation.discrepancy); learned from replays of the listed logs"))
 

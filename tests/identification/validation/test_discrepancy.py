@@ -248,3 +248,18 @@ def test_learning_with_parameter_draws_stores_a_factor_that_validate_applies(
     assert out.replay.bands.info["discrepancy"]["band_factor"] == factors
     cov = {s: v["band_coverage"] for s, v in out.signals.items()}
     assert all(0.8 <= cov[s] <= 0.98 for s in IDENTIFIED), cov
+
+
+def test_the_sign_is_kept_only_where_it_carries_from_one_learning_replay_to_another() -> None:
+    """Two learning replays drifting the same way: the band keeps the sign (narrower, still covering the other);
+    drifting opposite ways: the band is symmetric; one replay: symmetric (nothing shows the sign carries)."""
+    def drifting(seed: int, sign: float) -> SimpleNamespace:
+        res, _ = _replay(seed, n_windows=100)
+        res.measured["roll_rad"] = sign * np.abs(res.measured["roll_rad"])
+        return res
+
+    same = learn([drifting(51, 1.0), drifting(52, 1.0)], ["a", "b"]).signals["roll_rad"]
+    assert not same.symmetric and all(row[LEVELS.index(0.05)] >= -1e-3 for row in same.quantiles)
+    opposite = learn([drifting(53, 1.0), drifting(54, -1.0)], ["a", "b"]).signals["roll_rad"]
+    assert opposite.symmetric
+    assert learn([drifting(55, 1.0)], ["a"]).signals["roll_rad"].symmetric
