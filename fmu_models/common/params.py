@@ -304,9 +304,9 @@ class SignalDiscrepancy(Schema):
     #: the quantiles are of the residuals with both signs (a band centred on the FMU); False: of the residuals as
     #: they are, kept where their sign carries from one learning replay to another (informative, not read)
     symmetric: bool = True
-    #: ``validate --mc``: every draw's deviation from the nominal replay (parameters, restart states and this
-    #: discrepancy together) is multiplied by this, chosen on the learning replays so that their band covers its
-    #: nominal level (the parameter spread is otherwise counted twice: the residuals learned already carry the
+    #: ``validate --mc``: the draws (parameters, restart states and this discrepancy together) are stretched by
+    #: this about their per-sample median, chosen on the learning replays so that their band covers its nominal
+    #: level (the parameter spread is otherwise counted twice: the residuals learned already carry the
     #: parameters' error). None: 1 (learned without parameter draws)
     band_factor: float | None = Field(None, gt=0.0, le=100.0, allow_inf_nan=False)
 

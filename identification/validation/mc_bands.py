@@ -219,8 +219,8 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
     """Run ``draws`` draws of ``job`` (whose nominal replay is ``res``) on ``executor``; the bands. With
     ``discrepancy`` (``identification.validation.discrepancy``) each draw of a signal it covers gets a draw of
     the model's discrepancy at each sample's horizon added, instead of the white sensor noise (the learned
-    residuals are against the logged signal: they carry its noise), and the deviations from the nominal replay are
-    multiplied by the discrepancy's ``band_factor`` where it has one. ``keep``: filled with each signal's draws
+    residuals are against the logged signal: they carry its noise), and the draws are stretched about their
+    per-sample median by the discrepancy's ``band_factor`` where it has one. ``keep``: filled with each signal's draws
     minus the nominal replay (draws x samples) before that factor (what :func:`identification.validation.
     mc_bands.calibrate` calibrates it on)."""
     from identification.validation.discrepancy import draws as discrepancy_draws
@@ -255,8 +255,9 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
         if keep is not None:
             keep[m.fmu] = ys - res.model[m.fmu]
         factor = discrepancy.signals[m.fmu].band_factor if m.fmu in learned else None  # type: ignore[union-attr]
-        if factor is not None:
-            ys = res.model[m.fmu] + factor * (ys - res.model[m.fmu])
+        if factor is not None:  # about the draws' median: the band widens or narrows about its own centre
+            centre = np.median(ys, axis=0)
+            ys = centre + factor * (ys - centre)
         lo[m.fmu], hi[m.fmu] = prediction_band(ys)
         y = res.measured[m.fmu]
         ok = np.isfinite(y) & np.isfinite(lo[m.fmu]) & np.isfinite(res.model[m.fmu])
@@ -286,7 +287,8 @@ def calibrate(disc: Discrepancy, kept: Sequence[tuple[ReplayResult, dict[str, np
               level: float = 0.90) -> Discrepancy:
     """``disc`` with each signal's ``band_factor``: the smallest factor (bisection, 1 % steps) by which the Monte
     Carlo draws' deviations from the nominal replay (parameters + restart states + this discrepancy, ``kept`` per
-    learning replay by :func:`monte_carlo`) must be multiplied for the band to cover ``level`` of the
+    learning replay by :func:`monte_carlo`) must be stretched about their per-sample median (so the band widens
+    about its own centre and its coverage grows with the factor) for the band to cover ``level`` of the
     learning replays' logged samples, pooled. The discrepancy alone covers them at its level by construction:
     the parameter draws on top count the parameters' error twice (the residuals carry it) and the factor takes
     that back, or widens the band where the draws' spread and the discrepancy do not add up to the residuals'."""
@@ -294,15 +296,16 @@ def calibrate(disc: Discrepancy, kept: Sequence[tuple[ReplayResult, dict[str, np
 
     signals = dict(disc.signals)
     for name, s in disc.signals.items():
-        parts = [(residuals(res, name), prediction_band(devs[name])) for res, devs in kept if name in devs]
+        parts = [(residuals(res, name), np.median(devs[name], axis=0), *prediction_band(devs[name]))
+                 for res, devs in kept if name in devs]
         if not parts:
             continue
 
         def covered(f: float, parts: list = parts) -> float:
             inside = n = 0
-            for r, (lo, hi) in parts:
-                ok = np.isfinite(r) & np.isfinite(lo) & np.isfinite(hi)
-                inside += int(inside_band(r[ok], f * lo[ok], f * hi[ok]).sum())
+            for r, mid, lo, hi in parts:  # the band scaled about the draws' median, as monte_carlo scales it
+                ok = np.isfinite(r) & np.isfinite(mid) & np.isfinite(lo) & np.isfinite(hi)
+                inside += int(inside_band(r[ok], mid[ok] + f * (lo - mid)[ok], mid[ok] + f * (hi - mid)[ok]).sum())
                 n += int(ok.sum())
             return inside / n if n else math.nan
 

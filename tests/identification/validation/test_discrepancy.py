@@ -248,6 +248,11 @@ def test_learning_with_parameter_draws_stores_a_factor_that_validate_applies(
     assert out.replay.bands.info["discrepancy"]["band_factor"] == factors
     cov = {s: v["band_coverage"] for s, v in out.signals.items()}
     assert all(0.8 <= cov[s] <= 0.98 for s in IDENTIFIED), cov
+    from identification.validation.report import validation_page
+
+    page = validation_page(out.replay)  # the report: the band, its nominal level, its calibration, the coverage
+    assert "Nominal level 90 %" in page and "5-95 % band coverage" in page
+    assert f"roll_rad {factors['roll_rad']:.3g}" in page
 
 
 def test_the_sign_is_kept_only_where_it_carries_from_one_learning_replay_to_another() -> None:
