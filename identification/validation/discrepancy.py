@@ -23,8 +23,9 @@ each learning replay left out in turn, the band keeping their sign covers the le
 symmetric one (within ``SIGN_TOLERANCE``; never with a single replay); per signal the narrowest form is then kept.
 Measured on the two PX4 csv flights (``bench/prediction_bands.py``): the sign of a replay's drift does not carry
 from one flight to the next (the x body rate's residual, 5-95 %, is -1.79..+6.51 rad/s on drone1-10 and
--3.30..+0.95 rad/s on drone1-8), and a band keeping the other flight's sign covered 76.8 % of the x rate; on the
-Erle flights the thrust's sign does carry between two of them, and a symmetric band was 4.2x its RMSE wide.
+-3.30..+0.95 rad/s on drone1-8), and bands keeping the other flight's sign covered 74-79 % of roll, x rate and
+thrust; on the Erle flights the thrust's sign does carry between two of them, and an always-symmetric band was
+4.23x its RMSE wide (docs/validation.md#prediction-bands).
 
 The residuals are against the logged, noisy signal, so they carry the sensor noise too: a signal with a
 discrepancy gets no second white-noise term in the Monte Carlo. The scale and the quantile lookup are
