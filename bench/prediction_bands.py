@@ -2,26 +2,30 @@
 
 Leave-one-flight-out on the shared quadrotor flights (three Erle, two PX4 csv): per fold, ``identify thrust`` on
 the training flights writes the parameter file (thrust map, covariance, battery state), the quadrotor FMU is
-built from it, the model's discrepancy is learned from replays of the training flights
-(``identification.validation.workflow.learn_discrepancy``) and the held-out flight is replayed with Monte Carlo
-bands (parameters + discrepancy + noise, ``validate_mc``). Pooled over the folds, per signal: the share of the
-held-out logged samples inside the nominal 90 % band (target 80-95 % for every gated signal) and the band's mean
-width over the replay's RMSE (target <= 3).
+built from it, the model's discrepancy is learned from replays of the training flights and calibrated on their
+parameter draws (``identification.validation.workflow.learn_discrepancy_jobs``), and the held-out flight is
+replayed with Monte Carlo bands (parameters + discrepancy, ``validate_mc``). Every flight is replayed at its own
+mass (the one ``identify thrust`` is given). Pooled over the folds, per signal: the share of the held-out logged
+samples inside the nominal 90 % band (target 80-95 % for every gated signal) and the band's mean width over the
+replay's RMSE (target <= 3), beside the oracle's: the width over RMSE of a band made of the held-out residuals'
+own 5-95 % quantiles per horizon bin (what a calibrated band of this form can at best reach; not a target).
 
 The shared fixed-wing excitation log has no second flight: ``identify aero`` on it (the timeline's fit and
 held-out segments, every default) writes the estimate and its covariance, the fixed-wing FMU is built from it,
-the discrepancy is learned on the fit segments and the bands are scored on the held-out segments (same
-targets).
+and each held-out segment is scored with the discrepancy learned and calibrated on the other held-out segments
+(``--wing-learn-on fit``: on the fit segments), same targets.
 
     .venv/bin/python bench/prediction_bands.py [--draws N] [--only erle,px4,wing] [--no-parameter-spread]
     # exit 1 on a miss
 
-Heavy (minutes): every fold builds an FMU and runs N Monte Carlo replays on two local worker processes.
+Heavy (tens of minutes on a loaded 2-core machine): every fold builds an FMU and runs N Monte Carlo replays of
+each learning and held-out log on two local worker processes.
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import sys
@@ -66,26 +70,45 @@ class Pool:
     width: dict[str, float] = field(default_factory=dict)
     sse: dict[str, float] = field(default_factory=dict)
     gated: dict[str, bool] = field(default_factory=dict)
+    #: per signal: (residual, horizon [s]) arrays of every held-out set, for the oracle width
+    kept: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)
 
     def add(self, res: object) -> None:
+        from identification.validation.discrepancy import horizons_s
+        from identification.validation.mc_bands import inside_band
+
         for m in res.maps:  # type: ignore[attr-defined]
             y, mod = res.measured[m.fmu], res.model[m.fmu]  # type: ignore[attr-defined]
             lo, hi = res.bands.lo[m.fmu], res.bands.hi[m.fmu]  # type: ignore[attr-defined]
             ok = np.isfinite(y) & np.isfinite(mod) & np.isfinite(lo) & np.isfinite(hi)
             k = m.fmu
-            self.inside[k] = self.inside.get(k, 0) + int(((y[ok] >= lo[ok]) & (y[ok] <= hi[ok])).sum())
+            self.inside[k] = self.inside.get(k, 0) + int(inside_band(y[ok], lo[ok], hi[ok], m.wrap).sum())
             self.n[k] = self.n.get(k, 0) + int(ok.sum())
-            self.width[k] = self.width.get(k, 0.0) + float((hi[ok] - lo[ok]).sum())
+            width = hi[ok] - lo[ok]
+            self.width[k] = self.width.get(k, 0.0) + float(np.minimum(width, 2 * math.pi if m.wrap else np.inf).sum())
             e = y[ok] - mod[ok]
             if m.wrap:
                 e = (e + math.pi) % (2 * math.pi) - math.pi
             self.sse[k] = self.sse.get(k, 0.0) + float((e * e).sum())
             self.gated[k] = m.gate
+            self.kept.setdefault(k, []).append((e, horizons_s(res)[ok]))  # type: ignore[arg-type]
+
+    def oracle(self, k: str) -> float:
+        """Mean width over RMSE of the band an oracle draws: the held-out residuals' own 5-95 % quantiles per
+        horizon bin (``discrepancy.N_BINS`` equal bins), what a calibrated band of this form can at best reach."""
+        from identification.validation.discrepancy import N_BINS
+
+        e = np.concatenate([x for x, _ in self.kept[k]])
+        h = np.concatenate([x for _, x in self.kept[k]])
+        edges = np.linspace(0.0, float(h.max()) + 1e-9, N_BINS + 1)
+        width = sum(int(sel.sum()) * float(np.subtract(*np.quantile(e[sel], [0.95, 0.05])))
+                    for a, b in itertools.pairwise(edges) for sel in [(h >= a) & (h < b)] if sel.any())
+        return width / e.size / math.sqrt(float(np.mean(e * e)))
 
     def table(self, title: str) -> bool:
         print(f"\n{title}: nominal 90 % bands, pooled over the held-out sets")
         print(f"  {'signal':<18} {'samples':>8} {'coverage':>9} {'mean width':>11} {'RMSE':>9} {'width/RMSE':>10}"
-              "  target")
+              f" {'oracle':>7}  target")
         ok = True
         for k in self.n:
             n = max(self.n[k], 1)
@@ -95,43 +118,51 @@ class Pool:
             if self.gated[k]:
                 ok &= met
             verdict = ("met" if met else "MISSED") if self.gated[k] else "not gated"
-            print(f"  {k:<18} {self.n[k]:>8} {cov:>9.1%} {width:>11.4g} {rmse:>9.4g} {ratio:>10.2f}  {verdict}")
+            print(f"  {k:<18} {self.n[k]:>8} {cov:>9.1%} {width:>11.4g} {rmse:>9.4g} {ratio:>10.2f} "
+                  f"{self.oracle(k):>7.2f}  {verdict}")
         return ok
 
 
-def _fold(train: list[tuple[Path, float]], test: Path, work: Path, draws: int, fmu_mass: float | None,
-          output_map: Path | None) -> object:
+def _fold(train: list[tuple[Path, float]], test: tuple[Path, float], work: Path, draws: int,
+          fmu_mass: float | None, output_map: Path | None) -> object:
+    """One fold: identify on ``train``, build, learn the discrepancy on replays of ``train``, score ``test``. Every
+    flight is replayed at its own mass (``mass_kg``, the one ``identify thrust`` was given): the logged thrust is
+    the specific force times that mass."""
     from build_fmus import build
     from fmu_models.common.params import read_uncertainty
     from identification.thrust.workflow import FlightSpec, ThrustConfig, identify_thrust
     from identification.validation.discrepancy import read_discrepancy
-    from identification.validation.workflow import ValidationJob, learn_discrepancy, validate_mc
+    from identification.validation.workflow import ValidationJob, learn_discrepancy_jobs, validate_mc
 
     params = work / "params.json"
     r = identify_thrust(ThrustConfig(flights=tuple(FlightSpec(p, m) for p, m in train), out=params,
                                      fmu_mass_kg=fmu_mass, write_losing_model=True))
-    print(f"  fold without {test.name}: thrust {r.spec.describe()}, verdict {r.verdict}")
+    print(f"  fold without {test[0].name}: thrust {r.spec.describe()}, verdict {r.verdict}")
     (fmu,) = build(params, work / "fmu", ["quadrotor"])
-    job = ValidationJob(fmu, train[0][0], output_map=output_map, params_file=params)
-    learn_discrepancy(job, [p for p, _ in train], params)
-    res = validate_mc(ValidationJob(fmu, test, output_map=output_map, params_file=params), read_uncertainty(params),
-                      draws, workers=2, discrepancy=read_discrepancy(params)).replay
-    return res
+
+    def job(log: Path, mass_kg: float) -> ValidationJob:
+        return ValidationJob(fmu, log, output_map=output_map, params_file=params, start_values={"mass_kg": mass_kg})
+
+    unc = read_uncertainty(params)
+    learn_discrepancy_jobs([job(p, m) for p, m in train], params, unc, draws)
+    return validate_mc(job(*test), unc, draws, workers=2, discrepancy=read_discrepancy(params)).replay
 
 
 def quadrotor(name: str, flights: list[tuple[Path, float]], draws: int, fmu_mass: float | None,
               output_map: Path | None) -> bool:
     pool = Pool()
-    for i, (test, _) in enumerate(flights):
+    for i, test in enumerate(flights):
         train = [f for j, f in enumerate(flights) if j != i]
         with tempfile.TemporaryDirectory() as tmp:
             pool.add(_fold(train, test, Path(tmp), draws, fmu_mass, output_map))
     return pool.table(f"{name} leave-one-flight-out")
 
 
-def fixed_wing(draws: int, parameter_spread: bool = True) -> bool:
+def fixed_wing(draws: int, parameter_spread: bool = True, learn_on: str = "held") -> bool:
     """``identify aero`` on the excitation log (its timeline's fit and held-out segments), the FMU built from the
-    estimate, the discrepancy learned on the fit segments, the bands scored on the held-out segments."""
+    estimate, the bands scored on each held-out segment with the discrepancy learned on the other held-out segments
+    (``learn_on`` "held": where the truth is known and the parameters were not fitted; leave-one-segment-out so no
+    segment is scored by what it taught) or on the fit segments ("fit")."""
     from build_fmus import build
     from fmu_models.common.params import Uncertainty, read_uncertainty
     from fmu_models.fixed_wing.params import FixedWingParams
@@ -139,8 +170,7 @@ def fixed_wing(draws: int, parameter_spread: bool = True) -> bool:
     from identification.aero.identify import AeroOptions, AeroSource, identify_aero, write_results
     from identification.aero.model import parse_segments
     from identification.logs.readers import read_log
-    from identification.validation.discrepancy import learn, write_discrepancy
-    from identification.validation.workflow import ValidationJob, validate, validate_mc
+    from identification.validation.workflow import ValidationJob, learn_discrepancy_jobs, validate_mc
 
     log = read_log(WING)
     with tempfile.TemporaryDirectory() as tmp:
@@ -151,20 +181,24 @@ def fixed_wing(draws: int, parameter_spread: bool = True) -> bool:
         metrics = json.loads((Path(tmp) / "excite.metrics.json").read_text())
         fit = [(g.t0_s, g.t1_s) for g in parse_segments(",".join(metrics["fit_segments"]))]
         held = [(g.t0_s, g.t1_s) for g in parse_segments(",".join(metrics["validation_segments"]))]
-        print(f"  identify aero: {len(fit)} fit and {len(held)} held-out segments")
+        print(f"  identify aero: {len(fit)} fit and {len(held)} held-out segments; discrepancy learned on the "
+              + ("other held-out segments" if learn_on == "held" else "fit segments"))
         (fmu,) = build(params, Path(tmp) / "fmu", ["fixed_wing"])
-        learned = [validate(ValidationJob(fmu, WING, t_range_s=s, embedded_params=False)).replay for s in fit]
-        disc = learn(learned, [f"{WING.name} {a:.1f}-{b:.1f} s" for a, b in fit])
-        write_discrepancy(params, disc)
+
+        def job(span: tuple[float, float]) -> ValidationJob:
+            return ValidationJob(fmu, WING, t_range_s=span, embedded_params=False)
+
         unc = read_uncertainty(params)
         if not parameter_spread:  # a study: the discrepancy alone, the parameters at their estimate
             unc = Uncertainty(names=unc.names, mean=unc.mean, covariance=[[0.0] * len(unc.names)] * len(unc.names))
         pool = Pool()
+        learned_on_fit = learn_discrepancy_jobs([job(x) for x in fit], None, unc, draws) if learn_on == "fit" else None
         for s in held:
-            pool.add(validate_mc(ValidationJob(fmu, WING, t_range_s=s, embedded_params=False), unc, draws, workers=2,
-                                 discrepancy=disc).replay)
-    return pool.table("fixed-wing excitation log, held-out segments of identify aero"
-                      + ("" if parameter_spread else " (no parameter spread)"))
+            learned = learned_on_fit or learn_discrepancy_jobs([job(x) for x in held if x != s], None, unc, draws)
+            pool.add(validate_mc(job(s), unc, draws, workers=2, discrepancy=learned.discrepancy).replay)
+    return pool.table(f"fixed-wing excitation log, held-out segments of identify aero (discrepancy from the "
+                      f"{'other held-out' if learn_on == 'held' else 'fit'} segments"
+                      + (")" if parameter_spread else "; no parameter spread)"))
 
 
 def main() -> int:
@@ -174,6 +208,8 @@ def main() -> int:
     ap.add_argument("--only", default="erle,px4,wing", help="which studies (comma separated)")
     ap.add_argument("--no-parameter-spread", action="store_true",
                     help="fixed wing: the parameters at their estimate (a zero covariance), the discrepancy alone")
+    ap.add_argument("--wing-learn-on", choices=("held", "fit"), default="held",
+                    help="fixed wing: learn the discrepancy on the other held-out segments (default) or the fit ones")
     args = ap.parse_args()
     if not all(p.exists() for p in [*ERLE, *(p for p, _ in PX4), WING]):
         print(f"bench/prediction_bands.py: needs {DATA} (../shared/data beside the checkout)")
@@ -188,7 +224,7 @@ def main() -> int:
             omap.write_text(px4_map_toml())
             ok &= quadrotor("PX4 csv", list(PX4), args.draws, PX4_FMU_MASS_KG, omap)
     if "wing" in only:
-        ok &= fixed_wing(args.draws, not args.no_parameter_spread)
+        ok &= fixed_wing(args.draws, not args.no_parameter_spread, args.wing_learn_on)
     print(f"\nall targets: {'met' if ok else 'NOT met'}")
     return 0 if ok else 1
 

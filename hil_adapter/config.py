@@ -14,6 +14,7 @@ their problems reported the same way: one line per problem with file, field, val
                  busy_poll_us = 500                      # lockstep: poll this long before a blocking receive
     [watchdog]   timeout_s = 0.5      mode = "throttle_off"   # or "hold"
     [record]     path = "hil_log.csv"                    # every step in and out, readable by our readers
+                 band = false  band_params = "params.json"  # each output's prediction band (record_band)
     [mavlink]    url = "udpin:127.0.0.1:14560"  baud = 57600
     [nmea]       port = "/dev/ttyUSB0"  baud = 38400  rate_hz = 5     # GPS sentences beside any interface
     [px4]        rc_channels = [1500, 1500, 1000, 1500]  # RC_CHANNELS sent with each heartbeat (PWM)
@@ -71,6 +72,10 @@ class WatchdogSection(Schema):
 
 class RecordSection(Schema):
     path: Text
+    #: also write each output's 5-95 % prediction band (``hil_adapter.record_band``)
+    band: bool = False
+    #: parameter file whose ``discrepancy`` block gives the band (default: the one embedded in the FMU)
+    band_params: Text | None = None
 
 
 class MavlinkSection(Schema):

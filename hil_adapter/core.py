@@ -337,12 +337,16 @@ def sensor_values(frame: Any) -> tuple[float, ...]:
 
 
 class Recorder:
-    """Every step's PWM in, FMU inputs and outputs, as a CSV log the project's readers read back.
+    """Every step's PWM in, FMU inputs and outputs, as a CSV log the project's readers read back; with ``band``
+    also the 5-95 % prediction band of each output its discrepancy covers (columns ``<log name>_band_lo|hi``).
 
     Each row is flushed as it is written, so a crash or Ctrl-C loses at most the row being written.
     """
 
-    def __init__(self, path: str | Path, channels: Sequence[int], inputs: Sequence[str], outputs: Sequence[str]):
+    def __init__(self, path: str | Path, channels: Sequence[int], inputs: Sequence[str], outputs: Sequence[str],
+                 band: Any = None):
+        #: ``hil_adapter.record_band.RecordBand``: each row also gets the prediction band of the outputs it covers
+        self.band = band
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._fh: TextIO = self.path.open("w", newline="", buffering=1)
@@ -350,7 +354,7 @@ class Recorder:
         self.channels, self.inputs, self.outputs = list(channels), list(inputs), list(outputs)
         self._w.writerow(["time_s", *(f"servo_{c}_pwm_us" for c in self.channels), *self.inputs,
                           *(OUTPUT_TO_LOG.get(o, o) for o in self.outputs), "failsafe", "out_of_band",
-                          *SENSOR_COLUMNS])
+                          *SENSOR_COLUMNS, *(band.columns if band is not None else ())])
         self.rows = 0
 
     def write(self, t_s: float, pwm_us: Mapping[int, float], inputs: Mapping[str, float],
@@ -362,7 +366,7 @@ class Recorder:
         self._w.writerow([repr(t_s), *(repr(float(pwm_us.get(c, math.nan))) for c in self.channels),
                           *(repr(float(inputs[n])) for n in self.inputs),
                           *(repr(float(outputs[n])) for n in self.outputs), int(failsafe), int(out_of_band),
-                          *map(repr, sens)])
+                          *map(repr, sens), *(map(repr, self.band.values(t_s, outputs)) if self.band else ())])
         self.rows += 1
 
     def close(self) -> None:

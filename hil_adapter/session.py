@@ -54,6 +54,8 @@ class HilResult:
     last_fmu_error: str = ""
     #: a fault that ended the session early (e.g. the FMU could not be instantiated again); "" otherwise
     error: str = ""
+    #: recorded outputs whose prediction band the record holds (``--record-band``)
+    band_outputs: tuple[str, ...] = ()
 
     def lines(self) -> list[str]:
         """The end-of-session console text."""
@@ -67,7 +69,9 @@ class HilResult:
         if self.error:
             out.append(f"session ended early: {self.error}")
         if self.record_path is not None:
-            out.append(f"record: {self.record_path} ({self.record_rows} rows)")
+            out.append(f"record: {self.record_path} ({self.record_rows} rows"
+                       + (f"; 5-95 % prediction band of {', '.join(self.band_outputs)}: columns <name>_band_lo|hi)"
+                          if self.band_outputs else ")"))
         return out
 
 
@@ -95,14 +99,18 @@ def serve(fmu: str | Path, interface: str, config: HilConfig | str | Path | None
           host: str | None = None, port: int | None = None, record: str | Path | None = None,
           duration_s: float | None = None, stop: threading.Event | None = None,
           status: Callable[[str], None] | None = None, handle_signals: bool = True,
-          speed: float | str | None = None, seed: int | None = None) -> HilResult:
+          speed: float | str | None = None, seed: int | None = None, record_band: bool = False,
+          band_params: str | Path | None = None) -> HilResult:
     """Serve an autopilot from ``fmu`` over ``interface`` until ``stop`` is set, ``duration_s`` of wall time
     passes or SIGINT/SIGTERM arrives; ``status`` gets the live line every second. ``HilSetupError`` when the
     session cannot start (bad config, FMU, port); faults while running end up in the result, never raised.
 
     ``speed`` (``--speed``; overrides ``[timing] speed``, default 1): lockstep simulation seconds per wall
     second, ``"max"`` unpaced. ``seed`` (``--seed``; overrides ``[sensors] seed``): the sensor noise seed; with
-    neither a fresh one is drawn. Both end up in the summary (``seed``, ``real_time_factor``)."""
+    neither a fresh one is drawn. Both end up in the summary (``seed``, ``real_time_factor``). ``record_band``
+    (``--record-band``, or ``[record] band``): the record also holds each output's prediction band
+    (``hil_adapter.record_band``) from the ``discrepancy`` of ``band_params`` (``[record] band_params``), else of
+    the parameter file embedded in the FMU."""
     if interface not in INTERFACES:
         raise HilSetupError(f"interface {interface!r}; allowed: {', '.join(INTERFACES)}")
     if duration_s is not None and not (math.isfinite(duration_s) and 0 < duration_s <= MAX_DURATION_S):
@@ -112,7 +120,7 @@ def serve(fmu: str | Path, interface: str, config: HilConfig | str | Path | None
     try:
         cfg = config if isinstance(config, HilConfig) else load_hil_config(config)
         cfg = _with_options(cfg, interface, speed, seed)
-        setup = _setup(Path(fmu), interface, cfg, host, port, record, closers, seed)
+        setup = _setup(Path(fmu), interface, cfg, host, port, record, closers, seed, record_band, band_params)
     except (ConfigError, MappingError, FmuRunError, OSError, ValueError) as err:
         _close_all(closers)
         raise HilSetupError(str(err)) from None
@@ -148,7 +156,8 @@ def serve(fmu: str | Path, interface: str, config: HilConfig | str | Path | None
     stopped = (f"signal {caught[0]}" if caught else "error" if error else
                "duration" if expired.is_set() else "stopped")
     return HilResult(interface, Path(fmu), plant.vehicle, address, stopped, summary,
-                     recorder.path if recorder else None, recorder.rows if recorder else 0, plant.last_error, error)
+                     recorder.path if recorder else None, recorder.rows if recorder else 0, plant.last_error, error,
+                     tuple(recorder.band.names) if recorder and recorder.band else ())
 
 
 @contextmanager
@@ -199,7 +208,8 @@ def _with_options(cfg: HilConfig, interface: str, speed: float | str | None, see
 
 def _setup(fmu: Path, interface: str, cfg: HilConfig, host: str | None, port: int | None,
            record: str | Path | None, closers: list[Callable[[], Any]],
-           seed: int | None = None) -> tuple[Any, Plant, Stats, Any, str, Any]:
+           seed: int | None = None, record_band: bool = False,
+           band_params: str | Path | None = None) -> tuple[Any, Plant, Stats, Any, str, Any]:
     """Plant, sensors, recorder and the interface's server, each registered in ``closers`` as it is made;
     the sensor suite is the last item (None when the interface adds no sensor noise)."""
     mapping = PwmMapping.from_dict(cfg.mapping, "[mapping]") if cfg.mapping is not None else None
@@ -210,10 +220,19 @@ def _setup(fmu: Path, interface: str, cfg: HilConfig, host: str | None, port: in
     closers.append(plant.close)
     stats = Stats()
     rec_path = record or (cfg.record.path if cfg.record else None)
+    band_params = band_params or (cfg.record.band_params if cfg.record else None)
+    record_band = record_band or band_params is not None or bool(cfg.record and cfg.record.band)
+    if record_band and not rec_path:
+        raise HilSetupError("--record-band: the band is written into the record; give --record or [record] path")
     recorder = None
     if rec_path:
+        band = None
+        if record_band:
+            from hil_adapter.record_band import RecordBand, read_band_discrepancy
+
+            band = RecordBand(read_band_discrepancy(fmu, Path(band_params) if band_params else None), plant.outputs)
         channels = sorted({c.source for c in plant.mapping.channels})
-        recorder = Recorder(rec_path, channels, list(plant.inputs), plant.outputs)
+        recorder = Recorder(rec_path, channels, list(plant.inputs), plant.outputs, band)
         closers.append(recorder.close)
     host = host or cfg.network.host
     port = port if port is not None else cfg.network.port

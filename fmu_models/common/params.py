@@ -17,7 +17,7 @@ import math
 import re
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated, Any, TypeVar
+from typing import Annotated, Any, Literal, TypeVar
 
 import numpy as np
 from pydantic import Field, create_model, model_validator
@@ -292,9 +292,23 @@ class SignalDiscrepancy(Schema):
         min_length=2, max_length=MAX_HORIZON_BINS + 1)
     quantiles: list[list[FiniteValue]] = Field(min_length=1, max_length=MAX_HORIZON_BINS)
     samples: list[Annotated[int, Field(ge=0)]] = Field(min_length=1, max_length=MAX_HORIZON_BINS)
-    #: the quantiles are of (logged - FMU) / (|FMU - FMU at the window's first sample| + scale_floor): the error
-    #: scales with how far the model itself moved since the restart (None: of logged - FMU itself)
+    #: the quantiles are of (logged - FMU) / (basis + scale_floor), the basis given by ``scale_by`` (None: of
+    #: logged - FMU itself)
     scale_floor: float | None = Field(None, gt=0.0, allow_inf_nan=False)
+    #: the scale's basis: ``departure`` |FMU - FMU at the window's first sample| (the error grows with how far the
+    #: model itself moved since the restart), ``magnitude`` |FMU| (with the output's size) or ``slope`` |dFMU/dt|
+    #: [unit/s] (with how fast the output changes: a small lag or phase error of the model)
+    scale_by: Literal["departure", "magnitude", "slope"] = "departure"
+    #: an angle compared modulo 2 pi (residual and departure taken the short way round)
+    wrap: bool = False
+    #: the quantiles are of the residuals with both signs (a band centred on the FMU); False: of the residuals as
+    #: they are, kept where their sign carries from one learning replay to another (informative, not read)
+    symmetric: bool = True
+    #: ``validate --mc``: the draws (parameters, restart states and this discrepancy together) are stretched by
+    #: this about their per-sample median, chosen on the learning replays so that their band covers its nominal
+    #: level (the parameter spread is otherwise counted twice: the residuals learned already carry the
+    #: parameters' error). None: 1 (learned without parameter draws)
+    band_factor: float | None = Field(None, gt=0.0, le=100.0, allow_inf_nan=False)
 
     @model_validator(mode="after")
     def _consistent(self) -> SignalDiscrepancy:
@@ -332,6 +346,44 @@ class Discrepancy(Schema):
             raise ValueError(f"signals {', '.join(bad)}: a quantile row's length differs from levels' "
                              f"({len(self.levels)}; allowed: one value per level)")
         return self
+
+
+def discrepancy_bins(s: SignalDiscrepancy, h_s: np.ndarray) -> np.ndarray:
+    """Index of the horizon bin of each horizon ``h_s`` [s] (time since the replay window restarted from the logged
+    state); a horizon beyond the learned ones takes the last bin, not an extrapolation."""
+    edges = np.asarray(s.horizon_edges_s)
+    return np.clip(np.searchsorted(edges, np.asarray(h_s, float), side="right") - 1, 0, len(s.quantiles) - 1)
+
+
+def discrepancy_scale(s: SignalDiscrepancy, model: np.ndarray, first: np.ndarray, slope: np.ndarray) -> np.ndarray:
+    """What the stored quantiles of ``s`` multiply, per sample: 1 when they are of logged - FMU itself, else the
+    basis (``scale_by``) + ``scale_floor``. ``model``: the FMU output; ``first``: the FMU output at the first sample
+    of each sample's replay window; ``slope``: |dFMU/dt| [unit/s] (same shapes). The one definition for learning,
+    ``validate --mc`` and the HIL record's band."""
+    model = np.asarray(model, float)
+    if s.scale_floor is None:
+        return np.ones_like(model)
+    if s.scale_by == "magnitude":
+        return np.abs(model) + s.scale_floor
+    if s.scale_by == "slope":
+        return np.abs(np.asarray(slope, float)) + s.scale_floor
+    d = model - np.asarray(first, float)
+    if s.wrap:
+        d = (d + math.pi) % (2.0 * math.pi) - math.pi
+    return np.abs(d) + s.scale_floor
+
+
+def discrepancy_quantile(disc: Discrepancy, name: str, level: float, h_s: np.ndarray, model: np.ndarray,
+                         first: np.ndarray, slope: np.ndarray) -> np.ndarray:
+    """Quantile at ``level`` (inside the stored levels, linear between them) of signal ``name``'s logged - FMU at
+    horizons ``h_s`` [s], in the FMU output's unit, given the FMU output ``model``, its value ``first`` at each
+    sample's window start and its slope (:func:`discrepancy_scale`)."""
+    s = disc.signals[name]
+    levels = np.asarray(disc.levels)
+    if not levels[0] <= level <= levels[-1]:
+        raise ValueError(f"level {level}: allowed {levels[0]:g}..{levels[-1]:g} (the stored quantile levels)")
+    at = np.array([float(np.interp(level, levels, row)) for row in s.quantiles])
+    return at[discrepancy_bins(s, h_s)] * discrepancy_scale(s, model, first, slope)
 
 
 def discrepancy_of(data: dict[str, Any], path: str) -> Discrepancy | None:

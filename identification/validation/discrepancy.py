@@ -7,19 +7,29 @@ identification flights, or better flights left out of the identification) and st
 beside the covariance (``discrepancy``, :class:`fmu_models.common.params.Discrepancy`); ``validate --mc`` adds a
 draw of it to every parameter draw (:func:`draws`), so the band is parameters + discrepancy + sensor noise.
 
-**Method: empirical quantiles of the scaled residual per signal and horizon bin.** The residual is logged - FMU,
-the horizon the time since the replay window restarted from the logged state, and the scale
-``|FMU(t) - FMU(t0)| + floor``: how far the model itself moved since the window's first sample, plus the mean of
-that departure over the learning replays (:func:`scale_of`). Chosen over an AR model or a Gaussian process
-because the replay error of an open-loop unstable vehicle is not Gaussian or stationary: it grows with the
-horizon, is biased (a drifting attitude integrates into a drifting position) and heavy-tailed (a few windows with
-a manoeuvre carry most of the error). Quantiles need no distribution, cost nothing to evaluate and say how many
-samples they rest on; the horizon bins carry the growth, and the scale carries the state: a window where the
-model swings far gets a wide band, a hover a narrow one. Per signal the scaled form is kept only when it gives
-the narrower band on the learning replays. Measured leave-one-flight-out on the three Erle flights
-(``bench/prediction_bands.py``'s study, same coverage), the scale halves the mean band width on the body rates
-and the attitude against horizon bins alone. The residuals are against the logged, noisy signal, so they carry
-the sensor noise too: a signal with a discrepancy gets no second white-noise term in the Monte Carlo.
+**Method: empirical quantiles of the scaled residual per signal and horizon bin, symmetric about the FMU.** The
+residual is logged - FMU, the horizon the time since the replay window restarted from the logged state, and the
+scale one of (per signal, :func:`learn` keeps the form whose 90 % band is narrowest on the learning replays):
+none; ``|FMU(t) - FMU(t0)| + floor``, how far the model itself moved since the window's first sample;
+``|FMU(t)| + floor``, the output's size; ``|dFMU/dt| + floor``, how fast it changes (a small lag or phase error
+of the model) - each floor the mean of its basis over the learning replays. The same procedure for every signal,
+no per-signal factor. Chosen over an AR model or a Gaussian process because the replay error of an open-loop
+unstable vehicle is not Gaussian or stationary: it grows with the horizon and is heavy-tailed (a few windows
+with a manoeuvre carry most of the error). Quantiles need no distribution, cost nothing to evaluate and say how
+many samples they rest on; the horizon bins carry the growth, the scale the state.
+
+**Symmetric unless the sign carries**: the residuals enter with both signs (a band centred on the FMU) unless,
+each learning replay left out in turn, the band keeping their sign covers the left-out replays as well as the
+symmetric one (within ``SIGN_TOLERANCE``; never with a single replay); per signal the narrowest form is then kept.
+Measured on the two PX4 csv flights (``bench/prediction_bands.py``): the sign of a replay's drift does not carry
+from one flight to the next (the x body rate's residual, 5-95 %, is -1.79..+6.51 rad/s on drone1-10 and
+-3.30..+0.95 rad/s on drone1-8), and bands keeping the other flight's sign covered 74-79 % of roll, x rate and
+thrust; on the Erle flights the thrust's sign does carry between two of them, and an always-symmetric band was
+4.23x its RMSE wide (docs/validation.md#prediction-bands).
+
+The residuals are against the logged, noisy signal, so they carry the sensor noise too: a signal with a
+discrepancy gets no second white-noise term in the Monte Carlo. The scale and the quantile lookup are
+``fmu_models.common.params.discrepancy_scale`` / ``discrepancy_quantile``, shared with the HIL record's band.
 """
 
 from __future__ import annotations
@@ -34,7 +44,14 @@ from typing import Any
 
 import numpy as np
 
-from fmu_models.common.params import Discrepancy, SignalDiscrepancy, discrepancy_of, read_json
+from fmu_models.common.params import (
+    Discrepancy,
+    SignalDiscrepancy,
+    discrepancy_bins,
+    discrepancy_of,
+    discrepancy_scale,
+    read_json,
+)
 from identification.validation.replay import ReplayResult, ValidationInputError
 
 #: quantile levels stored per horizon bin: dense in the tails a 90 % band reads
@@ -42,6 +59,9 @@ LEVELS = (0.005, 0.01, 0.025, 0.05, 0.075, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.
           0.995)
 N_BINS = 10  #: horizon bins over a window (full-length replays: over the longest horizon)
 MIN_BIN_SAMPLES = 20  #: a horizon bin with fewer residuals is merged into its neighbour
+#: the residual's sign is kept unless dropping it raises the coverage of the replays left out in turn by more than
+#: this (two points: about the scatter of a pooled coverage of a few thousand autocorrelated samples)
+SIGN_TOLERANCE = 0.02
 
 
 def horizons_s(res: ReplayResult) -> np.ndarray:
@@ -60,10 +80,9 @@ def residuals(res: ReplayResult, name: str) -> np.ndarray:
     return (r + math.pi) % (2.0 * math.pi) - math.pi if m.wrap else r
 
 
-def scale_of(res: ReplayResult, name: str, floor: float) -> np.ndarray:
-    """Per sample of ``res.t_s``: ``|FMU(t) - FMU at its window's first scored sample| + floor`` (NaN where the
-    FMU output is not scored; angles wrapped)."""
-    m = next(x for x in res.maps if x.fmu == name)
+def window_first(res: ReplayResult, name: str) -> np.ndarray:
+    """Per sample of ``res.t_s``: the FMU output of signal ``name`` at its window's first scored sample (NaN where
+    the window has none)."""
     mod = np.asarray(res.model[name], float)
     starts = np.array([a for a, _ in res.windows], dtype=float)
     idx = np.clip(np.searchsorted(starts, np.asarray(res.t_s, float), side="left") - 1, 0, len(starts) - 1)
@@ -72,10 +91,33 @@ def scale_of(res: ReplayResult, name: str, floor: float) -> np.ndarray:
     if ok.size:
         w, pos = np.unique(idx[ok], return_index=True)  # the first finite sample of each window
         first[w] = mod[ok[pos]]
-    d = mod - first[idx]
+    return first[idx]
+
+
+def slope_of(res: ReplayResult, name: str) -> np.ndarray:
+    """Per sample of ``res.t_s``: |dFMU/dt| [unit/s] of signal ``name``, the backward difference inside the
+    sample's window (a window's first sample: the forward one; an angle the short way round)."""
+    m = next(x for x in res.maps if x.fmu == name)
+    mod = np.asarray(res.model[name], float)
+    t = np.asarray(res.t_s, float)
+    if mod.size < 2:
+        return np.zeros_like(mod)
+    d = np.diff(mod)
     if m.wrap:
         d = (d + math.pi) % (2.0 * math.pi) - math.pi
-    return np.abs(d) + floor
+    d = d / np.diff(t)
+    back = np.r_[np.nan, d]
+    starts = np.array([a for a, _ in res.windows], dtype=float)
+    idx = np.clip(np.searchsorted(starts, t, side="left") - 1, 0, len(starts) - 1)
+    new_window = np.r_[True, idx[1:] != idx[:-1]] | ~np.isfinite(back)
+    fwd = np.r_[d, np.nan]
+    return np.abs(np.where(new_window, fwd, back))
+
+
+def scale_of(res: ReplayResult, name: str, s: SignalDiscrepancy) -> np.ndarray:
+    """Per sample of ``res.t_s``: what the quantiles of ``s`` multiply (``fmu_models.common.params.
+    discrepancy_scale``: 1, or its basis + floor; NaN where the FMU output is not scored)."""
+    return discrepancy_scale(s, np.asarray(res.model[name], float), window_first(res, name), slope_of(res, name))
 
 
 def _edges(h: np.ndarray, span_s: float) -> np.ndarray:
@@ -92,13 +134,14 @@ def _edges(h: np.ndarray, span_s: float) -> np.ndarray:
     return np.asarray(edges)
 
 
-def _fit(results: Sequence[ReplayResult], name: str, floor: float, window_s: float
-         ) -> tuple[SignalDiscrepancy, float] | None:
-    """The quantile table of signal ``name`` (scaled by :func:`scale_of` with ``floor``; 0: unscaled) and the
-    mean width of its 90 % band over the learning samples (None: too few samples)."""
+def _fit(results: Sequence[ReplayResult], name: str, form: SignalDiscrepancy, window_s: float,
+         signed: bool = False) -> tuple[SignalDiscrepancy, float] | None:
+    """The quantile table of signal ``name`` in the form of ``form`` (its scale basis and floor; its quantiles
+    are ignored) and the mean width of its 90 % band over the learning samples (None: too few samples). The
+    residuals enter with both signs (the band symmetric about the FMU) unless ``signed``."""
     hs, rs, ss = [], [], []
     for res in results:
-        scale = scale_of(res, name, floor) if floor > 0.0 else np.ones(len(res.t_s))
+        scale = scale_of(res, name, form)
         r = residuals(res, name) / scale
         ok = np.isfinite(r)
         hs.append(horizons_s(res)[ok])
@@ -113,39 +156,83 @@ def _fit(results: Sequence[ReplayResult], name: str, floor: float, window_s: flo
     for a, b in itertools.pairwise(edges):
         sel = (h >= a) & (h < b)
         counts.append(int(sel.sum()))
-        q = [float(v) for v in np.quantile(r[sel], LEVELS)] if sel.any() else [0.0] * len(LEVELS)
+        both = r[sel] if signed else np.concatenate([r[sel], -r[sel]])
+        q = [float(v) for v in np.quantile(both, LEVELS)] if sel.any() else [0.0] * len(LEVELS)
+        if not signed:
+            q = [0.5 * (v - w) for v, w in zip(q, q[::-1], strict=True)]  # exactly antisymmetric (rounding)
         rows.append(q)
         width += float(np.sum((q[i95] - q[i5]) * sc[sel]))
-    table = SignalDiscrepancy(horizon_edges_s=[float(e) for e in edges], quantiles=rows, samples=counts,
-                              scale_floor=floor if floor > 0.0 else None)
+    table = form.model_copy(update={"horizon_edges_s": [float(e) for e in edges], "quantiles": rows,
+                                    "samples": counts, "symmetric": not signed})
     return table, width / r.size
+
+
+def _covered(table: SignalDiscrepancy, res: ReplayResult, name: str) -> tuple[int, int]:
+    """Samples of ``res`` whose residual lies in the 5-95 % of ``table`` (scaled as it says), and samples scored."""
+    i5, i95 = LEVELS.index(0.05), LEVELS.index(0.95)
+    q = np.asarray(table.quantiles)[discrepancy_bins(table, horizons_s(res))]
+    scale = scale_of(res, name, table)
+    r = residuals(res, name)
+    ok = np.isfinite(r) & np.isfinite(scale)
+    inside = (r[ok] >= q[ok, i5] * scale[ok]) & (r[ok] <= q[ok, i95] * scale[ok])
+    return int(inside.sum()), int(ok.sum())
+
+
+def sign_carries(results: Sequence[ReplayResult], name: str, form: SignalDiscrepancy, window_s: float) -> bool:
+    """Whether the residual's sign carries from replay to replay: each replay left out in turn, the signed band
+    learned on the others (same form) covers the left-out samples, pooled, within ``SIGN_TOLERANCE`` of what the
+    symmetric band learned on them covers (dropping the sign would buy no coverage, only width). Never with one
+    replay: nothing shows it, and the symmetric band is the safe side."""
+    if len(results) < 2:
+        return False
+    counts = {True: [0, 0], False: [0, 0]}
+    for i, res in enumerate(results):
+        others = [x for j, x in enumerate(results) if j != i]
+        for signed in (True, False):
+            fit = _fit(others, name, form, window_s, signed=signed)
+            if fit is None:
+                return False
+            a, n = _covered(fit[0], res, name)
+            counts[signed][0] += a
+            counts[signed][1] += n
+    if not counts[True][1]:
+        return False
+    return counts[True][0] / counts[True][1] >= counts[False][0] / counts[False][1] - SIGN_TOLERANCE
 
 
 def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "") -> Discrepancy:
     """The discrepancy of the replays ``results`` (same FMU, same options), pooled per signal and horizon bin.
-    Per signal the scaled form (:func:`scale_of`) is kept when its 90 % band is narrower on the learning samples
-    than the unscaled one (the scale helps where the error follows the model's own motion, e.g. a diverging
-    attitude, not where it does not, e.g. vibration on a thrust measured at the PWM rate)."""
+    Per signal the form (unscaled, or scaled by the departure or the magnitude, :func:`scale_of`) is kept whose
+    90 % band is narrowest on the learning samples (every form covers them at its level by construction; the
+    scale helps where the error follows the model's own motion, e.g. a diverging attitude, not where it does not,
+    e.g. vibration on a thrust measured at the PWM rate)."""
     if not results:
         raise ValidationInputError("discrepancy: no replay to learn from")
     first = results[0]
     window_s = float(first.options.get("window_s", 0.0))
     rate_hz = float(first.options.get("rate_hz", 50.0))
     signals: dict[str, SignalDiscrepancy] = {}
+    one = {"horizon_edges_s": [0.0, 1.0], "quantiles": [[0.0] * len(LEVELS)], "samples": [0]}
     for m in first.maps:
-        departure = np.concatenate([scale_of(res, m.fmu, 0.0) for res in results])
-        floor = float(np.nanmean(departure)) if np.isfinite(departure).any() else 0.0
-        fits = [f for f in (_fit(results, m.fmu, 0.0, window_s),
-                            _fit(results, m.fmu, floor, window_s) if floor > 0.0 else None) if f is not None]
+        forms = [SignalDiscrepancy(**one, wrap=m.wrap)]
+        for basis in ("departure", "magnitude", "slope"):
+            raw = SignalDiscrepancy(**one, scale_floor=1.0, scale_by=basis, wrap=m.wrap)
+            b = np.concatenate([scale_of(res, m.fmu, raw) - 1.0 for res in results])
+            floor = float(np.nanmean(b)) if np.isfinite(b).any() else 0.0
+            if floor > 0.0:
+                forms.append(raw.model_copy(update={"scale_floor": floor}))
+        fits = [f for f in (_fit(results, m.fmu, form, window_s, sign_carries(results, m.fmu, form, window_s))
+                            for form in forms) if f is not None]
         if fits:
             signals[m.fmu] = min(fits, key=lambda f: f[1])[0]
     if not signals:
         raise ValidationInputError(f"discrepancy: fewer than {MIN_BIN_SAMPLES} scored samples in every signal")
     return Discrepancy(levels=list(LEVELS), signals=signals, window_s=window_s, rate_hz=rate_hz,
                        logs=[str(x) for x in logs], note=note or (
-                           "empirical quantiles of logged - FMU per horizon bin, where scale_floor is given divided "
-                           "by (|FMU - FMU at the window start| + scale_floor) (identification.validation."
-                           "discrepancy); learned from replays of the listed logs"))
+                           "empirical quantiles of logged - FMU (with both signs where symmetric) per horizon bin, "
+                           "where scale_floor is given "
+                           "divided by (|FMU - FMU at the window start| or |FMU|, per scale_by, + scale_floor) "
+                           "(identification.validation.discrepancy); learned from replays of the listed logs"))
 
 
 def draws(disc: Discrepancy, name: str, h_s: np.ndarray, n_draws: int, rng: np.random.Generator,
@@ -155,20 +242,18 @@ def draws(disc: Discrepancy, name: str, h_s: np.ndarray, n_draws: int, rng: np.r
     learned ones takes the last bin), times the scale of the nominal replay ``res`` (:func:`scale_of`) when the
     quantiles are of the scaled residual."""
     s = disc.signals[name]
-    edges = np.asarray(s.horizon_edges_s)
     q = np.asarray(s.quantiles)
     levels = np.asarray(disc.levels)
-    h = np.asarray(h_s, float)
-    bins = np.clip(np.searchsorted(edges, h, side="right") - 1, 0, len(q) - 1)
-    u = rng.uniform(levels[0], levels[-1], (n_draws, h.size))
+    bins = discrepancy_bins(s, h_s)
+    u = rng.uniform(levels[0], levels[-1], (n_draws, bins.size))
     out = np.empty_like(u)
     for b in np.unique(bins):
         cols = bins == b
         out[:, cols] = np.interp(u[:, cols], levels, q[b])
     if s.scale_floor is not None:
         if res is None:
-            raise ValueError(f"discrepancy of {name} is scaled by the replay's own departure: give the replay")
-        out *= scale_of(res, name, s.scale_floor)
+            raise ValueError(f"discrepancy of {name} is scaled by the replay's own output: give the replay")
+        out *= scale_of(res, name, s)
     return out
 
 
@@ -186,10 +271,12 @@ class DiscrepancyResult:
         i5, i95 = d.levels.index(0.05), d.levels.index(0.95)
         for name, s in d.signals.items():
             first, last = s.quantiles[0], s.quantiles[-1]
-            what = "logged - FMU" if s.scale_floor is None else f"(logged - FMU) / (departure + {s.scale_floor:.3g})"
+            what = ("logged - FMU" if s.scale_floor is None
+                    else f"(logged - FMU) / ({s.scale_by} + {s.scale_floor:.3g})")
             out.append(f"  {name:<18} 5-95 % of {what}: [{first[i5]:+.3g}, {first[i95]:+.3g}] at "
                        f"{s.horizon_edges_s[0]:g}-{s.horizon_edges_s[1]:.2g} s, [{last[i5]:+.3g}, {last[i95]:+.3g}] at "
-                       f"{s.horizon_edges_s[-2]:.2g}-{s.horizon_edges_s[-1]:.2g} s ({sum(s.samples)} samples)")
+                       f"{s.horizon_edges_s[-2]:.2g}-{s.horizon_edges_s[-1]:.2g} s ({sum(s.samples)} samples)"
+                       + (f"; band factor {s.band_factor:.3g}" if s.band_factor is not None else ""))
         if self.written:
             out.append(f"written to {self.written} (key 'discrepancy', beside 'uncertainty')")
         return out

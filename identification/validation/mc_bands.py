@@ -22,6 +22,7 @@ whichever worker runs which draw. Draws run in chunks as tasks of ``identificati
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
@@ -191,6 +192,14 @@ def prediction_band(ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return srt[j], srt[k]
 
 
+def inside_band(y: np.ndarray, lo: np.ndarray, hi: np.ndarray, wrap: bool = False) -> np.ndarray:
+    """Which samples ``y`` lie in [lo, hi]; for an angle (``wrap``) on the arc from ``lo`` to ``hi`` modulo 2 pi
+    (a logged -3.1 rad is inside a band 3.0..3.3 rad; a band 2 pi wide or more holds every angle)."""
+    if not wrap:
+        return (y >= lo) & (y <= hi)
+    return (hi - lo >= 2.0 * math.pi) | (np.mod(y - lo, 2.0 * math.pi) <= hi - lo)
+
+
 def check_draws(draws: int, n_samples: int, n_signals: int, max_memory_mb: float) -> None:
     """``ValidationInputError`` before anything is allocated when ``draws`` is out of range or the draws
     would not fit in ``max_memory_mb``."""
@@ -206,11 +215,14 @@ def check_draws(draws: int, n_samples: int, n_signals: int, max_memory_mb: float
 
 def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: FlightLog, draws: int, seed: int,
                 executor: Executor, units: dict[str, str | None], progress: Any = False,
-                discrepancy: Discrepancy | None = None) -> Bands:
+                discrepancy: Discrepancy | None = None, keep: dict[str, np.ndarray] | None = None) -> Bands:
     """Run ``draws`` draws of ``job`` (whose nominal replay is ``res``) on ``executor``; the bands. With
     ``discrepancy`` (``identification.validation.discrepancy``) each draw of a signal it covers gets a draw of
     the model's discrepancy at each sample's horizon added, instead of the white sensor noise (the learned
-    residuals are against the logged signal: they carry its noise)."""
+    residuals are against the logged signal: they carry its noise), and the draws are stretched about their
+    per-sample median by the discrepancy's ``band_factor`` where it has one. ``keep``: filled with each signal's draws
+    minus the nominal replay (draws x samples) before that factor (what :func:`identification.validation.
+    mc_bands.calibrate` calibrates it on)."""
     from identification.validation.discrepancy import draws as discrepancy_draws
     from identification.validation.discrepancy import horizons_s
     from identification.validation.job import job_files
@@ -235,13 +247,21 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
         if len(ys) < MIN_DRAWS:
             raise ValidationInputError(f"Monte Carlo: fewer than {MIN_DRAWS} of {draws} draws ran "
                                        f"({'; '.join(failed[:3])})")
+        if m.wrap:  # an angle: each draw the short way round from the nominal replay, so the band is an arc
+            ys = res.model[m.fmu] + ((ys - res.model[m.fmu] + math.pi) % (2.0 * math.pi) - math.pi)
         if m.fmu in learned:
             rng = np.random.default_rng([seed, DISCREPANCY_STREAM, len(lo)])
             ys = ys + discrepancy_draws(discrepancy, m.fmu, horizon, len(ys), rng, res)  # type: ignore[arg-type]
+        if keep is not None:
+            keep[m.fmu] = ys - res.model[m.fmu]
+        factor = discrepancy.signals[m.fmu].band_factor if m.fmu in learned else None  # type: ignore[union-attr]
+        if factor is not None:  # about the draws' median: the band widens or narrows about its own centre
+            centre = np.median(ys, axis=0)
+            ys = centre + factor * (ys - centre)
         lo[m.fmu], hi[m.fmu] = prediction_band(ys)
         y = res.measured[m.fmu]
         ok = np.isfinite(y) & np.isfinite(lo[m.fmu]) & np.isfinite(res.model[m.fmu])
-        inside = (y[ok] >= lo[m.fmu][ok]) & (y[ok] <= hi[m.fmu][ok])
+        inside = inside_band(y[ok], lo[m.fmu][ok], hi[m.fmu][ok], m.wrap)
         cov[m.fmu] = float(inside.mean()) if ok.any() else float("nan")
     info = {"draws": draws, "draws_run": len(ys), "seed": seed, "band": list(BAND), "parameters": unc.names,
             "mean": unc.mean, "std": list(unc.std.values()), "output_noise_std": out_std, "state_noise_std": state_std,
@@ -249,9 +269,52 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
             "min_coverage": MIN_COVERAGE, "max_coverage": MAX_COVERAGE,
             "discrepancy": {"signals": learned, "logs": discrepancy.logs if discrepancy else [],
                             "window_s": discrepancy.window_s if discrepancy else None,
+                            "band_factor": {k: discrepancy.signals[k].band_factor for k in learned}
+                            if discrepancy else {},
                             "same_windows": discrepancy is None or (
                                 discrepancy.window_s == res.options.get("window_s")
                                 and discrepancy.rate_hz == res.options.get("rate_hz")),
                             "parts": "parameters + restart-state noise + learned discrepancy (carries the sensor "
                                      "noise)" if learned else "parameters + restart-state noise + sensor noise"}}
     return Bands(lo, hi, cov, info)
+
+
+#: the band factor searched between these (a ratio of band widths)
+FACTOR_RANGE = (0.05, 20.0)
+
+
+def calibrate(disc: Discrepancy, kept: Sequence[tuple[ReplayResult, dict[str, np.ndarray]]],
+              level: float = 0.90) -> Discrepancy:
+    """``disc`` with each signal's ``band_factor``: the smallest factor (bisection, 1 % steps) by which the Monte
+    Carlo draws' deviations from the nominal replay (parameters + restart states + this discrepancy, ``kept`` per
+    learning replay by :func:`monte_carlo`) must be stretched about their per-sample median (so the band widens
+    about its own centre and its coverage grows with the factor) for the band to cover ``level`` of the
+    learning replays' logged samples, pooled. The discrepancy alone covers them at its level by construction:
+    the parameter draws on top count the parameters' error twice (the residuals carry it) and the factor takes
+    that back, or widens the band where the draws' spread and the discrepancy do not add up to the residuals'."""
+    from identification.validation.discrepancy import residuals
+
+    signals = dict(disc.signals)
+    for name, s in disc.signals.items():
+        parts = [(residuals(res, name), np.median(devs[name], axis=0), *prediction_band(devs[name]))
+                 for res, devs in kept if name in devs]
+        if not parts:
+            continue
+
+        def covered(f: float, parts: list = parts) -> float:
+            inside = n = 0
+            for r, mid, lo, hi in parts:  # the band scaled about the draws' median, as monte_carlo scales it
+                ok = np.isfinite(r) & np.isfinite(mid) & np.isfinite(lo) & np.isfinite(hi)
+                inside += int(inside_band(r[ok], mid[ok] + f * (lo - mid)[ok], mid[ok] + f * (hi - mid)[ok]).sum())
+                n += int(ok.sum())
+            return inside / n if n else math.nan
+
+        a, b = FACTOR_RANGE
+        if not covered(b) >= level:  # NaN or short even at the widest: keep the widest
+            signals[name] = s.model_copy(update={"band_factor": b})
+            continue
+        while b / a > 1.01:
+            mid = math.sqrt(a * b)
+            a, b = (a, mid) if covered(mid) >= level else (mid, b)
+        signals[name] = s.model_copy(update={"band_factor": round(b, 4)})
+    return disc.model_copy(update={"signals": signals})

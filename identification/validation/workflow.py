@@ -39,6 +39,8 @@ from identification.validation.job import ValidationJob, job_files, load_maps
 from identification.validation.replay import Horizon, ReplayResult, ValidationInputError, options
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from fmu_models.common.params import Discrepancy
     from identification.common.parallel import Executor
     from identification.validation.discrepancy import DiscrepancyResult
@@ -227,7 +229,8 @@ def mc_discrepancy(params_file: Path | None, fmu: Path | None = None) -> Discrep
 
 def validate_mc(job: ValidationJob, uncertainty: Uncertainty, draws: int, seed: int = 0, *,
                 workers: int | None = None, scheduler: str | None = None, progress: Any = False,
-                executor: Executor | None = None, discrepancy: Discrepancy | None = None) -> ValidationResult:
+                executor: Executor | None = None, discrepancy: Discrepancy | None = None,
+                keep: dict[str, np.ndarray] | None = None) -> ValidationResult:
     """:func:`validate` with Monte Carlo bands: the nominal replay with the uncertainty's mean as parameters,
     then ``draws`` replays with parameters and restart states drawn (``identification.validation.mc_bands``) on
     ``identification.common.parallel``; each signal's band coverage beside its skill, in the summary, ``metrics.json``
@@ -259,31 +262,61 @@ def validate_mc(job: ValidationJob, uncertainty: Uncertainty, draws: int, seed: 
     log = read_log(job.log, channel_map=job.channel_map)
     with nullcontext(executor) if executor is not None else Executor(scheduler, workers) as ex:
         res.bands = mc_bands.monte_carlo(job, uncertainty, res, log, draws, seed, ex, units, progress,
-                                         discrepancy=discrepancy)
+                                         discrepancy=discrepancy, keep=keep)
     out = result_of(res, job)
     if job.report_dir is not None:
         write_report(res, out, Path(job.report_dir))
     return out
 
 
-def learn_discrepancy(job: ValidationJob, logs: Sequence[Path], params_out: Path | None = None) -> DiscrepancyResult:
-    """Replay each of ``logs`` as ``job`` (its ``log`` replaced) and learn the model's discrepancy
-    (``identification.validation.discrepancy``); with ``params_out`` (a JSON parameter file) store it there under
-    ``discrepancy``. Raises like :func:`validate`."""
-    from identification.validation.discrepancy import DiscrepancyResult, learn, write_discrepancy
+def learn_discrepancy(job: ValidationJob, logs: Sequence[Path], params_out: Path | None = None,
+                      uncertainty: Uncertainty | None = None, draws: int = 0, seed: int = 0,
+                      workers: int | None = 2) -> DiscrepancyResult:
+    """Replay each of ``logs`` as ``job`` (its ``log`` replaced) and learn the model's discrepancy; see
+    :func:`learn_discrepancy_jobs`."""
+    return learn_discrepancy_jobs([replace(job, log=Path(log)) for log in logs], params_out, uncertainty, draws,
+                                  seed, workers)
 
+
+def learn_discrepancy_jobs(jobs: Sequence[ValidationJob], params_out: Path | None = None,
+                           uncertainty: Uncertainty | None = None, draws: int = 0, seed: int = 0,
+                           workers: int | None = 2) -> DiscrepancyResult:
+    """Replay each job (same FMU and options; e.g. one log each, each at its own ``--set`` mass) and learn the
+    model's discrepancy (``identification.validation.discrepancy``); with ``uncertainty`` and ``draws`` (>= the
+    Monte Carlo minimum) also ``draws`` parameter draws of each, on which the combined band is calibrated
+    (``mc_bands.calibrate``: the ``band_factor`` that brings the learning replays' band to its level). With
+    ``params_out`` (a JSON parameter file) store it there under ``discrepancy``. Raises like :func:`validate`."""
+    from identification.common.parallel import Executor
+    from identification.validation.discrepancy import DiscrepancyResult, learn, write_discrepancy
+    from identification.validation.mc_bands import calibrate, check_draws
+
+    if not jobs:
+        raise ValidationInputError("discrepancy: no replay to learn from")
+    if uncertainty is not None and draws:
+        check_draws(draws, 3, 1, jobs[0].options.max_memory_mb)  # the count, before anything runs
+    mean = dict(zip(uncertainty.names, uncertainty.mean, strict=True)) if uncertainty is not None else {}
     results = []
-    for log in logs:
-        res = validate(replace(job, log=Path(log), report_dir=None)).replay
+    for job in jobs:  # the nominal replays at the estimate, as validate_mc's
+        res = validate(replace(job, report_dir=None, start_values={**mean, **job.start_values})).replay
         assert res is not None
         results.append(res)
-    disc = learn(results, [str(x) for x in logs])
+    names = [str(j.log) + (f" {j.t_range_s[0]:g}-{j.t_range_s[1]:g} s" if j.t_range_s else "") for j in jobs]
+    disc = learn(results, names)
+    if uncertainty is not None and draws:
+        kept = []
+        with Executor(None, workers) as ex:
+            for job in jobs:
+                keep: dict[str, np.ndarray] = {}
+                out = validate_mc(replace(job, report_dir=None), uncertainty, draws, seed, executor=ex,
+                                  discrepancy=disc, keep=keep)
+                kept.append((out.replay, keep))
+        disc = calibrate(disc, kept)
     written = None
     if params_out is not None:
         write_discrepancy(params_out, disc)
         written = params_out
-    summary = tuple({"log": str(x), "windows_scored": len(r.windows) - r.excluded} for x, r in zip(logs, results,
-                                                                                                   strict=True))
+    summary = tuple({"log": n, "windows_scored": len(r.windows) - r.excluded} for n, r in zip(names, results,
+                                                                                            strict=True))
     return DiscrepancyResult(disc, summary, written)
 
 

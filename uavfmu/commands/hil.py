@@ -26,6 +26,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", help="bind address (default 127.0.0.1)")
     parser.add_argument("--port", type=int, help="PX4 TCP port (4560) or JSON UDP port (9002)")
     parser.add_argument("--record", type=Path, help="CSV log of every step (overrides [record] path)")
+    parser.add_argument("--record-band", action="store_true", help="also record each output's 5-95 %% prediction "
+                        "band, from the discrepancy in the FMU's embedded parameter file (uavfmu discrepancy)")
+    parser.add_argument("--band-params", type=Path, help="parameter file holding the discrepancy for --record-band "
+                        "(implies it)")
     parser.add_argument("--duration-s", type=float, help="stop after this much wall time")
     parser.add_argument("--speed", help="lockstep pace: simulation seconds per wall second (default 1, or "
                         "[timing] speed), 'max' for as fast as the autopilot answers")
@@ -54,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         result = serve(args.fmu, args.interface, args.config, host=args.host, port=args.port, record=args.record,
                        duration_s=args.duration_s, status=None if args.quiet else live, speed=speed,
-                       seed=args.seed)
+                       seed=args.seed, record_band=args.record_band, band_params=args.band_params)
     except HilSetupError as err:
         print(f"uavfmu hil: error: {err}", file=sys.stderr)
         return 2

@@ -158,3 +158,113 @@ def test_the_scale_follows_the_models_own_departure_and_narrows_the_band_where_i
     assert 0.86 <= float(((r >= lo) & (r <= hi)).mean()) <= 0.97
     width = hi - lo
     assert width[~new.swing].mean() < 0.5 * width[new.swing].mean()
+
+
+def test_the_band_is_symmetric_so_a_drift_of_the_other_sign_on_a_new_flight_stays_covered() -> None:
+    """The learning flight drifts one way (residual +|N(0, 1)| h), the new flight the other way: the quantiles
+    are antisymmetric and the band covers the new flight at about its level (a band with the learning flight's
+    sign would cover almost nothing of it)."""
+    res, _ = _replay(21)
+    res.measured["roll_rad"] = np.abs(res.measured["roll_rad"])
+    disc = learn([res], ["synthetic"])
+    for row in disc.signals["roll_rad"].quantiles:
+        np.testing.assert_allclose(row, -np.asarray(row[::-1]), atol=1e-12)
+    new, _ = _replay(22)
+    new.measured["roll_rad"] = -np.abs(new.measured["roll_rad"])
+    lo, hi = prediction_band(draws(disc, "roll_rad", horizons_s(new), 40, np.random.default_rng(6), new))
+    y = new.measured["roll_rad"]
+    assert 0.85 <= float(((y >= lo) & (y <= hi)).mean()) <= 0.97
+
+
+def test_a_lagging_model_is_scaled_by_its_slope_and_its_band_narrows_where_the_output_holds_still() -> None:
+    """The log lags the model by 40 ms: the residual is -0.04 s x dFMU/dt. Half the windows oscillate, half hold
+    still; the learned form is the slope's, and the band is far narrower where the output holds still."""
+    def replay(seed: int) -> SimpleNamespace:
+        res, _ = _replay(seed, n_windows=200)
+        rng = np.random.default_rng(seed + 200)
+        amp = np.repeat(np.where(np.arange(200) % 2 == 0, rng.uniform(0.5, 1.5, 200), 0.0), 100)
+        t = res.t_s
+        res.model["roll_rad"] = amp * np.sin(2 * math.pi * 1.3 * t)
+        res.measured["roll_rad"] = amp * np.sin(2 * math.pi * 1.3 * (t - 0.04)) + 0.002 * rng.standard_normal(t.size)
+        res.still = amp == 0.0
+        return res
+
+    disc = learn([replay(31)], ["synthetic"])
+    assert disc.signals["roll_rad"].scale_by == "slope" and disc.signals["roll_rad"].scale_floor is not None
+    new = replay(32)
+    lo, hi = prediction_band(draws(disc, "roll_rad", horizons_s(new), 40, np.random.default_rng(7), new))
+    r = new.measured["roll_rad"] - new.model["roll_rad"]
+    assert 0.85 <= float(((r >= lo) & (r <= hi)).mean()) <= 0.98
+    assert (hi - lo)[new.still].mean() < 0.5 * (hi - lo)[~new.still].mean()
+
+
+def test_an_angle_is_inside_its_band_modulo_two_pi() -> None:
+    from identification.validation.mc_bands import inside_band
+
+    y, lo, hi = np.array([-3.1, 3.2, 0.0]), np.array([3.0, 3.0, 3.0]), np.array([3.3, 3.3, 3.3])
+    assert inside_band(y, lo, hi, wrap=True).tolist() == [True, True, False]
+    assert inside_band(y, lo, hi).tolist() == [False, True, False]
+    assert inside_band(y, lo - 3.2, hi + 3.2, wrap=True).all()  # 2 pi wide or more: every angle
+
+
+def test_the_band_factor_brings_the_learning_replays_combined_band_to_its_level() -> None:
+    """Draws twice as wide as the residuals (a parameter spread counted on top of residuals that carry it): the
+    factor is about 1/2; draws half as wide: about 2. Either way the calibrated band covers 90 % of the
+    learning samples, and validate's Monte Carlo applies it."""
+    from identification.validation.mc_bands import calibrate
+
+    res, _ = _replay(41, sigma_per_s=1.0)
+    disc = learn([res], ["synthetic"])
+    rng = np.random.default_rng(42)
+    h = horizons_s(res)
+    for spread, expected in ((2.0, 0.5), (0.5, 2.0)):
+        devs = spread * h * rng.standard_normal((40, h.size))  # residual sd is 1 x h
+        s = calibrate(disc, [(res, {"roll_rad": devs})]).signals["roll_rad"]
+        assert s.band_factor == pytest.approx(expected, rel=0.1)
+        lo, hi = prediction_band(s.band_factor * devs)
+        r = res.measured["roll_rad"] - res.model["roll_rad"]
+        assert float(((r >= lo) & (r <= hi)).mean()) == pytest.approx(0.90, abs=0.01)
+    assert disc.signals["roll_rad"].band_factor is None  # calibrate returns a copy
+
+
+def test_learning_with_parameter_draws_stores_a_factor_that_validate_applies(
+    fixed_wing_fmu: Path, wing: dict[str, Path], tmp_path: Path  # noqa: F811 - the fixture
+) -> None:
+    """The discrepancy learned with the parameter draws of the learning flight stores one band factor per signal;
+    validate --mc applies it (the metrics name it) and the held-out flight's bands stay near their level."""
+    from identification.flights import synthetic
+    from identification.validation.workflow import learn_discrepancy, validate_mc
+
+    wrong = identified(scale=1.3)
+    t, sig = synthetic.fixed_wing_flight(seconds=40.0, rate_hz=50.0, noise=True, seed=7)
+    other = synthetic.write_csv_log(tmp_path / "other.csv", t, sig)
+    job = _job(fixed_wing_fmu, wing, None)
+    learn_job = job.__class__(fixed_wing_fmu, other, job.options, mapping=job.mapping)
+    learned = learn_discrepancy(learn_job, [other], uncertainty=wrong, draws=19)
+    factors = {k: s.band_factor for k, s in learned.discrepancy.signals.items()}
+    assert all(f is not None and 0.05 <= f <= 20.0 for f in factors.values()), factors
+    assert any("band factor" in line for line in learned.lines())
+    out = validate_mc(job, wrong, 19, seed=3, workers=2, discrepancy=learned.discrepancy)
+    assert out.replay.bands.info["discrepancy"]["band_factor"] == factors
+    cov = {s: v["band_coverage"] for s, v in out.signals.items()}
+    assert all(0.8 <= cov[s] <= 0.98 for s in IDENTIFIED), cov
+    from identification.validation.report import validation_page
+
+    page = validation_page(out.replay)  # the report: the band, its nominal level, its calibration, the coverage
+    assert "Nominal level 90 %" in page and "5-95 % band coverage" in page
+    assert f"roll_rad {factors['roll_rad']:.3g}" in page
+
+
+def test_the_sign_is_kept_only_where_it_carries_from_one_learning_replay_to_another() -> None:
+    """Two learning replays drifting the same way: the band keeps the sign (narrower, still covering the other);
+    drifting opposite ways: the band is symmetric; one replay: symmetric (nothing shows the sign carries)."""
+    def drifting(seed: int, sign: float) -> SimpleNamespace:
+        res, _ = _replay(seed, n_windows=100)
+        res.measured["roll_rad"] = sign * np.abs(res.measured["roll_rad"])
+        return res
+
+    same = learn([drifting(51, 1.0), drifting(52, 1.0)], ["a", "b"]).signals["roll_rad"]
+    assert not same.symmetric and all(row[LEVELS.index(0.05)] >= -1e-3 for row in same.quantiles)
+    opposite = learn([drifting(53, 1.0), drifting(54, -1.0)], ["a", "b"]).signals["roll_rad"]
+    assert opposite.symmetric
+    assert learn([drifting(55, 1.0)], ["a"]).signals["roll_rad"].symmetric
