@@ -95,6 +95,7 @@ def test_setup_errors_are_setup_errors(quadrotor_fmu: Path, tmp_path: Path) -> N
         serve(quadrotor_fmu, "nmea", duration_s=1)
 
 
+@pytest.mark.realtime  # paced by the wall clock: run alone
 def test_nmea_interface_streams_gps_sentences(quadrotor_fmu: Path, tmp_path: Path) -> None:
     cfg = tmp_path / "bench.toml"
     cfg.write_text("[nmea]\nport = \"loop://\"\nrate_hz = 5\n[timing]\nrate_hz = 100\n")
