@@ -483,7 +483,8 @@ class OutputErrorEstimator:
 
         θ is the free parameters followed by the estimated initial states (whose sensitivity enters only
         through ``S0``). RK4 on ``ẋ = f``, ``Ṡ = f_x S + f_θ`` with shared stages equals the Jacobian of the
-        RK4 map, at a fraction of the cost of differentiating the composed step symbolically.
+        RK4 map, at a fraction of the cost of differentiating the composed step symbolically. The stages get the
+        time since the step's start (0, dt/2, dt/2, dt) as ``rk4_step`` gives them to ``step_function``.
         """
         m = self.model
         nx, nth, ns = len(m.states), len(self.free), len(self.free) + len(self.i_x0)
@@ -491,19 +492,19 @@ class OutputErrorEstimator:
         p, dt = m.params.sym("p"), ca.SX.sym("dt")
         S = ca.SX.sym("S", nx, ns)
         th = ca.vertcat(*[p[i] for i in self.i_free]) if nth else ca.SX(0, 1)
-        xs = ca.SX.sym("xs", nx)
-        fx = m.derivatives(0.0, xs, u, p)
-        jac = ca.Function("fjac", [xs, u, p], [fx, ca.jacobian(fx, xs), ca.jacobian(fx, th)])
+        xs, ts = ca.SX.sym("xs", nx), ca.SX.sym("ts")
+        fx = m.derivatives(ts, xs, u, p)  # ts: time since the step's start, as rk4_step passes it
+        jac = ca.Function("fjac", [xs, u, p, ts], [fx, ca.jacobian(fx, xs), ca.jacobian(fx, th)])
         pad = ca.SX(nx, ns - nth)
 
-        def stage(xx: Any, SS: Any) -> tuple[Any, Any]:
-            k, A, B = jac(xx, u, p)
+        def stage(xx: Any, SS: Any, tt: Any) -> tuple[Any, Any]:
+            k, A, B = jac(xx, u, p, tt)
             return k, A @ SS + ca.horzcat(B, pad)
 
-        k1, K1 = stage(x, S)
-        k2, K2 = stage(x + dt / 2 * k1, S + dt / 2 * K1)
-        k3, K3 = stage(x + dt / 2 * k2, S + dt / 2 * K2)
-        k4, K4 = stage(x + dt * k3, S + dt * K3)
+        k1, K1 = stage(x, S, 0.0)
+        k2, K2 = stage(x + dt / 2 * k1, S + dt / 2 * K1, dt / 2)
+        k3, K3 = stage(x + dt / 2 * k2, S + dt / 2 * K2, dt / 2)
+        k4, K4 = stage(x + dt * k3, S + dt * K3, dt)
         xr = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         Sr = S + dt / 6 * (K1 + 2 * K2 + 2 * K3 + K4)
         post = m.post_step(xs, u, p)
