@@ -97,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
             cover = abs(v - tr) <= hw
             if not ok:
                 misses.append(f"draw {d} {n}: {100 * (v / tr - 1):+.1f} % (truth {tr:.4g}, estimate {v:.4g})")
-            line.append(f"{n} {100 * (v / tr - 1):+5.1f}% hw {100 * hw / abs(tr):4.1f}%{'' if cover else '!'}")
+            line.append(f"{n} {100 * (v / tr - 1):+6.2f}% hw {100 * hw / abs(tr):5.2f}%{'' if cover else '!'}")
         print(f"draw {d:2d} ({time.perf_counter() - t0:4.0f} s): " + "  ".join(line), flush=True)
     print(f"\n{'parameter':<14} {'max |err| %':>11} {'within 10 %':>11} {'coverage':>9} {'med half-width':>15} "
           f"{'med |err|':>10} {'rms err':>10} {'hw/|err|':>9} {'hw/rms':>7}")

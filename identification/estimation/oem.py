@@ -112,6 +112,10 @@ class Estimate:
     #: manoeuvres whose output sensitivities exceed :data:`SENSITIVITY_GROWTH_MAX`: the fitted model diverges
     #: there, and the linearised bounds (Cramér-Rao, bootstrap, consider) are not credible
     unbounded: list[str] = field(default_factory=list)
+    #: fewest bootstrap degrees of freedom for the bootstrap to enter a parameter's printed bound; below it the
+    #: spread is itself too uncertain (its relative std is about 1/sqrt(2 dof)) and only the coloured Cramér-Rao
+    #: bound is printed (0: the bootstrap always enters)
+    bootstrap_min_dof: float = 0.0
 
     def __post_init__(self) -> None:
         if self.n_global < 0:
@@ -139,9 +143,21 @@ class Estimate:
         consider share of the parameters held fixed."""
         out = self.crb_std[:self.n_global].copy()
         if self.bootstrap_std is not None and self.bound_method.startswith("max("):
-            dof = self.bootstrap_dof if self.bootstrap_dof is not None else self.n_segments - 1.0
-            out = np.maximum(out, self.bootstrap_std * student_factor(dof))
+            out = np.where(self.bootstrap_in_bound(), np.maximum(out, self.bootstrap_std * student_factor(
+                self.bootstrap_dofs())), out)
         return out
+
+    def bootstrap_dofs(self) -> np.ndarray:
+        """Per model parameter, the degrees of freedom of its bootstrap spread."""
+        dof = self.bootstrap_dof if self.bootstrap_dof is not None else self.n_segments - 1.0
+        return np.broadcast_to(np.asarray(dof, dtype=float), (self.n_global,))
+
+    def bootstrap_in_bound(self) -> np.ndarray:
+        """Per model parameter, whether the bootstrap enters the printed bound (it was computed and has at least
+        :attr:`bootstrap_min_dof` degrees of freedom)."""
+        if self.bootstrap_std is None or not self.bound_method.startswith("max("):
+            return np.zeros(self.n_global, dtype=bool)
+        return self.bootstrap_dofs() >= self.bootstrap_min_dof
 
     def dominance(self) -> list[str]:
         """Per model parameter: "fixed" when the consider share of the parameters held fixed exceeds the data's
@@ -222,6 +238,7 @@ class Estimate:
                          "bootstrap_std": None if boot is None or not np.isfinite(boot[i]) else float(boot[i]),
                          "bootstrap_dof": None if boot is None or self.bootstrap_dof is None
                          else float(self.bootstrap_dof[i]),
+                         "bootstrap_in_bound": bool(self.bootstrap_in_bound()[i]),
                          "consider_std": None if self.consider_std is None else float(self.consider_std[i]),
                          "prior_sd": None if self.prior_sd is None or not np.isfinite(self.prior_sd[i])
                          else float(self.prior_sd[i]),

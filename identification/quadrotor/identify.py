@@ -39,8 +39,8 @@ from identification.estimation.oem import (
     EstimationError,
     Manoeuvre,
     OutputErrorEstimator,
-    coloured_covariance,
     correlation_lags,
+    student_factor,
 )
 from identification.logs.flightlog import BATTERY_VOLTAGE, FlightLog, LogError, check_quality
 from identification.logs.log_state import HOLD_TOLERANCE_S, hold, initial_values
@@ -64,6 +64,15 @@ MIN_COMMAND_HZ = 50.0
 BOUNDS = {"Jx_kg_m2": (1e-5, 10.0), "Jy_kg_m2": (1e-5, 10.0), "Jz_kg_m2": (1e-5, 10.0),
           "b_drag_N_m_s2": (1e-12, 1e-3), "tau_motor_s": (1e-4, 0.3),
           "kd_x_N_s_m": (0.0, 100.0), "kd_y_N_s_m": (0.0, 100.0), "kd_z_N_s_m": (0.0, 100.0)}
+#: fewest degrees of freedom of the segment bootstrap for it to widen a printed bound: the replica's roll and
+#: pitch information sits in a few windows (2 degrees of freedom), where the bootstrap's spread is itself
+#: uncertain by half and Student's factor doubles it (95 % half-widths 5-10x the error); with 10 its spread is
+#: known to about a fifth and the factor is 1.14. Below it the coloured-residual Cramer-Rao bound is printed and
+#: the bootstrap is reported as a small-sample bound with the windows that would give it 10.
+BOOTSTRAP_MIN_DOF = 10.0
+#: smallest internal step [s] the written file gives the FMU (``step_internal_s``' own lower limit); a motor time
+#: constant under twice the file's step brings it down to half the time constant
+FMU_STEP_MIN_S = 1e-5
 #: motor time constant the fit starts from when the start parameters have none [s]
 TAU_START_S = 0.02
 #: exit status of ``uavfmu identify quadrotor`` (documented in the CLI module)
@@ -164,9 +173,25 @@ class QuadrotorIdResult:
                       "determined_by": "data (equation error on velocity and specific force)"}
         return out
 
+    def small_sample_bounds(self) -> dict[str, dict[str, float]]:
+        """Model parameters whose segment bootstrap has fewer than :data:`BOOTSTRAP_MIN_DOF` degrees of freedom
+        (left out of the printed bound): its 1-sigma with Student's factor, its degrees of freedom and about how
+        many fit windows, sharing the information as these do, would give it :data:`BOOTSTRAP_MIN_DOF`."""
+        est = self.estimate
+        if est is None or est.bootstrap_std is None:
+            return {}
+        dof, used = est.bootstrap_dofs(), est.bootstrap_in_bound()
+        out = {}
+        for i, n in enumerate(est.names[:est.n_global]):
+            if not used[i] and np.isfinite(est.bootstrap_std[i]):
+                out[n] = {"std_t": float(est.bootstrap_std[i] * student_factor(dof[i])), "dof": float(dof[i]),
+                          "windows_needed": math.ceil(est.n_segments * BOOTSTRAP_MIN_DOF / max(dof[i], 1e-3))}
+        return out
+
     def as_dict(self) -> dict[str, Any]:
         return {
             "free": self.free, "command_hz": self.command_hz, "estimates": self.estimates(),
+            "small_sample_bounds": self.small_sample_bounds(),
             "ratios": {r.name: r.as_dict() for r in self.ratios},
             "not_identifiable": self.not_identifiable, "inertia_prior": dataclasses.asdict(self.prior),
             "fit_segments": [str(s) for s in self.fit_segments],
@@ -183,6 +208,16 @@ class QuadrotorIdResult:
         for n, e in self.estimates().items():
             lo, hi = e["ci95"]
             lines.append(f"{n:<16} {e['value']:11.4g} {f'[{lo:.4g}, {hi:.4g}]':>25}  {e['determined_by']}")
+        small = self.small_sample_bounds()
+        if small:
+            lines.append(f"printed bounds: coloured-residual Cramer-Rao; the segment bootstrap over the "
+                         f"{self.estimate.n_segments if self.estimate else 0} fit windows has fewer than "
+                         f"{BOOTSTRAP_MIN_DOF:g} degrees of freedom for these (a small-sample bound, not printed "
+                         "above):")
+            for n, b in small.items():
+                lines.append(f"  {n:<14} 95 % half-width {1.96 * b['std_t']:.3g} from {b['dof']:.1f} degrees of "
+                             f"freedom; about {b['windows_needed']} fit windows like these would give it "
+                             f"{BOOTSTRAP_MIN_DOF:g}")
         for r in self.ratios:
             lines.append(f"{r.name:<16} {r.value:11.4g} "
                          f"{f'[{r.value - 1.96 * r.std:.4g}, {r.value + 1.96 * r.std:.4g}]':>25}  data: {r.meaning}")
@@ -410,6 +445,7 @@ def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorPar
     for k, log in enumerate(logs):
         data += manoeuvres(model, p, log, params, [w for i, w in fit_w if i == k], outputs, rate)
     est = oe.estimate(data, theta0=est.values[:len(free)], max_iter=opt.max_iter, progress=opt.progress)
+    est.bootstrap_min_dof = BOOTSTRAP_MIN_DOF
     params = dataclasses.replace(start, **dict(zip(free, map(float, est.values[:len(free)]), strict=True)))
     if velocity:
         try:
@@ -418,6 +454,12 @@ def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorPar
             params = dataclasses.replace(params, **{n: d["value"] for n, d in drag.items()})
         except QuadrotorInputError as err:
             notes.append(str(err))
+    if 0.0 < params.tau_motor_s < 2.0 * params.step_internal_s:
+        step = max(params.tau_motor_s / 2.0, FMU_STEP_MIN_S)
+        notes.append(f"motor time constant {1e3 * params.tau_motor_s:.3g} ms: the FMU's internal RK4 step is set "
+                     f"to {1e3 * step:.3g} ms (step_internal_s, was {1e3 * params.step_internal_s:.3g} ms) so that "
+                     "it follows the motors (RK4 diverges on a lag under 0.36 of its step)")
+        params = dataclasses.replace(params, step_internal_s=step)
     result = QuadrotorIdResult(params, free + list(drag), est, prior, [w for _, w in fit_w], [w for _, w in val_w],
                                command_hz, not_ident, drag=drag, notes=notes)
     if not est.converged:
@@ -546,8 +588,9 @@ def drag_equation_error(logs: Sequence[FlightLog], windows: Sequence[tuple[int, 
     total thrust; None: z is left out) is a second regressor with its own scale (``thrust_scale``, 1 when the
     thrust map is right): a map that is off by a factor otherwise leaves ``(s - 1) T / m`` in the specific force,
     which follows the vertical velocity (climbing takes thrust) and biases ``kd_z``. Both sides are smoothed
-    alike first (:data:`DRAG_SMOOTH_S`). 1-sigma: Newey-West over time (:func:`hac_least_squares`; the smoothing
-    and the sensors colour the residual, and a few windows carry most of the velocity change)."""
+    alike first (:data:`DRAG_SMOOTH_S`). 1-sigma: Newey-West over time with the residual's autocovariance pooled
+    over the windows (:func:`hac_least_squares`; the smoothing and the sensors colour the residual, and a few
+    windows carry most of the velocity change)."""
     rows: list[tuple[int, np.ndarray, np.ndarray]] = []  # (log, regressors, specific force) per window
     n = max(round(DRAG_SMOOTH_S * rate_hz), 1)
     for k, w in windows:
@@ -580,6 +623,8 @@ def drag_equation_error(logs: Sequence[FlightLog], windows: Sequence[tuple[int, 
             my = float(np.concatenate([y[o] for y, o in zip(yk, ok, strict=True)]).mean())
             xs += [x[o] - mx for x, o in zip(xk, ok, strict=True)]
             ys += [y[o] - my for y, o in zip(yk, ok, strict=True)]
+        if sum(len(x) for x in xs) < 4 * n * len(cols):
+            raise QuadrotorInputError(f"drag: too few samples with velocity and specific force for {name}")
         beta, cov = hac_least_squares(xs, ys, min_lags=4 * n)  # a = beta_v v (+ beta_T T/m): beta_v = -kd / m
         out[name] = {"value": -float(beta[0]) * params.mass_kg,
                      "std": params.mass_kg * math.sqrt(max(float(cov[0, 0]), 0.0))}
@@ -592,21 +637,32 @@ def drag_equation_error(logs: Sequence[FlightLog], windows: Sequence[tuple[int, 
 def hac_least_squares(xs: Sequence[np.ndarray], ys: Sequence[np.ndarray], min_lags: int = 0
                       ) -> tuple[np.ndarray, np.ndarray]:
     """Least squares ``y = X beta`` pooled over contiguous windows (``xs`` N x p and ``ys`` N per window, windows
-    independent of each other): ``beta`` and its Newey-West covariance (Newey & West 1987). Within a window the
-    residual's autocorrelation enters with a Bartlett taper at the lag where it dies out, at least ``min_lags``
-    (a moving average of n samples correlates the residual over n lags: a taper of 4 n keeps 92 % of that
-    correlation's sum, the 2 n the autocorrelation test finds only 83 %). The same sum as the output-error
-    estimator's coloured-residual bound (``identification.estimation.oem.coloured_covariance``). Unlike a
-    bootstrap over windows it stays right when one window carries most of a regressor's variation."""
+    independent of each other): ``beta`` and its covariance for a coloured residual (Newey & West 1987, with the
+    residual's autocovariance pooled over the windows). The sensors' noise is one stationary process in every
+    window, so its autocovariance ``R(k)`` is estimated from all of them, tapered by a Bartlett window at the lag
+    where it dies out, at least ``min_lags`` (a moving average of n samples correlates the residual over n lags:
+    a taper of 4 n keeps 92 % of that correlation's sum, the 2 n the autocorrelation test finds only 83 %).
+    The score's variance is then ``sum_windows sum_ij x_i R(j - i) x_j``: right when one window carries most of
+    a regressor's variation, where a bootstrap over windows is far too wide and a per-window Newey-West sum,
+    from that window's few independent stretches, too narrow."""
     xtx = sum(x.T @ x for x in xs)
     xty = sum(x.T @ y for x, y in zip(xs, ys, strict=True))
     beta = np.linalg.lstsq(xtx, xty, rcond=None)[0]
+    rs = [y - x @ beta for x, y in zip(xs, ys, strict=True)]
+    n_total = sum(len(r) for r in rs)
+    longest = max(len(r) for r in rs)
+    lags = min(max(max(correlation_lags(r[:, None]) for r in rs if len(r) >= 2), min_lags), longest // 2)
+    acov = np.zeros(lags + 1)
+    for r in rs:
+        m = min(lags + 1, len(r))
+        acov[:m] += [float(r[:len(r) - k] @ r[k:]) for k in range(m)]
+    acov *= (1.0 - np.arange(lags + 1) / (lags + 1.0)) / n_total
     middle = np.zeros_like(xtx)
-    for x, y in zip(xs, ys, strict=True):
-        if len(x) >= 2:
-            r = (y - x @ beta)[:, None]
-            lags = min(max(correlation_lags(r), min_lags), len(x) // 2)
-            middle += coloured_covariance(x[:, None, :], r, lags=lags)
+    for x in xs:
+        middle += acov[0] * (x.T @ x)
+        for k in range(1, min(lags + 1, len(x))):
+            c = x[:-k].T @ x[k:]
+            middle += acov[k] * (c + c.T)
     inv = np.linalg.pinv(xtx)
     return beta, inv @ middle @ inv
 
