@@ -189,8 +189,9 @@ def identify_dynamics(merged: dict[str, Any], work: Path, seed: int = 3) -> dict
     out = work / "quadrotor_dynamics.json"
     q.write_results(res, out, out.with_suffix(".metrics.json"), None, ["demo identification flight"])
     if res.exit_code == q.EXIT_OK:
+        # the internal step too: identify quadrotor shortens it when the motors are faster than it can follow
         merged["quadrotor"] = {**merged.get("quadrotor", {}),
-                               **{n: float(getattr(res.params, n)) for n in res.free}}
+                               **{n: float(getattr(res.params, n)) for n in (*res.free, "step_internal_s")}}
     truth_of = dataclasses.asdict(truth)
     return {"exit_code": res.exit_code, "estimates": res.estimates(), "held_out": res.held_out,
             "truth": {n: truth_of[n] for n in res.free}, "written": res.exit_code == q.EXIT_OK}

@@ -112,6 +112,10 @@ class Estimate:
     #: manoeuvres whose output sensitivities exceed :data:`SENSITIVITY_GROWTH_MAX`: the fitted model diverges
     #: there, and the linearised bounds (Cramér-Rao, bootstrap, consider) are not credible
     unbounded: list[str] = field(default_factory=list)
+    #: fewest bootstrap degrees of freedom for the bootstrap to enter a parameter's printed bound; below it the
+    #: spread is itself too uncertain (its relative std is about 1/sqrt(2 dof)) and only the coloured Cramér-Rao
+    #: bound is printed (0: the bootstrap always enters)
+    bootstrap_min_dof: float = 0.0
 
     def __post_init__(self) -> None:
         if self.n_global < 0:
@@ -139,9 +143,21 @@ class Estimate:
         consider share of the parameters held fixed."""
         out = self.crb_std[:self.n_global].copy()
         if self.bootstrap_std is not None and self.bound_method.startswith("max("):
-            dof = self.bootstrap_dof if self.bootstrap_dof is not None else self.n_segments - 1.0
-            out = np.maximum(out, self.bootstrap_std * student_factor(dof))
+            out = np.where(self.bootstrap_in_bound(), np.maximum(out, self.bootstrap_std * student_factor(
+                self.bootstrap_dofs())), out)
         return out
+
+    def bootstrap_dofs(self) -> np.ndarray:
+        """Per model parameter, the degrees of freedom of its bootstrap spread."""
+        dof = self.bootstrap_dof if self.bootstrap_dof is not None else self.n_segments - 1.0
+        return np.broadcast_to(np.asarray(dof, dtype=float), (self.n_global,))
+
+    def bootstrap_in_bound(self) -> np.ndarray:
+        """Per model parameter, whether the bootstrap enters the printed bound (it was computed and has at least
+        :attr:`bootstrap_min_dof` degrees of freedom)."""
+        if self.bootstrap_std is None or not self.bound_method.startswith("max("):
+            return np.zeros(self.n_global, dtype=bool)
+        return self.bootstrap_dofs() >= self.bootstrap_min_dof
 
     def dominance(self) -> list[str]:
         """Per model parameter: "fixed" when the consider share of the parameters held fixed exceeds the data's
@@ -222,6 +238,7 @@ class Estimate:
                          "bootstrap_std": None if boot is None or not np.isfinite(boot[i]) else float(boot[i]),
                          "bootstrap_dof": None if boot is None or self.bootstrap_dof is None
                          else float(self.bootstrap_dof[i]),
+                         "bootstrap_in_bound": bool(self.bootstrap_in_bound()[i]),
                          "consider_std": None if self.consider_std is None else float(self.consider_std[i]),
                          "prior_sd": None if self.prior_sd is None or not np.isfinite(self.prior_sd[i])
                          else float(self.prior_sd[i]),
@@ -483,7 +500,8 @@ class OutputErrorEstimator:
 
         θ is the free parameters followed by the estimated initial states (whose sensitivity enters only
         through ``S0``). RK4 on ``ẋ = f``, ``Ṡ = f_x S + f_θ`` with shared stages equals the Jacobian of the
-        RK4 map, at a fraction of the cost of differentiating the composed step symbolically.
+        RK4 map, at a fraction of the cost of differentiating the composed step symbolically. The stages get the
+        time since the step's start (0, dt/2, dt/2, dt) as ``rk4_step`` gives them to ``step_function``.
         """
         m = self.model
         nx, nth, ns = len(m.states), len(self.free), len(self.free) + len(self.i_x0)
@@ -491,19 +509,19 @@ class OutputErrorEstimator:
         p, dt = m.params.sym("p"), ca.SX.sym("dt")
         S = ca.SX.sym("S", nx, ns)
         th = ca.vertcat(*[p[i] for i in self.i_free]) if nth else ca.SX(0, 1)
-        xs = ca.SX.sym("xs", nx)
-        fx = m.derivatives(0.0, xs, u, p)
-        jac = ca.Function("fjac", [xs, u, p], [fx, ca.jacobian(fx, xs), ca.jacobian(fx, th)])
+        xs, ts = ca.SX.sym("xs", nx), ca.SX.sym("ts")
+        fx = m.derivatives(ts, xs, u, p)  # ts: time since the step's start, as rk4_step passes it
+        jac = ca.Function("fjac", [xs, u, p, ts], [fx, ca.jacobian(fx, xs), ca.jacobian(fx, th)])
         pad = ca.SX(nx, ns - nth)
 
-        def stage(xx: Any, SS: Any) -> tuple[Any, Any]:
-            k, A, B = jac(xx, u, p)
+        def stage(xx: Any, SS: Any, tt: Any) -> tuple[Any, Any]:
+            k, A, B = jac(xx, u, p, tt)
             return k, A @ SS + ca.horzcat(B, pad)
 
-        k1, K1 = stage(x, S)
-        k2, K2 = stage(x + dt / 2 * k1, S + dt / 2 * K1)
-        k3, K3 = stage(x + dt / 2 * k2, S + dt / 2 * K2)
-        k4, K4 = stage(x + dt * k3, S + dt * K3)
+        k1, K1 = stage(x, S, 0.0)
+        k2, K2 = stage(x + dt / 2 * k1, S + dt / 2 * K1, dt / 2)
+        k3, K3 = stage(x + dt / 2 * k2, S + dt / 2 * K2, dt / 2)
+        k4, K4 = stage(x + dt * k3, S + dt * K3, dt)
         xr = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         Sr = S + dt / 6 * (K1 + 2 * K2 + 2 * K3 + K4)
         post = m.post_step(xs, u, p)

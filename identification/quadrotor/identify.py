@@ -34,11 +34,19 @@ from fmu_models.quadrotor.model import QuadrotorModel
 from fmu_models.quadrotor.params import QuadrotorParams
 from fmu_models.signals.names import OUTPUT_TO_LOG
 from identification.common.metrics import skill_interval
-from identification.estimation.oem import Estimate, EstimationError, Manoeuvre, OutputErrorEstimator
+from identification.estimation.oem import (
+    Estimate,
+    EstimationError,
+    Manoeuvre,
+    OutputErrorEstimator,
+    correlation_lags,
+    student_factor,
+)
 from identification.logs.flightlog import BATTERY_VOLTAGE, FlightLog, LogError, check_quality
-from identification.logs.log_state import hold, initial_values
+from identification.logs.log_state import HOLD_TOLERANCE_S, hold, initial_values
 from identification.quadrotor import rate_commands
 from identification.quadrotor import segments as qseg
+from identification.quadrotor.motor_lag import ExactLagModel
 from identification.quadrotor.priors import BATTERY_MASS_KG, MOTOR_MASS_KG, InertiaPrior, airframe_inertia
 
 #: fitted outputs: body rates (gyro) and specific force (accelerometer)
@@ -51,11 +59,21 @@ DRAG_PARAMS = ("kd_x_N_s_m", "kd_y_N_s_m", "kd_z_N_s_m")
 #: within 20-50 ms (rate-loop bandwidth 5-15 Hz, motor time constants 10-50 ms); commands logged slower than this
 #: leave the moments between two samples unknown
 MIN_COMMAND_HZ = 50.0
-#: search bounds of the free parameters (SI); the motor time constant is kept above one millisecond (at 0 the
-#: model switches the lag off and the sensitivity vanishes)
+#: search bounds of the free parameters (SI); the motor time constant is kept above 0.1 ms (at 0 the model
+#: switches the lag off and the sensitivity vanishes; the exact discretisation of ``motor_lag`` is stable at any
+#: value)
 BOUNDS = {"Jx_kg_m2": (1e-5, 10.0), "Jy_kg_m2": (1e-5, 10.0), "Jz_kg_m2": (1e-5, 10.0),
-          "b_drag_N_m_s2": (1e-12, 1e-3), "tau_motor_s": (1e-3, 0.3),
+          "b_drag_N_m_s2": (1e-12, 1e-3), "tau_motor_s": (1e-4, 0.3),
           "kd_x_N_s_m": (0.0, 100.0), "kd_y_N_s_m": (0.0, 100.0), "kd_z_N_s_m": (0.0, 100.0)}
+#: fewest degrees of freedom of the segment bootstrap for it to widen a printed bound: the replica's roll and
+#: pitch information sits in a few windows (2 degrees of freedom), where the bootstrap's spread is itself
+#: uncertain by half and Student's factor doubles it (95 % half-widths 5-10x the error); with 10 its spread is
+#: known to about a fifth and the factor is 1.14. Below it the coloured-residual Cramer-Rao bound is printed and
+#: the bootstrap is reported as a small-sample bound with the windows that would give it 10.
+BOOTSTRAP_MIN_DOF = 10.0
+#: smallest internal step [s] the written file gives the FMU (``step_internal_s``' own lower limit); a motor time
+#: constant under twice the file's step brings it down to half the time constant
+FMU_STEP_MIN_S = 1e-5
 #: motor time constant the fit starts from when the start parameters have none [s]
 TAU_START_S = 0.02
 #: exit status of ``uavfmu identify quadrotor`` (documented in the CLI module)
@@ -156,9 +174,25 @@ class QuadrotorIdResult:
                       "determined_by": "data (equation error on velocity and specific force)"}
         return out
 
+    def small_sample_bounds(self) -> dict[str, dict[str, float]]:
+        """Model parameters whose segment bootstrap has fewer than :data:`BOOTSTRAP_MIN_DOF` degrees of freedom
+        (left out of the printed bound): its 1-sigma with Student's factor, its degrees of freedom and about how
+        many fit windows, sharing the information as these do, would give it :data:`BOOTSTRAP_MIN_DOF`."""
+        est = self.estimate
+        if est is None or est.bootstrap_std is None:
+            return {}
+        dof, used = est.bootstrap_dofs(), est.bootstrap_in_bound()
+        out = {}
+        for i, n in enumerate(est.names[:est.n_global]):
+            if not used[i] and np.isfinite(est.bootstrap_std[i]):
+                out[n] = {"std_t": float(est.bootstrap_std[i] * student_factor(dof[i])), "dof": float(dof[i]),
+                          "windows_needed": math.ceil(est.n_segments * BOOTSTRAP_MIN_DOF / max(dof[i], 1e-3))}
+        return out
+
     def as_dict(self) -> dict[str, Any]:
         return {
             "free": self.free, "command_hz": self.command_hz, "estimates": self.estimates(),
+            "small_sample_bounds": self.small_sample_bounds(),
             "ratios": {r.name: r.as_dict() for r in self.ratios},
             "not_identifiable": self.not_identifiable, "inertia_prior": dataclasses.asdict(self.prior),
             "fit_segments": [str(s) for s in self.fit_segments],
@@ -175,6 +209,16 @@ class QuadrotorIdResult:
         for n, e in self.estimates().items():
             lo, hi = e["ci95"]
             lines.append(f"{n:<16} {e['value']:11.4g} {f'[{lo:.4g}, {hi:.4g}]':>25}  {e['determined_by']}")
+        small = self.small_sample_bounds()
+        if small:
+            lines.append(f"printed bounds: coloured-residual Cramer-Rao; the segment bootstrap over the "
+                         f"{self.estimate.n_segments if self.estimate else 0} fit windows has fewer than "
+                         f"{BOOTSTRAP_MIN_DOF:g} degrees of freedom for these (a small-sample bound, not printed "
+                         "above):")
+            for n, b in small.items():
+                lines.append(f"  {n:<14} 95 % half-width {1.96 * b['std_t']:.3g} from {b['dof']:.1f} degrees of "
+                             f"freedom; about {b['windows_needed']} fit windows like these would give it "
+                             f"{BOOTSTRAP_MIN_DOF:g}")
         for r in self.ratios:
             lines.append(f"{r.name:<16} {r.value:11.4g} "
                          f"{f'[{r.value - 1.96 * r.std:.4g}, {r.value + 1.96 * r.std:.4g}]':>25}  data: {r.meaning}")
@@ -222,19 +266,34 @@ def _inputs(log: FlightLog, params: QuadrotorParams, t_s: np.ndarray) -> np.ndar
     return np.column_stack([*cols, volt])
 
 
+def on_command_grid(cmd_t_s: np.ndarray, t_s: float) -> float:
+    """The first motor-command sample time at or after ``t_s`` [s] (``t_s`` itself past the last one). A record
+    starts there: its inputs are the commands held from their own sample times, so a start between two samples
+    would hold each command up to one sample later than the motors got it. That delay is harmless on smooth
+    commands, but a rate loop passes the gyro's noise to the motors sample by sample, and the fit then takes
+    the delay out of the motor time constant (measured on the replica: -0.6 ms of a 20 ms truth, Jx and Jy
+    +0.2 %, with windows starting at a quarter to three quarters of a 4 ms sample)."""
+    i = int(np.searchsorted(cmd_t_s, t_s - HOLD_TOLERANCE_S, side="left"))
+    return float(cmd_t_s[i]) if i < len(cmd_t_s) else float(t_s)
+
+
 def manoeuvres(model: QuadrotorModel, p: np.ndarray, log: FlightLog, params: QuadrotorParams,
                windows: Sequence[qseg.Segment], outputs: Sequence[str], rate_hz: float) -> list[Manoeuvre]:
     """One :class:`Manoeuvre` per window: inputs at ``t_k``, measurements at ``t_{k+1}``, the initial state from
     the log through the model's own initial-state function."""
+    if isinstance(model, ExactLagModel) and abs(model.sample_s * rate_hz - 1.0) > 1e-9:
+        raise QuadrotorInputError(f"records at {rate_hz:g} Hz for a model that steps {model.sample_s:g} s")
     init = init_function(model)
     lag = MotorThrust(params) if params.tau_motor_s > 0 else None
     i_lag = model.states.index["thrust_state_1_N"]
     out = []
+    cmd_t = log.signal("motor_1_pwm_us").t_s
     for w in windows:
-        n = math.floor((w.t1_s - w.t0_s) * rate_hz + 1e-9)
+        t0 = on_command_grid(cmd_t, w.t0_s)
+        n = math.floor((w.t1_s - t0) * rate_hz + 1e-9)
         if n < 3:
             continue
-        t = w.t0_s + np.arange(n + 1) / rate_hz
+        t = t0 + np.arange(n + 1) / rate_hz
         u = _inputs(log, params, t[:-1])
         y = np.column_stack([log.signal(OUTPUT_TO_LOG[o]).resample(t[1:]) for o in outputs])
         if not (np.all(np.isfinite(y)) and np.all(np.isfinite(u))):
@@ -371,7 +430,7 @@ def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorPar
         init, Jx_kg_m2=prior.Jx_kg_m2, Jy_kg_m2=prior.Jy_kg_m2, Jz_kg_m2=prior.Jz_kg_m2,
         tau_motor_s=init.tau_motor_s if init.tau_motor_s > BOUNDS["tau_motor_s"][0] else TAU_START_S,
         **{n: d["value"] for n, d in drag.items()})
-    model = QuadrotorModel(start)
+    model = ExactLagModel(start, sample_s=1.0 / rate)
     p = np.array(model.params.starts(), dtype=float)
     outputs = [*RATE_OUTPUTS, "accel_body_z_m_s2"]
     free = list(RATE_PARAMS)
@@ -390,6 +449,7 @@ def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorPar
     for k, log in enumerate(logs):
         data += manoeuvres(model, p, log, params, [w for i, w in fit_w if i == k], outputs, rate)
     est = oe.estimate(data, theta0=est.values[:len(free)], max_iter=opt.max_iter, progress=opt.progress)
+    est.bootstrap_min_dof = BOOTSTRAP_MIN_DOF
     params = dataclasses.replace(start, **dict(zip(free, map(float, est.values[:len(free)]), strict=True)))
     if velocity:
         try:
@@ -398,6 +458,12 @@ def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorPar
             params = dataclasses.replace(params, **{n: d["value"] for n, d in drag.items()})
         except QuadrotorInputError as err:
             notes.append(str(err))
+    if 0.0 < params.tau_motor_s < 2.0 * params.step_internal_s:
+        step = max(params.tau_motor_s / 2.0, FMU_STEP_MIN_S)
+        notes.append(f"motor time constant {1e3 * params.tau_motor_s:.3g} ms: the FMU's internal RK4 step is set "
+                     f"to {1e3 * step:.3g} ms (step_internal_s, was {1e3 * params.step_internal_s:.3g} ms) so that "
+                     "it follows the motors (RK4 diverges on a lag under 0.36 of its step)")
+        params = dataclasses.replace(params, step_internal_s=step)
     result = QuadrotorIdResult(params, free + list(drag), est, prior, [w for _, w in fit_w], [w for _, w in val_w],
                                command_hz, not_ident, drag=drag, notes=notes)
     if not est.converged:
@@ -522,50 +588,87 @@ def drag_equation_error(logs: Sequence[FlightLog], windows: Sequence[tuple[int, 
                         ) -> dict[str, dict[str, float]]:
     """Drag per axis by least squares of ``a_b = -kd v_b / m + c_log`` over every fit window: one constant per
     log and axis (the accelerometer's bias is constant over a flight), ``v_b`` the logged NED velocity rotated by
-    the logged attitude. Along z the model's thrust is taken out first (``thrust_of(log, t) -> N``, the fitted
-    model's total thrust; None: z is left out). Both sides are smoothed alike first (:data:`DRAG_SMOOTH_S`).
-    1-sigma from a bootstrap over windows (400 resamples, seeded)."""
-    rows: list[tuple[int, np.ndarray, np.ndarray]] = []
+    the logged attitude. Along z the model's thrust per mass (``thrust_of(log, t) -> N``, the fitted model's
+    total thrust; None: z is left out) is a second regressor with its own scale (``thrust_scale``, 1 when the
+    thrust map is right): a map that is off by a factor otherwise leaves ``(s - 1) T / m`` in the specific force,
+    which follows the vertical velocity (climbing takes thrust) and biases ``kd_z``. Both sides are smoothed
+    alike first (:data:`DRAG_SMOOTH_S`). 1-sigma: Newey-West over time with the residual's autocovariance pooled
+    over the windows (:func:`hac_least_squares`; the smoothing and the sensors colour the residual, and a few
+    windows carry most of the velocity change)."""
+    rows: list[tuple[int, np.ndarray, np.ndarray]] = []  # (log, regressors, specific force) per window
+    n = max(round(DRAG_SMOOTH_S * rate_hz), 1)
     for k, w in windows:
         log = logs[k]
         t = np.arange(w.t0_s, w.t1_s, 1.0 / rate_hz)
         if len(t) < 3:
             continue
-        v_b = _body_velocity(log, t)
         acc = np.column_stack([log.signal(f"accel_body_{a}_m_s2").resample(t) for a in "xyz"])
-        if thrust_of is not None:
-            acc[:, 2] += thrust_of(log, t) / params.mass_kg
-        else:
-            acc[:, 2] = np.nan
-        n = max(round(DRAG_SMOOTH_S * rate_hz), 1)
+        thrust = thrust_of(log, t) / params.mass_kg if thrust_of is not None else np.full(len(t), np.nan)
+        reg = np.column_stack([_body_velocity(log, t), thrust])
         if len(t) > 2 * n:  # the same moving average on both sides keeps the relation linear
             kernel = np.ones(n) / n
-            v_b = np.column_stack([np.convolve(v_b[:, i], kernel, "valid") for i in range(3)])
+            reg = np.column_stack([np.convolve(reg[:, i], kernel, "valid") for i in range(reg.shape[1])])
             acc = np.column_stack([np.convolve(acc[:, i], kernel, "valid") for i in range(3)])
-        rows.append((k, v_b, acc))
+        rows.append((k, reg, acc))
     if len(rows) < 2:
         raise QuadrotorInputError("drag: fewer than two windows with velocity and specific force")
-    rng = np.random.default_rng(0)
-    out = {}
+    out: dict[str, dict[str, float]] = {}
     for a, name in enumerate(DRAG_PARAMS):
         if thrust_of is None and a == 2:
             continue
-
-        def slope(sel: Sequence[int], a: int = a) -> float:
-            xs, ys = [], []
-            for k in {rows[i][0] for i in sel}:  # one constant per log: centre each log's samples
-                x = np.concatenate([rows[i][1][:, a] for i in sel if rows[i][0] == k])
-                y = np.concatenate([rows[i][2][:, a] for i in sel if rows[i][0] == k])
-                ok = np.isfinite(x) & np.isfinite(y)
-                xs.append(x[ok] - x[ok].mean())
-                ys.append(y[ok] - y[ok].mean())
-            x, y = np.concatenate(xs), np.concatenate(ys)
-            return float(-(x @ y) / max(float(x @ x), 1e-12)) * params.mass_kg
-
-        value = slope(range(len(rows)))
-        boots = [slope(rng.integers(0, len(rows), len(rows))) for _ in range(400)]
-        out[name] = {"value": value, "std": float(np.std(boots))}
+        cols = [a, 3] if a == 2 else [a]  # along z: body velocity and the model's thrust per mass
+        xs: list[np.ndarray] = []
+        ys: list[np.ndarray] = []
+        for k in dict.fromkeys(r[0] for r in rows):  # one constant per log: centre each log's samples
+            xk = [r[1][:, cols] for r in rows if r[0] == k]
+            yk = [r[2][:, a] for r in rows if r[0] == k]
+            ok = [np.all(np.isfinite(x), axis=1) & np.isfinite(y) for x, y in zip(xk, yk, strict=True)]
+            mx = np.concatenate([x[o] for x, o in zip(xk, ok, strict=True)]).mean(axis=0)
+            my = float(np.concatenate([y[o] for y, o in zip(yk, ok, strict=True)]).mean())
+            xs += [x[o] - mx for x, o in zip(xk, ok, strict=True)]
+            ys += [y[o] - my for y, o in zip(yk, ok, strict=True)]
+        if sum(len(x) for x in xs) < 4 * n * len(cols):
+            raise QuadrotorInputError(f"drag: too few samples with velocity and specific force for {name}")
+        beta, cov = hac_least_squares(xs, ys, min_lags=4 * n)  # a = beta_v v (+ beta_T T/m): beta_v = -kd / m
+        out[name] = {"value": -float(beta[0]) * params.mass_kg,
+                     "std": params.mass_kg * math.sqrt(max(float(cov[0, 0]), 0.0))}
+        if a == 2:
+            out[name]["thrust_scale"] = -float(beta[1])
+            out[name]["thrust_scale_std"] = math.sqrt(max(float(cov[1, 1]), 0.0))
     return out
+
+
+def hac_least_squares(xs: Sequence[np.ndarray], ys: Sequence[np.ndarray], min_lags: int = 0
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Least squares ``y = X beta`` pooled over contiguous windows (``xs`` N x p and ``ys`` N per window, windows
+    independent of each other): ``beta`` and its covariance for a coloured residual (Newey & West 1987, with the
+    residual's autocovariance pooled over the windows). The sensors' noise is one stationary process in every
+    window, so its autocovariance ``R(k)`` is estimated from all of them, tapered by a Bartlett window at the lag
+    where it dies out, at least ``min_lags`` (a moving average of n samples correlates the residual over n lags:
+    a taper of 4 n keeps 92 % of that correlation's sum, the 2 n the autocorrelation test finds only 83 %).
+    The score's variance is then ``sum_windows sum_ij x_i R(j - i) x_j``: right when one window carries most of
+    a regressor's variation, where a bootstrap over windows is far too wide and a per-window Newey-West sum,
+    from that window's few independent stretches, too narrow."""
+    xtx = sum(x.T @ x for x in xs)
+    xty = sum(x.T @ y for x, y in zip(xs, ys, strict=True))
+    beta = np.linalg.lstsq(xtx, xty, rcond=None)[0]
+    rs = [y - x @ beta for x, y in zip(xs, ys, strict=True)]
+    n_total = sum(len(r) for r in rs)
+    longest = max(len(r) for r in rs)
+    lags = min(max(max(correlation_lags(r[:, None]) for r in rs if len(r) >= 2), min_lags), longest // 2)
+    acov = np.zeros(lags + 1)
+    for r in rs:
+        m = min(lags + 1, len(r))
+        acov[:m] += [float(r[:len(r) - k] @ r[k:]) for k in range(m)]
+    acov *= (1.0 - np.arange(lags + 1) / (lags + 1.0)) / n_total
+    middle = np.zeros_like(xtx)
+    for x in xs:
+        middle += acov[0] * (x.T @ x)
+        for k in range(1, min(lags + 1, len(x))):
+            c = x[:-k].T @ x[k:]
+            middle += acov[k] * (c + c.T)
+    inv = np.linalg.pinv(xtx)
+    return beta, inv @ middle @ inv
 
 
 def parameter_file(result: QuadrotorIdResult, base: dict[str, Any] | None, log_names: Sequence[str]
