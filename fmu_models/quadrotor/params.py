@@ -78,6 +78,8 @@ class QuadrotorParams:
             except ParameterError as err:
                 probs.items.extend(f"thrust_map: {p}" for p in err.problems)
         _check_map(probs, thrust_map, scalars.get("pwm_idle_us", PWM_IDLE_US), scalars.get("pwm_full_us", PWM_FULL_US))
+        _check_motor_lag_step(probs, scalars.get("tau_motor_s", cls.tau_motor_s),
+                              scalars.get("step_internal_s", cls.step_internal_s))
         probs.raise_if_any()
         return dataclasses.replace(cls(), frame=frame, thrust_map=thrust_map, **scalars)
 
@@ -94,6 +96,15 @@ class QuadrotorParams:
 
 #: every key a flat quadrotor parameter file may hold (what tells a flat file's vehicle)
 FLAT_FILE_KEYS = file_keys(QuadrotorParams, FILE_EXTRAS, retired=RENAMED)
+
+
+def _check_motor_lag_step(probs: ProblemList, tau_s: float, step_s: float) -> None:
+    """A motor time constant shorter than the FMU's internal RK4 step: RK4 follows ``tau dT/dt = T_cmd - T``
+    wrongly there (decay per step 0.33 for e^-2 = 0.14 at two steps per tau) and diverges below 0.36 of the step."""
+    if 0.0 < tau_s < step_s:
+        probs.add(f"tau_motor_s = {tau_s:.6g} s is shorter than step_internal_s = {step_s:.6g} s: the FMU's RK4 "
+                  f"would not follow the motor (and diverges below {step_s / 2.785:.3g} s); give step_internal_s "
+                  f"<= tau_motor_s (allowed 1e-05..0.05 s), or tau_motor_s = 0 for no motor lag")
 
 
 def _check_map(probs: ProblemList, amap: AnfisMap, idle_us: float, full_us: float) -> None:

@@ -114,8 +114,18 @@ def test_any_value_inside_the_declared_range_is_taken_exactly(data: st.DataObjec
     lo, hi = f.metadata["min"], f.metadata["max"]
     if cls is QuadrotorParams and f.name == "pwm_idle_us":
         hi = 1400.0  # 4 x idle must stay below the thrust map's band (5800 us summed): a cross-field rule
+    if cls is QuadrotorParams and f.name == "tau_motor_s":
+        lo = QuadrotorParams.step_internal_s  # a motor lag no shorter than the internal step: a cross-field rule
     value = data.draw(st.floats(lo if lo is not None else -1e6, hi if hi is not None else 1e6))
     assert getattr(cls.from_dict({f.name: value}), f.name) == value
+
+
+def test_a_motor_lag_shorter_than_the_internal_step_is_refused_naming_both() -> None:
+    with pytest.raises(ParameterError, match=r"tau_motor_s = 0.0004 s is shorter than step_internal_s = 0.001 s"):
+        QuadrotorParams.from_dict({"tau_motor_s": 4e-4})
+    fine = QuadrotorParams.from_dict({"tau_motor_s": 4e-4, "step_internal_s": 2e-4})
+    assert (fine.tau_motor_s, fine.step_internal_s) == (4e-4, 2e-4)
+    assert QuadrotorParams.from_dict({"tau_motor_s": 0.0}).tau_motor_s == 0.0  # no motor lag at all
 
 
 def test_physical_lower_bounds_of_masses_and_inertias_are_positive() -> None:
