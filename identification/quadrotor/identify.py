@@ -239,8 +239,8 @@ class QuadrotorIdResult:
 
 def _determined(name: str, dominance: str) -> str:
     if name == "Jz_kg_m2":
-        return (f"{dominance} (yaw fixes only (b/k)/Jz: Jz rests on the airframe inertia prior and the "
-                "gyroscopic cross-coupling of roll and pitch)")
+        return (f"{dominance} (the yaw torque fixes only (b/k)/Jz; Jz itself comes from the gyroscopic "
+                "cross-coupling of roll and pitch and the airframe inertia prior)")
     if name in ("Jx_kg_m2", "Jy_kg_m2"):
         return f"{dominance} (through the arm's moment effectiveness l/J, l from the parameter file)"
     if name == "b_drag_N_m_s2":
