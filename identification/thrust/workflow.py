@@ -475,7 +475,9 @@ def comparisons(folds: list[FoldResult], calibrate: bool, block_s: float) -> dic
     hover battery state (``battery state``: the model's time constant, applied to the constant and the
     polynomials as to the map), or its own per-flight hover calibration (``calibrated``). ``in_verdict``: the
     level is one the written model is used at (:func:`used_levels`)."""
-    ref = folds[0].spec  # every fold has a state or none (``ThrustConfig.battery_state``, no voltage log)
+    # each fold selects its own structure, so one may carry a battery state and another not: the series of a
+    # fold are looked up by that fold's own structure (:func:`_fold_key`), its model and baselines alike
+    ref = next((f.spec for f in folds if f.spec.tau_s is not None), folds[0].spec)
     raw_bases = [b for b in folds[0].series if _is_baseline(b)]
     used = used_levels(ref, calibrate)
     out = {}
@@ -483,14 +485,14 @@ def comparisons(folds: list[FoldResult], calibrate: bool, block_s: float) -> dic
         model = _model_key(ref, level)
         for b in raw_bases:
             base = _baseline_key(b, level)
-            if base not in folds[0].series:
+            if any(_fold_key(f, level, b) not in f.series for f in folds):
                 continue
-            pooled = _interval(folds, model, base, block_s)
-            per = {f.held_out: _interval([f], model, base, block_s).as_dict() for f in folds}
+            pooled = _interval(folds, level, b, block_s)
+            per = {f.held_out: _interval([f], level, b, block_s).as_dict() for f in folds}
             out[f"{model} vs {base}"] = {"model": model, "baseline": base, "information": level,
                                          "information_text": INFORMATION[level], "in_verdict": level in used,
                                          "pooled": pooled.as_dict(), "per_held_out": per,
-                                         "rmse_ratio": _ratio(folds, model, base)}
+                                         "rmse_ratio": _ratio(folds, level, b)}
     return out
 
 
@@ -504,25 +506,33 @@ def headline(comp: dict[str, dict[str, Any]]) -> dict[str, Any]:
             "baseline": best["baseline"], "rmse_ratio": best["rmse_ratio"], "outcome": best["pooled"]["outcome"]}
 
 
-def _interval(folds: list[FoldResult], model: str, base: str, block_s: float) -> SkillInterval:
+def _fold_key(f: FoldResult, level: str, base: str | None = None) -> str:
+    """Fold ``f``'s series of the model (``base`` None) or of raw baseline ``base`` at side information ``level``,
+    by the fold's own structure: where it has no battery state, neither the model nor the baseline gets one."""
+    if base is None:
+        return _model_key(f.spec, level)
+    return base if level == STATE and f.spec.tau_s is None else _baseline_key(base, level)
+
+
+def _interval(folds: list[FoldResult], level: str, base: str, block_s: float) -> SkillInterval:
     ys, ms, bs, starts, offset = [], [], [], [], 0
     for f in folds:
         n = f.n_samples
         block = max(1, round(block_s / f.period_s))
         starts.append(block_starts(n, block) + offset)
         ys.append(f.series["measured"])
-        ms.append(f.series[model])
-        bs.append(f.series[base])
+        ms.append(f.series[_fold_key(f, level)])
+        bs.append(f.series[_fold_key(f, level, base)])
         offset += n
     return skill_interval(np.concatenate(ys), np.concatenate(ms), np.concatenate(bs), np.concatenate(starts))
 
 
-def _ratio(folds: list[FoldResult], model: str, base: str) -> float:
-    return _pooled_rmse(folds, model) / _pooled_rmse(folds, base)
+def _ratio(folds: list[FoldResult], level: str, base: str) -> float:
+    return _pooled_rmse(folds, level) / _pooled_rmse(folds, level, base)
 
 
-def _pooled_rmse(folds: list[FoldResult], key: str) -> float:
-    sse = sum(float(np.sum((f.series[key] - f.series["measured"]) ** 2)) for f in folds)
+def _pooled_rmse(folds: list[FoldResult], level: str, base: str | None = None) -> float:
+    sse = sum(float(np.sum((f.series[_fold_key(f, level, base)] - f.series["measured"]) ** 2)) for f in folds)
     return math.sqrt(sse / sum(f.n_samples for f in folds))
 
 
@@ -558,7 +568,9 @@ def identify_thrust(cfg: ThrustConfig) -> ThrustResult:
     yaw, yaw_note, yaw_held = _yaw(flights, data, final, spec, cal)
     if yaw is not None:
         final = dataclasses.replace(final, b_drag_N_m_s2=yaw.b_drag_N_m_s2)
-    pooled = {k: _pooled_rmse(results, k) for k in results[0].series if k != "measured"}
+    pooled = {k: math.sqrt(sum(float(np.sum((f.series[k] - f.series["measured"]) ** 2)) for f in results)
+                           / sum(f.n_samples for f in results))
+              for k in results[0].series if k != "measured" and all(k in f.series for f in results)}
     warnings = list(notes) + ([yaw_note] if yaw_note else [])
     if verdict == "lose":
         warnings.append("the identified model LOSES to a baseline on held-out data: " + _losers(comp, True))

@@ -7,6 +7,7 @@ done-when figures (skipped when ../shared/data is absent).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -431,3 +432,29 @@ def test_identify_thrust_reports_a_pooled_win_with_a_lost_flight_as_losing(
     assert any("LOSES" in w and "loses on b" in w for w in r.warnings)
     metrics = json.loads(out.with_suffix(".metrics.json").read_text())
     assert metrics["verdict"] == "lose" and metrics["parameters_written"] is None and not out.exists()
+
+
+def test_folds_that_selected_different_structures_are_compared_each_by_its_own() -> None:
+    """One fold selects a hover battery state and the other none: each fold's model and baselines are read by
+    that fold's structure (once a KeyError), and where a fold has no state its baseline gets none either."""
+    from identification.thrust.model import ModelSpec
+    from identification.thrust.workflow import CONSTANT, FoldResult, Score, comparisons
+
+    rng = np.random.default_rng(0)
+    y = 10.0 + rng.normal(0.0, 1.0, 200)
+    good, bad = y + rng.normal(0.0, 0.1, 200), np.full(200, 10.0)
+    plain = ModelSpec(1000.0, 2000.0, 11.1, False)
+    state = dataclasses.replace(plain, tau_s=10.0)
+    s = Score(0.1, 0.9)
+    with_state = FoldResult("a", 200, s, {}, 1.0, state, 0.1, {
+        "measured": y, "model": good, "model without battery state": good, CONSTANT: bad,
+        f"{CONSTANT} (battery state)": bad, "model without battery state (calibrated)": good,
+        f"{CONSTANT} (calibrated)": bad})
+    without = FoldResult("b", 200, s, {}, 1.0, plain, 0.1, {
+        "measured": y, "model": bad, CONSTANT: good, "model (calibrated)": good, f"{CONSTANT} (calibrated)": bad})
+    comp = comparisons([with_state, without], True, 2.0)
+    state_row = comp[f"model vs {CONSTANT} (battery state)"]
+    # fold b: the model without a state (bad) against the constant without one (good): a loss there
+    assert state_row["per_held_out"]["a"]["outcome"] == "win" and state_row["per_held_out"]["b"]["outcome"] == "lose"
+    cal = comp[f"model without battery state (calibrated) vs {CONSTANT} (calibrated)"]
+    assert cal["per_held_out"]["a"]["outcome"] == cal["per_held_out"]["b"]["outcome"] == "win"
