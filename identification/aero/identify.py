@@ -47,7 +47,7 @@ from identification.estimation.oem import (
     fixed_worth_freeing,
 )
 from identification.logs.flightlog import DEFAULT_MAX_DAMAGE, FlightLog, check_quality
-from identification.logs.sensor_chain import sensor_chain
+from identification.logs.sensor_chain import LoopClock, loop_clock, sensor_chain
 
 #: sign constraints that keep the identified model stable (paper 001 rejects diverging models)
 STABILITY_SIGNS = {"C_ell_p": -1, "C_m_q": -1, "C_n_r": -1, "C_m_alpha": -1, "C_n_beta": +1}
@@ -108,6 +108,12 @@ class AeroOptions:
     #: closed-loop ArduPlane SITL takeoff log (SIM_Plane, not our model class) it moves C_n_r's interval off
     #: SIM_Plane's value (tests/identification/aero/test_aero_sitl.py)
     sensor_filters: dict[str, float] | None = field(default_factory=dict)
+    #: step the fit on the autopilot's loop ticks and take each loop's command, the unlogged loops' as the mean of
+    #: their logged neighbours (identification.logs.sensor_chain.LoopClock; logs with SCHED_LOOP_RATE and the
+    #: gyro logged once per loop); False (default): hold each logged servo sample on a grid from the segment
+    #: start. Not the default: on the closed-loop SITL takeoff log (SIM_Plane, whose servos are rate-limited by
+    #: SIM_SERVO_SPEED, an element not modelled) it moves C_n_r off SIM_Plane's value as the filters do
+    loop_ticks: bool = False
 
 
 @dataclass
@@ -275,6 +281,7 @@ class Pool:
     sources: list[AeroSource]
     fit: list[tuple[int, aero.Segment]]
     val: list[tuple[int, aero.Segment]]
+    clocks: list[LoopClock | None] = field(default_factory=list)  #: each log's loop ticks (None: not used)
 
     def label(self, k: int, seg: aero.Segment) -> str:
         return str(seg) if len(self.sources) == 1 else f"log{k + 1}@{seg}"
@@ -285,7 +292,8 @@ class Pool:
         for k, src in enumerate(self.sources):
             segs = [s for i, s in items if i == k]
             if segs:
-                out += aero.manoeuvres(model, p, src.log, src.mapping, segs, outputs, rate_hz, delay_s)
+                clock = self.clocks[k] if k < len(self.clocks) else None
+                out += aero.manoeuvres(model, p, src.log, src.mapping, segs, outputs, rate_hz, delay_s, clock)
         return out
 
 
@@ -518,7 +526,8 @@ def identify_aero(log: FlightLog | Sequence[AeroSource], mapping: PwmMapping | N
         opt = dataclasses.replace(opt, sensor_filters=chains[0].output_filters(tuple(opt.outputs)))
         if any(c.output_filters(tuple(opt.outputs)) != opt.sensor_filters for c in chains[1:]):
             notes.append("measurement chain: the logs' sensor filters differ; the first log's are modelled")
-    notes += [f"measurement chain: {x}" for x in chains[0].lines(modelled)]
+    clocks = [loop_clock(src.log) if opt.loop_ticks else None for src in sources]
+    notes += [f"measurement chain: {x}" for x in chains[0].lines(modelled, clocks[0], opt.loop_ticks)]
     if opt.sensor_filters and not modelled:
         notes.append("measurement chain: sensor low-pass modelled as given: " + ", ".join(
             f"{n} {fc:g} Hz" for n, fc in opt.sensor_filters.items()))
@@ -526,6 +535,7 @@ def identify_aero(log: FlightLog | Sequence[AeroSource], mapping: PwmMapping | N
     outputs = list(opt.outputs)
     weight = _weight(opt.sigma, outputs)
     pool = _pool(sources, model, opt, notes)
+    pool.clocks = clocks
     data = pool.manoeuvres(model, p, pool.fit, outputs, opt.rate_hz)
     free = _choose_free(model, p, data, opt) if opt.free == "auto" else list(opt.free)
     p_default = p.copy()
