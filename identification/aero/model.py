@@ -21,6 +21,7 @@ from fmu_models.signals.names import FIXED_WING_FIT_OUTPUTS, OUTPUT_TO_LOG
 from fmu_models.signals.pwm_mapping import PwmMapping
 from identification.common.metrics import FitMetrics, fit_metrics
 from identification.estimation.oem import Manoeuvre
+from identification.estimation.unlogged_inputs import Unlogged
 from identification.logs.flightlog import FlightLog, LogError
 from identification.logs.log_state import initial_values, mapped_inputs
 from identification.logs.sensor_chain import LoopClock
@@ -117,6 +118,24 @@ def manoeuvres(model: VehicleModel, p: np.ndarray, log: FlightLog, mapping: PwmM
             raise LogError(f"{log.source}: segment {seg}: {', '.join(bad)} not finite (gap in the log?)")
         x0 = initial_state(model, p, log, float(t[0]), u[0], init)
         out.append(Manoeuvre(x0, u, y, 1.0 / rate_hz if clock is None else clock.period_s, str(seg)))
+    return out
+
+
+def unlogged_brackets(model: VehicleModel, log: FlightLog, mapping: PwmMapping, segments: Sequence[Segment],
+                      clock: LoopClock, input_delay_s: float = 0.0) -> list[Unlogged]:
+    """Per segment (on the grid :func:`manoeuvres` builds with ``clock``): each loop's command bracketed by its
+    logged neighbours, in model inputs, and whether that loop was logged (``LoopClock.bracket``)."""
+    names = list(model.inputs.index)
+    by_target = {c.target: c for c in mapping.channels}
+    out = []
+    for seg in segments:
+        t = np.maximum(clock.grid(seg.t0_s, seg.t1_s)[:-1] - input_delay_s, 0.0)
+        before, after = (mapped_inputs(names, log, mapping, t,
+                                       lambda sig, q, i=i: clock.bracket(sig.t_s, sig.values, q)[i]) for i in (0, 1))
+        logged = np.column_stack([clock.bracket(log.signal(f"servo_{by_target[n].source}_pwm_us").t_s,
+                                                log.signal(f"servo_{by_target[n].source}_pwm_us").values, t)[3]
+                                  for n in names])
+        out.append(Unlogged(before, after, logged))
     return out
 
 

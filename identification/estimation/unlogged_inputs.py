@@ -130,11 +130,12 @@ def profiled_std(oe: OutputErrorEstimator, theta: np.ndarray, data: Sequence[Man
 
 
 def fit_with_unlogged(oe: OutputErrorEstimator, data: Sequence[Manoeuvre], brackets: Sequence[Unlogged],
-                      weight: np.ndarray | None, rounds: int = 4, **kw: object) -> tuple[Estimate, list[Manoeuvre]]:
-    """Fit, estimate the unlogged commands at the estimate, refit from it (warm, whole records); ``rounds``
-    times. Returns the last estimate and the manoeuvres with the commands it was fitted on. ``kw`` go to
-    ``oe.estimate``."""
-    est = oe.estimate(data, weight=weight, **kw)  # type: ignore[arg-type]
+                      weight: np.ndarray | None, rounds: int = 4, start: Estimate | None = None, **kw: object
+                      ) -> tuple[Estimate, list[Manoeuvre]]:
+    """Fit (or take ``start``, a fit of ``data``), estimate the unlogged commands at the estimate, refit from it
+    (warm, whole records); ``rounds`` times. Returns the last estimate and the manoeuvres with the commands it
+    was fitted on. ``kw`` go to ``oe.estimate``."""
+    est = start if start is not None else oe.estimate(data, weight=weight, **kw)  # type: ignore[arg-type]
     cur = list(data)
     warm = {**kw, "horizon_s": None}
     for _ in range(rounds):
