@@ -129,7 +129,7 @@ class LoopClock:
     """The autopilot's main-loop ticks [s, log time] as the log shows them (see the module docstring)."""
 
     tick_s: np.ndarray
-    period_s: float  #: median tick interval
+    period_s: float  #: mean tick interval (gaps left out)
 
     def servo_every(self, servo_log_rate_hz: float | None) -> int:
         """Loops per logged servo sample (1: every loop)."""
@@ -187,7 +187,11 @@ def loop_clock(log: FlightLog) -> LoopClock | None:
     if loop <= 0 or imu is None or abs(imu - loop) > LOOP_RATE_MATCH * loop:
         return None
     t = np.asarray(log.signal("gyro_body_x_rad_s").t_s, float)
-    return LoopClock(t, 1.0 / imu)
+    dt = np.diff(t)
+    dt = dt[(dt > 0) & (dt < 1.5 / imu)]  # gaps in the log left out
+    # the mean interval, not the median: SITL at SIM_RATE_HZ 1200 steps 24 frames (19.992 ms) per loop and one
+    # more every hundred loops; a grid at the median drifts 0.8 ms per 2 s against the ticks
+    return LoopClock(t, float(np.mean(dt)))
 
 
 __all__ = ["LoopClock", "SensorChain", "loop_clock", "sensor_chain"]
