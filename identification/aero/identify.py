@@ -112,8 +112,8 @@ class AeroOptions:
     #: step the fit on the autopilot's loop ticks and take each loop's command, the unlogged loops' as the mean of
     #: their logged neighbours (identification.logs.sensor_chain.LoopClock; logs with SCHED_LOOP_RATE and the
     #: gyro logged once per loop); False (default): hold each logged servo sample on a grid from the segment
-    #: start. Not the default: on the closed-loop SITL takeoff log (SIM_Plane, whose servos are rate-limited by
-    #: SIM_SERVO_SPEED, an element not modelled) it moves C_n_r off SIM_Plane's value as the filters do
+    #: start. Not the default: on the closed-loop SITL takeoff log (SIM_Plane, whose surfaces pass SITL's servo
+    #: model, SIM_SERVO_SPEED, an element not modelled) it moves C_n_r off SIM_Plane's value as the filters do
     loop_ticks: bool = False
     #: with ``loop_ticks``: estimate the unlogged loops' commands from the response after the fit, within their
     #: logged neighbours, and refit (identification.estimation.unlogged_inputs); False: their mean
