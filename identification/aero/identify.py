@@ -46,8 +46,9 @@ from identification.estimation.oem import (
     consider_covariance,
     fixed_worth_freeing,
 )
+from identification.estimation.unlogged_inputs import fit_with_unlogged
 from identification.logs.flightlog import DEFAULT_MAX_DAMAGE, FlightLog, check_quality
-from identification.logs.sensor_chain import sensor_chain
+from identification.logs.sensor_chain import LoopClock, loop_clock, sensor_chain
 
 #: sign constraints that keep the identified model stable (paper 001 rejects diverging models)
 STABILITY_SIGNS = {"C_ell_p": -1, "C_m_q": -1, "C_n_r": -1, "C_m_alpha": -1, "C_n_beta": +1}
@@ -108,6 +109,15 @@ class AeroOptions:
     #: closed-loop ArduPlane SITL takeoff log (SIM_Plane, not our model class) it moves C_n_r's interval off
     #: SIM_Plane's value (tests/identification/aero/test_aero_sitl.py)
     sensor_filters: dict[str, float] | None = field(default_factory=dict)
+    #: step the fit on the autopilot's loop ticks and take each loop's command, the unlogged loops' as the mean of
+    #: their logged neighbours (identification.logs.sensor_chain.LoopClock; logs with SCHED_LOOP_RATE and the
+    #: gyro logged once per loop); False (default): hold each logged servo sample on a grid from the segment
+    #: start. Not the default: on the closed-loop SITL takeoff log (SIM_Plane, whose surfaces pass SITL's servo
+    #: model, SIM_SERVO_SPEED, an element not modelled) it moves C_n_r off SIM_Plane's value as the filters do
+    loop_ticks: bool = False
+    #: with ``loop_ticks``: estimate the unlogged loops' commands from the response after the fit, within their
+    #: logged neighbours, and refit (identification.estimation.unlogged_inputs); False: their mean
+    estimate_unlogged: bool = False
 
 
 @dataclass
@@ -275,6 +285,7 @@ class Pool:
     sources: list[AeroSource]
     fit: list[tuple[int, aero.Segment]]
     val: list[tuple[int, aero.Segment]]
+    clocks: list[LoopClock | None] = field(default_factory=list)  #: each log's loop ticks (None: not used)
 
     def label(self, k: int, seg: aero.Segment) -> str:
         return str(seg) if len(self.sources) == 1 else f"log{k + 1}@{seg}"
@@ -285,7 +296,8 @@ class Pool:
         for k, src in enumerate(self.sources):
             segs = [s for i, s in items if i == k]
             if segs:
-                out += aero.manoeuvres(model, p, src.log, src.mapping, segs, outputs, rate_hz, delay_s)
+                clock = self.clocks[k] if k < len(self.clocks) else None
+                out += aero.manoeuvres(model, p, src.log, src.mapping, segs, outputs, rate_hz, delay_s, clock)
         return out
 
 
@@ -444,6 +456,35 @@ def _nuisance_fits(model: FixedWingModel, p: np.ndarray, free: list[str], data: 
         notes
 
 
+#: rounds of (estimate the unlogged commands, refit) after the fit
+UNLOGGED_ROUNDS = 4
+
+
+def _refine_unlogged(model: FixedWingModel, pool: Pool, fit: Fit, opt: AeroOptions, weight: np.ndarray | None,
+                     notes: list[str]) -> Fit:
+    """The fit with the commands of the unlogged loops estimated (``AeroOptions.estimate_unlogged``); the fit as
+    it was, with a note, when a log has no loop ticks."""
+    brackets = []
+    for k, src in enumerate(pool.sources):
+        segs = [s for i, s in pool.fit if i == k]
+        clock = pool.clocks[k] if k < len(pool.clocks) else None
+        if segs and clock is None:
+            notes.append("measurement chain: unlogged commands not estimated: no loop ticks (needs --loop-ticks "
+                         "and a log with SCHED_LOOP_RATE and the gyro logged once per loop)")
+            return fit
+        brackets += aero.unlogged_brackets(model, src.log, src.mapping, segs, clock, fit.delay_s) if segs else []
+    if [b.before.shape for b in brackets] != [m.u.shape for m in fit.data]:
+        notes.append("measurement chain: unlogged commands not estimated: the fit grid is not the loop ticks")
+        return fit
+    est, data = fit_with_unlogged(fit.oe, fit.data, brackets, weight, rounds=UNLOGGED_ROUNDS, start=fit.estimate,
+                                  max_iter=opt.max_iter, horizon_s=None)
+    n = sum(len(b.free()) for b in brackets)
+    notes.append(f"measurement chain: {n} unlogged loop commands estimated from the response within their logged "
+                 f"neighbours ({UNLOGGED_ROUNDS} rounds with the fit; the printed bound does not include their "
+                 "uncertainty)")
+    return Fit(fit.oe, data, est, _aic(est, data), fit.delay_s)
+
+
 def _delay(model: FixedWingModel, p: np.ndarray, pool: Pool, fit: Fit, opt: AeroOptions,
            weight: np.ndarray | None, notes: list[str]) -> Fit:
     """Scan command -> surface delays of whole samples (a short refit from the estimate at each). The data
@@ -518,7 +559,8 @@ def identify_aero(log: FlightLog | Sequence[AeroSource], mapping: PwmMapping | N
         opt = dataclasses.replace(opt, sensor_filters=chains[0].output_filters(tuple(opt.outputs)))
         if any(c.output_filters(tuple(opt.outputs)) != opt.sensor_filters for c in chains[1:]):
             notes.append("measurement chain: the logs' sensor filters differ; the first log's are modelled")
-    notes += [f"measurement chain: {x}" for x in chains[0].lines(modelled)]
+    clocks = [loop_clock(src.log) if opt.loop_ticks else None for src in sources]
+    notes += [f"measurement chain: {x}" for x in chains[0].lines(modelled, clocks[0], opt.loop_ticks)]
     if opt.sensor_filters and not modelled:
         notes.append("measurement chain: sensor low-pass modelled as given: " + ", ".join(
             f"{n} {fc:g} Hz" for n, fc in opt.sensor_filters.items()))
@@ -526,6 +568,7 @@ def identify_aero(log: FlightLog | Sequence[AeroSource], mapping: PwmMapping | N
     outputs = list(opt.outputs)
     weight = _weight(opt.sigma, outputs)
     pool = _pool(sources, model, opt, notes)
+    pool.clocks = clocks
     data = pool.manoeuvres(model, p, pool.fit, outputs, opt.rate_hz)
     free = _choose_free(model, p, data, opt) if opt.free == "auto" else list(opt.free)
     p_default = p.copy()
@@ -547,6 +590,8 @@ def identify_aero(log: FlightLog | Sequence[AeroSource], mapping: PwmMapping | N
         data = pool.manoeuvres(model, p, pool.fit, outputs, opt.rate_hz)
         fit, choice, more = _nuisance_fits(model, p, free, data, opt, weight)
     notes += more
+    if opt.estimate_unlogged:
+        fit = _refine_unlogged(model, pool, fit, opt, weight, notes)
     quality = [src.log.quality.to_dict() for src in sources if getattr(src.log, "quality", None) is not None]
     result = AeroResult(free, outputs, [s for _, s in pool.fit], [s for _, s in pool.val], start, before, fit, {},
                         choice, notes=notes, quality=quality[0] if len(quality) == 1 else

@@ -21,8 +21,10 @@ from fmu_models.signals.names import FIXED_WING_FIT_OUTPUTS, OUTPUT_TO_LOG
 from fmu_models.signals.pwm_mapping import PwmMapping
 from identification.common.metrics import FitMetrics, fit_metrics
 from identification.estimation.oem import Manoeuvre
+from identification.estimation.unlogged_inputs import Unlogged
 from identification.logs.flightlog import FlightLog, LogError
 from identification.logs.log_state import initial_values, mapped_inputs
+from identification.logs.sensor_chain import LoopClock
 from identification.logs.timeline import SpanError, parse_spans
 
 #: outputs fitted by default: attitude, body rates, specific force, airspeed
@@ -61,9 +63,14 @@ def grid(segment: Segment, rate_hz: float) -> np.ndarray:
     return segment.t0_s + np.arange(n + 1) / rate_hz
 
 
-def log_inputs(model: VehicleModel, log: FlightLog, mapping: PwmMapping, t_s: np.ndarray) -> np.ndarray:
-    """Model inputs (len(t) x nu) from the servo PWM at times ``t_s`` (zero-order hold)."""
-    return mapped_inputs(list(model.inputs.index), log, mapping, t_s)
+def log_inputs(model: VehicleModel, log: FlightLog, mapping: PwmMapping, t_s: np.ndarray,
+               clock: LoopClock | None = None) -> np.ndarray:
+    """Model inputs (len(t) x nu) from the servo PWM at times ``t_s``: zero-order hold of the log samples, or with
+    ``clock`` the command of the loop acting at each time (``LoopClock.commands``)."""
+    if clock is None:
+        return mapped_inputs(list(model.inputs.index), log, mapping, t_s)
+    return mapped_inputs(list(model.inputs.index), log, mapping, t_s,
+                         lambda sig, t: clock.commands(sig.t_s, sig.values, t))
 
 
 def log_outputs(log: FlightLog, outputs: Sequence[str], t_s: np.ndarray) -> np.ndarray:
@@ -88,25 +95,47 @@ def initial_state(model: VehicleModel, p: np.ndarray, log: FlightLog, t0_s: floa
 
 def manoeuvres(model: VehicleModel, p: np.ndarray, log: FlightLog, mapping: PwmMapping,
                segments: Sequence[Segment], outputs: Sequence[str], rate_hz: float,
-               input_delay_s: float = 0.0) -> list[Manoeuvre]:
+               input_delay_s: float = 0.0, clock: LoopClock | None = None) -> list[Manoeuvre]:
     """One :class:`Manoeuvre` per segment: inputs at ``t_k``, measurements at ``t_{k+1}``; with
-    ``input_delay_s`` the surfaces act the logged command of ``t_k - delay`` (command -> surface lag)."""
+    ``input_delay_s`` the surfaces act the logged command of ``t_k - delay`` (command -> surface lag). With
+    ``clock`` (the autopilot's loop ticks, ``rate_hz`` within 10 % of its loop rate) the grid steps on the ticks
+    and each step holds that loop's command (``identification.logs.sensor_chain``)."""
+    if clock is not None and abs(clock.period_s * rate_hz - 1.0) > 0.1:
+        clock = None
     out = []
     end = log.duration_s
     init = init_function(model)
     for seg in segments:
         if seg.t1_s > end + 1e-6:
             raise SegmentError(f"{log.source}: segment {seg} ends after the log ({end:.2f} s)")
-        t = grid(seg, rate_hz)
+        t = grid(seg, rate_hz) if clock is None else clock.grid(seg.t0_s, seg.t1_s)
         if len(t) < 3:
             raise SegmentError(f"segment {seg} holds fewer than 3 samples at {rate_hz:g} Hz")
-        u = log_inputs(model, log, mapping, np.maximum(t[:-1] - input_delay_s, 0.0))
+        u = log_inputs(model, log, mapping, np.maximum(t[:-1] - input_delay_s, 0.0), clock)
         y = log_outputs(log, outputs, t[1:])
         if not np.all(np.isfinite(y)):
             bad = [outputs[i] for i in range(len(outputs)) if not np.all(np.isfinite(y[:, i]))]
             raise LogError(f"{log.source}: segment {seg}: {', '.join(bad)} not finite (gap in the log?)")
-        x0 = initial_state(model, p, log, seg.t0_s, u[0], init)
-        out.append(Manoeuvre(x0, u, y, 1.0 / rate_hz, str(seg)))
+        x0 = initial_state(model, p, log, float(t[0]), u[0], init)
+        out.append(Manoeuvre(x0, u, y, 1.0 / rate_hz if clock is None else clock.period_s, str(seg)))
+    return out
+
+
+def unlogged_brackets(model: VehicleModel, log: FlightLog, mapping: PwmMapping, segments: Sequence[Segment],
+                      clock: LoopClock, input_delay_s: float = 0.0) -> list[Unlogged]:
+    """Per segment (on the grid :func:`manoeuvres` builds with ``clock``): each loop's command bracketed by its
+    logged neighbours, in model inputs, and whether that loop was logged (``LoopClock.bracket``)."""
+    names = list(model.inputs.index)
+    by_target = {c.target: c for c in mapping.channels}
+    out = []
+    for seg in segments:
+        t = np.maximum(clock.grid(seg.t0_s, seg.t1_s)[:-1] - input_delay_s, 0.0)
+        before, after = (mapped_inputs(names, log, mapping, t,
+                                       lambda sig, q, i=i: clock.bracket(sig.t_s, sig.values, q)[i]) for i in (0, 1))
+        logged = np.column_stack([clock.bracket(log.signal(f"servo_{by_target[n].source}_pwm_us").t_s,
+                                                log.signal(f"servo_{by_target[n].source}_pwm_us").values, t)[3]
+                                  for n in names])
+        out.append(Unlogged(before, after, logged))
     return out
 
 

@@ -29,7 +29,14 @@ import numpy as np
 from fmu_models.config import ConfigError
 from identification.aero.model import Segment, SegmentError
 from identification.logs.flightlog import FlightLog
-from identification.logs.flown_blocks import FlownBlock, flown_timeline, marked_blocks, mode_blocks, trigger_time_s
+from identification.logs.flown_blocks import (
+    FlownBlock,
+    flown_timeline,
+    marked_blocks,
+    mode_blocks,
+    px4_mode_blocks,
+    trigger_time_s,
+)
 from identification.logs.log_state import any_of, ground_level, parked_samples
 from identification.logs.timeline import load_timeline
 
@@ -98,9 +105,11 @@ def planned_on_log(tl: TimelineFile, log: FlightLog) -> tuple[TimelineFile, list
 
 
 def flown_blocks(log: FlightLog) -> tuple[TimelineFile, list[FlownBlock]] | None:
-    """The blocks the log itself shows: the Lua script's EXCT marks, else the spans in ArduPlane MANUAL
-    (:mod:`identification.logs.flown_blocks`), as a timeline on the log's time axis; None when neither is there."""
-    for find, source in ((marked_blocks, "EXCT marks"), (mode_blocks, "MANUAL mode spans")):
+    """The blocks the log itself shows: the Lua script's EXCT marks, else the spans in ArduPlane MANUAL, else
+    (a PX4 ULog) the spans in nav_state MANUAL (:mod:`identification.logs.flown_blocks`), as a timeline on the
+    log's time axis; None when none is there."""
+    for find, source in ((marked_blocks, "EXCT marks"), (mode_blocks, "MANUAL mode spans"),
+                         (px4_mode_blocks, "PX4 MANUAL nav_state spans")):
         blocks = find(log)
         if blocks:
             tl = flown_timeline(blocks, source)

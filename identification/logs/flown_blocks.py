@@ -15,7 +15,9 @@ subtracts the boot time of the first sample, so nobody needs to know it):
   between blocks. Each span in that mode is a block; its axis is the control that moves most about its value
   at the span's start (RC input ``RCIN`` on the ``RCMAP_*`` channels when logged, else the servo outputs),
   "multi" when a second one moves at least half as much; its input starts where that control first departs
-  from its start value.
+  from its start value. PX4 ULogs (:func:`px4_mode_blocks`): the spans in a ``vehicle_status.nav_state``
+  (MANUAL, the fixed-wing RC-override flights; ALTCTL for the quadrotor stick flights) with the sticks of
+  ``manual_control_setpoint``.
 
 :func:`flown_timeline` turns either list into the :class:`~identification.logs.timeline.Timeline` that
 ``identify aero`` cuts segments from.
@@ -48,6 +50,13 @@ MIN_MOTION_US = 10.0
 MULTI_SHARE = 0.5
 #: shortest mode span taken as a block [s] (a brief mode flick is no manoeuvre)
 MIN_SPAN_S = 2.0
+#: PX4 ``vehicle_status.nav_state`` of manual flight (NAVIGATION_STATE_MANUAL; 1 ALTCTL, 2 POSCTL, 15 STAB)
+PX4_MANUAL = 0
+#: PX4 ``manual_control_setpoint`` field per control: PX4 1.14+ name, then the 1.13 one
+PX4_STICKS = {"aileron": ("roll", "y"), "elevator": ("pitch", "x"), "rudder": ("yaw", "r"),
+              "throttle": ("throttle", "z")}
+#: a stick moves in a mode span when its peak departure exceeds this (normalised sticks, -1..1)
+MIN_MOTION_STICK = 0.02
 
 
 @dataclass(frozen=True)
@@ -117,21 +126,18 @@ def _rc_or_servo(log: FlightLog, control: str) -> tuple[np.ndarray, np.ndarray, 
     return (col[0], col[1], f"{control} output") if col is not None else None
 
 
-def mode_blocks(log: FlightLog, mode: int = ARDUPLANE_MANUAL) -> list[FlownBlock]:
-    """Blocks from the spans in flight mode ``mode`` (ArduPilot ``MODE.Mode``) and the controls that move in
-    them (see the module docstring); [] when the log has no MODE messages or no control signal."""
-    col = _column(log, "MODE.Mode")
-    if col is None:
-        return []
-    tm, modes = col
-    end_of_log = log.duration_s
-    controls = {c: s for c in CONTROLS if (s := _rc_or_servo(log, c)) is not None}
-    if not controls:
-        return []
+def _spans(t: np.ndarray, modes: np.ndarray, mode: int, end_s: float) -> list[tuple[float, float]]:
+    """(start, end) of every stretch in ``mode``: a mode message repeated with the same value continues it."""
+    keep = np.r_[True, modes[1:] != modes[:-1]]
+    t, modes = t[keep], modes[keep]
+    return [(float(t[k]), float(t[k + 1]) if k + 1 < len(t) else end_s) for k in np.flatnonzero(modes == mode)]
+
+
+def _span_blocks(spans: list[tuple[float, float]], controls: dict[str, tuple[np.ndarray, np.ndarray, str]],
+                 min_motion: float, what: str) -> list[FlownBlock]:
+    """A block per span at least :data:`MIN_SPAN_S` long in which a control moves more than ``min_motion``."""
     out: list[FlownBlock] = []
-    for k in np.flatnonzero(modes == mode):
-        t0 = float(tm[k])
-        t1 = float(tm[k + 1]) if k + 1 < len(tm) else end_of_log
+    for t0, t1 in spans:
         if t1 - t0 < MIN_SPAN_S:
             continue
         motion: dict[str, tuple[float, float]] = {}
@@ -141,8 +147,8 @@ def mode_blocks(log: FlightLog, mode: int = ARDUPLANE_MANUAL) -> list[FlownBlock
                 continue
             v = vs[inside]
             dev = np.abs(v - v[0])
-            first = np.flatnonzero(dev > max(MIN_MOTION_US, 0.2 * dev.max()))
-            if dev.max() > MIN_MOTION_US and first.size:
+            first = np.flatnonzero(dev > max(min_motion, 0.2 * dev.max()))
+            if dev.max() > min_motion and first.size:
                 motion[name] = (float(dev.max()), float(ts[inside][first[0]]))
         if not motion:
             continue
@@ -151,9 +157,41 @@ def mode_blocks(log: FlightLog, mode: int = ARDUPLANE_MANUAL) -> list[FlownBlock
         axis = moving[0] if len(moving) == 1 else "multi"
         t_in = min(motion[c][1] for c in moving)
         src = ", ".join(sorted({controls[c][2] for c in moving}))
-        out.append(FlownBlock(len(out) + 1, axis, t0, t_in, t1, f"mode {mode} span, {src}",
+        out.append(FlownBlock(len(out) + 1, axis, t0, t_in, t1, f"{what} span, {src}",
                               tuple(moving) if axis == "multi" else ()))
     return out
+
+
+def mode_blocks(log: FlightLog, mode: int = ARDUPLANE_MANUAL) -> list[FlownBlock]:
+    """Blocks from the spans in flight mode ``mode`` (ArduPilot ``MODE.Mode``) and the controls that move in
+    them (see the module docstring); [] when the log has no MODE messages or no control signal."""
+    col = _column(log, "MODE.Mode")
+    if col is None:
+        return []
+    controls = {c: s for c in CONTROLS if (s := _rc_or_servo(log, c)) is not None}
+    if not controls:
+        return []
+    return _span_blocks(_spans(col[0], col[1], mode, log.duration_s), controls, MIN_MOTION_US, f"mode {mode}")
+
+
+def px4_mode_blocks(log: FlightLog, nav_state: int = PX4_MANUAL) -> list[FlownBlock]:
+    """Blocks of a PX4 ULog from the spans in ``vehicle_status.nav_state`` ``nav_state`` (MANUAL by default: the
+    fixed-wing RC-override / MANUAL_CONTROL flights ``uavfmu excite`` plans for PX4) and the sticks that move in
+    them (``manual_control_setpoint``, PX4 1.14+ ``roll/pitch/yaw/throttle`` or 1.13 ``y/x/r/z``); [] without."""
+    col = _column(log, "vehicle_status.nav_state")
+    if col is None:
+        return []
+    controls = {}
+    for control, names in PX4_STICKS.items():
+        for field in names:
+            c = _column(log, f"manual_control_setpoint.{field}")
+            if c is not None:
+                controls[control] = (c[0], c[1], f"manual_control_setpoint.{field}")
+                break
+    if not controls:
+        return []
+    return _span_blocks(_spans(col[0], col[1], nav_state, log.duration_s), controls, MIN_MOTION_STICK,
+                        f"nav_state {nav_state}")
 
 
 def flown_timeline(blocks: Sequence[FlownBlock], source: str) -> Timeline:
@@ -175,4 +213,5 @@ def trigger_time_s(log: FlightLog) -> float | None:
     return float(hits[0]) if hits.size else None
 
 
-__all__ = ["AXIS_CODES", "FlownBlock", "flown_timeline", "marked_blocks", "mode_blocks", "trigger_time_s"]
+__all__ = ["AXIS_CODES", "FlownBlock", "flown_timeline", "marked_blocks", "mode_blocks", "px4_mode_blocks",
+           "trigger_time_s"]

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -99,8 +99,10 @@ def hold(sig: Signal, t_s: np.ndarray) -> np.ndarray:
     return sig.values[idx]
 
 
-def mapped_inputs(names: Sequence[str], log: FlightLog, mapping: PwmMapping, t_s: np.ndarray) -> np.ndarray:
-    """FMU/model inputs ``names`` (len(t) x len(names)) from the log's servo PWM through ``mapping``."""
+def mapped_inputs(names: Sequence[str], log: FlightLog, mapping: PwmMapping, t_s: np.ndarray,
+                  sample: Callable[[Signal, np.ndarray], np.ndarray] = hold) -> np.ndarray:
+    """FMU/model inputs ``names`` (len(t) x len(names)) from the log's servo PWM through ``mapping``; ``sample``
+    reads a PWM signal at ``t_s`` (default: zero-order hold)."""
     by_target = {c.target: c for c in mapping.channels}
     missing = [n for n in names if n not in by_target]
     if missing:
@@ -108,7 +110,7 @@ def mapped_inputs(names: Sequence[str], log: FlightLog, mapping: PwmMapping, t_s
     u = np.empty((len(t_s), len(names)))
     for i, name in enumerate(names):
         ch = by_target[name]
-        pwm = hold(log.signal(f"servo_{ch.source}_pwm_us"), t_s)
+        pwm = sample(log.signal(f"servo_{ch.source}_pwm_us"), t_s)
         try:
             u[:, i] = [ch.to_input(float(v)) for v in pwm]
         except MappingError as err:

@@ -23,7 +23,8 @@ give them by hand), and a command -> surface delay is scanned from ``--min-delay
 command after the surfaces moved; 0 by default) up to ``--max-delay``. The console lists the log's measurement
 chain with the values read from it; ``--sensor-filters`` models its gyro and accelerometer low-pass
 (``INS_GYRO_FILTER``/``INS_ACCEL_FILTER``, PX4 ``IMU_GYRO_CUTOFF``/``IMU_ACCEL_CUTOFF``) on the model's rate
-and specific-force outputs. The work is
+and specific-force outputs, ``--loop-ticks`` steps the fit on the autopilot's loop ticks with each loop's servo
+command. The work is
 ``identification.aero.identify``; this module parses and prints.
 
 Exit status: 0 done, 2 bad input (unreadable log, a log damaged beyond ``--max-damage`` without ``--force``,
@@ -104,6 +105,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sensor-filters", action="store_true",
                    help="pass the model's rates and specific forces through the log's gyro/accelerometer low-pass "
                         "(INS_GYRO_FILTER/INS_ACCEL_FILTER, PX4 IMU_GYRO_CUTOFF/IMU_ACCEL_CUTOFF)")
+    p.add_argument("--loop-ticks", action="store_true",
+                   help="step the fit on the autopilot's loop ticks (the gyro's time stamps, logs with "
+                        "SCHED_LOOP_RATE) with each loop's servo command, an unlogged loop's as the mean of its "
+                        "logged neighbours (default: hold each logged sample on a grid from the segment start)")
+    p.add_argument("--estimate-unlogged", action="store_true",
+                   help="with --loop-ticks: estimate the commands of the loops whose servo outputs were not logged "
+                        "from the response (within their logged neighbours) and refit")
     p.add_argument("--bounds", help="bounds name=lo:hi,... on free parameters")
     p.add_argument("--sigma", help="fixed weighting B = diag(sigma^2): output=sigma,... for every fitted output "
                    "(default: maximum likelihood)")
@@ -181,7 +189,7 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         max_delay_s=args.max_delay, min_delay_s=args.min_delay, sensor_filters=None if args.sensor_filters else {},
         progress=not args.quiet, force=args.force, max_damage=args.max_damage,
         priors=args.priors, prior_values=priors, consider=not args.no_consider, timeline=args.timeline,
-        equation_error=not args.no_equation_error)
+        equation_error=not args.no_equation_error, loop_ticks=args.loop_ticks, estimate_unlogged=args.estimate_unlogged)
 
 
 def run(args: argparse.Namespace) -> int:

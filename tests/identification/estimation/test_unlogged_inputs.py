@@ -1,0 +1,44 @@
+"""Commands of unlogged loops estimated from the response: servo outputs logged every second 50 Hz loop (as
+ArduPlane's 25 Hz RCOU task), aileron steps in unlogged loops. The mean of the neighbours is half a step off
+at each such loop; estimated at the true parameters, every unlogged command comes back to its true value."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fmu_models.fixed_wing.model import FixedWingModel
+from fmu_models.fixed_wing.trim import trim
+from identification.estimation.oem import Manoeuvre, OutputErrorEstimator
+from identification.estimation.unlogged_inputs import Unlogged, profiled_std, refine_unlogged
+from identification.logs.sensor_chain import LoopClock
+
+OUTPUTS = ["roll_rad", "rate_body_x_rad_s", "rate_body_z_rad_s", "accel_body_y_m_s2"]
+
+
+def test_unlogged_steps_come_back_and_widen_the_bound() -> None:
+    model = FixedWingModel()
+    p = np.array(model.params.starts())
+    tr = trim(model, p, 25.0)
+    dt, n = 0.02, 100
+    i_ail = list(model.inputs.index).index("aileron_rad")
+    u = np.tile(tr.u, (n, 1))
+    u[11:27, i_ail] += 0.05  # steps at loops 11, 27 and 41: unlogged (the log task runs at even loops)
+    u[27:41, i_ail] -= 0.05
+    oe = OutputErrorEstimator(model, p, ["C_ell_p", "C_ell_delta_a"], OUTPUTS)
+    theta = p[oe.i_free]
+    y = oe.simulate(theta, Manoeuvre(tr.x, u, np.zeros((n, len(OUTPUTS))), dt), 0, sensitivities=False)[0]
+    ticks = np.arange(n) * dt
+    clock = LoopClock(ticks, dt)
+    cols = [clock.bracket(ticks[::2], u[::2, c], ticks) for c in range(u.shape[1])]
+    before, after, share, logged = (np.column_stack(x) for x in zip(*cols, strict=True))
+    mean = before + share * (after - before)
+    steps = [11, 27, 41]
+    assert np.allclose(np.abs(mean[steps, i_ail] - u[steps, i_ail]), [0.025, 0.05, 0.025])
+    br = Unlogged(before, after, logged)
+    assert sorted(k for k, c in br.free()) == steps  # equal neighbours pin every other unlogged loop
+    weight = np.diag([1 / 0.01 ** 2, 1 / 0.01 ** 2, 1 / 0.01 ** 2, 1 / 0.2 ** 2])
+    refined = refine_unlogged(oe, theta, [Manoeuvre(tr.x, mean, y, dt)], [br], weight)[0]
+    assert np.max(np.abs(refined.u - u)) < 0.05 * 0.05
+    plain = profiled_std(oe, theta, [refined], [Unlogged(before, after, np.ones_like(logged))], weight)
+    profiled = profiled_std(oe, theta, [refined], [br], weight)
+    assert np.all(profiled > plain * 1.0001)
