@@ -458,6 +458,14 @@ def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorPar
             params = dataclasses.replace(params, **{n: d["value"] for n, d in drag.items()})
         except QuadrotorInputError as err:
             notes.append(str(err))
+    if "tau_motor_s" in free and 0.0 < params.tau_motor_s < params.step_internal_s:
+        tau_hw = 1.96 * float(est.std[free.index("tau_motor_s")])
+        if params.tau_motor_s - tau_hw <= 0.0:  # a lag the data cannot tell from none: no lag, not a tiny step
+            notes.append(f"motor time constant {1e3 * params.tau_motor_s:.3g} ms (95 % interval reaches "
+                         f"{1e3 * (params.tau_motor_s - tau_hw):.3g} ms) is shorter than the FMU's internal step "
+                         f"({1e3 * params.step_internal_s:.3g} ms) and not told apart from none: written as 0 (no "
+                         "motor lag)")
+            params = dataclasses.replace(params, tau_motor_s=0.0)
     if 0.0 < params.tau_motor_s < 2.0 * params.step_internal_s:
         step = max(params.tau_motor_s / 2.0, FMU_STEP_MIN_S)
         notes.append(f"motor time constant {1e3 * params.tau_motor_s:.3g} ms: the FMU's internal RK4 step is set "
