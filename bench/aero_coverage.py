@@ -1,23 +1,26 @@
-"""Coverage of the 95 % intervals of ``identify aero`` on the demo's synthetic generator.
+"""Coverage and width of the 95 % intervals of ``identify aero`` on the demo's synthetic generator.
 
 Each repeat: eight 8 s manoeuvres at 50 Hz from ``identification.flights.synthetic.identification_manoeuvres`` (3-2-1-1
 multisteps from trims between 22 and 28 m/s), simulated by a plant whose FIXED parameters differ from the
 fitted model's (model mismatch, :data:`MISMATCH`: C_n_p, C_n_delta_a, C_ell_delta_r, C_Y_delta_a, C_L_q,
 C_L_alpha, C_m_0, C_D_p, each within its consider std), plus seeded white noise and coloured noise (AR(1),
 pole 0.9) per output. Twelve lateral-directional and pitch derivatives are estimated from a start 10 % off
-the truth, as ``identify aero`` does: printed bound = the larger of the coloured-residual Cramér-Rao bound
-and the block bootstrap over manoeuvres (corrected for the manoeuvres' leverage, times Student's t over z at
-its degrees of freedom: ``identification.estimation.oem.segment_corrections``), plus the consider covariance of
-every fixed coefficient at its prior std (``identification.aero.priors.fixed_sd``). Run twice: with the built-in
-geometry priors (MAP term) on, and off. An interval covers when |estimate - truth| <= 1.96 printed std.
+the truth, as ``identify aero`` does: the data bound of ``--bound`` (default "ar", the tool's: the coloured
+Cramér-Rao bound with an autoregressive residual model, the segment bootstrap x Student's t only where the
+segments scatter more, ``identification.estimation.oem.data_bound``; "bootstrap": the larger of the Bartlett-
+tapered bound and the bootstrap x t for every derivative, the tool's before 2026-11-28), the auto-freeing
+rounds (``oem.fixed_worth_freeing``, ``oem.FREE_ROUNDS``), plus the consider covariance of every coefficient
+still fixed at its prior std (``identification.aero.priors.fixed_sd``). Priors on and off (``--priors``). An
+interval covers when |estimate - truth| <= 1.96 printed std.
 
-Printed per parameter and run: bias over scatter, the coverage of the Cramér-Rao bound alone, of the data
-bound with the equal-segment corrections m/(m-1) and t(m-1) (the code before 2026-11-26, on the same fits), of
-the data bound (max with bootstrap), of the printed bound, the printed bound over the actual scatter, and the
-mean leverage factor and degrees of freedom of the bootstrap.
+Printed per parameter and run: bias over scatter, the coverage of the Cramér-Rao bound alone, of the bootstrap
+data bound with the equal-segment corrections m/(m-1) and t(m-1), of the data bound, of the printed bound, the
+printed bound over the scatter, the median 95 % half-width over the RMS of estimate - truth, and the mean
+leverage factor and degrees of freedom of the bootstrap.
 
-Run: ``.venv/bin/python bench/aero_coverage.py [--repeats 50]``. Target: printed coverage >= 0.90 for every
-free derivative, priors on and off; exit 1 on a miss.
+Run: ``.venv/bin/python bench/aero_coverage.py [--repeats 50] [--seed 0] [--bound ar] [--priors both]``.
+Target: printed coverage >= 0.90 and median half-width <= 2 x the RMS error for every free derivative; exit 1
+on a miss.
 """
 
 from __future__ import annotations

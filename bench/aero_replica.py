@@ -150,12 +150,14 @@ def run_draw(seed: int, bound: str = "ar") -> tuple[bool, str, dict[str, tuple[f
     result = identify_aero([AeroSource(rep, mapping)], None, init, opt)
     est = result.fit.estimate
     values, std, dom = est.derivatives(), est.std, est.dominance()
+    data_std, small = est.data_std, est.small_sample()
+    cons = est.consider_std if est.consider_std is not None else np.zeros(est.n_global)
     freed = ", ".join(n for n in result.free if n not in PRIMARY) or "none"
     lines = [f"draw {seed}: truth = Aerosonde x U(0.6, 1.6) on {len(dict.fromkeys(SCALED))} coefficients; freed: "
              f"{freed}; failures: {result.failures or 'none'}", modes_line(model, p_truth, start),
              *[f"note: {n}" for n in result.notes if "airborne" in n],
-             f"{'derivative':<14} {'truth':>9} {'estimate':>9} {'err %':>7} {'95 % interval':>22} {'covers':>6}  "
-             "determined by"]
+             f"{'derivative':<14} {'truth':>9} {'estimate':>9} {'err %':>7} {'95 % interval':>22} {'covers':>6} "
+             f"{'data %':>7} {'consider %':>10}  determined by"]
     ok = not result.failures  # e.g. bounds that are not credible
     worst, covered = (0.0, ""), 0
     rel: dict[str, tuple[float, float]] = {}
@@ -168,7 +170,8 @@ def run_draw(seed: int, bound: str = "ar") -> tuple[bool, str, dict[str, tuple[f
         worst, covered = max(worst, (abs(err), n)), covered + bool(covers)
         rel[n] = ((v - truth) / abs(truth), 1.96 * float(std[i]) / abs(truth))
         lines.append(f"{n:<14} {truth:9.4f} {v:9.4f} {err:+7.1f} [{v - 1.96 * std[i]:9.4f}, {v + 1.96 * std[i]:9.4f}] "
-                     f"{'yes' if covers else 'NO':>6}  {dom[i]}")
+                     f"{'yes' if covers else 'NO':>6} {196 * data_std[i] / abs(truth):7.2f} "
+                     f"{196 * cons[i] / abs(truth):10.2f}  {dom[i]}{' (small-sample bound)' if n in small else ''}")
     lines.append(f"largest primary error {worst[0]:.1f} % ({worst[1]}); {covered} of {len(PRIMARY)} covered -> "
                  f"{'pass' if ok else 'FAIL'} (within 10 %, no failure)")
     return ok, "\n".join(lines), rel
