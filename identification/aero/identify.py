@@ -37,6 +37,7 @@ from identification.common.metrics import FitMetrics, skill_interval
 from identification.estimation.identifiability import Identifiability
 from identification.estimation.oem import (
     FREE_IMPACT,
+    FREE_ROUNDS,
     Consider,
     Estimate,
     EstimationError,
@@ -118,6 +119,12 @@ class AeroOptions:
     #: with ``loop_ticks``: estimate the unlogged loops' commands from the response after the fit, within their
     #: logged neighbours, and refit (identification.estimation.unlogged_inputs); False: their mean
     estimate_unlogged: bool = False
+    #: the derivatives' data bound (``identification.estimation.oem.BOUNDS``): "ar", the coloured Cramér-Rao bound
+    #: with an autoregressive residual model and the small-sample bound only where the segments scatter more
+    #: (default); "bootstrap", the larger of the Bartlett-tapered coloured Cramér-Rao bound and the segment
+    #: bootstrap times Student's t (before 2026-11-28; its median 95 % half-width was 2.3-10x the RMS error on three
+    #: replica draws, identification/aero/readme.md)
+    bound: str = "ar"
 
 
 @dataclass
@@ -367,7 +374,8 @@ def _estimator(model: FixedWingModel, p: np.ndarray, free: list[str], opt: AeroO
                                 estimate_states=list(states), estimate_biases=list(biases),
                                 output_filters={n: fc for n, fc in (opt.sensor_filters or {}).items()
                                                 if n in opt.outputs},
-                                prior={n: (v.value, v.sd) for n, v in _priors(model, free, opt).items()})
+                                prior={n: (v.value, v.sd) for n, v in _priors(model, free, opt).items()},
+                                bound=opt.bound)
 
 
 def _priors(model: FixedWingModel, free: Sequence[str], opt: AeroOptions) -> dict[str, Prior]:
@@ -614,7 +622,9 @@ def _after_fit(result: AeroResult, model: FixedWingModel, p: np.ndarray, init: F
     try:
         _consider(result, model, p, opt, weight)
         if opt.free == "auto":
-            _free_fixed(result, model, p, opt, weight)
+            for _ in range(FREE_ROUNDS):
+                if not _free_fixed(result, model, p, opt, weight):
+                    break
         result.identified = {**init.to_dict(), **result.fit.estimate.derivatives()}
     except (ValueError, EstimationError, np.linalg.LinAlgError) as err:
         result.failures.append(f"consider covariance: {err}")
@@ -649,18 +659,19 @@ def _consider(result: AeroResult, model: FixedWingModel, p: np.ndarray, opt: Aer
 
 
 def _free_fixed(result: AeroResult, model: FixedWingModel, p: np.ndarray, opt: AeroOptions,
-                weight: np.ndarray | None) -> None:
+                weight: np.ndarray | None) -> bool:
     """One round of ``free="auto"``: free the fixed parameters that matter and that the data inform, refit
-    from the estimate with the same nuisance set, and recompute the consider covariance."""
+    from the estimate with the same nuisance set, and recompute the consider covariance; False when none is
+    worth freeing (``identify_aero`` runs up to ``oem.FREE_ROUNDS`` rounds)."""
     con: Consider | None = getattr(result, "consider", None)
     est = result.fit.estimate
     if con is None or not con.names:
-        return
+        return False
     n = est.n_global
     chosen = fixed_worth_freeing(est, con)
     if not chosen:
-        result.notes.append("free=auto: no fixed coefficient both matters and is informed by the data")
-        return
+        result.notes.append("free=auto: no (further) fixed coefficient both matters and is informed by the data")
+        return False
     free = result.free + chosen
     p2 = p.copy()
     p2[result.fit.oe.i_free] = est.values[:n]
@@ -671,6 +682,7 @@ def _free_fixed(result: AeroResult, model: FixedWingModel, p: np.ndarray, opt: A
     result.notes.append(f"free=auto freed {', '.join(chosen)}: held fixed, each shifted a free derivative by more "
                         f"than {FREE_IMPACT:g} std of its data bound and the data inform it")
     _consider(result, model, p, opt, weight)
+    return True
 
 
 def _score(result: AeroResult, model: FixedWingModel, p: np.ndarray, opt: AeroOptions) -> None:

@@ -606,7 +606,7 @@ def _uncertainty(fitted: Any) -> dict[str, Any]:
     cov = covariance(fitted)
     return {"names": names, "mean": mean, "covariance": [[float(v) for v in row] for row in cov],
             "note": "consequent coefficients of the thrust map at the fitted membership functions; least-squares "
-                    "covariance inflated for the residuals' lag-1 autocorrelation"}
+                    "sandwich covariance with an autoregressive model of the residuals' autocorrelation"}
 
 
 def _yaw(flights: list[Flight], data: list[FlightData], p: QuadrotorParams, spec: ModelSpec,

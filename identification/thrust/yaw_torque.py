@@ -113,7 +113,7 @@ def identify_yaw_torque(ms: list[Any], params: QuadrotorParams) -> YawResult:
     c_default = params.b_drag_N_m_s2 / params.k_thrust_N_s2
     model = YawAxisModel(params.Jz_kg_m2, c_default)
     est = Estimator(model, model.params.starts(), ["torque_per_thrust_m"], ["rate_z_rad_s"],
-                    bounds={"torque_per_thrust_m": C_BOUNDS_M}, compile=False)
+                    bounds={"torque_per_thrust_m": C_BOUNDS_M}, compile=False, bound="ar")
     e = est.estimate(ms, weight=np.eye(1))
     c = float(e.values[0])
     c_fmu = max(c, 0.0)  # b >= 0 in the FMU: a negative c (wrong-way response) degrades to holding

@@ -1,7 +1,7 @@
-"""Bounds that hold with a model mismatch in the FIXED coefficients: coverage of the printed
-95 % intervals (data bound plus the consider covariance, after the auto-freeing round) on the demo's synthetic
-generator with white + coloured noise, priors on (CI size; the 50-repeat study with priors on and off, which
-must reach 0.90 for every parameter, is bench/aero_coverage.py)."""
+"""Bounds that hold with a model mismatch in the FIXED coefficients: coverage and width of the printed
+95 % intervals (AR data bound plus the consider covariance, after the auto-freeing rounds) on the demo's synthetic
+generator with white + coloured noise, priors on (CI size; the study with priors on and off, which must reach
+0.90 coverage and at most 2x the RMS error in half-width for every parameter, is bench/aero_coverage.py)."""
 
 from __future__ import annotations
 
@@ -19,8 +19,10 @@ def test_printed_intervals_cover_the_truth_with_fixed_parameter_mismatch() -> No
     # 72 intervals pooled: the 0.90 the bound claims (a true 0.95 falls below 0.90 here with ~5 % chance)
     assert pooled >= 0.90, dict(zip(FREE, printed, strict=True))
     assert np.min(printed) >= 4 / 6, dict(zip(FREE, printed, strict=True))
-    # without the consider share the mismatch leaves some intervals short (the test can fail the other way)
-    assert np.mean(np.abs(st.values - st.truth) <= 1.96 * st.crb) < pooled
-    # and the bounds are not wildly wide: the printed std stays within 4x the scatter across repeats
-    scatter = np.std(st.values - st.truth, axis=0, ddof=1)
-    assert np.all(np.mean(st.printed, axis=0) < 4.0 * scatter), np.mean(st.printed, axis=0) / scatter
+    # the mismatched coefficients the data inform are freed (C_L_q, which held fixed moved C_m_q by about two
+    # data std, among them): the AR Cramer-Rao bound alone covers as well as the printed one
+    assert np.mean(np.abs(st.values - st.truth) <= 1.96 * st.crb) >= 0.90
+    # and the bounds are no wider than the data justify: the median 95 % half-width within 3x the RMS error
+    # (1.96 for an exact std; the bootstrap bound of before reached 2.6-6x on the 12-repeat study)
+    width = st.width_ratio(st.printed)
+    assert np.all(width <= 3.0), dict(zip(FREE, width.round(2), strict=True))
