@@ -31,16 +31,21 @@ def _commanded(model: QuadrotorModel, u: np.ndarray, p: np.ndarray) -> float:
     return float(np.asarray(ca.DM(model.commanded_thrust(u, p)[0])).ravel()[0])
 
 
-@pytest.mark.parametrize("tau_s", [0.001, 0.002, 0.005, 0.02])
-def test_step_response_is_the_analytic_first_order_one(tau_s):
-    params = dataclasses.replace(QuadrotorParams(), tau_motor_s=tau_s)
-    model = ExactLagModel(params, sample_s=DT_S)
+def _step_to_1600_us(model: QuadrotorModel) -> tuple:
+    """The model's step function, its state at hover, every motor commanded to 1600 us, the parameters, and the
+    thrust of motor 1 at the start and commanded [N]."""
     step, init = step_function(model), init_function(model)
     p, u0 = _setup(model)
     x = np.asarray(init(u0, p)[0]).ravel()
     u1 = u0.copy()
     u1[:4] = 1600.0
-    t_start, t_cmd = x[16], _commanded(model, u1, p)
+    return step, x, u1, p, x[16], _commanded(model, u1, p)
+
+
+@pytest.mark.parametrize("tau_s", [0.001, 0.002, 0.005, 0.02])
+def test_step_response_is_the_analytic_first_order_one(tau_s):
+    params = dataclasses.replace(QuadrotorParams(), tau_motor_s=tau_s)
+    step, x, u1, p, t_start, t_cmd = _step_to_1600_us(ExactLagModel(params, sample_s=DT_S))
     for k in range(1, 16):
         x = np.asarray(step(x, u1, p, DT_S)[0]).ravel()
         want = t_cmd + (t_start - t_cmd) * math.exp(-k * DT_S / tau_s)
@@ -50,13 +55,7 @@ def test_step_response_is_the_analytic_first_order_one(tau_s):
 def test_rk4_of_the_fmu_model_cannot_follow_a_lag_faster_than_its_step():
     """The reason for the exact model: the FMU's RK4 at the log's 4 ms step is 20 % off at tau = 2 ms."""
     params = dataclasses.replace(QuadrotorParams(), tau_motor_s=0.002)
-    model = QuadrotorModel(params)
-    step, init = step_function(model), init_function(model)
-    p, u0 = _setup(model)
-    x = np.asarray(init(u0, p)[0]).ravel()
-    u1 = u0.copy()
-    u1[:4] = 1600.0
-    t_start, t_cmd = x[16], _commanded(model, u1, p)
+    step, x, u1, p, t_start, t_cmd = _step_to_1600_us(QuadrotorModel(params))
     x = np.asarray(step(x, u1, p, DT_S)[0]).ravel()
     want = t_cmd + (t_start - t_cmd) * math.exp(-DT_S / 0.002)
     assert abs(x[16] - want) > 0.1 * abs(t_cmd - t_start)
