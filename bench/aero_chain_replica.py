@@ -52,8 +52,8 @@ from fmu_models.common.simulate import Simulator
 from fmu_models.fixed_wing.model import FixedWingModel
 from fmu_models.fixed_wing.trim import trim
 from fmu_models.signals.names import FIXED_WING_FIT_OUTPUTS
-from identification.aero.identify import PRIMARY
-from identification.estimation.oem import Manoeuvre, OutputErrorEstimator, sensor_lowpass
+from identification.aero.identify import PRIMARY, AeroOptions
+from identification.estimation.oem import BOUNDS, Manoeuvre, OutputErrorEstimator, sensor_lowpass
 from identification.estimation.unlogged_inputs import Unlogged, fit_with_unlogged, profiled_std
 from identification.excite.design import ExciteOptions, plan_excitation
 from identification.flights.synthetic import NOISE
@@ -116,6 +116,8 @@ def main() -> int:
     parser.add_argument("--gyro-filter", type=float, default=20.0)
     parser.add_argument("--servo-log-rate", type=float, default=0.0,
                         help="log RCOU and ATT at this rate (the shared SITL log: 25 Hz); 0: every loop")
+    parser.add_argument("--bound", choices=BOUNDS, default=AeroOptions().bound,
+                        help="the estimator's data bound (default: identify aero's)")
     args = parser.parse_args()
     if not (1 <= args.truths <= 200 and 10 <= args.loop_rate <= 1000 and args.physics_rate >= args.loop_rate
             and 0 <= args.servo_log_rate <= args.loop_rate and 0 <= args.gyro_filter < args.physics_rate / 2):
@@ -136,7 +138,8 @@ def main() -> int:
                 f"filter {args.gyro_filter:g} Hz modelled, commands held": (filters, "hold")}
     if every > 1:
         variants[f"filter {args.gyro_filter:g} Hz and loop commands modelled"] = (filters, "loop")
-    est_oe = {k: OutputErrorEstimator(model, p0, free, list(FIXED_WING_FIT_OUTPUTS), output_filters=f)
+    est_oe = {k: OutputErrorEstimator(model, p0, free, list(FIXED_WING_FIT_OUTPUTS), output_filters=f,
+                                      bound=args.bound)
               for k, (f, _) in variants.items()}
     rng = np.random.default_rng(args.seed)
     ratios = {k: [] for k in variants}
