@@ -146,8 +146,24 @@ class Block:
         return out
 
 
+class PlanTiming:
+    """The timing every excitation plan shares: its length and sample times, from its ``blocks`` and its
+    ``options`` (``recovery_s`` after the last block, samples at ``rate_hz``)."""
+
+    blocks: list[Any]
+    options: Any
+
+    @property
+    def duration_s(self) -> float:
+        return self.blocks[-1].end_s + self.options.recovery_s
+
+    def times(self) -> np.ndarray:
+        """The plan's sample times [s] at ``rate_hz``."""
+        return np.arange(0.0, self.duration_s, 1.0 / self.options.rate_hz)
+
+
 @dataclass
-class ExcitationPlan:
+class ExcitationPlan(PlanTiming):
     """The planned experiment: trim, modes, blocks, and the options that produced them."""
 
     params: FixedWingParams
@@ -157,14 +173,6 @@ class ExcitationPlan:
     modes: Modes
     targets_rad_s: dict[str, float]
     blocks: list[Block]
-
-    @property
-    def duration_s(self) -> float:
-        return self.blocks[-1].end_s + self.options.recovery_s
-
-    def times(self) -> np.ndarray:
-        """The plan's sample times [s] at ``rate_hz``."""
-        return np.arange(0.0, self.duration_s, 1.0 / self.options.rate_hz)
 
     def deflection(self, t_s: np.ndarray) -> np.ndarray:
         """Planned deflection about trim (N x 4) at plan times (zero outside the blocks' input)."""

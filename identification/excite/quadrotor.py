@@ -54,6 +54,7 @@ from identification.excite.design import (
     Block,
     ExciteError,
     ExciteOptions,
+    PlanTiming,
     Signal,
     max_frequency_rad_s,
     pulse_unit,
@@ -202,7 +203,7 @@ class AxisLoop:
 
 
 @dataclass
-class QuadExcitationPlan:
+class QuadExcitationPlan(PlanTiming):
     """The planned stick sequence: hover, loops, targets and blocks (``signals`` keyed by axis, unit stick)."""
 
     params: QuadrotorParams
@@ -212,14 +213,6 @@ class QuadExcitationPlan:
     axis_loops: dict[str, AxisLoop]
     targets_rad_s: dict[str, float]
     blocks: list[Block]
-
-    @property
-    def duration_s(self) -> float:
-        return self.blocks[-1].end_s + self.options.recovery_s
-
-    def times(self) -> np.ndarray:
-        """The plan's sample times [s] at ``rate_hz``."""
-        return np.arange(0.0, self.duration_s, 1.0 / self.options.rate_hz)
 
     def sticks(self, t_s: np.ndarray) -> np.ndarray:
         """Stick positions (N x 4: roll, pitch, yaw, throttle in -1..1 about centre) at plan times ``t_s``.
