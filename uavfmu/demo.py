@@ -268,8 +268,7 @@ def run(args: argparse.Namespace) -> int:
         if missed:
             print(f"  the 95 % intervals of {', '.join(missed)} miss the truth the demo flew: they carry the data's "
                   "noise, not the error of the thrust map held fixed (fitted on the altitude flight, where the four "
-                  "motors always share one PWM; with the map the demo flew, kd_z comes out 0.253: "
-                  "identification/quadrotor/readme.md)")
+                  "motors always share one PWM: identification/quadrotor/readme.md)")
         for name, h in d["held_out"].items():
             print(f"  {'held-out skill vs persistence ' + name:<36} {h['skill']:+10.3f}  [{h['skill_lo']:+.3f}, "
                   f"{h['skill_hi']:+.3f}] {h['outcome']}")
