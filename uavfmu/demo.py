@@ -22,6 +22,7 @@ import argparse
 import json
 import math
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -32,13 +33,41 @@ from fmu_models.quadrotor.constants import MASS_KG, MOTOR_PWM_INPUTS, N_MOTORS
 REAL_QUAD_LOGS = tuple(("quadrotor", f"arducopter_x_quad_real_{n}.BIN") for n in (218, 104, 105))
 ERLE_MASS_KG = MASS_KG  #: the Erle quadrotor's mass is not logged; the F450 class default (paper 000 Table 1)
 ROLL_FREE = "C_ell_p,C_ell_delta_a"
+DEFAULT_SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
+
+
+@dataclass(frozen=True)
+class DemoOptions:
+    """What ``uavfmu demo`` runs: ``out`` the output folder (the work goes to ``out/demo``); ``real`` identify and
+    validate on the shared Erle flights under ``shared`` instead of self-made flights; ``seed`` the sensor-noise
+    seed of the recorded logs."""
+
+    out: Path = Path("dist")
+    real: bool = False
+    shared: Path = DEFAULT_SHARED
+    seed: int = 1
+
+
+@dataclass
+class DemoResult:
+    """What the demo made and found. ``exit_code``: 0 every rebuilt FMU passed, 1 a validation failed, 2 the shared
+    logs ``--real`` needs are missing (then ``missing`` lists them and nothing else is set)."""
+
+    exit_code: int
+    fmus: dict[str, Path] = field(default_factory=dict)  #: the FMUs built with the papers' parameters
+    rebuilt: dict[str, Path] = field(default_factory=dict)  #: the FMUs rebuilt with the identified parameters
+    identified: dict[str, Any] = field(default_factory=dict)  #: what the identifications found (metrics, estimates)
+    validation: list[Any] = field(default_factory=list)  #: the rebuilt FMUs' validation results
+    failures: list[str] = field(default_factory=list)  #: what did not pass, in plain words
+    report: Path | None = None  #: the HTML validation report
+    missing: list[str] = field(default_factory=list)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("dist"), help="output folder (default: dist)")
     parser.add_argument("--real", action="store_true",
                         help="identify and validate on ../shared/data's three real Erle quadrotor flights")
-    parser.add_argument("--shared", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data",
+    parser.add_argument("--shared", type=Path, default=DEFAULT_SHARED,
                         help="the shared data folder (default: ../shared/data beside the checkout)")
     parser.add_argument("--seed", type=int, default=1, help="sensor-noise seed of the recorded logs")
 
@@ -198,6 +227,13 @@ def identify_dynamics(merged: dict[str, Any], work: Path, seed: int = 3) -> dict
 
 
 def run(args: argparse.Namespace) -> int:
+    """The CLI: parse, run :func:`run_demo` (which prints as it goes), return its exit code."""
+    return run_demo(DemoOptions(out=args.out, real=args.real, shared=args.shared, seed=args.seed)).exit_code
+
+
+def run_demo(args: DemoOptions) -> DemoResult:
+    """Build, fly, identify, rebuild and validate (the module docstring's five steps), printing progress and the
+    summary; returns what was made and found."""
     from build_fmus import BuildOptions, build
     from fmu_models.fixed_wing.params import FixedWingParams
     from fmu_models.fmi.zigcc import host_platform
@@ -205,6 +241,11 @@ def run(args: argparse.Namespace) -> int:
     # this machine's platform only (`uavfmu build` makes all three): a first demo compiles in seconds
     host = BuildOptions(platforms=(host_platform().fmi_name,), progress=lambda msg: print(f"  build: {msg}"))
 
+    real = [args.shared.joinpath(*p) for p in REAL_QUAD_LOGS]
+    missing = [str(p) for p in real if not p.exists()] if args.real else []
+    if missing:  # before anything is built: the user learns it at once
+        print(f"demo --real: {', '.join(missing)} not found (it needs ../shared beside the checkout, or --shared)")
+        return DemoResult(2, missing=missing)
     t_start = time.perf_counter()
     out: Path = args.out
     work = out / "demo"
@@ -213,11 +254,6 @@ def run(args: argparse.Namespace) -> int:
     checks = {"quadrotor hover (published ANFIS map, DJI F450)": hover_check(paths["quadrotor"]),
               "fixed wing trim at 25 m/s (Aerosonde)": trim_check(paths["fixed_wing"])}
     if args.real:
-        real = [args.shared.joinpath(*p) for p in REAL_QUAD_LOGS]
-        missing = [str(p) for p in real if not p.exists()]
-        if missing:
-            print(f"demo --real: {', '.join(missing)} not found (it needs ../shared beside the checkout)")
-            return 2
         logs = {"quadrotor": real}
         print("demo --real: three flights of one quadrotor without battery voltage: the thrust model is scored "
               "leave-one-flight-out with a per-flight hover calibration; a model that loses to a baseline is "
@@ -295,7 +331,8 @@ def run(args: argparse.Namespace) -> int:
                   f"{sk['skill_hi']:+.3f}] {sk['outcome']}")
     failures = print_validation(results, report_dir, held_out=not args.real)
     print(f"total time {time.perf_counter() - t_start:.1f} s")
-    return 1 if failures else 0
+    return DemoResult(1 if failures else 0, fmus=paths, rebuilt=rebuilt, identified=found, validation=results,
+                      failures=failures, report=report_dir / "index.html")
 
 
 def validate_rebuilt(rebuilt: dict[str, Path], logs: dict[str, list[Path]], report_dir: Path,

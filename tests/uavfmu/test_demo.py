@@ -7,14 +7,18 @@ from pathlib import Path
 
 import pytest
 
-from uavfmu.cli import main
+from uavfmu.demo import DemoOptions, run_demo
 
 
 @pytest.mark.slow
 def test_demo_pipeline(tmp_path: Path, capsys) -> None:
-    assert main(["demo", "--out", str(tmp_path)]) == 0
+    res = run_demo(DemoOptions(out=tmp_path))
+    assert res.exit_code == 0 and res.failures == []
     out = capsys.readouterr().out
-    assert "=== uavfmu demo summary ===" in out and "report:" in out
+    assert "=== uavfmu demo summary ===" in out and f"report: {res.report}" in out
+    assert res.report is not None and res.report.exists()
+    assert set(res.rebuilt) == {"quadrotor", "fixed_wing"} and all(p.exists() for p in res.rebuilt.values())
+    assert {"thrust", "dynamics", "aero"} <= set(res.identified)
     work = tmp_path / "demo"
     assert (work / "logs" / "quadrotor_flight.bin").stat().st_size > 100_000
     ident = json.loads((work / "identified.json").read_text())
@@ -41,3 +45,11 @@ def test_demo_pipeline(tmp_path: Path, capsys) -> None:
         assert len(passed) >= 2 and all(s["skill_persistence_lo"] > 0 for s in passed), r["log"]
     assert (work / "report" / "index.html").exists()
     assert all((work / "report" / r["report"]).exists() for r in results)
+
+
+def test_demo_real_without_shared_data_says_what_is_missing_before_building(tmp_path: Path, capsys) -> None:
+    res = run_demo(DemoOptions(out=tmp_path / "out", real=True, shared=tmp_path / "nowhere"))
+    assert res.exit_code == 2 and len(res.missing) == 3
+    assert all("nowhere" in m and m.endswith(".BIN") for m in res.missing)
+    assert "not found" in capsys.readouterr().out
+    assert not (tmp_path / "out").exists()  # nothing was built
