@@ -160,6 +160,8 @@ def file_keys(cls: type, extra: ExtraFields | None = None, sections: tuple[str, 
 
 #: top-level keys of a parameter file that belong to no vehicle's parameters (read by ``validate --mc``)
 FILE_LEVEL_KEYS = ("uncertainty",)
+#: the vehicles (one model and one FMU each) and the section key of each in a parameter file
+VEHICLES = ("quadrotor", "fixed_wing")
 
 
 def _listed(keys: Any, limit: int = 8) -> str:
@@ -219,6 +221,31 @@ def vehicle_sections(data: Any, known: Mapping[str, frozenset[str]], source: str
         lines.append(f"the other keys ({_listed(shared)}) fit {' and '.join(known)} alike, so the file does not tell "
                      f"which vehicle it is for: {wrap}")
     raise ParameterError(source, lines)
+
+
+def vehicle_table(data: Any, vehicle: str, source: str) -> dict[str, Any]:
+    """The table of ``vehicle`` in parameter-file contents ``data``: its section, or the file itself when it has no
+    vehicle section (a flat file; the vehicle's own schema then checks every key). ``_``-comments stay (the schema
+    skips them); :data:`FILE_LEVEL_KEYS` are dropped. :class:`ParameterError` naming ``source`` when the file holds
+    other vehicles' sections only, or keys beside its sections that would be ignored."""
+    if not isinstance(data, Mapping):
+        raise ParameterError(source, [f"expected a table of parameters, found {type(data).__name__}"])
+    sections = [v for v in VEHICLES if v in data]
+    if vehicle in data:
+        stray = [k for k in data if k not in VEHICLES and k not in FILE_LEVEL_KEYS
+                 and not (isinstance(k, str) and k.startswith("_"))]
+        if stray:
+            raise ParameterError(source, [f"keys {_listed(stray)} sit beside the vehicle sections "
+                                          f"{', '.join(sections)} and would be ignored: move each into its vehicle's "
+                                          "section"])
+        table = data[vehicle]
+        if not isinstance(table, Mapping):
+            raise ParameterError(source, [f"{vehicle}: expected a table of parameters, found {type(table).__name__}"])
+        return dict(table)
+    if sections:
+        raise ParameterError(source, [f"holds the {', '.join(sections)} section only and no {vehicle} section: give a "
+                                      f"{vehicle} parameter file (a {vehicle!r} section or its keys at the top level)"])
+    return {k: v for k, v in data.items() if k not in FILE_LEVEL_KEYS}
 
 
 def read_json(path: str | Path) -> dict[str, Any]:

@@ -18,7 +18,7 @@ from typing import Annotated, Any
 
 from pydantic import Field
 
-from fmu_models.common.params import file_keys, param, read_json, validate_params
+from fmu_models.common.params import file_keys, param, read_json, validate_params, vehicle_table
 from fmu_models.config import PositiveFiniteFloat
 
 DEFAULTS_FILE = Path(__file__).with_name("aerosonde.json")
@@ -139,7 +139,7 @@ class FixedWingParams:
     def load(cls, path: str | Path) -> FixedWingParams:
         """A user parameter file (a ``fixed_wing`` section or a flat set); ``REFERENCE_ONLY`` keys are refused."""
         data = read_json(path)
-        return cls.from_dict(data.get("fixed_wing", data), source=str(path))
+        return cls.from_dict(vehicle_table(data, "fixed_wing", str(path)), source=str(path))
 
     @classmethod
     def load_reference(cls, path: str | Path = DEFAULTS_FILE) -> FixedWingParams:

@@ -18,7 +18,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-MODELS = ("quadrotor", "fixed_wing")
+from fmu_models.common.params import VEHICLES
+
+MODELS = VEHICLES  #: every model the build makes: one per vehicle
 BACKENDS = ("native", "python")
 Backend = Literal["native", "python"]
 HERE = Path(__file__).resolve().parents[1]

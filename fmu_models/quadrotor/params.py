@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from fmu_models.common.errors import ParameterError, ProblemList
-from fmu_models.common.params import file_keys, param, read_json, validate_params
+from fmu_models.common.params import file_keys, param, read_json, validate_params, vehicle_table
 from fmu_models.quadrotor.anfis import AnfisMap, published_map
 from fmu_models.quadrotor.constants import MASS_KG, N_MOTORS, PWM_FULL_US, PWM_IDLE_US
 from fmu_models.quadrotor.thrust import FEATURE_INPUTS
@@ -86,7 +86,7 @@ class QuadrotorParams:
     @classmethod
     def load(cls, path: str | Path) -> QuadrotorParams:
         data = read_json(path)
-        return cls.from_dict(data.get("quadrotor", data), source=str(path))
+        return cls.from_dict(vehicle_table(data, "quadrotor", str(path)), source=str(path))
 
     def to_dict(self) -> dict[str, Any]:
         d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "thrust_map"}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 
 import pytest
@@ -133,3 +134,31 @@ def test_physical_lower_bounds_of_masses_and_inertias_are_positive() -> None:
         for f in numeric_fields(cls):
             if f.name == "mass_kg" or (f.name.startswith("J") and f.name != "Jxz_kg_m2" and "rotor" not in f.name):
                 assert f.metadata["min"] > 0, f"{cls.__name__}.{f.name} allows {f.metadata['min']}"
+
+
+def test_a_vehicle_loader_reads_the_file_as_the_build_does(tmp_path) -> None:
+    """``QuadrotorParams.load``/``FixedWingParams.load``: a flat file with an uncertainty block loads (the block is the
+    file's, not the vehicle's); a file holding only the other vehicle's section, or keys beside the sections, is
+    refused saying so, never read as that vehicle's defaults."""
+    unc = {"names": ["Jx_kg_m2"], "mean": [0.011], "covariance": [[1e-8]]}
+    flat = tmp_path / "flat.json"
+    flat.write_text(json.dumps({"Jx_kg_m2": 0.011, "uncertainty": unc, "_note": "identified"}))
+    assert QuadrotorParams.load(flat).Jx_kg_m2 == 0.011
+    wing_only = tmp_path / "wing.json"
+    wing_only.write_text(json.dumps({"fixed_wing": {"C_ell_p": -0.5}}))
+    with pytest.raises(ParameterError) as info:
+        QuadrotorParams.load(wing_only)
+    assert str(wing_only) in str(info.value) and "fixed_wing section only and no quadrotor section" in str(info.value)
+    quad_only = tmp_path / "quad.json"
+    quad_only.write_text(json.dumps({"quadrotor": {"Jx_kg_m2": 0.011}}))
+    with pytest.raises(ParameterError, match="quadrotor section only and no fixed_wing section"):
+        FixedWingParams.load(quad_only)
+    stray = tmp_path / "stray.json"
+    stray.write_text(json.dumps({"fixed_wing": {"C_ell_p": -0.5}, "C_n_r": -0.1}))
+    with pytest.raises(ParameterError, match="C_n_r sit beside the vehicle sections fixed_wing"):
+        FixedWingParams.load(stray)
+    assert FixedWingParams.load(wing_only).C_ell_p == -0.5
+    not_table = tmp_path / "list.json"
+    not_table.write_text(json.dumps({"quadrotor": [1, 2]}))
+    with pytest.raises(ParameterError, match="quadrotor: expected a table of parameters, found list"):
+        QuadrotorParams.load(not_table)
