@@ -531,10 +531,10 @@ class MotorThrust:
         return np.interp(t, ts, out.sum(axis=1))
 
 
-#: vertical drag: rules of the flexible static thrust that stands in for the thrust map in the regression
-#: (Gaussian memberships evenly over the flown motor commands, consequents ``u^2, u``). Measured on the demo's
-#: stick-excitation flights (three noise seeds, truth 0.25 N s/m, the thrust map the published one): 1 rule gives
-#: ``kd_z`` 0.76, 2 rules 0.40, 3 rules 0.34, 4-8 rules 0.21-0.25 (5: 0.24-0.25)
+#: vertical drag: rules of the flexible static thrust that stands in for the thrust map's shape in the regression
+#: (Gaussian memberships evenly over the flown motor commands, consequents ``u^2, u``). ``bench/quadrotor_demo_map.py``
+#: (the demo's stick flight through identify thrust's map, truth 0.25 N s/m): the scaled map alone 0.524, 1-3 rules
+#: 0.56, 0.38, 0.28, 4-8 rules 0.21-0.29 (5: 0.255 +- 0.048)
 DRAG_THRUST_RULES = 5
 
 
