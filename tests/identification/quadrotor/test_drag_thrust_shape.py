@@ -52,6 +52,7 @@ def test_kd_z_with_the_flexible_thrust_holds_the_truth_despite_a_wrong_map_shape
     got = q.drag_equation_error([flight.log], w, params, thrust_of=q.MotorThrust(params).total, rate_hz=250.0,
                                 nuisance=q.ThrustNuisance.over([flight.log], w, params))["kd_z_N_s_m"]
     truth = flight.truth.kd_z_N_s_m
+    print(f"kd_z with the flexible thrust: {got['value']:.3f} +- {got['std']:.3f} (truth {truth:g})")
     # measured: 0.275 +- 0.038 (1 sigma) for a truth of 0.25; the scaled map alone, below, gives -0.07
     assert abs(got["value"] / truth - 1) < 0.15, got
     assert abs(got["value"] - truth) <= 1.96 * got["std"], got
@@ -66,6 +67,7 @@ def test_kd_z_with_the_scaled_map_alone_takes_the_shape_error(flight):
     got = q.drag_equation_error([fl.log], _windows(fl), params, thrust_of=q.MotorThrust(params).total,
                                 rate_hz=250.0)["kd_z_N_s_m"]
     truth = fl.truth.kd_z_N_s_m
+    print(f"kd_z with the scaled map alone: {got['value']:.3f} +- {got['std']:.3f} (truth {truth:g})")
     assert got["value"] < 0.5 * truth, got
 
 
