@@ -32,6 +32,7 @@ from fmu_models.common.rotations import euler_to_dcm_rows, transpose_apply
 from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.model import QuadrotorModel
 from fmu_models.quadrotor.params import QuadrotorParams
+from fmu_models.quadrotor.thrust import command
 from fmu_models.signals.names import OUTPUT_TO_LOG
 from identification.common.metrics import skill_interval
 from identification.estimation.oem import (
@@ -454,7 +455,7 @@ def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorPar
     if velocity:
         try:
             drag.update(drag_equation_error(logs, fit_list, params, thrust_of=MotorThrust(params).total,
-                                            rate_hz=opt.rate_hz))
+                                            rate_hz=opt.rate_hz, nuisance=ThrustNuisance.over(logs, fit_list, params)))
             params = dataclasses.replace(params, **{n: d["value"] for n, d in drag.items()})
         except QuadrotorInputError as err:
             notes.append(str(err))
@@ -497,20 +498,28 @@ class MotorThrust:
         self.params = params
         self.fn = ca.Function("cmd", [u], [ca.vertcat(*m.commanded_thrust(u, np.array(m.params.starts(), float)))])
 
-    def history(self, log: FlightLog, t0_s: float, t1_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """Command sample times in ``[t0 - lead, t1]`` and the lagged thrust there (n x 4)."""
+    def samples(self, log: FlightLog, t0_s: float, t1_s: float) -> np.ndarray:
+        """Motor-command sample times in ``[t0 - lead, t1]``: the lead lets the lag settle before ``t0``."""
         tau = max(self.params.tau_motor_s, 1e-6)
         ts = log.signal("motor_1_pwm_us").t_s
         ts = ts[(ts >= t0_s - 6 * tau - 0.05) & (ts <= t1_s)]
-        if not len(ts):
-            ts = np.array([t0_s])
-        cmd = np.asarray(self.fn.map(len(ts))(_inputs(log, self.params, ts).T)).T.reshape(len(ts), N_MOTORS)
+        return ts if len(ts) else np.array([t0_s])
+
+    def lagged(self, ts: np.ndarray, cmd: np.ndarray) -> np.ndarray:
+        """Columns of ``cmd`` (held from their sample times ``ts``) through the motor lag, exactly (n x k)."""
+        tau = max(self.params.tau_motor_s, 1e-6)
         out = np.empty_like(cmd)
         out[0] = cmd[0]
         for i in range(1, len(ts)):
             a = 1.0 - math.exp(-(ts[i] - ts[i - 1]) / tau)
             out[i] = out[i - 1] + a * (cmd[i - 1] - out[i - 1])
-        return ts, out
+        return out
+
+    def history(self, log: FlightLog, t0_s: float, t1_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Command sample times in ``[t0 - lead, t1]`` and the lagged thrust there (n x 4)."""
+        ts = self.samples(log, t0_s, t1_s)
+        cmd = np.asarray(self.fn.map(len(ts))(_inputs(log, self.params, ts).T)).T.reshape(len(ts), N_MOTORS)
+        return ts, self.lagged(ts, cmd)
 
     def at(self, log: FlightLog, t_s: float) -> np.ndarray:
         """Per-motor lagged thrust at ``t_s`` (the state a replay starting there begins with)."""
@@ -520,6 +529,65 @@ class MotorThrust:
     def total(self, log: FlightLog, t: np.ndarray) -> np.ndarray:
         ts, out = self.history(log, float(t[0]), float(t[-1]))
         return np.interp(t, ts, out.sum(axis=1))
+
+
+#: vertical drag: rules of the flexible static thrust that stands in for the thrust map's shape in the regression
+#: (Gaussian memberships evenly over the flown motor commands, consequents ``u^2, u``). ``bench/quadrotor_demo_map.py``
+#: (the demo's stick flight through identify thrust's map, truth 0.25 N s/m): the scaled map alone 0.524, 1-3 rules
+#: 0.56, 0.38, 0.28, 4-8 rules 0.21-0.29 (5: 0.255 +- 0.048)
+DRAG_THRUST_RULES = 5
+
+
+class ThrustNuisance:
+    """The motors' thrust as a flexible static function of their commands, for the vertical drag regression.
+
+    Per motor ``sum_r w_r(u) (a_r u^2 + b_r u)`` with normalised Gaussian memberships ``w_r`` at
+    :data:`DRAG_THRUST_RULES` centres evenly over the flown command range ``u`` (``fmu_models.quadrotor.thrust
+    .command``), through the motor lag; summed over the motors, each feature is one regressor, so the fit may take
+    any thrust of that family, and ``kd_z`` is what only the vertical velocity explains. With the model's own
+    thrust as the only thrust regressor (scaled), the map's shape error, which follows the climb rate (climbing
+    takes thrust), went into ``kd_z`` (the demo: 0.52 for a truth of 0.25 with the scale at 1.17)."""
+
+    def __init__(self, params: QuadrotorParams, lo: float, hi: float, rules: int = DRAG_THRUST_RULES) -> None:
+        if not 0.0 <= lo < hi:
+            raise QuadrotorInputError(f"drag: flown motor commands span {lo:.3g}..{hi:.3g}: no range to fit thrust on")
+        self.params = params
+        self.lag = MotorThrust(params)
+        self.centres = np.linspace(lo, hi, rules)
+        self.sigma = (hi - lo) / max(rules - 1, 1)
+
+    @classmethod
+    def over(cls, logs: Sequence[FlightLog], windows: Sequence[tuple[int, qseg.Segment]],
+             params: QuadrotorParams) -> ThrustNuisance:
+        """Centres over the commands flown in ``windows`` (0.5-99.5 % of every motor's samples above idle)."""
+        us = []
+        for k, w in windows:
+            t = logs[k].signal("motor_1_pwm_us").t_s
+            t = t[(t >= w.t0_s) & (t <= w.t1_s)]
+            if len(t):
+                us.append(_commands(logs[k], params, t).ravel())
+        u = np.concatenate(us) if us else np.zeros(0)
+        u = u[u > 0]
+        if not u.size:
+            raise QuadrotorInputError("drag: no motor command above idle in the drag windows")
+        return cls(params, float(np.percentile(u, 0.5)), float(np.percentile(u, 99.5)))
+
+    def features(self, u: np.ndarray) -> np.ndarray:
+        """Per-sample features of per-motor commands ``u`` (n x 4): summed over the motors (n x 2 rules)."""
+        w = np.exp(-(((u[..., None] - self.centres) / self.sigma) ** 2))
+        w = w / np.maximum(w.sum(axis=-1, keepdims=True), 1e-300)
+        return np.concatenate([w * (u ** 2)[..., None], w * u[..., None]], axis=-1).sum(axis=1)
+
+    def __call__(self, log: FlightLog, t: np.ndarray) -> np.ndarray:
+        """The features at ``t`` through the motor lag (len(t) x 2 rules)."""
+        ts = self.lag.samples(log, float(t[0]), float(t[-1]))
+        f = self.lag.lagged(ts, self.features(_commands(log, self.params, ts)))
+        return np.column_stack([np.interp(t, ts, f[:, i]) for i in range(f.shape[1])])
+
+
+def _commands(log: FlightLog, params: QuadrotorParams, t: np.ndarray) -> np.ndarray:
+    """Per-motor normalised commands ``u`` held at ``t`` (len(t) x 4)."""
+    return command(_inputs(log, params, t)[:, :N_MOTORS], params.pwm_idle_us, params.pwm_full_us)
 
 
 def _ratios(est: Estimate, params: QuadrotorParams) -> list[Ratio]:
@@ -592,17 +660,19 @@ def _body_velocity(log: FlightLog, t: np.ndarray) -> np.ndarray:
 
 
 def drag_equation_error(logs: Sequence[FlightLog], windows: Sequence[tuple[int, qseg.Segment]],
-                        params: QuadrotorParams, thrust_of: Any = None, rate_hz: float = 50.0
-                        ) -> dict[str, dict[str, float]]:
+                        params: QuadrotorParams, thrust_of: Any = None, rate_hz: float = 50.0,
+                        nuisance: ThrustNuisance | None = None) -> dict[str, dict[str, float]]:
     """Drag per axis by least squares of ``a_b = -kd v_b / m + c_log`` over every fit window: one constant per
     log and axis (the accelerometer's bias is constant over a flight), ``v_b`` the logged NED velocity rotated by
     the logged attitude. Along z the model's thrust per mass (``thrust_of(log, t) -> N``, the fitted model's
     total thrust; None: z is left out) is a second regressor with its own scale (``thrust_scale``, 1 when the
     thrust map is right): a map that is off by a factor otherwise leaves ``(s - 1) T / m`` in the specific force,
-    which follows the vertical velocity (climbing takes thrust) and biases ``kd_z``. Both sides are smoothed
-    alike first (:data:`DRAG_SMOOTH_S`). 1-sigma: Newey-West over time with the residual's autocovariance pooled
-    over the windows (:func:`hac_least_squares`; the smoothing and the sensors colour the residual, and a few
-    windows carry most of the velocity change)."""
+    which follows the vertical velocity (climbing takes thrust) and biases ``kd_z``. ``nuisance`` (with
+    ``thrust_of``) adds the flexible static thrust of :class:`ThrustNuisance` beside it, for a map whose shape,
+    not only its scale, is off (``thrust_scale`` is then not reported: the two share the thrust). Both sides are
+    smoothed alike first (:data:`DRAG_SMOOTH_S`). 1-sigma: Newey-West over time with the residual's
+    autocovariance pooled over the windows (:func:`hac_least_squares`; the smoothing and the sensors colour the
+    residual, and a few windows carry most of the velocity change)."""
     rows: list[tuple[int, np.ndarray, np.ndarray]] = []  # (log, regressors, specific force) per window
     n = max(round(DRAG_SMOOTH_S * rate_hz), 1)
     for k, w in windows:
@@ -612,7 +682,9 @@ def drag_equation_error(logs: Sequence[FlightLog], windows: Sequence[tuple[int, 
             continue
         acc = np.column_stack([log.signal(f"accel_body_{a}_m_s2").resample(t) for a in "xyz"])
         thrust = thrust_of(log, t) / params.mass_kg if thrust_of is not None else np.full(len(t), np.nan)
-        reg = np.column_stack([_body_velocity(log, t), thrust])
+        extra = nuisance(log, t) / params.mass_kg if (nuisance is not None and thrust_of is not None) else \
+            np.zeros((len(t), 0))
+        reg = np.column_stack([_body_velocity(log, t), thrust, extra])
         if len(t) > 2 * n:  # the same moving average on both sides keeps the relation linear
             kernel = np.ones(n) / n
             reg = np.column_stack([np.convolve(reg[:, i], kernel, "valid") for i in range(reg.shape[1])])
@@ -624,7 +696,8 @@ def drag_equation_error(logs: Sequence[FlightLog], windows: Sequence[tuple[int, 
     for a, name in enumerate(DRAG_PARAMS):
         if thrust_of is None and a == 2:
             continue
-        cols = [a, 3] if a == 2 else [a]  # along z: body velocity and the model's thrust per mass
+        # along z: body velocity, the model's thrust per mass and the flexible thrust (``nuisance``)
+        cols = [a, *range(3, rows[0][1].shape[1])] if a == 2 else [a]
         xs: list[np.ndarray] = []
         ys: list[np.ndarray] = []
         for k in dict.fromkeys(r[0] for r in rows):  # one constant per log: centre each log's samples
@@ -640,7 +713,7 @@ def drag_equation_error(logs: Sequence[FlightLog], windows: Sequence[tuple[int, 
         beta, cov = hac_least_squares(xs, ys, min_lags=4 * n)  # a = beta_v v (+ beta_T T/m): beta_v = -kd / m
         out[name] = {"value": -float(beta[0]) * params.mass_kg,
                      "std": params.mass_kg * math.sqrt(max(float(cov[0, 0]), 0.0))}
-        if a == 2:
+        if a == 2 and nuisance is None:
             out[name]["thrust_scale"] = -float(beta[1])
             out[name]["thrust_scale_std"] = math.sqrt(max(float(cov[1, 1]), 0.0))
     return out
