@@ -25,8 +25,10 @@ the Aerosonde values) fits the logged records on the loop ticks:
   (what ``identify aero --sensor-filters`` does, on a grid started at a tick);
 - **filter and loop commands modelled** (with ``--servo-log-rate``): each loop's command bracketed by
   ``identification.logs.sensor_chain.LoopClock.bracket`` (an unlogged loop's between its logged neighbours),
-  started at their mean and estimated with the parameters (``identification.estimation.unlogged_inputs``); its
-  intervals scaled by the Cramer-Rao std with those commands profiled out over the one without them.
+  started at their mean and estimated with the parameters (``identification.estimation.unlogged_inputs``:
+  Gauss-Newton steps with the commands profiled out); its intervals scaled by the Cramer-Rao std with the
+  commands left strictly inside their brackets profiled out over the one without them (a command estimated at
+  a neighbour's value is held there by its bound, ``Unlogged.pinned``).
 
 Printed per derivative: the mean ratio estimate / truth, the worst relative error, and the share of 95 %
 intervals (estimate +- 1.96 std) that cover the truth.
@@ -174,7 +176,8 @@ def main() -> int:
                 # the bound with the estimated commands as nuisance parameters, scaled onto the printed one
                 plain = profiled_std(oe, est.values, used, [Unlogged(b.before, b.after, np.ones_like(b.logged))
                                                             for b in brackets], weight)
-                sd = est.std[:len(free)] * profiled_std(oe, est.values, used, brackets, weight) / plain
+                inside = [b.pinned(m.u) for b, m in zip(brackets, used, strict=True)]
+                sd = est.std[:len(free)] * profiled_std(oe, est.values, used, inside, weight) / plain
             else:
                 est = oe.estimate(data, weight=weight, max_iter=40, horizon_s=2.0)
                 sd = est.std[:len(free)]
