@@ -47,8 +47,7 @@ def test_unlogged_steps_come_back_and_widen_the_bound() -> None:
 def test_profiled_fit_converges_to_the_truth_from_the_mean_commands() -> None:
     """Noise-free: the fit with the neighbours' mean is off in both roll derivatives; estimating the unlogged
     commands with the parameters (profiled Gauss-Newton steps) brings both back to the truth and every command
-    to its value, where alternating command and parameter fits stopped partway (0.65-0.8 of the error left per
-    round on the chain replica)."""
+    to its value, where 4 rounds of alternating command and parameter fits stopped 3.4 % off."""
     model = FixedWingModel()
     p = np.array(model.params.starts())
     tr = trim(model, p, 25.0)
