@@ -464,8 +464,8 @@ def _nuisance_fits(model: FixedWingModel, p: np.ndarray, free: list[str], data: 
         notes
 
 
-#: rounds of (estimate the unlogged commands, refit) after the fit
-UNLOGGED_ROUNDS = 4
+#: most profiled Gauss-Newton steps (the unlogged commands re-estimated after each) after the fit
+UNLOGGED_ROUNDS = 8
 
 
 def _refine_unlogged(model: FixedWingModel, pool: Pool, fit: Fit, opt: AeroOptions, weight: np.ndarray | None,
@@ -488,8 +488,8 @@ def _refine_unlogged(model: FixedWingModel, pool: Pool, fit: Fit, opt: AeroOptio
                                   max_iter=opt.max_iter, horizon_s=None)
     n = sum(len(b.free()) for b in brackets)
     notes.append(f"measurement chain: {n} unlogged loop commands estimated from the response within their logged "
-                 f"neighbours ({UNLOGGED_ROUNDS} rounds with the fit; the printed bound does not include their "
-                 "uncertainty)")
+                 f"neighbours (with the parameters, at most {UNLOGGED_ROUNDS} profiled steps; the printed bound "
+                 "does not include their uncertainty)")
     return Fit(fit.oe, data, est, _aic(est, data), fit.delay_s)
 
 
