@@ -13,7 +13,6 @@ from scipy.signal import lfilter
 
 from fmu_models.common.simulate import Simulator
 from fmu_models.fixed_wing.model import FixedWingModel
-from fmu_models.fixed_wing.trim import trim
 from identification.estimation.oem import (
     EstimationError,
     Manoeuvre,
@@ -21,6 +20,7 @@ from identification.estimation.oem import (
     filter_substeps,
     sensor_lowpass,
 )
+from tests.fakes.aileron_steps import trimmed_aileron_steps
 
 OUTPUTS = ["roll_rad", "rate_body_x_rad_s", "accel_body_y_m_s2"]
 
@@ -36,13 +36,8 @@ def test_lowpass_has_unit_gain_and_the_butterworth_lag(fc: float, dt: float) -> 
 
 
 def test_filtered_outputs_and_sensitivities() -> None:
-    model = FixedWingModel()
-    p = np.array(model.params.starts())
-    tr = trim(model, p, 25.0)
     n, dt = 150, 0.02
-    u = np.tile(tr.u, (n, 1))
-    u[20:40, 0] += 0.05
-    u[40:60, 0] -= 0.05
+    model, p, tr, u = trimmed_aileron_steps(n, [(20, 40, 0.05), (40, 60, -0.05)])
     m = Manoeuvre(tr.x, u, np.zeros((n, len(OUTPUTS))), dt)
     free = ["C_ell_p", "C_ell_delta_a"]
     plain = OutputErrorEstimator(model, p, free, OUTPUTS, compile=False)
@@ -95,13 +90,9 @@ def _filtered_plant(model: FixedWingModel, p: np.ndarray, x0: np.ndarray, u: np.
 def test_substeps_remove_the_filter_discretisation_bias() -> None:
     """Noise-free roll doublets at 50 Hz through a 20 Hz gyro filter run at 1 kHz: fitted with the filter at the
     log step, C_ell_p comes out biased by about 1 %; with the default sub-steps within 0.1 %."""
-    model = FixedWingModel()
-    p = np.array(model.params.starts())
-    tr = trim(model, p, 25.0)
     n, dt, fc = 200, 0.02, 20.0
-    u = np.tile(tr.u, (n, 1))
-    for k0, sign in ((20, 1.0), (30, -1.0), (100, -1.0), (110, 1.0)):
-        u[k0:k0 + 10, 0] += 0.05 * sign
+    model, p, tr, u = trimmed_aileron_steps(n, [(k0, k0 + 10, 0.05 * sign)
+                                                for k0, sign in ((20, 1.0), (30, -1.0), (100, -1.0), (110, 1.0))])
     y = _filtered_plant(model, p, tr.x, u, dt, 20, fc)
     data = [Manoeuvre(tr.x, u, y, dt)]
     free, outputs = ["C_ell_p", "C_ell_delta_a"], ["roll_rad", "rate_body_x_rad_s"]
@@ -117,12 +108,8 @@ def test_substeps_remove_the_filter_discretisation_bias() -> None:
 
 
 def test_substep_sensitivities_are_the_derivatives_of_the_substepped_outputs() -> None:
-    model = FixedWingModel()
-    p = np.array(model.params.starts())
-    tr = trim(model, p, 25.0)
     n, dt = 60, 0.02
-    u = np.tile(tr.u, (n, 1))
-    u[10:20, 0] += 0.05
+    model, p, tr, u = trimmed_aileron_steps(n, [(10, 20, 0.05)])
     m = Manoeuvre(tr.x, u, np.zeros((n, len(OUTPUTS))), dt)
     oe = OutputErrorEstimator(model, p, ["C_ell_p", "C_ell_delta_a"], OUTPUTS, compile=False, substeps=4,
                               output_filters={"rate_body_x_rad_s": 20.0, "accel_body_y_m_s2": 20.0})

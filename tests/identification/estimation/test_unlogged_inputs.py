@@ -6,24 +6,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from fmu_models.fixed_wing.model import FixedWingModel
-from fmu_models.fixed_wing.trim import trim
 from identification.estimation.oem import Manoeuvre, OutputErrorEstimator
 from identification.estimation.unlogged_inputs import Unlogged, fit_with_unlogged, profiled_std, refine_unlogged
 from identification.logs.sensor_chain import LoopClock
+from tests.fakes.aileron_steps import trimmed_aileron_steps
 
 OUTPUTS = ["roll_rad", "rate_body_x_rad_s", "rate_body_z_rad_s", "accel_body_y_m_s2"]
 
 
 def test_unlogged_steps_come_back_and_widen_the_bound() -> None:
-    model = FixedWingModel()
-    p = np.array(model.params.starts())
-    tr = trim(model, p, 25.0)
     dt, n = 0.02, 100
+    # steps at loops 11, 27 and 41: unlogged (the log task runs at even loops)
+    model, p, tr, u = trimmed_aileron_steps(n, [(11, 27, 0.05), (27, 41, -0.05)])
     i_ail = list(model.inputs.index).index("aileron_rad")
-    u = np.tile(tr.u, (n, 1))
-    u[11:27, i_ail] += 0.05  # steps at loops 11, 27 and 41: unlogged (the log task runs at even loops)
-    u[27:41, i_ail] -= 0.05
     oe = OutputErrorEstimator(model, p, ["C_ell_p", "C_ell_delta_a"], OUTPUTS)
     theta = p[oe.i_free]
     y = oe.simulate(theta, Manoeuvre(tr.x, u, np.zeros((n, len(OUTPUTS))), dt), 0, sensitivities=False)[0]
@@ -48,16 +43,9 @@ def test_profiled_fit_converges_to_the_truth_from_the_mean_commands() -> None:
     """Noise-free: the fit with the neighbours' mean is off in both roll derivatives; estimating the unlogged
     commands with the parameters (profiled Gauss-Newton steps) brings both back to the truth and every command
     to its value, where 4 rounds of alternating command and parameter fits stopped 3.4 % off."""
-    model = FixedWingModel()
-    p = np.array(model.params.starts())
-    tr = trim(model, p, 25.0)
     dt, n = 0.02, 150
-    i_ail = list(model.inputs.index).index("aileron_rad")
-    u = np.tile(tr.u, (n, 1))
-    u[11:27, i_ail] += 0.05  # steps at odd (unlogged) loops
-    u[27:41, i_ail] -= 0.05
-    u[81:95, i_ail] -= 0.04
-    u[95:109, i_ail] += 0.04
+    # steps at odd (unlogged) loops
+    model, p, tr, u = trimmed_aileron_steps(n, [(11, 27, 0.05), (27, 41, -0.05), (81, 95, -0.04), (95, 109, 0.04)])
     free = ["C_ell_p", "C_ell_delta_a"]
     oe = OutputErrorEstimator(model, p, free, OUTPUTS)
     y = oe.simulate(p[oe.i_free], Manoeuvre(tr.x, u, np.zeros((n, len(OUTPUTS))), dt), 0, sensitivities=False)[0]
