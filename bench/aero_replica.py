@@ -161,9 +161,10 @@ def modes_line(model: FixedWingModel, p_truth: np.ndarray, data: list[Manoeuvre]
 
 def replica_fit(seed: int, bound: str = "ar", exact_start: bool = False,
                 estimate_initial: Sequence[str] | None = None, truth_seed: int | None = None
-                ) -> tuple[FixedWingModel, np.ndarray, list[Manoeuvre], AeroResult]:
+                ) -> tuple[FixedWingModel, np.ndarray, list[Manoeuvre], AeroResult, dict[str, float]]:
     """One truth draw identified as ``identify aero`` does: (model, the truth's parameters, the fit segments of
-    the original log, the result). ``exact_start``: see :func:`replica_log`; ``estimate_initial``: these
+    the original log, the result, per state the RMS over the fit segments of the initial state the tool reads
+    minus the truth's). ``exact_start``: see :func:`replica_log`; ``estimate_initial``: these
     per-segment initial states and the gyro/accelerometer biases instead of the tool's automatic nuisance choice;
     ``truth_seed``: the truth of that draw, only the noise from ``seed``."""
     log = read_log(LOG)
@@ -182,7 +183,12 @@ def replica_fit(seed: int, bound: str = "ar", exact_start: bool = False,
     if truth_seed is not None:
         rng = np.random.default_rng(seed)
     rep = replica_log(log, model, p_truth, segs, mapping, list(opt.outputs), opt.rate_hz, rng, exact_start)
-    return model, p_truth, start, identify_aero([AeroSource(rep, mapping)], None, init, opt)
+    fit = [s for _, s in pool.fit]
+    dx = np.array([b.x0 - a.x0 for a, b in zip(
+        aero.manoeuvres(model, p_truth, log, mapping, fit, list(opt.outputs), opt.rate_hz),
+        aero.manoeuvres(model, p_truth, rep, mapping, fit, list(opt.outputs), opt.rate_hz), strict=True)])
+    start_rms = {n: float(np.sqrt(np.mean(dx[:, i] ** 2))) for n, i in model.states.index.items()}
+    return model, p_truth, start, identify_aero([AeroSource(rep, mapping)], None, init, opt), start_rms
 
 
 def run_draw(seed: int, bound: str = "ar", exact_start: bool = False, estimate_initial: Sequence[str] | None = None,
@@ -190,7 +196,7 @@ def run_draw(seed: int, bound: str = "ar", exact_start: bool = False, estimate_i
     """One truth draw (:func:`replica_fit`): returns (all primaries within 10 % and no failure, the printed table,
     per primary derivative its relative error and the relative 95 % half-width, both over |truth|, and whether the
     small-sample bound made its interval)."""
-    model, p_truth, start, result = replica_fit(seed, bound, exact_start, estimate_initial, truth_seed)
+    model, p_truth, start, result, start_rms = replica_fit(seed, bound, exact_start, estimate_initial, truth_seed)
     est = result.fit.estimate
     values, std, dom = est.derivatives(), est.std, est.dominance()
     data_std, small = est.data_std, est.small_sample()
@@ -200,7 +206,10 @@ def run_draw(seed: int, bound: str = "ar", exact_start: bool = False, estimate_i
     lines = [f"draw {seed}: truth = Aerosonde x U(0.6, 1.6) on {len(dict.fromkeys(SCALED))} coefficients{truth}; "
              f"freed: {freed}; failures: {result.failures or 'none'}", modes_line(model, p_truth, start),
              f"nuisance: {result.nuisance_choice}; segment starts: "
-             f"{'the truth state' if exact_start else 'interpolated from the log (noisy)'}",
+             f"{'the truth state' if exact_start else 'interpolated from the log (noisy)'}; the tool's initial state "
+             "- the truth's, RMS over the fit segments: " + (", ".join(
+                 f"{n} {v:.2g}" for n, v in start_rms.items() if v > 1e-9 and n not in ("lat_rad", "lon_rad"))
+                 or "none"),
              *[f"note: {n}" for n in result.notes if "airborne" in n],
              f"{'derivative':<14} {'truth':>9} {'estimate':>9} {'err %':>7} {'95 % interval':>22} {'covers':>6} "
              f"{'data %':>7} {'consider %':>10}  determined by"]

@@ -52,7 +52,7 @@ def main() -> int:
     if not LOG.exists():
         print(f"{LOG} is absent; nothing to replicate")
         return 2
-    _, _, _, result = replica_fit(args.seed, exact_start=args.start_state == "exact")
+    _, _, _, result, _ = replica_fit(args.seed, exact_start=args.start_state == "exact")
     est, oe, data = result.fit.estimate, result.fit.oe, result.fit.data
     theta = est.values
     sims = [oe.simulate(theta, m, j) for j, m in enumerate(data)]
