@@ -28,8 +28,18 @@ A draw fails when a primary derivative misses 10 % or ``identify aero`` records 
 that runs away in a segment, whose bounds it then refuses to call credible). An interval that misses is not a
 failed draw: eleven honest 95 % intervals all cover in only 57 % of draws; coverage is judged over the draws.
 
-Run: ``.venv/bin/python bench/aero_replica.py [--draws 1] [--seed 0] [--bound ar|bootstrap]`` (one identify run
-per draw: 15-60 s on 2 cores, more when they are shared). Exit 1 when a draw fails, or a primary derivative's
+Each draw's header names the nuisance set ``identify aero`` chose (per-segment initial states and output biases,
+``identification.aero.identify._nuisance_fits``); the summary counts the draws whose interval is the small-sample
+bound (``oem.data_bound``). Studies of that bound: ``--start-state exact`` hands the tool the truth's initial state
+at every segment start (a sample there holding the original log's value, which the truth starts from; by default
+the tool interpolates between the last original sample and the first noisy replica one, as it would between
+noisy samples of a real log); ``--estimate-initial STATE,...`` fits those per-segment initial states (with the
+gyro and accelerometer biases) instead of the tool's automatic choice; ``--truth-seed N`` keeps draw N's truth
+in every draw and redraws only the noise (seeds ``--seed``, ``--seed`` + 1, ...).
+
+Run: ``.venv/bin/python bench/aero_replica.py [--draws 1] [--seed 0] [--bound ar|bootstrap] [--start-state
+logged|exact] [--estimate-initial STATES] [--truth-seed N]`` (one identify run per draw: 15-60 s on 2 cores, more
+when they are shared). Exit 1 when a draw fails, or a primary derivative's
 coverage over the draws is below 0.90 or its median half-width above 2 x its RMS error; the log is read from
 ``../shared/data`` (exit 2 when absent).
 """
@@ -52,10 +62,19 @@ from fmu_models.fixed_wing.trim import trim
 from fmu_models.signals.names import OUTPUT_TO_LOG
 from fmu_models.signals.pwm_mapping import PwmMapping
 from identification.aero import model as aero
-from identification.aero.identify import PRIMARY, AeroOptions, AeroSource, _pool, identify_aero
+from identification.aero.identify import (
+    AUTO_BIASES,
+    PRIMARY,
+    AeroOptions,
+    AeroResult,
+    AeroSource,
+    _pool,
+    identify_aero,
+)
 from identification.estimation.oem import BOUNDS, Manoeuvre, OutputErrorEstimator
 from identification.flights.synthetic import NOISE
 from identification.logs.flightlog import FlightLog, Signal
+from identification.logs.log_state import resample_angle
 from identification.logs.readers import read_log
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -90,10 +109,13 @@ STATE_NOISE = {"vel_north_m_s": 0.05, "vel_east_m_s": 0.05, "vel_down_m_s": 0.05
 
 
 def replica_log(log: FlightLog, model: FixedWingModel, p_truth: np.ndarray, segments: list[aero.Segment],
-                mapping: PwmMapping, outputs: list[str], rate_hz: float, rng: np.random.Generator) -> FlightLog:
+                mapping: PwmMapping, outputs: list[str], rate_hz: float, rng: np.random.Generator,
+                exact_start: bool = False) -> FlightLog:
     """``log`` with every signal ``identify aero`` reads (the fitted ``outputs`` and :data:`STATE_OUTPUTS`)
     replaced inside ``segments`` by the model's response (``p_truth``, from the logged state, logged inputs) plus
-    noise, so that the state at any instant inside a segment (a re-initialised piece) is the truth's too."""
+    noise, so that the state at any instant inside a segment (a re-initialised piece) is the truth's too.
+    ``exact_start``: a sample at each segment start holds the original log's value there (the state the truth
+    starts from), so the state the tool reads at a segment start is the truth's exactly."""
     names = list(dict.fromkeys([*outputs, *STATE_OUTPUTS]))
     sim = OutputErrorEstimator(model, p_truth, ["C_ell_p"], names)
     data = aero.manoeuvres(model, p_truth, log, mapping, segments, outputs, rate_hz)
@@ -114,6 +136,10 @@ def replica_log(log: FlightLog, model: FixedWingModel, p_truth: np.ndarray, segm
             yv = y[:, i] + white_plus_ar1(rng, (len(tg),), sd, sd)
             if name == "yaw_rad":
                 yv = np.angle(np.exp(1j * yv))
+            if exact_start:
+                t0 = np.array([seg.t0_s])
+                keep &= t != seg.t0_s
+                tg, yv = np.r_[t0, tg], np.r_[resample_angle(s, t0) if name == "yaw_rad" else s.resample(t0), yv]
             t = np.concatenate([t[keep], tg])
             v = np.concatenate([v[keep], yv])
             order = np.argsort(t, kind="stable")
@@ -133,34 +159,63 @@ def modes_line(model: FixedWingModel, p_truth: np.ndarray, data: list[Manoeuvre]
         f"{m.name} {m.eigenvalues[0].real:+.3f}{m.eigenvalues[0].imag:+.3f}j" for m in md.all())
 
 
-def run_draw(seed: int, bound: str = "ar") -> tuple[bool, str, dict[str, tuple[float, float]]]:
-    """One truth draw: returns (all primaries within 10 % and no failure, the printed table, per primary derivative
-    its relative error and the relative 95 % half-width, both over |truth|)."""
+def replica_fit(seed: int, bound: str = "ar", exact_start: bool = False,
+                estimate_initial: Sequence[str] | None = None, truth_seed: int | None = None
+                ) -> tuple[FixedWingModel, np.ndarray, list[Manoeuvre], AeroResult, dict[str, float]]:
+    """One truth draw identified as ``identify aero`` does: (model, the truth's parameters, the fit segments of
+    the original log, the result, per state the RMS over the fit segments of the initial state the tool reads
+    minus the truth's). ``exact_start``: see :func:`replica_log`; ``estimate_initial``: these
+    per-segment initial states and the gyro/accelerometer biases instead of the tool's automatic nuisance choice;
+    ``truth_seed``: the truth of that draw, only the noise from ``seed``."""
     log = read_log(LOG)
     mapping = PwmMapping.from_ardupilot(log.params)
     init, opt = FixedWingParams(), AeroOptions(bound=bound)
+    if estimate_initial is not None:
+        opt = AeroOptions(bound=bound, nuisance="given", estimate_initial=tuple(estimate_initial),
+                          biases=tuple(b for b in AUTO_BIASES if b in opt.outputs))
     model = FixedWingModel(init)
     p = np.array(model.params.starts(), dtype=float)
     pool = _pool([AeroSource(log, mapping)], model, opt, [])
     segs = [s for _, s in pool.fit + pool.val]
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(seed if truth_seed is None else truth_seed)
     start = aero.manoeuvres(model, p, log, mapping, [s for _, s in pool.fit], list(opt.outputs), opt.rate_hz)
     p_truth = truth_params(model, p, rng, start)
-    rep = replica_log(log, model, p_truth, segs, mapping, list(opt.outputs), opt.rate_hz, rng)
-    result = identify_aero([AeroSource(rep, mapping)], None, init, opt)
+    if truth_seed is not None:
+        rng = np.random.default_rng(seed)
+    rep = replica_log(log, model, p_truth, segs, mapping, list(opt.outputs), opt.rate_hz, rng, exact_start)
+    fit = [s for _, s in pool.fit]
+    dx = np.array([b.x0 - a.x0 for a, b in zip(
+        aero.manoeuvres(model, p_truth, log, mapping, fit, list(opt.outputs), opt.rate_hz),
+        aero.manoeuvres(model, p_truth, rep, mapping, fit, list(opt.outputs), opt.rate_hz), strict=True)])
+    start_rms = {n: float(np.sqrt(np.mean(dx[:, i] ** 2))) for n, i in model.states.index.items()}
+    return model, p_truth, start, identify_aero([AeroSource(rep, mapping)], None, init, opt), start_rms
+
+
+def run_draw(seed: int, bound: str = "ar", exact_start: bool = False, estimate_initial: Sequence[str] | None = None,
+             truth_seed: int | None = None) -> tuple[bool, str, dict[str, tuple[float, float, bool]]]:
+    """One truth draw (:func:`replica_fit`): returns (all primaries within 10 % and no failure, the printed table,
+    per primary derivative its relative error and the relative 95 % half-width, both over |truth|, and whether the
+    small-sample bound made its interval)."""
+    model, p_truth, start, result, start_rms = replica_fit(seed, bound, exact_start, estimate_initial, truth_seed)
     est = result.fit.estimate
     values, std, dom = est.derivatives(), est.std, est.dominance()
     data_std, small = est.data_std, est.small_sample()
     cons = est.consider_std if est.consider_std is not None else np.zeros(est.n_global)
     freed = ", ".join(n for n in result.free if n not in PRIMARY) or "none"
-    lines = [f"draw {seed}: truth = Aerosonde x U(0.6, 1.6) on {len(dict.fromkeys(SCALED))} coefficients; freed: "
-             f"{freed}; failures: {result.failures or 'none'}", modes_line(model, p_truth, start),
+    truth = "" if truth_seed is None else f" (draw {truth_seed}'s, noise of seed {seed})"
+    lines = [f"draw {seed}: truth = Aerosonde x U(0.6, 1.6) on {len(dict.fromkeys(SCALED))} coefficients{truth}; "
+             f"freed: {freed}; failures: {result.failures or 'none'}", modes_line(model, p_truth, start),
+             f"nuisance: {result.nuisance_choice}; segment starts: "
+             f"{'the truth state' if exact_start else 'interpolated from the log (noisy)'}; the tool's initial state "
+             "- the truth's, RMS over the fit segments: " + (", ".join(
+                 f"{n} {v:.2g}" for n, v in start_rms.items() if v > 1e-9 and n not in ("lat_rad", "lon_rad"))
+                 or "none"),
              *[f"note: {n}" for n in result.notes if "airborne" in n],
              f"{'derivative':<14} {'truth':>9} {'estimate':>9} {'err %':>7} {'95 % interval':>22} {'covers':>6} "
              f"{'data %':>7} {'consider %':>10}  determined by"]
     ok = not result.failures  # e.g. bounds that are not credible
     worst, covered = (0.0, ""), 0
-    rel: dict[str, tuple[float, float]] = {}
+    rel: dict[str, tuple[float, float, bool]] = {}
     for n in PRIMARY:
         i = est.names.index(n)
         truth, v = float(p_truth[model.params.index[n]]), values[n]
@@ -168,7 +223,7 @@ def run_draw(seed: int, bound: str = "ar") -> tuple[bool, str, dict[str, tuple[f
         covers = abs(v - truth) <= 1.96 * std[i]
         ok &= bool(abs(err) <= 10.0)
         worst, covered = max(worst, (abs(err), n)), covered + bool(covers)
-        rel[n] = ((v - truth) / abs(truth), 1.96 * float(std[i]) / abs(truth))
+        rel[n] = ((v - truth) / abs(truth), 1.96 * float(std[i]) / abs(truth), n in small)
         lines.append(f"{n:<14} {truth:9.4f} {v:9.4f} {err:+7.1f} [{v - 1.96 * std[i]:9.4f}, {v + 1.96 * std[i]:9.4f}] "
                      f"{'yes' if covers else 'NO':>6} {196 * data_std[i] / abs(truth):7.2f} "
                      f"{196 * cons[i] / abs(truth):10.2f}  {dom[i]}{' (small-sample bound)' if n in small else ''}")
@@ -183,10 +238,12 @@ MIN_COVERAGE = 0.90
 MAX_WIDTH = 2.0
 
 
-def summary(rel: list[dict[str, tuple[float, float]]]) -> tuple[list[str], bool]:
+def summary(rel: list[dict[str, tuple[float, float, bool]]]) -> tuple[list[str], bool]:
     """Per primary derivative over the draws: coverage, median relative 95 % half-width over the RMS relative
-    error (the actual scatter of estimate - truth, relative because every draw has its own truth)."""
-    lines = [f"{'derivative':<14} {'coverage':>8} {'RMS err %':>9} {'median hw %':>11} {'hw/rms':>7}"]
+    error (the actual scatter of estimate - truth, relative because every draw has its own truth), and in how many
+    draws the small-sample bound made the interval."""
+    lines = [f"{'derivative':<14} {'coverage':>8} {'RMS err %':>9} {'median hw %':>11} {'hw/rms':>7} "
+             f"{'small-sample':>12}"]
     ok = True
     for n in PRIMARY:
         err = np.array([r[n][0] for r in rel])
@@ -195,7 +252,9 @@ def summary(rel: list[dict[str, tuple[float, float]]]) -> tuple[list[str], bool]
         rms = float(np.sqrt(np.mean(err ** 2)))
         ratio = float(np.median(hw)) / max(rms, 1e-12)
         ok &= cov >= MIN_COVERAGE and ratio <= MAX_WIDTH
-        lines.append(f"{n:<14} {cov:8.2f} {100 * rms:9.2f} {100 * np.median(hw):11.2f} {ratio:7.2f}")
+        small = sum(r[n][2] for r in rel)
+        lines.append(f"{n:<14} {cov:8.2f} {100 * rms:9.2f} {100 * np.median(hw):11.2f} {ratio:7.2f} "
+                     f"{f'{small} of {len(rel)}':>12}")
     return lines, ok
 
 
@@ -204,21 +263,35 @@ def main() -> int:
     parser.add_argument("--draws", type=int, default=1)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--bound", choices=BOUNDS, default="ar", help="the data bound (identify aero's: ar)")
+    parser.add_argument("--start-state", choices=("logged", "exact"), default="logged",
+                        help="the state the tool reads at a segment start: interpolated from the log (default) or "
+                             "the truth's")
+    parser.add_argument("--estimate-initial", default=None, metavar="STATES",
+                        help="comma-separated per-segment initial states to fit (with the gyro and accelerometer "
+                             "biases) instead of the tool's automatic nuisance choice, e.g. "
+                             "rate_body_x_rad_s,rate_body_y_rad_s,rate_body_z_rad_s,vel_body_y_m_s,quat_x")
+    parser.add_argument("--truth-seed", type=int, default=None, help="keep this draw's truth, redraw only the noise")
     args = parser.parse_args()
     if not 1 <= args.draws <= 50:
         parser.error("--draws must be in 1..50")
+    states = None if args.estimate_initial is None else [x for x in args.estimate_initial.split(",") if x]
+    known = FixedWingModel(FixedWingParams()).states.index
+    if states is not None and (not states or any(x not in known for x in states)):
+        parser.error(f"--estimate-initial {args.estimate_initial!r}: give states of the fixed-wing model "
+                     f"({', '.join(known)})")
     if not LOG.exists():
         print(f"{LOG} is absent; nothing to replicate")
         return 2
     passed, rel = 0, []
     for k in range(args.draws):
-        ok, table, r = run_draw(args.seed + k, args.bound)
+        ok, table, r = run_draw(args.seed + k, args.bound, args.start_state == "exact", states, args.truth_seed)
         print(table + "\n", flush=True)
         passed += ok
         rel.append(r)
     lines, widths_ok = summary(rel)
-    print(f"over {args.draws} draws (bound {args.bound!r}; targets: coverage >= {MIN_COVERAGE:.2f}, median "
-          f"half-width <= {MAX_WIDTH:g} x the RMS error):")
+    print(f"over {args.draws} draws (bound {args.bound!r}, segment starts {args.start_state}, nuisance "
+          f"{'auto' if states is None else 'initial ' + ', '.join(states) + ' and biases'}; targets: coverage >= "
+          f"{MIN_COVERAGE:.2f}, median half-width <= {MAX_WIDTH:g} x the RMS error):")
     print("\n".join(lines))
     print(f"{passed} of {args.draws} draws: every primary derivative within 10 %, no failure; per derivative "
           f"coverage and width {'met' if widths_ok else 'NOT met'} -> "
