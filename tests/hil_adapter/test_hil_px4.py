@@ -152,7 +152,13 @@ def test_garbage_disconnect_and_reconnect(server) -> None:
     px4.read_step()
     px4.sock.sendall(b"\xfd\x09garbage-not-mavlink" * 5)
     px4.send_controls(0, [1200.0] * 4)
+    # until its first actuator message the server free-runs at the wall-clock pace, so a state may arrive before
+    # it has read our bytes; the state it sends after taking them comes after the garbage was counted
     last = px4.read_step()["HIL_STATE_QUATERNION"]
+    for _ in range(2000):  # bounded: 8 s of free-run states at the test step
+        if server.stats.malformed >= 1:
+            break
+        last = px4.read_step()["HIL_STATE_QUATERNION"]
     start_alt = round(server.plant.host.start_value("home_height_m") * 1e3)
     assert server.stats.malformed >= 1
     px4.close()  # PX4 goes away mid-run
