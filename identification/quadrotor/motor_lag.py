@@ -31,9 +31,6 @@ from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.model import QuadrotorModel
 from fmu_models.quadrotor.params import QuadrotorParams
 
-#: index of motor 1's lag state in the quadrotor's state vector (after the 16 body states)
-LAG0 = 16
-
 
 class ExactLagModel(QuadrotorModel):
     """:class:`QuadrotorModel` with the motor lag solved exactly over steps of ``sample_s`` [s] (inputs held)."""
@@ -43,6 +40,7 @@ class ExactLagModel(QuadrotorModel):
             raise ValueError(f"ExactLagModel: sample_s = {sample_s!r} s (allowed 0..1 s, > 0)")
         super().__init__(params)
         self.sample_s = float(sample_s)
+        self.lag0 = int(self.states.index["thrust_state_1_N"])  #: motor 1's lag state (after the body states)
 
     def _lag_at(self, x: Any, u: Any, p: Any, t: Any, impulse: bool = False) -> list[Any]:
         """Per-motor thrust [N] ``t`` [s] after the step's start from the lag states ``x`` held then.
@@ -62,14 +60,14 @@ class ExactLagModel(QuadrotorModel):
             simpson_mean = (1.0 + 4.0 * ca.exp(-h / (2.0 * tau)) + ca.exp(-h / tau)) / 6.0
             s = t / h
             decay = decay + 6.0 * (exact_mean - simpson_mean) * s * (1.0 - s)
-        return [ca.if_else(pv.tau_motor_s > 0, cmd[i] + (x[LAG0 + i] - cmd[i]) * decay, cmd[i])
+        return [ca.if_else(pv.tau_motor_s > 0, cmd[i] + (x[self.lag0 + i] - cmd[i]) * decay, cmd[i])
                 for i in range(N_MOTORS)]
 
     def derivatives(self, t: Any, x: Any, u: Any, p: Any) -> Any:
         """Body states under the thrust ``t`` into the step; the lag states do not move within a step."""
-        xt = ca.vertcat(x[0:LAG0], *self._lag_at(x, u, p, t, impulse=True))
+        xt = ca.vertcat(x[0:self.lag0], *self._lag_at(x, u, p, t, impulse=True))
         return ca.vertcat(self.body_derivatives(xt, u, p), *([0.0] * N_MOTORS))
 
     def post_step(self, x: Any, u: Any, p: Any) -> Any:
         """The lag states' exact value one ``sample_s`` on, then the model's own post-step."""
-        return super().post_step(ca.vertcat(x[0:LAG0], *self._lag_at(x, u, p, self.sample_s)), u, p)
+        return super().post_step(ca.vertcat(x[0:self.lag0], *self._lag_at(x, u, p, self.sample_s)), u, p)

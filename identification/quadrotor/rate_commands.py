@@ -23,9 +23,10 @@ from fmu_models.quadrotor.constants import N_MOTORS
 from identification.common.metrics import skill_interval
 from identification.logs.flightlog import FlightLog, Signal
 from identification.logs.log_state import hold
+from identification.logs.readers.dataflash import RATE_OUTPUTS
 
 #: the mixer inputs the fit uses (canonical names of the DataFlash reader's RATE fields)
-MIXER_INPUTS = ("rate_out_roll", "rate_out_pitch", "rate_out_yaw", "throttle_out")
+MIXER_INPUTS = RATE_OUTPUTS
 #: every n-th logged output sample is held out to score the fit
 HOLD_OUT_EVERY = 3
 #: held-out samples per bootstrap block (consecutive held-out samples are serially correlated)

@@ -22,6 +22,8 @@ SURFACE_FUNCTIONS = {4: "aileron", 19: "elevator", 70: "throttle", 21: "rudder"}
 #: ArduPilot EV ids: 10 armed, 11 disarmed
 EV_ARMED, EV_DISARMED = 10, 11
 
+#: ArduCopter RATE's achieved body rate field per body axis (the target is the field + "Des")
+RATE_AXES = (("x", "R"), ("y", "P"), ("z", "Y"))
 # canonical name <- (message, field, scale to SI, unit)
 CANONICAL: list[tuple[str, str, str, float, str]] = [
     ("accel_body_x_m_s2", "IMU", "AccX", 1.0, "m/s2"),
@@ -32,9 +34,7 @@ CANONICAL: list[tuple[str, str, str, float, str]] = [
     ("gyro_body_z_rad_s", "IMU", "GyrZ", 1.0, "rad/s"),
     # without an IMU message, the rates ArduCopter's rate controller feeds back (RATE R, P, Y [deg/s]: the AHRS's
     # bias-corrected gyro)
-    ("gyro_body_x_rad_s", "RATE", "R", DEG_TO_RAD, "rad/s"),
-    ("gyro_body_y_rad_s", "RATE", "P", DEG_TO_RAD, "rad/s"),
-    ("gyro_body_z_rad_s", "RATE", "Y", DEG_TO_RAD, "rad/s"),
+    *((f"gyro_body_{axis}_rad_s", "RATE", fld, DEG_TO_RAD, "rad/s") for axis, fld in RATE_AXES),
     ("roll_rad", "ATT", "Roll", DEG_TO_RAD, "rad"),
     ("pitch_rad", "ATT", "Pitch", DEG_TO_RAD, "rad"),
     ("yaw_rad", "ATT", "Yaw", DEG_TO_RAD, "rad"),
@@ -45,12 +45,8 @@ CANONICAL: list[tuple[str, str, str, float, str]] = [
     ("airspeed_m_s", "ARSP", "Airspeed", 1.0, "m/s"),
     # ArduCopter's rate controller (AC_AttitudeControl, RATE: TimeUS,RDes,R,ROut,PDes,P,POut,YDes,Y,YOut,ADes,A,
     # AOut; units deg/s, normalised outputs, vertical accelerations in cm/s/s, up positive, gravity removed)
-    ("rate_target_body_x_rad_s", "RATE", "RDes", DEG_TO_RAD, "rad/s"),
-    ("rate_target_body_y_rad_s", "RATE", "PDes", DEG_TO_RAD, "rad/s"),
-    ("rate_target_body_z_rad_s", "RATE", "YDes", DEG_TO_RAD, "rad/s"),
-    ("rate_achieved_body_x_rad_s", "RATE", "R", DEG_TO_RAD, "rad/s"),
-    ("rate_achieved_body_y_rad_s", "RATE", "P", DEG_TO_RAD, "rad/s"),
-    ("rate_achieved_body_z_rad_s", "RATE", "Y", DEG_TO_RAD, "rad/s"),
+    *((f"rate_target_body_{axis}_rad_s", "RATE", f"{fld}Des", DEG_TO_RAD, "rad/s") for axis, fld in RATE_AXES),
+    *((f"rate_achieved_body_{axis}_rad_s", "RATE", fld, DEG_TO_RAD, "rad/s") for axis, fld in RATE_AXES),
     ("rate_out_roll", "RATE", "ROut", 1.0, "1"),
     ("rate_out_pitch", "RATE", "POut", 1.0, "1"),
     ("rate_out_yaw", "RATE", "YOut", 1.0, "1"),

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from identification.quadrotor.identify import hac_least_squares
+from identification.estimation.least_squares import hac_least_squares
 
 
 def _windows(rng: np.random.Generator, n_windows: int = 12, n: int = 600, smooth: int = 40
