@@ -7,6 +7,8 @@ import these names instead of repeating the numbers.
 from __future__ import annotations
 
 N_MOTORS = 4  #: motors of a quad (X or + frame)
+#: the FMU parameters that set each motor's initial lag state [N] (negative: at the commanded thrust)
+INIT_THRUST_NAMES = tuple(f"init_thrust_{i}_N" for i in range(1, N_MOTORS + 1))
 PWM_IDLE_US = 1100.0  #: per-motor PWM at and below which an ESC gives no thrust [us]
 PWM_FULL_US = 2000.0  #: per-motor PWM of full command (normalised command u = 1) [us]
 MASS_KG = 1.14  #: DJI F450 take-off mass, paper 000 Table 1 [kg]

@@ -24,7 +24,7 @@ from fmu_models.common.mathns import CA as _CA
 from fmu_models.common.model import Variable
 from fmu_models.common.rigid_body import inertia_matrix
 from fmu_models.quadrotor.anfis import AnfisMap
-from fmu_models.quadrotor.constants import N_MOTORS
+from fmu_models.quadrotor.constants import INIT_THRUST_NAMES, N_MOTORS
 from fmu_models.quadrotor.params import QuadrotorParams, motor_layout
 from fmu_models.quadrotor.thrust import (
     constants_of,
@@ -39,8 +39,8 @@ PWM_INPUT_MAX_US = 2500.0
 #: initial motor-lag states [N]: a restart in the middle of a manoeuvre (a replay window) starts each motor at the
 #: thrust it lags at there, not at the thrust its PWM commands (negative: the commanded thrust, a start at rest)
 INIT_THRUST_PARAMS: tuple[Variable, ...] = tuple(
-    Variable(f"init_thrust_{i}_N", "N", f"initial thrust of motor {i} (lag state; negative: at the commanded thrust)",
-             -1.0, -1.0, 1000.0) for i in range(1, N_MOTORS + 1))
+    Variable(name, "N", f"initial thrust of motor {i} (lag state; negative: at the commanded thrust)",
+             -1.0, -1.0, 1000.0) for i, name in enumerate(INIT_THRUST_NAMES, start=1))
 OMEGA_EPS_N = 1e-6  #: below this thrust [N] the motor speed goes linearly to 0 (finite derivative at idle)
 
 

@@ -27,7 +27,7 @@ from pydantic import Field, model_validator
 
 from fmu_models.config import ConfigError, Schema, validate_config
 from fmu_models.fmi.host import FmuHost, FmuRunError
-from fmu_models.quadrotor.constants import N_MOTORS, PWM_IDLE_US
+from fmu_models.quadrotor.constants import INIT_THRUST_NAMES, N_MOTORS, PWM_IDLE_US
 from fmu_models.signals.pwm_mapping import PwmMapping
 from identification.common.metrics import (
     VERDICTS,
@@ -391,7 +391,7 @@ def _simulate_windows(host: FmuHost, t: np.ndarray, inputs: Mapping[str, np.ndar
 #: a quadrotor restart's motor lags are run this many motor time constants over the logged commands before it (the
 #: warm-up's own start at the commanded thrust then weighs exp(-8) = 3e-4), and at most this long [s]
 LAG_WARMUP_TAUS, LAG_WARMUP_MAX_S = 8.0, 2.0
-INIT_THRUST = tuple(f"init_thrust_{k}_N" for k in range(1, N_MOTORS + 1))
+INIT_THRUST = INIT_THRUST_NAMES
 
 
 def lagged_thrust(host: FmuHost, t: np.ndarray, inputs: Mapping[str, np.ndarray], a: int,
