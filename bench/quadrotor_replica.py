@@ -19,6 +19,10 @@ intervals covering the truth in at least 90 % of the draws; median half-width of
 the median actual error and at most 2x the actual scatter (the root-mean-square error over the draws). For
 errors that are normal with the std the interval claims, the two ratios are 1.96 / 0.674 = 2.91 and 1.96: an
 interval that is right sits just under both, and with 20 draws each ratio scatters by about 25 % around that.
+So each coverage and ratio is printed with its one-sided 95 % Monte Carlo bound (``replica_verdict``) and
+counts as a miss when the draws show it (the bound past the target); a point figure past its target that the
+draws cannot tell from it is printed "(unresolved)", and the summary says so. Being within 10 % is checked in every
+draw, without a Monte Carlo allowance.
 
 Run: ``.venv/bin/python bench/quadrotor_replica.py [--draws 20] [--seed 0] [--rate-hz 250]``
 (about 20 s per draw on one core).
@@ -32,6 +36,7 @@ import sys
 import time
 
 import numpy as np
+from replica_verdict import coverage_figure, overall, width_figure
 
 from fmu_models.quadrotor.params import QuadrotorParams
 from identification.flights.quadrotor_replica import fly_replica, planned_blocks, random_truth
@@ -99,28 +104,31 @@ def main(argv: list[str] | None = None) -> int:
                 misses.append(f"draw {d} {n}: {100 * (v / tr - 1):+.1f} % (truth {tr:.4g}, estimate {v:.4g})")
             line.append(f"{n} {100 * (v / tr - 1):+6.2f}% hw {100 * hw / abs(tr):5.2f}%{'' if cover else '!'}")
         print(f"draw {d:2d} ({time.perf_counter() - t0:4.0f} s): " + "  ".join(line), flush=True)
-    print(f"\n{'parameter':<14} {'max |err| %':>11} {'within 10 %':>11} {'coverage':>9} {'med half-width':>15} "
-          f"{'med |err|':>10} {'rms err':>10} {'hw/|err|':>9} {'hw/rms':>7}")
-    failed = bool(misses)
+    print(f"\n{'parameter':<14} {'max |err| %':>11} {'within 10 %':>11} {'med half-width':>15} {'med |err|':>10} "
+          f"{'rms err':>10}  coverage [upper]      hw/|err| [lower]     hw/rms [lower]")
+    figures = []
     for n in CHECKED:
         arr = np.array(rows[n])
         tr, v, hw = arr[:, 0], arr[:, 1], arr[:, 2]
         err = np.abs(v - tr)
-        cover = float(np.mean(err <= hw))
         inside = float(np.mean([within(n, a, b) for a, b in zip(tr, v, strict=True)]))
-        ratio = float(np.median(hw) / max(np.median(err), 1e-300))
-        rms = float(np.sqrt(np.mean(err ** 2)))
-        ratio_rms = float(np.median(hw) / max(rms, 1e-300))
-        bad = cover < COVERAGE_MIN or ratio > WIDTH_MAX or ratio_rms > SCATTER_MAX or inside < 1.0
-        failed |= bad
-        print(f"{n:<14} {100 * np.max(err / np.abs(tr)):11.1f} {100 * inside:10.0f}% {100 * cover:8.0f}% "
-              f"{np.median(hw):15.4g} {np.median(err):10.4g} {rms:10.4g} {ratio:9.2f} {ratio_rms:7.2f}"
-              f"{'  MISS' if bad else ''}")
+        cov = coverage_figure(err <= hw, COVERAGE_MIN)
+        w_med = width_figure(hw, err, WIDTH_MAX, stat="median")
+        w_rms = width_figure(hw, err, SCATTER_MAX, stat="rms")
+        figures += [cov, w_med, w_rms]
+        print(f"{n:<14} {100 * np.max(err / np.abs(tr)):11.1f} {100 * inside:10.0f}% {np.median(hw):15.4g} "
+              f"{np.median(err):10.4g} {math.sqrt(float(np.mean(err ** 2))):10.4g}  {cov.text():<20} "
+              f"{w_med.text():<20} {w_rms.text()}")
     for m in misses:
         print(f"MISS {m}")
+    verdict = "miss" if misses else overall(figures)
     print(f"targets: within {100 * WITHIN:.0f} % every draw, coverage >= {100 * COVERAGE_MIN:.0f} %, median "
-          f"half-width <= {WIDTH_MAX:g}x median error and <= {SCATTER_MAX:g}x rms error: "
-          f"{'MISSED' if failed else 'met'}")
+          f"half-width <= {WIDTH_MAX:g}x median error and <= {SCATTER_MAX:g}x rms error: " + {
+              "met": "met",
+              "miss": "MISSED",
+              "unresolved": f"no miss shown; the figures marked (unresolved) are past their targets by less than "
+                            f"the Monte Carlo error of {args.draws} draws"}[verdict])
+    failed = verdict == "miss"
     return 1 if failed else 0
 
 

@@ -700,6 +700,7 @@ def drag_equation_error(logs: Sequence[FlightLog], windows: Sequence[tuple[int, 
         cols = [a, *range(3, rows[0][1].shape[1])] if a == 2 else [a]
         xs: list[np.ndarray] = []
         ys: list[np.ndarray] = []
+        groups: list[int] = []
         for k in dict.fromkeys(r[0] for r in rows):  # one constant per log: centre each log's samples
             xk = [r[1][:, cols] for r in rows if r[0] == k]
             yk = [r[2][:, a] for r in rows if r[0] == k]
@@ -708,9 +709,11 @@ def drag_equation_error(logs: Sequence[FlightLog], windows: Sequence[tuple[int, 
             my = float(np.concatenate([y[o] for y, o in zip(yk, ok, strict=True)]).mean())
             xs += [x[o] - mx for x, o in zip(xk, ok, strict=True)]
             ys += [y[o] - my for y, o in zip(yk, ok, strict=True)]
+            groups += [k] * len(xk)
         if sum(len(x) for x in xs) < 4 * n * len(cols):
             raise QuadrotorInputError(f"drag: too few samples with velocity and specific force for {name}")
-        beta, cov = hac_least_squares(xs, ys, min_lags=4 * n)  # a = beta_v v (+ beta_T T/m): beta_v = -kd / m
+        # a = beta_v v (+ beta_T T/m): beta_v = -kd / m; one centring constant per log
+        beta, cov = hac_least_squares(xs, ys, min_lags=4 * n, groups=groups)
         out[name] = {"value": -float(beta[0]) * params.mass_kg,
                      "std": params.mass_kg * math.sqrt(max(float(cov[0, 0]), 0.0))}
         if a == 2 and nuisance is None:

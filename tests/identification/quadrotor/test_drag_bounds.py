@@ -54,3 +54,36 @@ def test_white_residual_formula_would_cover_far_less():
         sd_white = np.sqrt(np.mean(r ** 2) / (x @ x))
         hits.append(abs(beta[0] - b) <= 1.96 * sd_white)
     assert np.mean(hits) < 0.6
+
+
+def _exact_variance(xs: list[np.ndarray], smooth: int) -> float:
+    """The slope's true variance for ``e`` a moving average of ``smooth`` samples of unit white noise:
+    ``x' Σ x / (x' x)²`` with the moving average's autocovariance ``R(k) = (smooth - k) / smooth²``."""
+    acov = (smooth - np.arange(smooth)) / smooth ** 2
+    num = den = 0.0
+    for x in xs:
+        x = x[:, 0]
+        den += x @ x
+        num += acov[0] * (x @ x) + 2.0 * sum(acov[k] * (x[:-k] @ x[k:]) for k in range(1, smooth))
+    return num / den ** 2
+
+
+def test_variance_matches_the_exact_one_of_a_centred_moving_average_residual():
+    """Each window centred on its own, as the drag regression centres each log: the residual's autocovariance is
+    lowered at every lag by its long-run variance over the window's length, and a taper from lag 0 scales down
+    the correlation it keeps. Both left the variance about 17 % short (0.83 of the exact one); measured 0.98."""
+    rng = np.random.default_rng(5)
+    smooth, n = 40, 3000
+    ratios = []
+    for _ in range(30):
+        xs, ys = [], []
+        t = np.arange(n) / n
+        for _ in range(6):
+            x = np.sin(2 * np.pi * (1.5 * t + rng.uniform()))
+            x -= x.mean()
+            y = -0.3 * x + np.convolve(rng.normal(0.0, 1.0, n + smooth - 1), np.ones(smooth) / smooth, "valid")
+            xs.append(x[:, None])
+            ys.append(y - y.mean())
+        _, cov = hac_least_squares(xs, ys, min_lags=4 * smooth)
+        ratios.append(cov[0, 0] / _exact_variance(xs, smooth))
+    assert 0.92 <= np.mean(ratios) <= 1.08, np.mean(ratios)

@@ -1,0 +1,30 @@
+"""The replica benches' Monte Carlo verdicts: a right interval is seldom called a miss, a wrong one usually is."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bench.replica_verdict import coverage_figure, width_figure
+
+
+def test_coverage_verdicts_follow_the_binomial_bound():
+    assert coverage_figure(np.array([True] * 19 + [False]), 0.90).verdict == "met"
+    assert coverage_figure(np.array([True] * 17 + [False] * 3), 0.90).verdict == "unresolved"  # upper 0.96
+    assert coverage_figure(np.array([True] * 14 + [False] * 6), 0.90).verdict == "miss"  # upper 0.87
+
+
+def _miss_rate(scale: float, target: float, stat: str, runs: int = 200, draws: int = 20) -> float:
+    rng = np.random.default_rng(1)
+    hits = 0
+    for _ in range(runs):
+        sd = rng.uniform(0.5, 2.0, draws)  # each draw its own std, as random truths have
+        err = rng.normal(0.0, sd) / sd  # standardised: the ratio is about the interval's calibration
+        hits += width_figure(np.full(draws, 1.96 * scale), err, target, stat=stat).verdict == "miss"
+    return hits / runs
+
+
+def test_a_right_interval_is_seldom_a_shown_miss_and_a_wide_one_usually_is():
+    assert _miss_rate(1.0, 2.0, "rms") <= 0.10  # measured 0.03
+    assert _miss_rate(1.0, 3.0, "median") <= 0.10  # measured 0.03
+    assert _miss_rate(1.6, 2.0, "rms") >= 0.5  # measured 0.80
+    assert _miss_rate(2.0, 3.0, "median") >= 0.5  # measured 0.82: the median of 20 errors is a blunt scale
