@@ -21,16 +21,10 @@ import argparse
 import sys
 from pathlib import Path
 
-EXIT_OK, EXIT_BAD_INPUT, EXIT_ILL_CONDITIONED = 0, 2, 3
-
-
-def _names(text: str) -> tuple[str, ...]:
-    return tuple(s.strip() for s in text.split(",") if s.strip())
-
-
-def _or(value: float | None, default: float) -> float:
-    """An option's value, or the vehicle's default when it was not given."""
-    return default if value is None else value
+from uavfmu.commands.common import EXCITE_EXIT_BAD_INPUT as EXIT_BAD_INPUT
+from uavfmu.commands.common import EXCITE_EXIT_ILL_CONDITIONED as EXIT_ILL_CONDITIONED
+from uavfmu.commands.common import EXCITE_EXIT_OK as EXIT_OK
+from uavfmu.commands.common import comma_list, or_default
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -77,16 +71,17 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
     from identification.excite.design import ExciteOptions
     from identification.excite.writers import OutputOptions
 
-    opt = ExciteOptions(airspeed_m_s=args.airspeed, inputs=_names(args.inputs or "3211,doublet,multisine"),
-                        surfaces=_names(args.surfaces),
+    opt = ExciteOptions(airspeed_m_s=args.airspeed, inputs=comma_list(args.inputs or "3211,doublet,multisine"),
+                        surfaces=comma_list(args.surfaces),
                         roll_limit_deg=args.roll_limit, pitch_limit_deg=args.pitch_limit,
-                        surface_limit_deg=args.surface_limit, rate_hz=_or(args.rate, 50.0), settle_s=args.settle,
-                        tail_s=args.tail, recovery_s=_or(args.recovery, 10.0), multisine_period_s=args.multisine_period,
-                        max_frequency_hz=_or(args.max_frequency, 3.0), throttle_blocks=args.throttle_blocks,
+                        surface_limit_deg=args.surface_limit, rate_hz=or_default(args.rate, 50.0), settle_s=args.settle,
+                        tail_s=args.tail, recovery_s=or_default(args.recovery, 10.0),
+                        multisine_period_s=args.multisine_period,
+                        max_frequency_hz=or_default(args.max_frequency, 3.0), throttle_blocks=args.throttle_blocks,
                         throttle_amplitude=args.throttle_amplitude, throttle_pulse_s=args.throttle_pulse)
     out = OutputOptions(excite_mode=args.mode, recovery_mode=args.recovery_mode,
                         trigger_option=args.trigger_option, min_height_m=args.min_height,
-                        rc_rate_hz=_or(args.rc_rate, 20.0))
+                        rc_rate_hz=or_default(args.rc_rate, 20.0))
     return opt, out
 
 

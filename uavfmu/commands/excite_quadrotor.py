@@ -15,16 +15,10 @@ from __future__ import annotations
 import argparse
 import sys
 
-#: exit status, the same as ``uavfmu excite``'s (``uavfmu.commands.excite`` dispatches here; a test checks they agree)
-EXIT_OK, EXIT_BAD_INPUT, EXIT_ILL_CONDITIONED = 0, 2, 3
-
-
-def _names(text: str) -> tuple[str, ...]:
-    return tuple(s.strip() for s in text.split(",") if s.strip())
-
-
-def _or(value: float | None, default: float) -> float:
-    return default if value is None else value
+from uavfmu.commands.common import EXCITE_EXIT_BAD_INPUT as EXIT_BAD_INPUT
+from uavfmu.commands.common import EXCITE_EXIT_ILL_CONDITIONED as EXIT_ILL_CONDITIONED
+from uavfmu.commands.common import EXCITE_EXIT_OK as EXIT_OK
+from uavfmu.commands.common import comma_list, or_default
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -53,14 +47,15 @@ def run(args: argparse.Namespace) -> int:
     from identification.excite.quadrotor_writers import QuadOutputOptions
 
     try:
-        opt = QuadExciteOptions(autopilot=args.autopilot, inputs=_names(args.inputs or "3211,doublet,drag"),
-                                axes=_names(args.axes), roll_limit_deg=args.tilt_limit,
+        opt = QuadExciteOptions(autopilot=args.autopilot, inputs=comma_list(args.inputs or "3211,doublet,drag"),
+                                axes=comma_list(args.axes), roll_limit_deg=args.tilt_limit,
                                 yaw_rate_limit_deg_s=args.yaw_rate_limit, climb_limit_m_s=args.climb_limit,
                                 max_stick=args.max_stick, max_hold_s=args.max_hold,
-                                speed_limit_m_s=args.speed_limit, rate_hz=_or(args.rate, 100.0), settle_s=args.settle,
-                                tail_s=args.tail, recovery_s=_or(args.recovery, 6.0),
-                                max_frequency_hz=_or(args.max_frequency, 5.0))
-        out = QuadOutputOptions(rc_rate_hz=_or(args.rc_rate, 50.0), sid_injection=args.sid_injection)
+                                speed_limit_m_s=args.speed_limit, rate_hz=or_default(args.rate, 100.0),
+                                settle_s=args.settle,
+                                tail_s=args.tail, recovery_s=or_default(args.recovery, 6.0),
+                                max_frequency_hz=or_default(args.max_frequency, 5.0))
+        out = QuadOutputOptions(rc_rate_hz=or_default(args.rc_rate, 50.0), sid_injection=args.sid_injection)
         params = load_vehicle_params(args.params, "quadrotor") if args.params else None
         command = "uavfmu excite " + " ".join(sys.argv[2:])
         result = excite_quadrotor(params, opt, out, check=args.check, command=command)

@@ -46,15 +46,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from identification.logs.flightlog import DEFAULT_MAX_DAMAGE
+from uavfmu.commands.common import comma_list
 
 if TYPE_CHECKING:
     from identification.aero.identify import AeroResult
 
 EXIT_OK, EXIT_BAD_INPUT, EXIT_FAILED, EXIT_BASELINE_WINS, EXIT_LATE_FAILURE = 0, 2, 3, 4, 5
-
-
-def _names(text: str | None) -> list[str]:
-    return [s.strip() for s in (text or "").split(",") if s.strip()]
 
 
 def _bounded(lo: float, hi: float, kind: type = float):  # type: ignore[no-untyped-def]
@@ -137,7 +134,7 @@ def _error(message: str) -> int:
 
 def _pairs(text: str | None, option: str) -> dict[str, str]:
     out = {}
-    for item in _names(text):
+    for item in comma_list(text):
         name, sep, value = item.partition("=")
         if not sep:
             raise ValueError(f"{option}: {item!r} is not name=value")
@@ -162,13 +159,13 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
             sigma = {n: float(v) for n, v in _pairs(args.sigma, "--sigma").items()}
         except ValueError:
             raise ValueError(f"--sigma: {args.sigma!r} is not output=number,...") from None
-    outputs = _names(args.outputs) or list(aero.DEFAULT_OUTPUTS)
+    outputs = list(comma_list(args.outputs)) or list(aero.DEFAULT_OUTPUTS)
     if sigma is not None and (set(sigma) != set(outputs) or not all(v > 0 and math.isfinite(v)
                                                                      for v in sigma.values())):
         raise ValueError(f"--sigma needs a positive value for each fitted output ({', '.join(outputs)}), "
                          f"got {args.sigma!r}")
     given = bool(args.estimate_initial or args.biases)
-    free = "auto" if args.free.strip() == "auto" else _names(args.free)
+    free = "auto" if args.free.strip() == "auto" else list(comma_list(args.free))
     if len(args.log) > 1 and (args.segments or args.validate_segments or args.timeline):
         raise ValueError("--segments, --validate-segments and --timeline take one log; with several logs "
                          "put LOG.timeline.json beside each log")
@@ -184,7 +181,8 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         validate_segments=aero.parse_segments(args.validate_segments, "--validate-segments")
         if args.validate_segments else None,
         window_s=args.window, rate_hz=args.rate, nuisance="given" if given else args.nuisance,
-        estimate_initial=_names(args.estimate_initial), biases=_names(args.biases), bounds=bounds, sigma=sigma,
+        estimate_initial=list(comma_list(args.estimate_initial)), biases=list(comma_list(args.biases)), bounds=bounds,
+        sigma=sigma,
         stability_constraints=not args.no_stability_constraints, max_iter=args.max_iter, horizon_s=args.horizon,
         max_delay_s=args.max_delay, min_delay_s=args.min_delay, sensor_filters=None if args.sensor_filters else {},
         progress=not args.quiet, force=args.force, max_damage=args.max_damage,
