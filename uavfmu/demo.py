@@ -236,7 +236,8 @@ def identify_dynamics(merged: dict[str, Any], work: Path, seed: int = STICK_FLIG
                                **{n: float(getattr(res.params, n)) for n in (*res.free, "step_internal_s")}}
     truth_of = dataclasses.asdict(truth)
     return {"exit_code": res.exit_code, "estimates": res.estimates(), "held_out": res.held_out,
-            "truth": {n: truth_of[n] for n in res.free}, "written": res.exit_code == q.EXIT_OK}
+            "truth": {n: truth_of[n] for n in res.free}, "written": res.exit_code == q.EXIT_OK,
+            "thrust_band": res.thrust_band}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -314,12 +315,18 @@ def run_demo(args: DemoOptions) -> DemoResult:
             missed += [] if covers else [name]
             print(f"  {name:<16} {e['value']:10.4g}  95 % [{lo:.4g}, {hi:.4g}]   truth {true:.4g} "
                   f"({'covered' if covers else 'MISSED'})   {e['determined_by'].split(' (')[0]}")
+        if d.get("thrust_band"):
+            print("\n".join("  " + line for line in d["thrust_band"]["text"].splitlines()))
         if missed:
             print(f"  the 95 % intervals of {', '.join(missed)} miss the truth the demo flew: they carry the data's "
-                  "noise, not the shape error of the thrust map held fixed (a smooth map fitted on the altitude "
-                  "flight, where the four motors share one PWM; the demo flies the published map, trained on "
-                  "1450-1554 us per motor and kinked at both edges: with that map the same flight gives the "
-                  "inertias within 0.1 %; bench/quadrotor_demo_map.py, identification/quadrotor/readme.md)")
+                  "noise, not the error of the thrust map held fixed. That map is a smooth one fitted by identify "
+                  "thrust on the altitude flight, where the four motors share one PWM, to -m a_z, which is the "
+                  "thrust minus the vertical drag (kd_z v, up to 0.7 N there, following the climb rate; it also "
+                  "moves identify thrust's delay search to a negative, unphysical delay). The demo flies the "
+                  "published map, trained on 1450-1554 us per motor and kinked at both edges, with hover 23 us "
+                  "under the upper kink: through that map the same flight gives the inertias within 0.1 %, through "
+                  "identify thrust's map fitted to the drag-corrected thrust about -8 % "
+                  "(bench/quadrotor_demo_map.py, identification/quadrotor/readme.md)")
         for name, h in d["held_out"].items():
             print(f"  {'held-out skill vs persistence ' + name:<36} {h['skill']:+10.3f}  [{h['skill_lo']:+.3f}, "
                   f"{h['skill_hi']:+.3f}] {h['outcome']}")
