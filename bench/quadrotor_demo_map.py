@@ -14,7 +14,10 @@ This script runs ``identify quadrotor`` on the demo's stick flight with four thr
    squares to the truth's thrust at every motor PWM of the stick flight (the best map of that family where the
    inertia is identified);
 4. ``best smooth, altitude flight``: the same, fitted at the PWMs of the altitude flight
-   (``DEMO/logs/quadrotor_flight.bin``): what a perfect ``identify thrust`` of that family could reach there.
+   (``DEMO/logs/quadrotor_flight.bin``): what a perfect ``identify thrust`` of that family could reach there;
+5. ``identify thrust, drag known``: ``identify thrust`` on the altitude flight given the truth's vertical drag
+   (``ThrustConfig.vertical_drag_N_s_m``): the measured thrust ``-m a_z - kd_z w`` is the rotor thrust, without the
+   drag that follows the climb rate (up to 0.7 N there), which also moves the delay search to a negative delay.
 
 Per map it prints its per-motor thrust at three PWMs (below, at and above the hover command) and the estimates of
 ``Jx``, ``Jy``, ``kd_z`` with their 95 % intervals against the truth. Then ``kd_z`` of the vertical drag
@@ -23,7 +26,7 @@ regression alone through ``identify thrust``'s map with 1 to 8 rules of the flex
 scaled map alone). Exit 1 when the truth's map does not give ``Jx``,
 ``Jy`` within 1 % and ``kd_z`` within 10 % (then the estimator, not the map, would be at fault).
 
-Run: ``make demo && .venv/bin/python bench/quadrotor_demo_map.py [--demo dist/demo]`` (about 2 min).
+Run: ``make demo && .venv/bin/python bench/quadrotor_demo_map.py [--demo dist/demo]`` (about 3 min).
 """
 
 from __future__ import annotations
@@ -44,7 +47,8 @@ from fmu_models.quadrotor.thrust import command, constants_of, motor_thrust
 from identification.logs.readers import read_log
 from identification.quadrotor import identify as q
 from identification.quadrotor.segments import Segment
-from uavfmu.demo import stick_flight
+from identification.thrust.workflow import FlightSpec, ThrustConfig, identify_thrust
+from uavfmu.demo import ERLE_MASS_KG, stick_flight
 
 CHECKED = ("Jx_kg_m2", "Jy_kg_m2", "kd_z_N_s_m")
 #: PWMs [us] below and above the hover command at which each map's thrust is printed
@@ -90,9 +94,14 @@ def main(argv: list[str] | None = None) -> int:
     alt = read_log(altitude_log)
     alt_pwm = np.concatenate([alt.signal(f"motor_{k}_pwm_us").values for k in range(1, N_MOTORS + 1)])
     alt_pwm = alt_pwm[alt_pwm > truth.pwm_idle_us + 150.0]
+    dragged = identify_thrust(ThrustConfig(flights=(FlightSpec(altitude_log, ERLE_MASS_KG),),
+                                           vertical_drag_N_s_m=truth.kd_z_N_s_m))
+    lag_s = json.loads(thrust_file.with_suffix(".metrics.json").read_text())["flights"][0]["lag_s"]
+    print(f"identify thrust's delay: {lag_s:+.3f} s; with the vertical drag known {dragged.flights[0]['lag_s']:+.3f} s")
     maps = {"truth": truth, "identify thrust": demo_map,
             "best smooth, stick flight": best_smooth(demo_map, truth, stick_pwm),
-            "best smooth, altitude flight": best_smooth(demo_map, truth, alt_pwm)}
+            "best smooth, altitude flight": best_smooth(demo_map, truth, alt_pwm),
+            "identify thrust, drag known": dragged.params}
     hover = float(np.median(stick_pwm))
     at = hover + np.array(AROUND_HOVER_US)
     print(f"stick flight: motor PWM 1/50/99 % {np.percentile(stick_pwm, [1, 50, 99]).round(0)} us; "

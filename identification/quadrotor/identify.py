@@ -548,6 +548,25 @@ def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorPar
     return result
 
 
+def vertical_drag(logs: FlightLog | Sequence[FlightLog], params: QuadrotorParams,
+                  opt: QuadrotorOptions | None = None) -> dict[str, float]:
+    """``kd_z_N_s_m`` (``value``, 1-sigma ``std``) by the drag regression of :func:`identify_quadrotor` alone, without
+    the output-error fit: the body specific force on the body velocity, with ``params``' thrust (map and motor lag)
+    and the flexible static thrust of :class:`ThrustNuisance` beside it, so a map off in shape does not bias it.
+    Seconds, where the whole identification takes a minute: what ``identify thrust`` needs to take the vertical drag
+    out of ``-m a_z`` (``ThrustConfig.vertical_drag_N_s_m``) before the map the inertia is identified through."""
+    opt = opt or QuadrotorOptions()
+    logs = [logs] if isinstance(logs, FlightLog) else list(logs)
+    missing = [f"{Path(log.source).name}: vel_*_m_s" for log in logs if not _velocity_logged(log)]
+    if missing:
+        raise QuadrotorInputError(f"vertical drag needs the logged velocity ({', '.join(missing)})")
+    fit_w, val_w = _windows(logs, params, opt, [])
+    windows = _drag_windows(logs, params, fit_w, val_w)
+    d = drag_equation_error(logs, windows, params, thrust_of=MotorThrust(params).total, rate_hz=opt.rate_hz,
+                            nuisance=ThrustNuisance.over(logs, windows, params))["kd_z_N_s_m"]
+    return {"value": float(d["value"]), "std": float(d["std"])}
+
+
 class MotorThrust:
     """Per-motor thrust [N] of the model with ``params`` over a log: the thrust map of the logged PWMs (the
     model's own ``commanded_thrust``) through the first-order motor lag, discretised exactly between command
