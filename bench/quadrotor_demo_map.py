@@ -6,16 +6,19 @@ stick-excitation flight (``uavfmu.demo.stick_flight``) through that map. The dem
 map (paper 000): trained on 1450-1554 us per motor, extended outside by the FMU (quadratic to idle below, linear
 with a floored slope above), so kinked at both edges with the hover command (1531 us) just under the upper one.
 
-This script runs ``identify quadrotor`` on the demo's stick flight with four thrust maps:
+This script runs ``identify quadrotor`` on the demo's stick flight with six thrust maps:
 
 1. ``truth``: the published map the flight was flown with;
-2. ``identify thrust``: the demo's own (``DEMO/quadrotor_identified.json``, written by ``make demo``);
-3. ``best smooth, stick flight``: the demo map's rules (memberships kept) with their consequents fitted by least
+2. ``identify thrust``: the demo's own (``DEMO/quadrotor_identified.json``, written by ``make demo``): fitted to
+   ``-m a_z - kd_z w``, ``kd_z`` from ``identify quadrotor``'s drag regression on the stick flight (``vertical_drag``);
+3. ``identify thrust, drag left in``: ``identify thrust`` on the altitude flight fitted to ``-m a_z`` (the demo
+   before it took the drag out);
+4. ``best smooth, stick flight``: the demo map's rules (memberships kept) with their consequents fitted by least
    squares to the truth's thrust at every motor PWM of the stick flight (the best map of that family where the
    inertia is identified);
-4. ``best smooth, altitude flight``: the same, fitted at the PWMs of the altitude flight
+5. ``best smooth, altitude flight``: the same, fitted at the PWMs of the altitude flight
    (``DEMO/logs/quadrotor_flight.bin``): what a perfect ``identify thrust`` of that family could reach there;
-5. ``identify thrust, drag known``: ``identify thrust`` on the altitude flight given the truth's vertical drag
+6. ``identify thrust, drag known``: ``identify thrust`` on the altitude flight given the truth's vertical drag
    (``ThrustConfig.vertical_drag_N_s_m``): the measured thrust ``-m a_z - kd_z w`` is the rotor thrust, without the
    drag that follows the climb rate (up to 0.7 N there), which also moves the delay search to a negative delay.
 
@@ -94,14 +97,16 @@ def main(argv: list[str] | None = None) -> int:
     alt = read_log(altitude_log)
     alt_pwm = np.concatenate([alt.signal(f"motor_{k}_pwm_us").values for k in range(1, N_MOTORS + 1)])
     alt_pwm = alt_pwm[alt_pwm > truth.pwm_idle_us + 150.0]
-    dragged = identify_thrust(ThrustConfig(flights=(FlightSpec(altitude_log, ERLE_MASS_KG),),
-                                           vertical_drag_N_s_m=truth.kd_z_N_s_m))
+    spec = (FlightSpec(altitude_log, ERLE_MASS_KG),)
+    known = identify_thrust(ThrustConfig(flights=spec, vertical_drag_N_s_m=truth.kd_z_N_s_m))
+    left_in = identify_thrust(ThrustConfig(flights=spec))
     lag_s = json.loads(thrust_file.with_suffix(".metrics.json").read_text())["flights"][0]["lag_s"]
-    print(f"identify thrust's delay: {lag_s:+.3f} s; with the vertical drag known {dragged.flights[0]['lag_s']:+.3f} s")
-    maps = {"truth": truth, "identify thrust": demo_map,
+    print(f"identify thrust's delay: the demo's {lag_s:+.3f} s, drag left in {left_in.flights[0]['lag_s']:+.3f} s, "
+          f"drag known {known.flights[0]['lag_s']:+.3f} s")
+    maps = {"truth": truth, "identify thrust": demo_map, "identify thrust, drag left in": left_in.params,
             "best smooth, stick flight": best_smooth(demo_map, truth, stick_pwm),
             "best smooth, altitude flight": best_smooth(demo_map, truth, alt_pwm),
-            "identify thrust, drag known": dragged.params}
+            "identify thrust, drag known": known.params}
     hover = float(np.median(stick_pwm))
     at = hover + np.array(AROUND_HOVER_US)
     print(f"stick flight: motor PWM 1/50/99 % {np.percentile(stick_pwm, [1, 50, 99]).round(0)} us; "
