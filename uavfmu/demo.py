@@ -345,13 +345,13 @@ def run_demo(args: DemoOptions) -> DemoResult:
         if missed:
             print(f"  the 95 % intervals of {', '.join(missed)} miss the truth the demo flew: they carry the data's "
                   "noise, not the error of the thrust map held fixed. That map is a smooth one fitted by identify "
-                  "thrust on the altitude flight, where the four motors share one PWM, to -m a_z, which is the "
-                  "thrust minus the vertical drag (kd_z v, up to 0.7 N there, following the climb rate; it also "
-                  "moves identify thrust's delay search to a negative, unphysical delay). The demo flies the "
-                  "published map, trained on 1450-1554 us per motor and kinked at both edges, with hover 23 us "
-                  "under the upper kink: through that map the same flight gives the inertias within 0.1 %, through "
-                  "identify thrust's map fitted to the drag-corrected thrust about -8 % "
-                  "(bench/quadrotor_demo_map.py, identification/quadrotor/readme.md)")
+                  "thrust on the altitude flight, where the four motors share one PWM (with the vertical drag taken "
+                  "out of -m a_z, above); the demo flies the published map, trained on 1450-1554 us per motor and "
+                  "kinked at both edges, with hover 23 us under the upper kink. Through that map the same flight "
+                  "gives the inertias within 0.1 %; identify thrust's map with its consequents fitted to the truth's "
+                  "thrust at the altitude flight's PWMs gives -9.6 %, at the stick flight's -8.3 %: what is left is "
+                  "the smooth map's shape, not its fit (bench/quadrotor_demo_map.py, "
+                  "identification/quadrotor/readme.md)")
         for name, h in d["held_out"].items():
             print(f"  {'held-out skill vs persistence ' + name:<36} {h['skill']:+10.3f}  [{h['skill_lo']:+.3f}, "
                   f"{h['skill_hi']:+.3f}] {h['outcome']}")
