@@ -84,6 +84,9 @@ def best_smooth(shape: QuadrotorParams, truth: QuadrotorParams, pwm_us: np.ndarr
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--demo", type=Path, default=Path("dist/demo"), help="make demo's work folder")
+    ap.add_argument("--stick-seeds", default="", help="also run the demo's chain on stick flights of these noise "
+                    "seeds (comma-separated): kd_z by vertical_drag through the map with the drag left in, the map "
+                    "again without the drag, Jx and Jy through both")
     args = ap.parse_args(argv)
     thrust_file, altitude_log = args.demo / "quadrotor_identified.json", args.demo / "logs" / "quadrotor_flight.bin"
     missing = [str(p) for p in (thrust_file, altitude_log) if not p.exists()]
@@ -137,6 +140,17 @@ def main(argv: list[str] | None = None) -> int:
         by_rules[f"{k} rules"] = q.drag_equation_error([flight.log], windows, demo_map, thrust_of, rate, nuisance=nu)
     print("kd_z through identify thrust's map, by the flexible thrust's rules: " + ", ".join(
         f"{k} {d['kd_z_N_s_m']['value']:.3f} +- {d['kd_z_N_s_m']['std']:.3f}" for k, d in by_rules.items()))
+    for seed in (int(v) for v in args.stick_seeds.split(",") if v.strip()):
+        other = stick_flight(seed)
+        opt = q.QuadrotorOptions(segments=[Segment(b.start_s, b.end_s, b.axis) for b in other.blocks])
+        kd = q.vertical_drag(other.log, left_in.params, opt)
+        again = identify_thrust(ThrustConfig(flights=spec, vertical_drag_N_s_m=kd["value"]))
+        errs = []
+        for params in (again.params, left_in.params):
+            est = q.identify_quadrotor(other.log, params, opt).estimates()
+            errs += [100.0 * (est[n]["value"] / getattr(other.truth, n) - 1.0) for n in ("Jx_kg_m2", "Jy_kg_m2")]
+        print(f"stick seed {seed}: kd_z {kd['value']:.3f} +- {kd['std']:.3f}, delay {again.flights[0]['lag_s']:+.3f} s,"
+              f" Jx {errs[0]:+.1f} %, Jy {errs[1]:+.1f} % (drag left in: {errs[2]:+.1f}, {errs[3]:+.1f} %)", flush=True)
     print(f"truth: Jx {truth.Jx_kg_m2:g}, Jy {truth.Jy_kg_m2:g}, kd_z {truth.kd_z_N_s_m:g}; T: per-motor thrust at "
           f"{', '.join(f'{v:.0f}' for v in at)} us (the median motor PWM of the stick flight and around it)")
     print("the truth's map " + ("does NOT recover the truth: the estimator is at fault" if failed else

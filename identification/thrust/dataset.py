@@ -484,7 +484,9 @@ def _body_z_velocity(log: Any, t_s: np.ndarray, src: str) -> np.ndarray:
     missing = [n for n, v in series.items() if v is None or v[0].size < 2]
     if missing:
         raise ThrustDataError(f"{src}: a vertical drag correction needs {', '.join(missing)}, not in the log")
-    val = {n: np.interp(t_s, *v) for n, v in series.items()}  # type: ignore[misc]
+    # yaw unwrapped first: interpolating across its +-pi jump would turn the horizontal velocity for a sample
+    val = {n: np.interp(t_s, v[0], np.unwrap(v[1]) if n == "yaw_rad" else v[1])  # type: ignore[index]
+           for n, v in series.items()}
     rows = euler_to_dcm_rows(val["roll_rad"], val["pitch_rad"], val["yaw_rad"], NP)
     return np.asarray(transpose_apply(rows, [val["vel_north_m_s"], val["vel_east_m_s"], val["vel_down_m_s"]])[2])
 
