@@ -6,7 +6,9 @@
    seeded sensor noise.
 3. Identify the thrust map (ANFIS, paper 000) and the roll derivatives (output error, paper 001) from the logs,
    and the quadrotor's inertia, motor lag, yaw torque and drag (``identify quadrotor``) from a stick-excitation
-   flight flown on the quadrotor's equations by a PX4-like closed loop.
+   flight flown on the quadrotor's equations by a PX4-like closed loop. The thrust map is fitted twice: the second
+   time to ``-m a_z - kd_z w``, ``kd_z`` from ``identify quadrotor``'s drag regression on the stick flight through
+   the first map (the vertical drag in ``-m a_z`` follows the climb rate and biased the map's slope).
 4. Rebuild both FMUs with the identified parameters.
 5. Validate them with FMPy (``uavfmu validate --batch``) against held-out flights the identification never saw
    (other references, excitation times and noise seeds); print the summary and the path of the HTML report.
