@@ -6,15 +6,21 @@ stick-excitation flight (``uavfmu.demo.stick_flight``) through that map. The dem
 map (paper 000): trained on 1450-1554 us per motor, extended outside by the FMU (quadratic to idle below, linear
 with a floored slope above), so kinked at both edges with the hover command (1531 us) just under the upper one.
 
-This script runs ``identify quadrotor`` on the demo's stick flight with four thrust maps:
+This script runs ``identify quadrotor`` on the demo's stick flight with six thrust maps:
 
 1. ``truth``: the published map the flight was flown with;
-2. ``identify thrust``: the demo's own (``DEMO/quadrotor_identified.json``, written by ``make demo``);
-3. ``best smooth, stick flight``: the demo map's rules (memberships kept) with their consequents fitted by least
+2. ``identify thrust``: the demo's own (``DEMO/quadrotor_identified.json``, written by ``make demo``): fitted to
+   ``-m a_z - kd_z w``, ``kd_z`` from ``identify quadrotor``'s drag regression on the stick flight (``vertical_drag``);
+3. ``identify thrust, drag left in``: ``identify thrust`` on the altitude flight fitted to ``-m a_z`` (the demo
+   before it took the drag out);
+4. ``best smooth, stick flight``: the demo map's rules (memberships kept) with their consequents fitted by least
    squares to the truth's thrust at every motor PWM of the stick flight (the best map of that family where the
    inertia is identified);
-4. ``best smooth, altitude flight``: the same, fitted at the PWMs of the altitude flight
-   (``DEMO/logs/quadrotor_flight.bin``): what a perfect ``identify thrust`` of that family could reach there.
+5. ``best smooth, altitude flight``: the same, fitted at the PWMs of the altitude flight
+   (``DEMO/logs/quadrotor_flight.bin``): what a perfect ``identify thrust`` of that family could reach there;
+6. ``identify thrust, drag known``: ``identify thrust`` on the altitude flight given the truth's vertical drag
+   (``ThrustConfig.vertical_drag_N_s_m``): the measured thrust ``-m a_z - kd_z w`` is the rotor thrust, without the
+   drag that follows the climb rate (up to 0.7 N there), which also moves the delay search to a negative delay.
 
 Per map it prints its per-motor thrust at three PWMs (below, at and above the hover command) and the estimates of
 ``Jx``, ``Jy``, ``kd_z`` with their 95 % intervals against the truth. Then ``kd_z`` of the vertical drag
@@ -23,7 +29,7 @@ regression alone through ``identify thrust``'s map with 1 to 8 rules of the flex
 scaled map alone). Exit 1 when the truth's map does not give ``Jx``,
 ``Jy`` within 1 % and ``kd_z`` within 10 % (then the estimator, not the map, would be at fault).
 
-Run: ``make demo && .venv/bin/python bench/quadrotor_demo_map.py [--demo dist/demo]`` (about 2 min).
+Run: ``make demo && .venv/bin/python bench/quadrotor_demo_map.py [--demo dist/demo]`` (about 3 min).
 """
 
 from __future__ import annotations
@@ -44,7 +50,8 @@ from fmu_models.quadrotor.thrust import command, constants_of, motor_thrust
 from identification.logs.readers import read_log
 from identification.quadrotor import identify as q
 from identification.quadrotor.segments import Segment
-from uavfmu.demo import stick_flight
+from identification.thrust.workflow import FlightSpec, ThrustConfig, identify_thrust
+from uavfmu.demo import ERLE_MASS_KG, stick_flight
 
 CHECKED = ("Jx_kg_m2", "Jy_kg_m2", "kd_z_N_s_m")
 #: PWMs [us] below and above the hover command at which each map's thrust is printed
@@ -77,6 +84,9 @@ def best_smooth(shape: QuadrotorParams, truth: QuadrotorParams, pwm_us: np.ndarr
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--demo", type=Path, default=Path("dist/demo"), help="make demo's work folder")
+    ap.add_argument("--stick-seeds", default="", help="also run the demo's chain on stick flights of these noise "
+                    "seeds (comma-separated): kd_z by vertical_drag through the map with the drag left in, the map "
+                    "again without the drag, Jx and Jy through both")
     args = ap.parse_args(argv)
     thrust_file, altitude_log = args.demo / "quadrotor_identified.json", args.demo / "logs" / "quadrotor_flight.bin"
     missing = [str(p) for p in (thrust_file, altitude_log) if not p.exists()]
@@ -90,9 +100,16 @@ def main(argv: list[str] | None = None) -> int:
     alt = read_log(altitude_log)
     alt_pwm = np.concatenate([alt.signal(f"motor_{k}_pwm_us").values for k in range(1, N_MOTORS + 1)])
     alt_pwm = alt_pwm[alt_pwm > truth.pwm_idle_us + 150.0]
-    maps = {"truth": truth, "identify thrust": demo_map,
+    spec = (FlightSpec(altitude_log, ERLE_MASS_KG),)
+    known = identify_thrust(ThrustConfig(flights=spec, vertical_drag_N_s_m=truth.kd_z_N_s_m))
+    left_in = identify_thrust(ThrustConfig(flights=spec))
+    lag_s = json.loads(thrust_file.with_suffix(".metrics.json").read_text())["flights"][0]["lag_s"]
+    print(f"identify thrust's delay: the demo's {lag_s:+.3f} s, drag left in {left_in.flights[0]['lag_s']:+.3f} s, "
+          f"drag known {known.flights[0]['lag_s']:+.3f} s")
+    maps = {"truth": truth, "identify thrust": demo_map, "identify thrust, drag left in": left_in.params,
             "best smooth, stick flight": best_smooth(demo_map, truth, stick_pwm),
-            "best smooth, altitude flight": best_smooth(demo_map, truth, alt_pwm)}
+            "best smooth, altitude flight": best_smooth(demo_map, truth, alt_pwm),
+            "identify thrust, drag known": known.params}
     hover = float(np.median(stick_pwm))
     at = hover + np.array(AROUND_HOVER_US)
     print(f"stick flight: motor PWM 1/50/99 % {np.percentile(stick_pwm, [1, 50, 99]).round(0)} us; "
@@ -123,6 +140,17 @@ def main(argv: list[str] | None = None) -> int:
         by_rules[f"{k} rules"] = q.drag_equation_error([flight.log], windows, demo_map, thrust_of, rate, nuisance=nu)
     print("kd_z through identify thrust's map, by the flexible thrust's rules: " + ", ".join(
         f"{k} {d['kd_z_N_s_m']['value']:.3f} +- {d['kd_z_N_s_m']['std']:.3f}" for k, d in by_rules.items()))
+    for seed in (int(v) for v in args.stick_seeds.split(",") if v.strip()):
+        other = stick_flight(seed)
+        opt = q.QuadrotorOptions(segments=[Segment(b.start_s, b.end_s, b.axis) for b in other.blocks])
+        kd = q.vertical_drag(other.log, left_in.params, opt)
+        again = identify_thrust(ThrustConfig(flights=spec, vertical_drag_N_s_m=kd["value"]))
+        errs = []
+        for params in (again.params, left_in.params):
+            est = q.identify_quadrotor(other.log, params, opt).estimates()
+            errs += [100.0 * (est[n]["value"] / getattr(other.truth, n) - 1.0) for n in ("Jx_kg_m2", "Jy_kg_m2")]
+        print(f"stick seed {seed}: kd_z {kd['value']:.3f} +- {kd['std']:.3f}, delay {again.flights[0]['lag_s']:+.3f} s,"
+              f" Jx {errs[0]:+.1f} %, Jy {errs[1]:+.1f} % (drag left in: {errs[2]:+.1f}, {errs[3]:+.1f} %)", flush=True)
     print(f"truth: Jx {truth.Jx_kg_m2:g}, Jy {truth.Jy_kg_m2:g}, kd_z {truth.kd_z_N_s_m:g}; T: per-motor thrust at "
           f"{', '.join(f'{v:.0f}' for v in at)} us (the median motor PWM of the stick flight and around it)")
     print("the truth's map " + ("does NOT recover the truth: the estimator is at fault" if failed else

@@ -32,7 +32,7 @@ from fmu_models.common.rotations import euler_to_dcm_rows, transpose_apply
 from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.model import QuadrotorModel
 from fmu_models.quadrotor.params import QuadrotorParams
-from fmu_models.quadrotor.thrust import command
+from fmu_models.quadrotor.thrust import command, constants_of, motor_out_of_band
 from fmu_models.signals.names import OUTPUT_TO_LOG
 from identification.common.metrics import skill_interval
 from identification.estimation.least_squares import hac_least_squares
@@ -77,6 +77,9 @@ BOOTSTRAP_MIN_DOF = 10.0
 FMU_STEP_MIN_S = 1e-5
 #: motor time constant the fit starts from when the start parameters have none [s]
 TAU_START_S = 0.02
+#: share of the fit windows' motor samples (above idle) outside the thrust map's trained band above which the result
+#: warns that the inertia and the motor lag inherit the error of the map's extrapolated slope
+BAND_WARN_SHARE = 0.01
 #: exit status of ``uavfmu identify quadrotor`` (documented in the CLI module)
 EXIT_OK, EXIT_BAD_INPUT, EXIT_FAILED, EXIT_LOSES, EXIT_LATE_FAILURE, EXIT_NOT_IDENTIFIABLE = 0, 2, 3, 4, 5, 6
 
@@ -143,6 +146,7 @@ class QuadrotorIdResult:
     drag: dict[str, dict[str, float]] = field(default_factory=dict)  #: equation-error drag (slow commands)
     held_out: dict[str, dict[str, Any]] = field(default_factory=dict)  #: output -> skill against persistence
     notes: list[str] = field(default_factory=list)
+    thrust_band: dict[str, Any] = field(default_factory=dict)  #: :func:`thrust_band_coverage` of the fit windows
     failures: list[str] = field(default_factory=list)
 
     @property
@@ -200,12 +204,15 @@ class QuadrotorIdResult:
             "held_out_segments": [str(s) for s in self.held_out_segments],
             "held_out_vs_persistence": self.held_out, "losing_outputs": self.losing_outputs,
             "estimate": self.estimate.as_dict() if self.estimate is not None else None,
-            "notes": self.notes, "failures": self.failures, "exit_code": self.exit_code,
+            "thrust_map_band": self.thrust_band, "notes": self.notes, "failures": self.failures,
+            "exit_code": self.exit_code,
         }
 
     def summary(self) -> str:
         lines = [f"motor commands logged at {self.command_hz:.0f} Hz; {len(self.fit_segments)} fit windows, "
                  f"{len(self.held_out_segments)} held-out windows", f"inertia prior: {self.prior.source}"]
+        if self.thrust_band:
+            lines.append(self.thrust_band["text"])
         lines.append(f"{'parameter':<16} {'estimate':>11} {'95 % interval':>25}  determined by")
         for n, e in self.estimates().items():
             lo, hi = e["ci95"]
@@ -236,6 +243,61 @@ class QuadrotorIdResult:
             lines += [f"warning: {w}" for w in self.estimate.warnings]
         lines += [f"note: {n}" for n in self.notes] + [f"FAILED after the solve: {f}" for f in self.failures]
         return "\n".join(lines)
+
+
+def thrust_band_pwm_us(params: QuadrotorParams) -> tuple[float, float]:
+    """The thrust map's trained band as per-motor PWM [us] at the nominal battery voltage (a feature map's band
+    is in normalised command, a summed-PWM map's in PWM times the motor count)."""
+    lo, hi = params.thrust_map.input_range[0]
+    if params.thrust_map.features is not None:
+        span = params.pwm_full_us - params.pwm_idle_us
+        return params.pwm_idle_us + lo * span, params.pwm_idle_us + hi * span
+    return lo / N_MOTORS, hi / N_MOTORS
+
+
+def thrust_band_coverage(logs: Sequence[FlightLog], windows: Sequence[tuple[int, qseg.Segment]],
+                         params: QuadrotorParams) -> dict[str, Any]:
+    """Where the motors ran in ``windows`` against the thrust map's trained band: the band (per-motor PWM at the
+    nominal voltage) [us], the flown per-motor PWM (0.5 and 99.5 %) [us], and the share of logged motor samples
+    above idle outside the band (the FMU's own test, ``motor_out_of_band``, at the logged battery voltage), split
+    below and above it. Outside its band the map is extrapolated, and the roll and pitch inertia, identified
+    through ``l dT/dPWM`` at the motors' commands, inherit that slope's error; ``warning`` says so when the share
+    exceeds :data:`BAND_WARN_SHARE`."""
+    c = constants_of(params)
+    lo_us, hi_us = thrust_band_pwm_us(params)
+    pwm, out = [], []
+    for k, w in windows:
+        log = logs[k]
+        t = log.signal("motor_1_pwm_us").t_s
+        t = t[(t >= w.t0_s) & (t < w.t1_s)]
+        if not len(t):
+            continue
+        u = _inputs(log, params, t)
+        p = u[:, :N_MOTORS]
+        pwm.append(p[p > params.pwm_idle_us])
+        out.append(np.asarray(motor_out_of_band(params.thrust_map, p, u[:, N_MOTORS:], c, N_MOTORS),
+                              float)[p > params.pwm_idle_us])
+    flown = np.concatenate(pwm) if pwm else np.zeros(0)
+    if not flown.size:
+        return {}
+    outside = np.concatenate(out) > 0.5
+    mid = 0.5 * (lo_us + hi_us)
+    below, above = float(np.mean(outside & (flown < mid))), float(np.mean(outside & (flown >= mid)))
+    p_lo, p_hi = (float(v) for v in np.percentile(flown, [0.5, 99.5]))
+    share = below + above
+    text = (f"thrust map: trained band {lo_us:.0f}-{hi_us:.0f} us per motor; the motors ran {p_lo:.0f}-{p_hi:.0f} us "
+            f"(0.5-99.5 %) in the fit windows, {100 * share:.1f} % of their samples outside the band ("
+            f"{100 * below:.1f} % below, {100 * above:.1f} % above)")
+    warning = ""
+    if share > BAND_WARN_SHARE:
+        warning = (f"the thrust map was fitted on a narrower PWM range ({lo_us:.0f}-{hi_us:.0f} us per motor) than "
+                   f"the motors use in the fit windows ({p_lo:.0f}-{p_hi:.0f} us, {100 * share:.1f} % of the samples "
+                   "outside): there the map is extrapolated, and Jx, Jy (through the arm's moment effectiveness "
+                   "l dT/dPWM) and the motor lag inherit the error of its slope, which their intervals do not carry; "
+                   "identify the map on a flight whose per-motor commands span this range")
+        text += "\nwarning: " + warning
+    return {"band_pwm_us": [lo_us, hi_us], "flown_pwm_us": [p_lo, p_hi], "share_outside": share,
+            "share_below": below, "share_above": above, "warning": warning, "text": text}
 
 
 def _determined(name: str, dominance: str) -> str:
@@ -402,6 +464,7 @@ def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorPar
     if command_hz < MIN_COMMAND_HZ:  # ArduCopter's RATE mixer inputs, where logged fast, give the commands between
         logs, command_hz, slow_why = rate_commands.fill_in(logs, command_hz, MIN_COMMAND_HZ, notes)
     fit_w, val_w = _windows(logs, init, opt, notes)
+    band = thrust_band_coverage(logs, fit_w, init)
     velocity = all(_velocity_logged(log) for log in logs)
     not_ident: dict[str, str] = {}
     if not velocity:
@@ -415,7 +478,7 @@ def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorPar
             not_ident["kd_z_N_s_m"] = ("vertical drag needs the thrust at the log's rate, which slow motor "
                                        "commands do not give")
         result = QuadrotorIdResult(init, [], None, prior, [w for _, w in fit_w], [w for _, w in val_w], command_hz,
-                                   not_ident, notes=notes)
+                                   not_ident, notes=notes, thrust_band=band)
         if velocity:
             result.drag = drag_equation_error(logs, _drag_windows(logs, init, fit_w, val_w), init,
                                               rate_hz=opt.rate_hz)
@@ -474,7 +537,7 @@ def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorPar
                      "it follows the motors (RK4 diverges on a lag under 0.36 of its step)")
         params = dataclasses.replace(params, step_internal_s=step)
     result = QuadrotorIdResult(params, free + list(drag), est, prior, [w for _, w in fit_w], [w for _, w in val_w],
-                               command_hz, not_ident, drag=drag, notes=notes)
+                               command_hz, not_ident, drag=drag, notes=notes, thrust_band=band)
     if not est.converged:
         notes.append(f"not converged within {opt.max_iter} iterations: the estimates are the last accepted iterate")
     result.ratios = _ratios(est, params)
@@ -483,6 +546,25 @@ def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorPar
     except (ValueError, EstimationError) as err:
         result.failures.append(f"held-out scoring: {err}")
     return result
+
+
+def vertical_drag(logs: FlightLog | Sequence[FlightLog], params: QuadrotorParams,
+                  opt: QuadrotorOptions | None = None) -> dict[str, float]:
+    """``kd_z_N_s_m`` (``value``, 1-sigma ``std``) by the drag regression of :func:`identify_quadrotor` alone, without
+    the output-error fit: the body specific force on the body velocity, with ``params``' thrust (map and motor lag)
+    and the flexible static thrust of :class:`ThrustNuisance` beside it, so a map off in shape does not bias it.
+    Seconds, where the whole identification takes a minute: what ``identify thrust`` needs to take the vertical drag
+    out of ``-m a_z`` (``ThrustConfig.vertical_drag_N_s_m``) before the map the inertia is identified through."""
+    opt = opt or QuadrotorOptions()
+    logs = [logs] if isinstance(logs, FlightLog) else list(logs)
+    missing = [f"{Path(log.source).name}: vel_*_m_s" for log in logs if not _velocity_logged(log)]
+    if missing:
+        raise QuadrotorInputError(f"vertical drag needs the logged velocity ({', '.join(missing)})")
+    fit_w, val_w = _windows(logs, params, opt, [])
+    windows = _drag_windows(logs, params, fit_w, val_w)
+    d = drag_equation_error(logs, windows, params, thrust_of=MotorThrust(params).total, rate_hz=opt.rate_hz,
+                            nuisance=ThrustNuisance.over(logs, windows, params))["kd_z_N_s_m"]
+    return {"value": float(d["value"]), "std": float(d["std"])}
 
 
 class MotorThrust:

@@ -5,7 +5,13 @@ Measured thrust: on a quadrotor the rotors push along body -z, so ``F_z = -accel
 accelerometer (50-1000 Hz) is averaged over each motor-PWM sample interval ``[t_k + lag, t_{k+1} + lag)``
 (10-50 Hz), so every PWM sample gets the mean specific force while that command was applied. The lag (the
 accelerometer's delay behind the command: motor/ESC response plus logging skew) is estimated as the one
-that maximises the Pearson correlation of summed PWM with F_z, and reported.
+that maximises the Pearson correlation of summed PWM with F_z, and reported; a negative one (the accelerometer
+ahead of the commands, which no motor does) is kept and stated: the vertical drag in ``-m a_z`` (it follows the
+climb rate, which leads the thrust in a climbing and sinking flight) or a logging skew moves it there.
+
+With a known vertical drag coefficient (``vertical_drag_N_s_m``, e.g. ``kd_z_N_s_m`` from ``uavfmu identify
+quadrotor``) the measured thrust is ``-m a_z - kd_z w`` (``w`` the body-z velocity: the logged NED velocity
+rotated by the logged attitude), the rotor thrust itself.
 
 Only airborne samples enter: armed, every motor above ``motor_min_pwm_us`` and, when the log has
 ``altitude_m``, higher than ``min_altitude_m`` above home. On the ground the accelerometer reads 1 g
@@ -23,6 +29,8 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy import signal
 
+from fmu_models.common.mathns import NP
+from fmu_models.common.rotations import euler_to_dcm_rows, transpose_apply
 from fmu_models.common.units import RPM_TO_RAD_S
 from fmu_models.config import bounded, range_problems
 from fmu_models.quadrotor.anfis import AnfisMap
@@ -79,6 +87,8 @@ class ThrustDatasetConfig:
     pwm_idle_us: float = bounded(PWM_IDLE_US, 800.0, 1500.0, "us")
     edge_guard_s: float = bounded(EDGE_GUARD_S, 0.0, 60.0, "s")  #: dropped at both ends of every airborne segment
     airborne_on_mean_pwm: bool = False  #: airborne test on the mean motor PWM instead of every motor
+    #: known vertical drag coefficient [N s/m]: the measured thrust becomes ``-m a_z - kd_z w`` (None: ``-m a_z``)
+    vertical_drag_N_s_m: float | None = bounded(None, 0.0, 100.0, "N s/m (None: no drag correction)", optional=True)
 
     def __post_init__(self) -> None:
         problems = range_problems(self)
@@ -262,9 +272,18 @@ def build_thrust_dataset(log: Any, config: ThrustDatasetConfig, source: str = ""
         raise ThrustDataError(f"{src}: signal 'accel_body_z_m_s2' (IMU specific force) is not in the log")
     grid = _pwm_grid(motors, src)
     mask, alt_logged = _airborne(log, config, grid, notes)
+    if config.vertical_drag_N_s_m is not None:
+        acc = (acc[0], acc[1] + config.vertical_drag_N_s_m * _body_z_velocity(log, acc[0], src) / config.mass_kg)
+        notes.append(f"measured thrust -m a_z - kd_z w with the given vertical drag kd_z = "
+                     f"{config.vertical_drag_N_s_m:g} N s/m (w: logged NED velocity rotated by the logged attitude)")
     fz_of_lag = _fz_aligner(acc, grid.t_s, grid.hi_s, config.mass_kg)
     pwm_sum = grid.pwm_us.sum(axis=1)
     lag = _fit_lag(config, float(np.median(np.diff(acc[0]))), fz_of_lag, pwm_sum, mask)
+    if lag.lag_estimated and lag.lag_s < 0.0:
+        notes.append(f"the delay search puts the accelerometer {-lag.lag_s:.3g} s AHEAD of the motor commands, which "
+                     "no motor does: the vertical drag in -m a_z (it follows the climb rate; give the vertical drag "
+                     "coefficient to remove it) or a logging skew between the two moves the best correlation there, "
+                     "and the thrust map may carry that error")
     fz = fz_of_lag(lag.lag_s)
     mask = _trim_edges(mask & np.isfinite(fz), grid, config.edge_guard_s, notes)
     mask, seg = _drop_short_segments(mask, grid, config.min_segment_s, notes)
@@ -456,6 +475,20 @@ def _extra_series(log: Any, name: str, src: str) -> tuple[np.ndarray, np.ndarray
             s = (s[0][ok], s[1][ok])
         return s
     return None
+
+
+def _body_z_velocity(log: Any, t_s: np.ndarray, src: str) -> np.ndarray:
+    """Body-z velocity [m/s, down positive] at ``t_s``: the logged NED velocity rotated by the logged attitude."""
+    names = ("roll_rad", "pitch_rad", "yaw_rad", "vel_north_m_s", "vel_east_m_s", "vel_down_m_s")
+    series = {n: _series(log, n) for n in names}
+    missing = [n for n, v in series.items() if v is None or v[0].size < 2]
+    if missing:
+        raise ThrustDataError(f"{src}: a vertical drag correction needs {', '.join(missing)}, not in the log")
+    # yaw unwrapped first: interpolating across its +-pi jump would turn the horizontal velocity for a sample
+    val = {n: np.interp(t_s, v[0], np.unwrap(v[1]) if n == "yaw_rad" else v[1])  # type: ignore[index]
+           for n, v in series.items()}
+    rows = euler_to_dcm_rows(val["roll_rad"], val["pitch_rad"], val["yaw_rad"], NP)
+    return np.asarray(transpose_apply(rows, [val["vel_north_m_s"], val["vel_east_m_s"], val["vel_down_m_s"]])[2])
 
 
 def _fz_aligner(

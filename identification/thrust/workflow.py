@@ -124,6 +124,9 @@ class ThrustConfig:
     fmu_mass_kg: float | None = bounded(None, 0.05, 50.0, "kg (None: the flights' common mass)", optional=True)
     accept_damaged_log: bool = False
     write_losing_model: bool = False
+    #: known vertical drag coefficient [N s/m] (``kd_z_N_s_m`` of ``identify quadrotor``): the measured thrust is
+    #: then ``-m a_z - kd_z w``, without the drag that follows the climb rate (None: ``-m a_z``)
+    vertical_drag_N_s_m: float | None = bounded(None, 0.0, 100.0, "N s/m (None: no drag correction)", optional=True)
     #: where the cross-validation folds run (``identification.common.parallel``): None in this process unless a
     #: scheduler is
     #: given (``scheduler`` or ``UAVFMU_SCHEDULER``), 0 in this process, N local worker processes
@@ -263,6 +266,7 @@ def load_flight(spec: FlightSpec, cfg: ThrustConfig) -> Flight:
         lowpass_hz=cfg.lowpass_hz,
         pwm_idle_us=min(max(cfg.pwm_idle_us, 800.0), 1500.0),
         airborne_on_mean_pwm=True,
+        vertical_drag_N_s_m=cfg.vertical_drag_N_s_m,
     )
     data = build_thrust_dataset(log, ds_cfg, source=f"flight {spec.name}")
     pwm = np.stack([data.inputs[MOTOR_SIGNAL.format(k=k)] for k in range(1, N_MOTORS + 1)], axis=1)

@@ -61,6 +61,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="without voltage: no hover-condition battery state (equivalent battery_voltage_V)")
     v.add_argument("--fmu-mass-kg", type=float,
                    help="the FMU's mass_kg [kg]; required when the flights' masses differ")
+    v.add_argument("--vertical-drag-n-s-m", type=float, dest="vertical_drag_N_s_m",
+                   help="known vertical drag coefficient kd_z [N s/m] (e.g. from identify quadrotor): the measured "
+                   "thrust is -m a_z - kd_z w, w the body-z velocity (needs logged velocity and attitude)")
     v.add_argument("--folds", type=int, default=3, help="time blocks when a single flight is given (3)")
     v.add_argument("--jobs", type=int, help="cross-validation folds on N local worker processes (default: in this "
                    "process, no cluster start-up; 0..64)")
@@ -254,6 +257,7 @@ def _run_voltage(args: argparse.Namespace, flights: list[tuple[Path, float]]) ->
         check_block_s=args.check_block_s, channel_map=args.channel_map, fmu_mass_kg=args.fmu_mass_kg,
         battery_state=not args.no_battery_state, accept_damaged_log=args.accept_damaged_log,
         write_losing_model=args.write_losing_model, workers=args.jobs, scheduler=args.scheduler,
+        vertical_drag_N_s_m=args.vertical_drag_N_s_m,
     )
     try:
         result = identify_thrust(cfg)

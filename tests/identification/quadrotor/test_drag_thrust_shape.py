@@ -83,3 +83,22 @@ def test_nuisance_centres_span_the_flown_commands(flight):
     assert feats.shape == (250, 2 * q.DRAG_THRUST_RULES) and np.all(np.isfinite(feats))
     with pytest.raises(q.QuadrotorInputError, match="no range"):
         q.ThrustNuisance(params, 0.5, 0.5)
+
+
+def test_vertical_drag_alone_is_the_identification_s_regression(flight):
+    """``vertical_drag`` (what the demo hands to identify thrust) is the same regression, on the same windows, as
+    ``identify_quadrotor``'s, without the output-error fit: through the wrong-shaped map it holds the truth."""
+    params = _smooth_map(flight.truth)
+    opt = q.QuadrotorOptions(segments=[Segment(b.start_s, b.end_s, b.axis) for b in flight.blocks])
+    got = q.vertical_drag(flight.log, params, opt)
+    fit_w, val_w = q._windows([flight.log], params, opt, [])
+    windows = q._drag_windows([flight.log], params, fit_w, val_w)
+    same = q.drag_equation_error([flight.log], windows, params, thrust_of=q.MotorThrust(params).total,
+                                 rate_hz=opt.rate_hz, nuisance=q.ThrustNuisance.over([flight.log], windows, params))
+    assert got == {"value": same["kd_z_N_s_m"]["value"], "std": same["kd_z_N_s_m"]["std"]}
+    truth = flight.truth.kd_z_N_s_m
+    assert abs(got["value"] / truth - 1) < 0.15 and abs(got["value"] - truth) <= 1.96 * got["std"], got
+    no_velocity = dataclasses.replace(flight.log, signals={n: s for n, s in flight.log.signals.items()
+                                                           if n != "vel_down_m_s"})
+    with pytest.raises(q.QuadrotorInputError, match="velocity"):
+        q.vertical_drag(no_velocity, params, opt)

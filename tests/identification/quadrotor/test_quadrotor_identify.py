@@ -146,3 +146,14 @@ def test_arducopter_sysid_chirps_become_segments():
     # each chirp from its first SIDD sample to its last plus the 2 s rest
     assert [(s.t0_s, s.t1_s) for s in segs] == [pytest.approx((10.0, 19.9975 + 2.0)),
                                                 pytest.approx((40.0, 44.9975 + 2.0))]
+
+
+def test_the_thrust_map_band_against_the_motors_is_stated(replica, identified):
+    """The published map is trained on 1450-1554 us per motor; the stick flight's motors leave that band: the
+    result (console and metrics) says how far and warns that the inertia inherits the extrapolated slope."""
+    band = identified.thrust_band
+    assert band["band_pwm_us"] == list(q.thrust_band_pwm_us(QuadrotorParams()))
+    pwm = np.concatenate([replica.log.signal(f"motor_{k}_pwm_us").values for k in range(1, 5)])
+    assert band["flown_pwm_us"][0] < 1450.0 < 1554.0 < band["flown_pwm_us"][1] <= pwm.max()
+    assert band["share_outside"] > q.BAND_WARN_SHARE and "Jx, Jy" in band["warning"]
+    assert band["warning"] in identified.summary() and identified.as_dict()["thrust_map_band"] == band
