@@ -44,7 +44,7 @@ from identification.estimation.oem import (
     student_factor,
 )
 from identification.logs.flightlog import BATTERY_VOLTAGE, FlightLog, LogError, check_quality
-from identification.logs.log_state import HOLD_TOLERANCE_S, hold, initial_values
+from identification.logs.log_state import HOLD_TOLERANCE_S, hold, initial_values, resample_angle
 from identification.quadrotor import rate_commands
 from identification.quadrotor import segments as qseg
 from identification.quadrotor.motor_lag import ExactLagModel
@@ -735,8 +735,9 @@ def _score_held_out(oe: OutputErrorEstimator, est: Estimate, logs: Sequence[Flig
 
 
 def _body_velocity(log: FlightLog, t: np.ndarray) -> np.ndarray:
-    """Logged NED velocity rotated into the body by the logged attitude (len(t) x 3) [m/s]."""
-    rows = euler_to_dcm_rows(*(log.signal(n).resample(t) for n in ("roll_rad", "pitch_rad", "yaw_rad")), NP)
+    """Logged NED velocity rotated into the body by the logged attitude (len(t) x 3) [m/s]; the angles are
+    interpolated the short way round (across yaw's +-pi seam a plain interpolation turns the velocity)."""
+    rows = euler_to_dcm_rows(*(resample_angle(log.signal(n), t) for n in ("roll_rad", "pitch_rad", "yaw_rad")), NP)
     v_ned = [log.signal(f"vel_{a}_m_s").resample(t) for a in ("north", "east", "down")]
     return np.column_stack(transpose_apply(rows, v_ned))
 
