@@ -60,11 +60,20 @@ def substeps(tau_s: float, rate_hz: float) -> int:
                MAX_SUBSTEPS)
 
 
-def one_draw(seed: int, rate_hz: float) -> dict[str, tuple[float, float, float]]:
-    """``{parameter: (truth, estimate, 95 % half-width)}`` of one draw."""
+def excite_plan() -> object:
+    """The plan ``uavfmu excite --vehicle quadrotor`` makes by default (PX4 ALTCTL; 3-2-1-1s, doublets and the
+    drag doublets timed by kd / m) on the nominal airframe, as a user plans before knowing the truth."""
+    from identification.excite.quadrotor import QuadExciteOptions, plan_quadrotor_excitation
+
+    return plan_quadrotor_excitation(QuadrotorParams(), QuadExciteOptions())
+
+
+def one_draw(seed: int, rate_hz: float, plan: object = None) -> dict[str, tuple[float, float, float]]:
+    """``{parameter: (truth, estimate, 95 % half-width)}`` of one draw (``plan``: an excite plan instead of the
+    SITL flight's blocks)."""
     truth = random_truth(np.random.default_rng(seed))
     flight = fly_replica(truth, planned_blocks(sets=2), rate_hz=rate_hz,
-                         sim_hz=rate_hz * substeps(truth.tau_motor_s, rate_hz), seed=seed)
+                         sim_hz=rate_hz * substeps(truth.tau_motor_s, rate_hz), seed=seed, plan=plan)
     segs = [Segment(b.start_s, b.end_s, b.axis) for b in flight.blocks]
     res = q.identify_quadrotor(flight.log, QuadrotorParams(), q.QuadrotorOptions(segments=segs))
     est = res.estimates()
@@ -86,14 +95,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--draws", type=int, default=20)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--rate-hz", type=float, default=250.0)
+    ap.add_argument("--plan", choices=("sitl", "excite"), default="sitl",
+                    help="sitl: the shared PX4 SITL flight's blocks, twice; excite: the default plan of "
+                         "uavfmu excite --vehicle quadrotor (with its drag doublets), once")
     args = ap.parse_args(argv)
     if not 1 <= args.draws <= 200:
         ap.error("--draws must lie in 1..200")
+    plan = excite_plan() if args.plan == "excite" else None
     rows: dict[str, list[tuple[float, float, float]]] = {n: [] for n in CHECKED}
     misses = []
     for d in range(args.draws):
         t0 = time.perf_counter()
-        got = one_draw(args.seed + d, args.rate_hz)
+        got = one_draw(args.seed + d, args.rate_hz, plan)
         line = []
         for n in CHECKED:
             tr, v, hw = got[n]

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -104,16 +105,19 @@ class ReplicaFlight:
     """A synthetic flight: the log, its excitation blocks, the truth it was flown with."""
 
     log: FlightLog
-    blocks: list[Block]
+    blocks: list[Any]  #: :class:`Block`, or the blocks of the ``plan`` flown (``start_s``, ``end_s``, ``axis``)
     truth: QuadrotorParams
 
 
 def fly_replica(truth: QuadrotorParams, blocks: list[Block] | None = None, rate_hz: float = 250.0,
                 sim_hz: float = 1000.0, seed: int = 0, nominal: QuadrotorParams | None = None,
-                altitude_m: float = 10.0) -> ReplicaFlight:
+                altitude_m: float = 10.0, plan: Any = None) -> ReplicaFlight:
     """Fly ``truth`` through the planned ``blocks`` (default :func:`planned_blocks`) from a hover at
-    ``altitude_m``; the controller is tuned on ``nominal`` (default: the F450 defaults)."""
-    blocks = planned_blocks() if blocks is None else blocks
+    ``altitude_m``; the controller is tuned on ``nominal`` (default: the F450 defaults). ``plan`` instead flies
+    a stick plan of ``uavfmu excite --vehicle quadrotor`` (anything with ``sticks(t_s)`` -> N x 4 roll, pitch,
+    yaw, throttle in -1..1 with the signs used here, ``duration_s`` and ``blocks`` with ``start_s``, ``end_s``,
+    ``axis``)."""
+    blocks = (planned_blocks() if blocks is None else blocks) if plan is None else list(plan.blocks)
     nom = nominal or QuadrotorParams()
     model = QuadrotorModel(truth)
     sim = Simulator(model)
@@ -125,13 +129,17 @@ def fly_replica(truth: QuadrotorParams, blocks: list[Block] | None = None, rate_
     rng = np.random.default_rng(seed)
     accel_bias = rng.uniform(-ACCEL_BIAS_M_S2, ACCEL_BIAS_M_S2, 3)
     gyro_bias = rng.uniform(-GYRO_BIAS_RAD_S, GYRO_BIAS_RAD_S, 3)
-    duration = max(b.end_s for b in blocks) + 1.0
+    duration = (max(b.end_s for b in blocks) if plan is None else float(plan.duration_s)) + 1.0
     n_ctrl = round(duration * rate_hz)
     sub = max(round(sim_hz / rate_hz), 1)
     dt_ctrl, dt_sim = 1.0 / rate_hz, 1.0 / (rate_hz * sub)
     t_ctrl = np.arange(n_ctrl) * dt_ctrl
-    sticks = {a: sum((b.stick(t_ctrl) for b in blocks if b.axis == a), np.zeros(n_ctrl))
-              for a in ("roll", "pitch", "yaw", "throttle")}
+    axes = ("roll", "pitch", "yaw", "throttle")
+    if plan is None:
+        sticks = {a: sum((b.stick(t_ctrl) for b in blocks if b.axis == a), np.zeros(n_ctrl)) for a in axes}
+    else:
+        planned = np.asarray(plan.sticks(t_ctrl), float)
+        sticks = {a: np.clip(planned[:, i], -1.0, 1.0) for i, a in enumerate(axes)}
     gamma, spin = motor_layout(nom.frame)
     # mixer of the nominal airframe: [T_total, Mx, My, Mz] = A @ T_motors
     arm = nom.arm_length_m
