@@ -119,6 +119,9 @@ class Estimate:
     bootstrap_min_dof: float = 0.0
     #: per fitted output, the order of its autoregressive residual model (bound "ar" only)
     ar_orders: list[int] | None = None
+    #: relative covariance of the model parameters' bootstrap spreads (:func:`segment_spread`); the small-sample
+    #: test and bound pool the parameters' scatter with it (:func:`pooled_scatter`; None: each parameter alone)
+    bootstrap_spread_cov: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.n_global < 0:
@@ -146,7 +149,7 @@ class Estimate:
         consider share of the parameters held fixed (:func:`data_bound`; with :attr:`bootstrap_min_dof`, the
         segment bootstrap enters only where it has that many degrees of freedom)."""
         out = data_bound(self.crb_std[:self.n_global], self.bootstrap_std, self.bootstrap_dof, self.n_segments,
-                         self.bound_method)
+                         self.bound_method, self.bootstrap_spread_cov)
         if self.bound_method == BOUND_METHODS[1]:
             out = np.where(self.bootstrap_in_bound(), out, self.crb_std[:self.n_global])
         return out
@@ -156,16 +159,26 @@ class Estimate:
         more than the residual model explains, :func:`data_bound`)."""
         if self.bound_method != BOUND_METHODS[2] or self.bootstrap_std is None:
             return []
-        use = small_sample_needed(self.crb_std[:self.n_global], self.bootstrap_std, self.bootstrap_dofs())
+        use = small_sample_needed(self.crb_std[:self.n_global], self.bootstrap_std, self.bootstrap_dofs(),
+                                  self.bootstrap_spread_cov)
         return [n for n, u in zip(self.names, use, strict=False) if u]
+
+    def segment_scatter(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Per model parameter, the segments' scatter over the residual model's as a variance ratio and its degrees
+        of freedom (:func:`pooled_scatter`; bound "ar" with a bootstrap only, else None)."""
+        if self.bound_method != BOUND_METHODS[2] or self.bootstrap_std is None:
+            return None
+        return pooled_scatter(self.crb_std[:self.n_global], self.bootstrap_std, self.bootstrap_dofs(),
+                              self.bootstrap_spread_cov)
 
     def segments_to_tighten(self) -> int:
         """Segments of the same kind that would bring Student's factor of the small-sample bound to
         :data:`TIGHT_STUDENT` for every parameter that has it (0: none has it)."""
         use = [self.names.index(n) for n in self.small_sample()]
-        if not use:
+        scatter = self.segment_scatter()
+        if not use or scatter is None:
             return 0
-        per_segment = float(np.min(self.bootstrap_dofs()[use])) / max(self.n_segments, 1)
+        per_segment = float(np.min(scatter[1][use])) / max(self.n_segments, 1)
         return int(np.ceil(tight_dof() / max(per_segment, 1e-9)))
 
     def bootstrap_dofs(self) -> np.ndarray:
@@ -246,8 +259,11 @@ class Estimate:
         rows.append(f"bound: {self.bound_method}")
         small = self.small_sample()
         if small:
+            how = ("the coloured bound x the segments' excess scatter, pooled over the parameters, x Student's t at "
+                   "its degrees of freedom" if self.bootstrap_spread_cov is not None
+                   else "bootstrap x Student's t at its degrees of freedom")
             rows.append(f"small-sample bound (the {self.n_segments} segments scatter more than the residual model "
-                        f"explains: bootstrap x Student's t at its degrees of freedom) for {', '.join(small)}; "
+                        f"explains: {how}) for {', '.join(small)}; "
                         f"about {self.segments_to_tighten()} segments like these would tighten it")
         if len(self.names) > self.n_global:
             rows.append(f"{len(self.names) - self.n_global} nuisance parameters (initial states, biases) estimated "
@@ -257,6 +273,7 @@ class Estimate:
     def as_dict(self) -> dict[str, Any]:
         std = self.std
         boot = self.bootstrap_std
+        scatter = self.segment_scatter()
         params = {}
         for i, n in enumerate(self.names[:self.n_global]):
             params[n] = {"value": float(self.values[i]), "std": float(std[i]), "bound_method": self.bound_method,
@@ -265,6 +282,9 @@ class Estimate:
                          "bootstrap_dof": None if boot is None or self.bootstrap_dof is None
                          else float(self.bootstrap_dof[i]),
                          "bootstrap_in_bound": bool(self.bootstrap_in_bound()[i]),
+                         "segment_scatter_ratio": None if scatter is None or not np.isfinite(scatter[0][i])
+                         else float(scatter[0][i]),
+                         "segment_scatter_dof": None if scatter is None else float(scatter[1][i]),
                          "consider_std": None if self.consider_std is None else float(self.consider_std[i]),
                          "prior_sd": None if self.prior_sd is None or not np.isfinite(self.prior_sd[i])
                          else float(self.prior_sd[i]),
@@ -296,17 +316,23 @@ BOOTSTRAP_CHUNK = 50
 
 def bootstrap_task(task: dict[str, Any]) -> dict[str, Any]:
     """Resamples ``task["first"]..`` of the block bootstrap: manoeuvre weights from the task's own generator
-    (``identification.common.parallel.task_rng``), one linearised Gauss-Newton step each; plain arrays in and out."""
+    (``identification.common.parallel.task_rng``), one linearised Gauss-Newton step each with the information held
+    at the full sample's, ``M⁻¹ (Σ w_j g_j + g_prior)`` with ``M = Σ A_j + P``; plain arrays in and out.
+
+    The information is held fixed because the leverage factor and the degrees of freedom of
+    :func:`segment_corrections` describe that linear statistic. Re-solving each resample with its own information
+    ``Σ w_j A_j + P`` (until 2026-11-29) let a resample that drops one of the two segments carrying a parameter halve
+    its information and double its step: on the excitation-log replica that spread came out 2.0-3.9 coloured
+    Cramér-Rao std where the fixed-information one gave 1.4-2.4, matching its analytic value
+    (``bench/aero_replica_bootstrap.py``)."""
     from identification.common.parallel import task_rng
 
     A, g, P, gp = (np.asarray(task[k], float) for k in ("A", "g", "P", "gp"))
     m = A.shape[0]
+    Mi = np.linalg.pinv(A.sum(axis=0) + P, hermitian=True)
     rng = task_rng(task["seed"], task["index"])
-    reps = []
-    for _ in range(task["count"]):
-        w = np.bincount(rng.integers(0, m, m), minlength=m).astype(float)
-        reps.append(np.linalg.lstsq(np.einsum("j,jab->ab", w, A) + P, w @ g + gp, rcond=None)[0])
-    return {"reps": np.array(reps)}
+    w = np.stack([np.bincount(rng.integers(0, m, m), minlength=m).astype(float) for _ in range(task["count"])])
+    return {"reps": (w @ g + gp) @ Mi.T}
 
 
 def bootstrap_repeats(A: np.ndarray, g: np.ndarray, P: np.ndarray, gp: np.ndarray, repeats: int, seed: int,
@@ -341,33 +367,75 @@ def tight_dof() -> float:
     return float(brentq(lambda d: student_factor(d) - TIGHT_STUDENT, 1.0, 1e4))
 
 
-def small_sample_needed(crb: np.ndarray, boot: np.ndarray, dof: np.ndarray) -> np.ndarray:
-    """Per parameter: the segment bootstrap's std (leverage-corrected) exceeds the coloured Cramér-Rao std by
-    more than its own sampling spread allows (one-sided 95 %: ``boot² / crb² > χ²_{0.95}(dof) / dof``), i.e. the
-    segments scatter more than the residual model explains (record-to-record disturbances or mismatch)."""
+def pooled_scatter(crb: np.ndarray, boot: np.ndarray, dof: np.ndarray, spread_cov: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Per parameter, how much more the segments scatter than the residual model explains, as a variance ratio
+    with its degrees of freedom: ``(ratio, dof)``.
+
+    Without ``spread_cov``: each parameter's own ``boot² / crb²`` at its own degrees of freedom. With it (the
+    relative covariance of the spreads, :func:`segment_spread`): the own ratio pooled with the mean ratio of all
+    parameters (weights ``dof``), as the moderated variances of Smyth (2004, empirical Bayes with the pooled ratio
+    as the prior at its own degrees of freedom ``d_p``): ``(d_i r_i + d_p r_p) / (d_i + d_p)``, whose degrees of
+    freedom follow from ``spread_cov`` (spreads of parameters informed by the same segments are correlated, so the
+    pool has fewer degrees of freedom than their sum). Why: a parameter whose information sits in two segments has
+    a spread of 1-2 degrees of freedom, from which no excess can be told from chance (Student's factor 2-5); every
+    parameter's score comes from the same segments, and their pooled scatter is known far better. A parameter with
+    many degrees of freedom keeps mostly its own ratio."""
+    crb, boot = np.asarray(crb, float), np.asarray(boot, float)
+    d = np.maximum(np.broadcast_to(np.asarray(dof, float), crb.shape), 1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = boot ** 2 / crb ** 2
+    if spread_cov is None:
+        return ratio, d.copy()
+    ok = np.isfinite(ratio) & (crb > 0.0)
+    if not ok.any():
+        return ratio, d.copy()
+    K = np.asarray(spread_cov, float)[np.ix_(ok, ok)]
+    w = d[ok] / d[ok].sum()
+    d_pool = 1.0 / max(float(w @ K @ w), 1e-12)
+    out_r, out_d = ratio.copy(), d.copy()
+    for k, i in enumerate(np.flatnonzero(ok)):
+        v = d_pool * w
+        v[k] += d[i]
+        v /= v.sum()
+        out_r[i] = float(v @ ratio[ok])
+        out_d[i] = max(1.0 / max(float(v @ K @ v), 1e-12), 1.0)
+    return out_r, out_d
+
+
+def small_sample_needed(crb: np.ndarray, boot: np.ndarray, dof: np.ndarray, spread_cov: np.ndarray | None = None
+                        ) -> np.ndarray:
+    """Per parameter: the segments scatter more than the residual model explains (record-to-record disturbances
+    or mismatch), by more than the scatter's own sampling spread allows (one-sided 95 %: ``ratio > χ²_{0.95}(d) /
+    d`` with ``ratio, d`` from :func:`pooled_scatter`; without ``spread_cov``, ``boot² / crb²`` of the parameter
+    alone at its bootstrap's degrees of freedom, the test before 2026-11-29)."""
     from scipy.stats import chi2
 
-    d = np.maximum(np.asarray(dof, float), 1.0)
-    return np.asarray(boot, float) > np.asarray(crb, float) * np.sqrt(chi2.ppf(0.95, d) / d)
+    ratio, d = pooled_scatter(crb, boot, dof, spread_cov)
+    return ratio > chi2.ppf(0.95, d) / d
 
 
-def data_bound(crb: np.ndarray, boot: np.ndarray | None, dof: np.ndarray | None, n_segments: int, method: str
-               ) -> np.ndarray:
+def data_bound(crb: np.ndarray, boot: np.ndarray | None, dof: np.ndarray | None, n_segments: int, method: str,
+               spread_cov: np.ndarray | None = None) -> np.ndarray:
     """The data bound of the model parameters (1 sigma) by ``method`` (:data:`BOUND_METHODS`):
 
     - ``[0]``: the coloured Cramér-Rao std ``crb``;
     - ``[1]``: ``max(crb, boot x t(dof)/z)`` (the segment bootstrap over few segments, Student's factor);
-    - ``[2]``: ``crb`` (with the AR residual model), and the small-sample bound ``max(crb, boot x t(dof)/z)``
-      only where :func:`small_sample_needed`.
+    - ``[2]``: ``crb`` (with the AR residual model), and the small-sample bound ``crb x sqrt(ratio) x t(d)/z``
+      only where :func:`small_sample_needed`, ``ratio, d`` from :func:`pooled_scatter` (without ``spread_cov``
+      that is ``boot x t(dof)/z``, the bound before 2026-11-29).
     """
     out = np.asarray(crb, float).copy()
     if boot is None or method == BOUND_METHODS[0]:
         return out
     d = np.broadcast_to(np.asarray(dof if dof is not None else n_segments - 1.0, float), out.shape)
-    wide = np.maximum(out, boot * student_factor(d))
     if method == BOUND_METHODS[2]:
-        return np.where(small_sample_needed(out, boot, d), wide, out)
-    return wide
+        ratio, d_pool = pooled_scatter(out, boot, d, spread_cov)
+        need = small_sample_needed(out, boot, d, spread_cov)
+        with np.errstate(invalid="ignore"):
+            wide = np.maximum(out, out * np.sqrt(np.maximum(ratio, 0.0)) * student_factor(d_pool))
+        return np.where(need, wide, out)
+    return np.maximum(out, boot * student_factor(d))
 
 
 def student_factor(dof: float | np.ndarray) -> float | np.ndarray:
@@ -396,21 +464,31 @@ def segment_corrections(A: np.ndarray, P: np.ndarray | None = None) -> tuple[np.
       for Gaussian scores is ``2 Σ_jl c_jl²``); ``m - 1`` for equal segments, fewer when a few segments carry
       the information.
     """
+    factor, dof, _ = segment_spread(A, P)
+    return factor, dof
+
+
+def segment_spread(A: np.ndarray, P: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`segment_corrections` (``variance_factor``, ``dof``) and the relative covariance of the parameters'
+    spreads under the same working model: with ``Q_i = Σ_j (b_iᵀ ĝ_j)²`` the spread of parameter ``i``,
+    ``K_ik = Cov(Q_i, Q_k) / (2 E[Q_i] E[Q_k]) = Σ_jl (b_iᵀ C_jl b_k)² / (E[Q_i] E[Q_k])`` for Gaussian scores
+    (``K_ii = 1 / dof_i``). Spreads of parameters informed by the same segments are correlated; ``K`` gives the
+    degrees of freedom of any weighted mean of them (:func:`pooled_scatter`)."""
     m, n = A.shape[0], A.shape[1]
     S = A.sum(axis=0)
     Mi = np.linalg.pinv(S + (np.zeros((n, n)) if P is None else P))
-    factor, dof = np.ones(n), np.full(n, max(m - 1.0, 1.0))
-    for i in range(n):
-        b = Mi[:, i]
-        a = A @ b  # (m, n): A_j b
-        q = a @ Mi  # (m, n): (M⁻¹ A_j b)ᵀ
-        C = q @ S @ q.T - 2.0 * q @ a.T
-        C[np.diag_indices(m)] += a @ b
-        spread = float(np.trace(C))
-        if spread > 0.0:
-            factor[i] = float(b @ S @ b) / spread
-            dof[i] = spread ** 2 / float(np.sum(C ** 2))
-    return factor, dof
+    X = A @ Mi  # (m, n, n): column i of X_j is A_j b_i
+    T = np.einsum("jai,ab,lbk->jlik", X, Mi @ S @ Mi - 2.0 * Mi, X, optimize=True)  # b_iᵀ C_jl b_k
+    T[np.arange(m), np.arange(m)] += np.einsum("ai,jak->jik", Mi, X)
+    E = np.einsum("jjii->i", T)
+    factor, dof, K = np.ones(n), np.full(n, max(m - 1.0, 1.0)), np.zeros((n, n))
+    ok = E > 0.0
+    factor[ok] = np.diag(Mi @ S @ Mi)[ok] / E[ok]
+    sq = np.einsum("jlik->ik", T ** 2)
+    K[np.ix_(ok, ok)] = sq[np.ix_(ok, ok)] / np.outer(E[ok], E[ok])
+    dof[ok] = 1.0 / np.diag(K)[ok]
+    K[~ok, ~ok] = 1.0 / dof[~ok]
+    return factor, dof, K
 
 
 #: largest credible output change per 100 % change of a model parameter, in units of the output's range over
@@ -998,14 +1076,15 @@ class OutputErrorEstimator:
 
     def segment_bootstrap_std(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray, repeats: int = 400,
                               seed: int = 0, theta: np.ndarray | None = None
-                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """Block bootstrap over manoeuvres (one linearised Gauss-Newton step per resample from the estimate,
-        Hu & Kalbfleisch's estimating-function bootstrap): (std, variance factor, degrees of freedom) of the
-        model parameters, or None with fewer than :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres (too few distinct
-        resamples). Whole manoeuvres are resampled, so coloured noise, per-record disturbances and model
-        mismatch that vary from record to record show in the spread. The std is corrected for the segments'
-        leverage (times the square root of the factor) and the degrees of freedom follow from how the
-        information is shared among them (:func:`segment_corrections`)."""
+                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        """Block bootstrap over manoeuvres (one linearised Gauss-Newton step per resample from the estimate with
+        the information held at the full sample's, Hu & Kalbfleisch's estimating-function bootstrap): (std,
+        variance factor, degrees of freedom, relative covariance of the parameters' spreads) of the model
+        parameters (:func:`segment_spread`), or None with fewer than :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres
+        (too few distinct resamples). Whole manoeuvres are resampled, so coloured noise, per-record disturbances
+        and model mismatch that vary from record to record show in the spread. The std is corrected for the
+        segments' leverage (times the square root of the factor) and the degrees of freedom follow from how the
+        information is shared among them."""
         m = len(res)
         if m < BOOTSTRAP_MIN_SEGMENTS or not self.free:
             return None
@@ -1016,11 +1095,11 @@ class OutputErrorEstimator:
         P = np.diag(self.prior_information(ng))  # the prior is not resampled: it is not data
         gp = P @ (self.prior_mean - theta[:ng]) if theta is not None else np.zeros(ng)
         reps = bootstrap_repeats(A, g, P, gp, repeats, seed)
-        # robust spread (IQR / 1.349): a resample that leaves a parameter unexcited gives a wild step, which
-        # would dominate a plain std
-        q75, q25 = np.percentile(np.array(reps), [75, 25], axis=0)
-        factor, dof = segment_corrections(A, P)
-        return (q75 - q25) / 1.349 * np.sqrt(factor), factor, dof
+        # the plain std: with the information held fixed no resample takes a wild step (the interquartile range
+        # / 1.349 was used while each resample re-solved with its own information), and the variance is the
+        # statistic whose expectation segment_corrections describes
+        factor, dof, spread_cov = segment_spread(A, P)
+        return np.std(np.array(reps), axis=0) * np.sqrt(factor), factor, dof, spread_cov
 
     def information(self, data: Sequence[Manoeuvre], theta: np.ndarray | None = None,
                     weight: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
@@ -1063,12 +1142,12 @@ class OutputErrorEstimator:
         std = np.sqrt(np.maximum(np.diag(cov), 0.0))
         corr = correlation(cov)  # zero-variance entries give 0 correlation, never NaN
         got = self.segment_bootstrap_std(res, jacs, W, theta=theta)
-        boot, factor, dof = got if got is not None else (None, None, None)
+        boot, factor, dof, spread_cov = got if got is not None else (None, None, None, None)
         method = BOUND_METHODS[2] if polys is not None else BOUND_METHODS[1] if boot is not None else BOUND_METHODS[0]
         exc = input_excitation([m.u for m in data], list(self.model.inputs.index))
         ident = analyse(M + np.diag(prior_info), names, len(self.free), exc, cov=cov)
         printed = std.copy()
-        printed[:len(self.free)] = data_bound(std[:len(self.free)], boot, dof, len(data), method)
+        printed[:len(self.free)] = data_bound(std[:len(self.free)], boot, dof, len(data), method, spread_cov)
         warnings = []
         for i, n in enumerate(names[:len(self.free)]):
             if printed[i] > RELATIVE_STD_WARN * abs(theta[i]):
@@ -1093,7 +1172,8 @@ class OutputErrorEstimator:
                         n_global=ng, bootstrap_std=boot, bound_method=method, identifiability=ident,
                         prior_sd=self.prior_sd.copy(), covariance=cov[:ng, :ng].copy(), n_segments=len(data),
                         bootstrap_dof=dof, bootstrap_factor=factor, unbounded=unbounded,
-                        ar_orders=None if polys is None else [len(q) - 1 for q in polys])
+                        ar_orders=None if polys is None else [len(q) - 1 for q in polys],
+                        bootstrap_spread_cov=spread_cov)
 
 
 def scaled_pinv(M: np.ndarray) -> np.ndarray:
