@@ -10,10 +10,10 @@ then, per primary derivative, in units of its AR coloured Cramér-Rao std (``Est
 - ``tool``: what ``OutputErrorEstimator.segment_bootstrap_std`` computes now (fixed information, plain std);
 - ``cluster``: its analytic value, ``sqrt(factor x sum_j (bᵀ g_j)²)``;
 - the bootstrap's degrees of freedom, the segments' excess scatter pooled over the parameters and its degrees of
-  freedom (``oem.pooled_scatter``), each fit segment's share of the derivative's information
+  freedom (``oem.segment_scatter``), each fit segment's share of the derivative's information
   (``bᵀ A_j b / bᵀ sum A b``, ``b = M⁻¹ e_i``), and whether the small-sample bound enters by the rule of before
-  (re-solved spread, own degrees of freedom) and by the tool's now (``oem.small_sample_needed`` with the spread
-  covariance).
+  (re-solved spread, own degrees of freedom) and by the tool's now (``oem.small_sample_needed`` with the pooled
+  scatter).
 
 Exit 1 when the tool's spread is not the fixed-information one (more than 10 % from it for a primary), 0
 otherwise; exit 2 when the log is absent.
@@ -36,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from aero_replica import LOG, replica_fit  # the replica draw itself
 
 from identification.aero.identify import PRIMARY
-from identification.estimation.oem import pooled_scatter, small_sample_needed
+from identification.estimation.oem import segment_scatter, small_sample_needed
 
 
 def _iqr_std(x: np.ndarray) -> np.ndarray:
@@ -71,7 +71,7 @@ def main() -> int:
     if got is None:
         print("fewer segments than the bootstrap needs")
         return 2
-    tool, factor, dof, spread_cov = got
+    tool, factor, dof = got
     Mi = np.linalg.pinv(A.sum(axis=0) + P)
     rng = np.random.default_rng(args.seed)
     m = len(data)
@@ -81,8 +81,9 @@ def main() -> int:
     fixed = _iqr_std((w @ g + gp) @ Mi.T) * np.sqrt(factor)
     cluster = np.array([np.sqrt(factor[i] * np.sum((g @ Mi[:, i]) ** 2)) for i in range(ng)])
     crb = est.crb_std[:ng]
-    before, now = small_sample_needed(crb, resolved, dof), small_sample_needed(crb, tool, dof, spread_cov)
-    ratio, pooled_dof = pooled_scatter(crb, tool, dof, spread_cov)
+    scatter = segment_scatter(A, g, P, crb)
+    before, now = small_sample_needed(crb, resolved, dof), small_sample_needed(crb, tool, dof, scatter)
+    ratio, pooled_dof = scatter
     print(f"draw {args.seed}, segment starts {args.start_state}: {m} fit segments ({', '.join(d.name for d in data)})")
     print("spreads in AR coloured Cramér-Rao std; 'pooled': the excess scatter (variance ratio) pooled over the "
           f"{ng} parameters and its degrees of freedom")

@@ -119,9 +119,10 @@ class Estimate:
     bootstrap_min_dof: float = 0.0
     #: per fitted output, the order of its autoregressive residual model (bound "ar" only)
     ar_orders: list[int] | None = None
-    #: relative covariance of the model parameters' bootstrap spreads (:func:`segment_spread`); the small-sample
-    #: test and bound pool the parameters' scatter with it (:func:`pooled_scatter`; None: each parameter alone)
-    bootstrap_spread_cov: np.ndarray | None = None
+    #: per model parameter, the segments' scatter over the residual model's as a variance ratio and its degrees of
+    #: freedom, pooled over the parameters (:func:`segment_scatter`); the small-sample test and bound of bound "ar"
+    #: use it (None: each parameter's own bootstrap spread, the rule before 2026-11-29)
+    scatter: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         if self.n_global < 0:
@@ -149,7 +150,7 @@ class Estimate:
         consider share of the parameters held fixed (:func:`data_bound`; with :attr:`bootstrap_min_dof`, the
         segment bootstrap enters only where it has that many degrees of freedom)."""
         out = data_bound(self.crb_std[:self.n_global], self.bootstrap_std, self.bootstrap_dof, self.n_segments,
-                         self.bound_method, self.bootstrap_spread_cov)
+                         self.bound_method, self.scatter)
         if self.bound_method == BOUND_METHODS[1]:
             out = np.where(self.bootstrap_in_bound(), out, self.crb_std[:self.n_global])
         return out
@@ -160,16 +161,16 @@ class Estimate:
         if self.bound_method != BOUND_METHODS[2] or self.bootstrap_std is None:
             return []
         use = small_sample_needed(self.crb_std[:self.n_global], self.bootstrap_std, self.bootstrap_dofs(),
-                                  self.bootstrap_spread_cov)
+                                  self.scatter)
         return [n for n, u in zip(self.names, use, strict=False) if u]
 
     def segment_scatter(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Per model parameter, the segments' scatter over the residual model's as a variance ratio and its degrees
-        of freedom (:func:`pooled_scatter`; bound "ar" with a bootstrap only, else None)."""
+        of freedom (:attr:`scatter`, else the parameter's own bootstrap spread; bound "ar" with a bootstrap only,
+        else None)."""
         if self.bound_method != BOUND_METHODS[2] or self.bootstrap_std is None:
             return None
-        return pooled_scatter(self.crb_std[:self.n_global], self.bootstrap_std, self.bootstrap_dofs(),
-                              self.bootstrap_spread_cov)
+        return _scatter(self.crb_std[:self.n_global], self.bootstrap_std, self.bootstrap_dofs(), self.scatter)
 
     def segments_to_tighten(self) -> int:
         """Segments of the same kind that would bring Student's factor of the small-sample bound to
@@ -260,7 +261,7 @@ class Estimate:
         small = self.small_sample()
         if small:
             how = ("the coloured bound x the segments' excess scatter, pooled over the parameters, x Student's t at "
-                   "its degrees of freedom" if self.bootstrap_spread_cov is not None
+                   "its degrees of freedom" if self.scatter is not None
                    else "bootstrap x Student's t at its degrees of freedom")
             rows.append(f"small-sample bound (the {self.n_segments} segments scatter more than the residual model "
                         f"explains: {how}) for {', '.join(small)}; "
@@ -367,74 +368,95 @@ def tight_dof() -> float:
     return float(brentq(lambda d: student_factor(d) - TIGHT_STUDENT, 1.0, 1e4))
 
 
-def pooled_scatter(crb: np.ndarray, boot: np.ndarray, dof: np.ndarray, spread_cov: np.ndarray | None = None
-                   ) -> tuple[np.ndarray, np.ndarray]:
-    """Per parameter, how much more the segments scatter than the residual model explains, as a variance ratio
-    with its degrees of freedom: ``(ratio, dof)``.
+def segment_scatter(A: np.ndarray, g: np.ndarray, P: np.ndarray | None, crb: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Per model parameter, how much more the segments scatter than the residual model explains, as a variance
+    ratio (1: as the model says) with its degrees of freedom: ``(ratio, dof)``. ``A`` (m x n x n) and ``g``
+    (m x n) are each segment's information and score at the estimate (nuisance profiled out), ``P`` the prior's
+    information, ``crb`` the coloured Cramér-Rao std (1 sigma) of the residual model.
 
-    Without ``spread_cov``: each parameter's own ``boot² / crb²`` at its own degrees of freedom. With it (the
-    relative covariance of the spreads, :func:`segment_spread`): the own ratio pooled with the mean ratio of all
-    parameters (weights ``dof``), as the moderated variances of Smyth (2004, empirical Bayes with the pooled ratio
-    as the prior at its own degrees of freedom ``d_p``): ``(d_i r_i + d_p r_p) / (d_i + d_p)``, whose degrees of
-    freedom follow from ``spread_cov`` (spreads of parameters informed by the same segments are correlated, so the
-    pool has fewer degrees of freedom than their sum). Why: a parameter whose information sits in two segments has
-    a spread of 1-2 degrees of freedom, from which no excess can be told from chance (Student's factor 2-5); every
-    parameter's score comes from the same segments, and their pooled scatter is known far better. A parameter with
-    many degrees of freedom keeps mostly its own ratio."""
-    crb, boot = np.asarray(crb, float), np.asarray(boot, float)
-    d = np.maximum(np.broadcast_to(np.asarray(dof, float), crb.shape), 1.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = boot ** 2 / crb ** 2
-    if spread_cov is None:
-        return ratio, d.copy()
-    ok = np.isfinite(ratio) & (crb > 0.0)
+    Each parameter ``k``'s score in segment ``j``, ``s_kj = b_kᵀ g_j`` (``b_k = M⁻¹ e_k``), has under the working
+    model of :func:`segment_corrections` the expectation ``E s_kj² = c_kk,jj`` times the residual model's scale
+    ``crb_k² / b_kᵀ(Σ A)b_k``. Per segment, the ratios ``z_kj`` of ``s_kj²`` to it are pooled over the parameters
+    into one excess ``κ_j = Σ_k π_kj² z_kj / Σ_k π_kj²`` (``π_kj``: segment ``j``'s share of parameter ``k``'s
+    spread), and each parameter gets the mean of the segments' excesses weighted by its own shares,
+    ``ratio_i = Σ_j π_ij κ_j``: a segment that scatters (a disturbance, a wrong start) widens every parameter it
+    informs, in proportion to how much it informs it. The degrees of freedom are Satterthwaite's for that
+    quadratic form of Gaussian scores (their covariances ``c_kk',jl`` from :func:`segment_spread`), so the
+    correlation of parameters informed by the same segments is counted.
+
+    Why pooled: a parameter whose information sits in two segments has a spread of 1-2 degrees of freedom of its
+    own, from which no excess can be told from chance (Student's factor 2-5; the small-sample bound of before
+    widened such parameters 2-10 times on the excitation-log replica where the residual model was right), while
+    the same two segments' scores of all parameters tell how much those segments scatter with many more."""
+    m, n = A.shape[0], A.shape[1]
+    _, _, T = _score_covariances(A, P)
+    Mi = np.linalg.pinv(A.sum(axis=0) + (np.zeros((n, n)) if P is None else P))
+    E = np.einsum("jjkk->kj", T)  # (n, m): c_kk,jj
+    total = E.sum(axis=1)
+    crb = np.asarray(crb, float)
+    ratio, dof = np.ones(n), np.full(n, max(m - 1.0, 1.0))
+    ok = (total > 0.0) & (crb > 0.0) & np.isfinite(crb)
     if not ok.any():
-        return ratio, d.copy()
-    K = np.asarray(spread_cov, float)[np.ix_(ok, ok)]
-    w = d[ok] / d[ok].sum()
-    d_pool = 1.0 / max(float(w @ K @ w), 1e-12)
-    out_r, out_d = ratio.copy(), d.copy()
-    for k, i in enumerate(np.flatnonzero(ok)):
-        v = d_pool * w
-        v[k] += d[i]
-        v /= v.sum()
-        out_r[i] = float(v @ ratio[ok])
-        out_d[i] = max(1.0 / max(float(v @ K @ v), 1e-12), 1.0)
-    return out_r, out_d
+        return ratio, dof
+    S = A.sum(axis=0)
+    true_var = np.einsum("ik,kl,li->i", Mi, S, Mi)  # bᵀ(Σ A)b
+    share = np.where(ok[:, None], E / np.where(total > 0.0, total, 1.0)[:, None], 0.0)  # π_kj
+    norm = np.sum(share ** 2, axis=0)  # Σ_k π_kj²
+    gamma = np.where(norm > 0.0, share / np.where(norm > 0.0, norm, 1.0)[None, :], 0.0) \
+        / np.where(total > 0.0, total, 1.0)[:, None]  # weights on s_kj² / scale_k
+    scale = np.where(ok, crb ** 2 / np.where(true_var > 0.0, true_var, 1.0), 1.0)
+    s2 = (g @ Mi) ** 2  # (m, n): s_kj²
+    kappa = np.where(norm > 0.0, np.einsum("kj,jk->j", gamma, s2 / scale[None, :]), 1.0)
+    H = np.einsum("kj,lm,jmkl->jm", gamma, gamma, T ** 2)  # Satterthwaite: Var(Σ_j π_ij κ_j) = 2 πᵢᵀ H πᵢ
+    for i in np.flatnonzero(ok):
+        ratio[i] = float(share[i] @ kappa)
+        dof[i] = max(1.0 / max(float(share[i] @ H @ share[i]), 1e-12), 1.0)
+    return ratio, dof
 
 
-def small_sample_needed(crb: np.ndarray, boot: np.ndarray, dof: np.ndarray, spread_cov: np.ndarray | None = None
-                        ) -> np.ndarray:
+def small_sample_needed(crb: np.ndarray, boot: np.ndarray, dof: np.ndarray,
+                        scatter: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Per parameter: the segments scatter more than the residual model explains (record-to-record disturbances
     or mismatch), by more than the scatter's own sampling spread allows (one-sided 95 %: ``ratio > χ²_{0.95}(d) /
-    d`` with ``ratio, d`` from :func:`pooled_scatter`; without ``spread_cov``, ``boot² / crb²`` of the parameter
-    alone at its bootstrap's degrees of freedom, the test before 2026-11-29)."""
+    d``), with ``ratio, d`` from ``scatter`` (:func:`segment_scatter`, pooled over the parameters) or, without it,
+    ``boot² / crb²`` of the parameter alone at its bootstrap's degrees of freedom (the test before 2026-11-29)."""
     from scipy.stats import chi2
 
-    ratio, d = pooled_scatter(crb, boot, dof, spread_cov)
+    ratio, d = _scatter(crb, boot, dof, scatter)
     return ratio > chi2.ppf(0.95, d) / d
 
 
+def _scatter(crb: np.ndarray, boot: np.ndarray, dof: np.ndarray,
+             scatter: tuple[np.ndarray, np.ndarray] | None) -> tuple[np.ndarray, np.ndarray]:
+    """``scatter`` if given, else each parameter's own ``(boot² / crb², dof)``."""
+    if scatter is not None:
+        return np.asarray(scatter[0], float), np.maximum(np.asarray(scatter[1], float), 1.0)
+    crb = np.asarray(crb, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.asarray(boot, float) ** 2 / crb ** 2
+    return ratio, np.maximum(np.broadcast_to(np.asarray(dof, float), crb.shape), 1.0)
+
+
 def data_bound(crb: np.ndarray, boot: np.ndarray | None, dof: np.ndarray | None, n_segments: int, method: str,
-               spread_cov: np.ndarray | None = None) -> np.ndarray:
+               scatter: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """The data bound of the model parameters (1 sigma) by ``method`` (:data:`BOUND_METHODS`):
 
     - ``[0]``: the coloured Cramér-Rao std ``crb``;
     - ``[1]``: ``max(crb, boot x t(dof)/z)`` (the segment bootstrap over few segments, Student's factor);
     - ``[2]``: ``crb`` (with the AR residual model), and the small-sample bound ``crb x sqrt(ratio) x t(d)/z``
-      only where :func:`small_sample_needed`, ``ratio, d`` from :func:`pooled_scatter` (without ``spread_cov``
-      that is ``boot x t(dof)/z``, the bound before 2026-11-29).
+      only where :func:`small_sample_needed`, ``ratio, d`` from ``scatter`` (:func:`segment_scatter`); without
+      it that is ``boot x t(dof)/z``, the bound before 2026-11-29.
     """
     out = np.asarray(crb, float).copy()
     if boot is None or method == BOUND_METHODS[0]:
         return out
     d = np.broadcast_to(np.asarray(dof if dof is not None else n_segments - 1.0, float), out.shape)
     if method == BOUND_METHODS[2]:
-        ratio, d_pool = pooled_scatter(out, boot, d, spread_cov)
-        need = small_sample_needed(out, boot, d, spread_cov)
+        ratio, d_scatter = _scatter(out, boot, d, scatter)
         with np.errstate(invalid="ignore"):
-            wide = np.maximum(out, out * np.sqrt(np.maximum(ratio, 0.0)) * student_factor(d_pool))
-        return np.where(need, wide, out)
+            wide = np.maximum(out, out * np.sqrt(np.maximum(ratio, 0.0)) * student_factor(d_scatter))
+        return np.where(small_sample_needed(out, boot, d, scatter), wide, out)
     return np.maximum(out, boot * student_factor(d))
 
 
@@ -469,11 +491,14 @@ def segment_corrections(A: np.ndarray, P: np.ndarray | None = None) -> tuple[np.
 
 
 def segment_spread(A: np.ndarray, P: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`segment_corrections` (``variance_factor``, ``dof``) and the relative covariance of the parameters'
-    spreads under the same working model: with ``Q_i = Σ_j (b_iᵀ ĝ_j)²`` the spread of parameter ``i``,
-    ``K_ik = Cov(Q_i, Q_k) / (2 E[Q_i] E[Q_k]) = Σ_jl (b_iᵀ C_jl b_k)² / (E[Q_i] E[Q_k])`` for Gaussian scores
-    (``K_ii = 1 / dof_i``). Spreads of parameters informed by the same segments are correlated; ``K`` gives the
-    degrees of freedom of any weighted mean of them (:func:`pooled_scatter`)."""
+    """:func:`segment_corrections` (``variance_factor``, ``dof``) and the covariances of the parameters' scores at
+    the estimate under the same working model, ``T[j, l, i, k] = b_iᵀ C_jl b_k`` (segments j, l; parameters i,
+    k): for Gaussian scores ``Cov(s_ij², s_kl²) = 2 T[j, l, i, k]²``, from which :func:`segment_scatter` takes the
+    degrees of freedom of any weighted sum of the squared scores."""
+    return _score_covariances(A, P)
+
+
+def _score_covariances(A: np.ndarray, P: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     m, n = A.shape[0], A.shape[1]
     S = A.sum(axis=0)
     Mi = np.linalg.pinv(S + (np.zeros((n, n)) if P is None else P))
@@ -481,14 +506,11 @@ def segment_spread(A: np.ndarray, P: np.ndarray | None = None) -> tuple[np.ndarr
     T = np.einsum("jai,ab,lbk->jlik", X, Mi @ S @ Mi - 2.0 * Mi, X, optimize=True)  # b_iᵀ C_jl b_k
     T[np.arange(m), np.arange(m)] += np.einsum("ai,jak->jik", Mi, X)
     E = np.einsum("jjii->i", T)
-    factor, dof, K = np.ones(n), np.full(n, max(m - 1.0, 1.0)), np.zeros((n, n))
+    factor, dof = np.ones(n), np.full(n, max(m - 1.0, 1.0))
     ok = E > 0.0
     factor[ok] = np.diag(Mi @ S @ Mi)[ok] / E[ok]
-    sq = np.einsum("jlik->ik", T ** 2)
-    K[np.ix_(ok, ok)] = sq[np.ix_(ok, ok)] / np.outer(E[ok], E[ok])
-    dof[ok] = 1.0 / np.diag(K)[ok]
-    K[~ok, ~ok] = 1.0 / dof[~ok]
-    return factor, dof, K
+    dof[ok] = E[ok] ** 2 / np.einsum("jlii->i", T ** 2)[ok]
+    return factor, dof, T
 
 
 #: largest credible output change per 100 % change of a model parameter, in units of the output's range over
@@ -1076,15 +1098,14 @@ class OutputErrorEstimator:
 
     def segment_bootstrap_std(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray, repeats: int = 400,
                               seed: int = 0, theta: np.ndarray | None = None
-                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """Block bootstrap over manoeuvres (one linearised Gauss-Newton step per resample from the estimate with
         the information held at the full sample's, Hu & Kalbfleisch's estimating-function bootstrap): (std,
-        variance factor, degrees of freedom, relative covariance of the parameters' spreads) of the model
-        parameters (:func:`segment_spread`), or None with fewer than :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres
-        (too few distinct resamples). Whole manoeuvres are resampled, so coloured noise, per-record disturbances
-        and model mismatch that vary from record to record show in the spread. The std is corrected for the
-        segments' leverage (times the square root of the factor) and the degrees of freedom follow from how the
-        information is shared among them."""
+        variance factor, degrees of freedom) of the model parameters, or None with fewer than
+        :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres (too few distinct resamples). Whole manoeuvres are resampled, so
+        coloured noise, per-record disturbances and model mismatch that vary from record to record show in the
+        spread. The std is corrected for the segments' leverage (times the square root of the factor) and the
+        degrees of freedom follow from how the information is shared among them (:func:`segment_corrections`)."""
         m = len(res)
         if m < BOOTSTRAP_MIN_SEGMENTS or not self.free:
             return None
@@ -1098,8 +1119,19 @@ class OutputErrorEstimator:
         # the plain std: with the information held fixed no resample takes a wild step (the interquartile range
         # / 1.349 was used while each resample re-solved with its own information), and the variance is the
         # statistic whose expectation segment_corrections describes
-        factor, dof, spread_cov = segment_spread(A, P)
-        return np.std(np.array(reps), axis=0) * np.sqrt(factor), factor, dof, spread_cov
+        factor, dof = segment_corrections(A, P)
+        return np.std(np.array(reps), axis=0) * np.sqrt(factor), factor, dof
+
+    def segment_scatter(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray, crb: np.ndarray,
+                        theta: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """:func:`segment_scatter` of the model parameters at ``theta`` against the coloured Cramér-Rao std
+        ``crb`` (None with fewer than :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres, as the bootstrap)."""
+        if len(res) < BOOTSTRAP_MIN_SEGMENTS or not self.free:
+            return None
+        terms = self._segment_terms(res, jacs, W)
+        ng = len(self.free)
+        return segment_scatter(np.stack([t[0] for t in terms]), np.stack([t[1] for t in terms]),
+                               np.diag(self.prior_information(ng)), crb[:ng])
 
     def information(self, data: Sequence[Manoeuvre], theta: np.ndarray | None = None,
                     weight: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
@@ -1142,12 +1174,13 @@ class OutputErrorEstimator:
         std = np.sqrt(np.maximum(np.diag(cov), 0.0))
         corr = correlation(cov)  # zero-variance entries give 0 correlation, never NaN
         got = self.segment_bootstrap_std(res, jacs, W, theta=theta)
-        boot, factor, dof, spread_cov = got if got is not None else (None, None, None, None)
+        boot, factor, dof = got if got is not None else (None, None, None)
+        scatter = self.segment_scatter(res, jacs, W, std, theta) if polys is not None and got is not None else None
         method = BOUND_METHODS[2] if polys is not None else BOUND_METHODS[1] if boot is not None else BOUND_METHODS[0]
         exc = input_excitation([m.u for m in data], list(self.model.inputs.index))
         ident = analyse(M + np.diag(prior_info), names, len(self.free), exc, cov=cov)
         printed = std.copy()
-        printed[:len(self.free)] = data_bound(std[:len(self.free)], boot, dof, len(data), method, spread_cov)
+        printed[:len(self.free)] = data_bound(std[:len(self.free)], boot, dof, len(data), method, scatter)
         warnings = []
         for i, n in enumerate(names[:len(self.free)]):
             if printed[i] > RELATIVE_STD_WARN * abs(theta[i]):
@@ -1173,7 +1206,7 @@ class OutputErrorEstimator:
                         prior_sd=self.prior_sd.copy(), covariance=cov[:ng, :ng].copy(), n_segments=len(data),
                         bootstrap_dof=dof, bootstrap_factor=factor, unbounded=unbounded,
                         ar_orders=None if polys is None else [len(q) - 1 for q in polys],
-                        bootstrap_spread_cov=spread_cov)
+                        scatter=scatter)
 
 
 def scaled_pinv(M: np.ndarray) -> np.ndarray:
