@@ -380,10 +380,14 @@ def segment_scatter(A: np.ndarray, g: np.ndarray, P: np.ndarray | None, crb: np.
     ``crb_k² / b_kᵀ(Σ A)b_k``. Per segment, the ratios ``z_kj`` of ``s_kj²`` to it are pooled over the parameters
     into one excess ``κ_j = Σ_k π_kj² z_kj / Σ_k π_kj²`` (``π_kj``: segment ``j``'s share of parameter ``k``'s
     spread), and each parameter gets the mean of the segments' excesses weighted by its own shares,
-    ``ratio_i = Σ_j π_ij κ_j``: a segment that scatters (a disturbance, a wrong start) widens every parameter it
-    informs, in proportion to how much it informs it. The degrees of freedom are Satterthwaite's for that
-    quadratic form of Gaussian scores (their covariances ``c_kk',jl`` from :func:`segment_spread`), so the
-    correlation of parameters informed by the same segments is counted.
+    ``Σ_j π_ij κ_j``: a segment that scatters (a disturbance, a wrong start) widens every parameter it informs, in
+    proportion to how much it informs it. That pooled ratio is then moderated with the parameter's own ratio
+    ``Σ_j z_ij c_ii,jj / Σ_j c_ii,jj`` (its own leverage-corrected spread), each weighted by its degrees of freedom
+    as Smyth's (2004) moderated variances: a parameter whose own segments scatter more than their other
+    parameters' keeps part of that evidence. Every ratio here is a weighted sum of squared scores, so its degrees
+    of freedom are Satterthwaite's for that quadratic form of Gaussian scores (their covariances ``c_kk',jl`` from
+    :func:`segment_spread`): the correlation of parameters informed by the same segments, and of the own ratio
+    with the pooled one, is counted.
 
     Why pooled: a parameter whose information sits in two segments has a spread of 1-2 degrees of freedom of its
     own, from which no excess can be told from chance (Student's factor 2-5; the small-sample bound of before
@@ -407,11 +411,17 @@ def segment_scatter(A: np.ndarray, g: np.ndarray, P: np.ndarray | None, crb: np.
         / np.where(total > 0.0, total, 1.0)[:, None]  # weights on s_kj² / scale_k
     scale = np.where(ok, crb ** 2 / np.where(true_var > 0.0, true_var, 1.0), 1.0)
     s2 = (g @ Mi) ** 2  # (m, n): s_kj²
-    kappa = np.where(norm > 0.0, np.einsum("kj,jk->j", gamma, s2 / scale[None, :]), 1.0)
-    H = np.einsum("kj,lm,jmkl->jm", gamma, gamma, T ** 2)  # Satterthwaite: Var(Σ_j π_ij κ_j) = 2 πᵢᵀ H πᵢ
+    z = s2 / scale[None, :]  # (m, n): squared scores in units of the residual model's scale
+    T2 = T ** 2
     for i in np.flatnonzero(ok):
-        ratio[i] = float(share[i] @ kappa)
-        dof[i] = max(1.0 / max(float(share[i] @ H @ share[i]), 1e-12), 1.0)
+        pooled = share[i][None, :] * gamma  # weights on z[j, k] (as (k, j)) of Σ_j π_ij κ_j
+        own = np.zeros((n, m))
+        own[i] = 1.0 / total[i]  # the parameter's own spread, Σ_j z_ji / Σ_j c_ii,jj
+        d_pool = 1.0 / max(float(np.einsum("kj,lm,jmkl->", pooled, pooled, T2)), 1e-12)
+        d_own = 1.0 / max(float(np.einsum("kj,lm,jmkl->", own, own, T2)), 1e-12)
+        weights = (d_own * own + d_pool * pooled) / (d_own + d_pool)
+        ratio[i] = float(np.sum(weights * z.T))
+        dof[i] = max(1.0 / max(float(np.einsum("kj,lm,jmkl->", weights, weights, T2)), 1e-12), 1.0)
     return ratio, dof
 
 
