@@ -119,6 +119,10 @@ class Estimate:
     bootstrap_min_dof: float = 0.0
     #: per fitted output, the order of its autoregressive residual model (bound "ar" only)
     ar_orders: list[int] | None = None
+    #: per model parameter, the segments' scatter over the residual model's as a variance ratio and its degrees of
+    #: freedom, pooled over the parameters (:func:`segment_scatter`); the small-sample test and bound of bound "ar"
+    #: use it (None: each parameter's own bootstrap spread, the rule before 2026-11-29)
+    scatter: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         if self.n_global < 0:
@@ -146,7 +150,7 @@ class Estimate:
         consider share of the parameters held fixed (:func:`data_bound`; with :attr:`bootstrap_min_dof`, the
         segment bootstrap enters only where it has that many degrees of freedom)."""
         out = data_bound(self.crb_std[:self.n_global], self.bootstrap_std, self.bootstrap_dof, self.n_segments,
-                         self.bound_method)
+                         self.bound_method, self.scatter)
         if self.bound_method == BOUND_METHODS[1]:
             out = np.where(self.bootstrap_in_bound(), out, self.crb_std[:self.n_global])
         return out
@@ -156,16 +160,26 @@ class Estimate:
         more than the residual model explains, :func:`data_bound`)."""
         if self.bound_method != BOUND_METHODS[2] or self.bootstrap_std is None:
             return []
-        use = small_sample_needed(self.crb_std[:self.n_global], self.bootstrap_std, self.bootstrap_dofs())
+        use = small_sample_needed(self.crb_std[:self.n_global], self.bootstrap_std, self.bootstrap_dofs(),
+                                  self.scatter)
         return [n for n, u in zip(self.names, use, strict=False) if u]
+
+    def segment_scatter(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Per model parameter, the segments' scatter over the residual model's as a variance ratio and its degrees
+        of freedom (:attr:`scatter`, else the parameter's own bootstrap spread; bound "ar" with a bootstrap only,
+        else None)."""
+        if self.bound_method != BOUND_METHODS[2] or self.bootstrap_std is None:
+            return None
+        return _scatter(self.crb_std[:self.n_global], self.bootstrap_std, self.bootstrap_dofs(), self.scatter)
 
     def segments_to_tighten(self) -> int:
         """Segments of the same kind that would bring Student's factor of the small-sample bound to
         :data:`TIGHT_STUDENT` for every parameter that has it (0: none has it)."""
         use = [self.names.index(n) for n in self.small_sample()]
-        if not use:
+        scatter = self.segment_scatter()
+        if not use or scatter is None:
             return 0
-        per_segment = float(np.min(self.bootstrap_dofs()[use])) / max(self.n_segments, 1)
+        per_segment = float(np.min(scatter[1][use])) / max(self.n_segments, 1)
         return int(np.ceil(tight_dof() / max(per_segment, 1e-9)))
 
     def bootstrap_dofs(self) -> np.ndarray:
@@ -246,8 +260,11 @@ class Estimate:
         rows.append(f"bound: {self.bound_method}")
         small = self.small_sample()
         if small:
+            how = ("the coloured bound x the segments' excess scatter, pooled over the parameters, x Student's t at "
+                   "its degrees of freedom" if self.scatter is not None
+                   else "bootstrap x Student's t at its degrees of freedom")
             rows.append(f"small-sample bound (the {self.n_segments} segments scatter more than the residual model "
-                        f"explains: bootstrap x Student's t at its degrees of freedom) for {', '.join(small)}; "
+                        f"explains: {how}) for {', '.join(small)}; "
                         f"about {self.segments_to_tighten()} segments like these would tighten it")
         if len(self.names) > self.n_global:
             rows.append(f"{len(self.names) - self.n_global} nuisance parameters (initial states, biases) estimated "
@@ -257,6 +274,7 @@ class Estimate:
     def as_dict(self) -> dict[str, Any]:
         std = self.std
         boot = self.bootstrap_std
+        scatter = self.segment_scatter()
         params = {}
         for i, n in enumerate(self.names[:self.n_global]):
             params[n] = {"value": float(self.values[i]), "std": float(std[i]), "bound_method": self.bound_method,
@@ -265,6 +283,9 @@ class Estimate:
                          "bootstrap_dof": None if boot is None or self.bootstrap_dof is None
                          else float(self.bootstrap_dof[i]),
                          "bootstrap_in_bound": bool(self.bootstrap_in_bound()[i]),
+                         "segment_scatter_ratio": None if scatter is None or not np.isfinite(scatter[0][i])
+                         else float(scatter[0][i]),
+                         "segment_scatter_dof": None if scatter is None else float(scatter[1][i]),
                          "consider_std": None if self.consider_std is None else float(self.consider_std[i]),
                          "prior_sd": None if self.prior_sd is None or not np.isfinite(self.prior_sd[i])
                          else float(self.prior_sd[i]),
@@ -296,17 +317,23 @@ BOOTSTRAP_CHUNK = 50
 
 def bootstrap_task(task: dict[str, Any]) -> dict[str, Any]:
     """Resamples ``task["first"]..`` of the block bootstrap: manoeuvre weights from the task's own generator
-    (``identification.common.parallel.task_rng``), one linearised Gauss-Newton step each; plain arrays in and out."""
+    (``identification.common.parallel.task_rng``), one linearised Gauss-Newton step each with the information held
+    at the full sample's, ``M⁻¹ (Σ w_j g_j + g_prior)`` with ``M = Σ A_j + P``; plain arrays in and out.
+
+    The information is held fixed because the leverage factor and the degrees of freedom of
+    :func:`segment_corrections` describe that linear statistic. Re-solving each resample with its own information
+    ``Σ w_j A_j + P`` (until 2026-11-29) let a resample that drops one of the two segments carrying a parameter halve
+    its information and double its step: on the excitation-log replica that spread came out 2.0-3.9 coloured
+    Cramér-Rao std where the fixed-information one gave 1.4-2.4, matching its analytic value
+    (``bench/aero_replica_bootstrap.py``)."""
     from identification.common.parallel import task_rng
 
     A, g, P, gp = (np.asarray(task[k], float) for k in ("A", "g", "P", "gp"))
     m = A.shape[0]
+    Mi = np.linalg.pinv(A.sum(axis=0) + P, hermitian=True)
     rng = task_rng(task["seed"], task["index"])
-    reps = []
-    for _ in range(task["count"]):
-        w = np.bincount(rng.integers(0, m, m), minlength=m).astype(float)
-        reps.append(np.linalg.lstsq(np.einsum("j,jab->ab", w, A) + P, w @ g + gp, rcond=None)[0])
-    return {"reps": np.array(reps)}
+    w = np.stack([np.bincount(rng.integers(0, m, m), minlength=m).astype(float) for _ in range(task["count"])])
+    return {"reps": (w @ g + gp) @ Mi.T}
 
 
 def bootstrap_repeats(A: np.ndarray, g: np.ndarray, P: np.ndarray, gp: np.ndarray, repeats: int, seed: int,
@@ -341,33 +368,106 @@ def tight_dof() -> float:
     return float(brentq(lambda d: student_factor(d) - TIGHT_STUDENT, 1.0, 1e4))
 
 
-def small_sample_needed(crb: np.ndarray, boot: np.ndarray, dof: np.ndarray) -> np.ndarray:
-    """Per parameter: the segment bootstrap's std (leverage-corrected) exceeds the coloured Cramér-Rao std by
-    more than its own sampling spread allows (one-sided 95 %: ``boot² / crb² > χ²_{0.95}(dof) / dof``), i.e. the
-    segments scatter more than the residual model explains (record-to-record disturbances or mismatch)."""
+def segment_scatter(A: np.ndarray, g: np.ndarray, P: np.ndarray | None, crb: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Per model parameter, how much more the segments scatter than the residual model explains, as a variance
+    ratio (1: as the model says) with its degrees of freedom: ``(ratio, dof)``. ``A`` (m x n x n) and ``g``
+    (m x n) are each segment's information and score at the estimate (nuisance profiled out), ``P`` the prior's
+    information, ``crb`` the coloured Cramér-Rao std (1 sigma) of the residual model.
+
+    Each parameter ``k``'s score in segment ``j``, ``s_kj = b_kᵀ g_j`` (``b_k = M⁻¹ e_k``), has under the working
+    model of :func:`segment_corrections` the expectation ``E s_kj² = c_kk,jj`` times the residual model's scale
+    ``crb_k² / b_kᵀ(Σ A)b_k``. Per segment, the ratios ``z_kj`` of ``s_kj²`` to it are pooled over the parameters
+    into one excess ``κ_j = Σ_k π_kj² z_kj / Σ_k π_kj²`` (``π_kj``: segment ``j``'s share of parameter ``k``'s
+    spread), and each parameter gets the mean of the segments' excesses weighted by its own shares,
+    ``Σ_j π_ij κ_j``: a segment that scatters (a disturbance, a wrong start) widens every parameter it informs, in
+    proportion to how much it informs it. That pooled ratio is then moderated with the parameter's own ratio
+    ``Σ_j z_ij c_ii,jj / Σ_j c_ii,jj`` (its own leverage-corrected spread), each weighted by its degrees of freedom
+    as Smyth's (2004) moderated variances: a parameter whose own segments scatter more than their other
+    parameters' keeps part of that evidence. Every ratio here is a weighted sum of squared scores, so its degrees
+    of freedom are Satterthwaite's for that quadratic form of Gaussian scores (their covariances ``c_kk',jl`` from
+    :func:`segment_spread`): the correlation of parameters informed by the same segments, and of the own ratio
+    with the pooled one, is counted.
+
+    Why pooled: a parameter whose information sits in two segments has a spread of 1-2 degrees of freedom of its
+    own, from which no excess can be told from chance (Student's factor 2-5; the small-sample bound of before
+    widened such parameters 2-10 times on the excitation-log replica where the residual model was right), while
+    the same two segments' scores of all parameters tell how much those segments scatter with many more."""
+    m, n = A.shape[0], A.shape[1]
+    _, _, T = _score_covariances(A, P)
+    Mi = np.linalg.pinv(A.sum(axis=0) + (np.zeros((n, n)) if P is None else P))
+    E = np.einsum("jjkk->kj", T)  # (n, m): c_kk,jj
+    total = E.sum(axis=1)
+    crb = np.asarray(crb, float)
+    ratio, dof = np.ones(n), np.full(n, max(m - 1.0, 1.0))
+    ok = (total > 0.0) & (crb > 0.0) & np.isfinite(crb)
+    if not ok.any():
+        return ratio, dof
+    S = A.sum(axis=0)
+    true_var = np.einsum("ik,kl,li->i", Mi, S, Mi)  # bᵀ(Σ A)b
+    share = np.where(ok[:, None], E / np.where(total > 0.0, total, 1.0)[:, None], 0.0)  # π_kj
+    norm = np.sum(share ** 2, axis=0)  # Σ_k π_kj²
+    gamma = np.where(norm > 0.0, share / np.where(norm > 0.0, norm, 1.0)[None, :], 0.0) \
+        / np.where(total > 0.0, total, 1.0)[:, None]  # weights on s_kj² / scale_k
+    scale = np.where(ok, crb ** 2 / np.where(true_var > 0.0, true_var, 1.0), 1.0)
+    s2 = (g @ Mi) ** 2  # (m, n): s_kj²
+    z = s2 / scale[None, :]  # (m, n): squared scores in units of the residual model's scale
+    T2 = T ** 2
+    for i in np.flatnonzero(ok):
+        pooled = share[i][None, :] * gamma  # weights on z[j, k] (as (k, j)) of Σ_j π_ij κ_j
+        own = np.zeros((n, m))
+        own[i] = 1.0 / total[i]  # the parameter's own spread, Σ_j z_ji / Σ_j c_ii,jj
+        d_pool = 1.0 / max(float(np.einsum("kj,lm,jmkl->", pooled, pooled, T2)), 1e-12)
+        d_own = 1.0 / max(float(np.einsum("kj,lm,jmkl->", own, own, T2)), 1e-12)
+        weights = (d_own * own + d_pool * pooled) / (d_own + d_pool)
+        ratio[i] = float(np.sum(weights * z.T))
+        dof[i] = max(1.0 / max(float(np.einsum("kj,lm,jmkl->", weights, weights, T2)), 1e-12), 1.0)
+    return ratio, dof
+
+
+def small_sample_needed(crb: np.ndarray, boot: np.ndarray, dof: np.ndarray,
+                        scatter: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """Per parameter: the segments scatter more than the residual model explains (record-to-record disturbances
+    or mismatch), by more than the scatter's own sampling spread allows (one-sided 95 %: ``ratio > χ²_{0.95}(d) /
+    d``), with ``ratio, d`` from ``scatter`` (:func:`segment_scatter`, pooled over the parameters) or, without it,
+    ``boot² / crb²`` of the parameter alone at its bootstrap's degrees of freedom (the test before 2026-11-29)."""
     from scipy.stats import chi2
 
-    d = np.maximum(np.asarray(dof, float), 1.0)
-    return np.asarray(boot, float) > np.asarray(crb, float) * np.sqrt(chi2.ppf(0.95, d) / d)
+    ratio, d = _scatter(crb, boot, dof, scatter)
+    return ratio > chi2.ppf(0.95, d) / d
 
 
-def data_bound(crb: np.ndarray, boot: np.ndarray | None, dof: np.ndarray | None, n_segments: int, method: str
-               ) -> np.ndarray:
+def _scatter(crb: np.ndarray, boot: np.ndarray, dof: np.ndarray,
+             scatter: tuple[np.ndarray, np.ndarray] | None) -> tuple[np.ndarray, np.ndarray]:
+    """``scatter`` if given, else each parameter's own ``(boot² / crb², dof)``."""
+    if scatter is not None:
+        return np.asarray(scatter[0], float), np.maximum(np.asarray(scatter[1], float), 1.0)
+    crb = np.asarray(crb, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.asarray(boot, float) ** 2 / crb ** 2
+    return ratio, np.maximum(np.broadcast_to(np.asarray(dof, float), crb.shape), 1.0)
+
+
+def data_bound(crb: np.ndarray, boot: np.ndarray | None, dof: np.ndarray | None, n_segments: int, method: str,
+               scatter: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """The data bound of the model parameters (1 sigma) by ``method`` (:data:`BOUND_METHODS`):
 
     - ``[0]``: the coloured Cramér-Rao std ``crb``;
     - ``[1]``: ``max(crb, boot x t(dof)/z)`` (the segment bootstrap over few segments, Student's factor);
-    - ``[2]``: ``crb`` (with the AR residual model), and the small-sample bound ``max(crb, boot x t(dof)/z)``
-      only where :func:`small_sample_needed`.
+    - ``[2]``: ``crb`` (with the AR residual model), and the small-sample bound ``crb x sqrt(ratio) x t(d)/z``
+      only where :func:`small_sample_needed`, ``ratio, d`` from ``scatter`` (:func:`segment_scatter`); without
+      it that is ``boot x t(dof)/z``, the bound before 2026-11-29.
     """
     out = np.asarray(crb, float).copy()
     if boot is None or method == BOUND_METHODS[0]:
         return out
     d = np.broadcast_to(np.asarray(dof if dof is not None else n_segments - 1.0, float), out.shape)
-    wide = np.maximum(out, boot * student_factor(d))
     if method == BOUND_METHODS[2]:
-        return np.where(small_sample_needed(out, boot, d), wide, out)
-    return wide
+        ratio, d_scatter = _scatter(out, boot, d, scatter)
+        with np.errstate(invalid="ignore"):
+            wide = np.maximum(out, out * np.sqrt(np.maximum(ratio, 0.0)) * student_factor(d_scatter))
+        return np.where(small_sample_needed(out, boot, d, scatter), wide, out)
+    return np.maximum(out, boot * student_factor(d))
 
 
 def student_factor(dof: float | np.ndarray) -> float | np.ndarray:
@@ -396,21 +496,31 @@ def segment_corrections(A: np.ndarray, P: np.ndarray | None = None) -> tuple[np.
       for Gaussian scores is ``2 Σ_jl c_jl²``); ``m - 1`` for equal segments, fewer when a few segments carry
       the information.
     """
+    factor, dof, _ = segment_spread(A, P)
+    return factor, dof
+
+
+def segment_spread(A: np.ndarray, P: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`segment_corrections` (``variance_factor``, ``dof``) and the covariances of the parameters' scores at
+    the estimate under the same working model, ``T[j, l, i, k] = b_iᵀ C_jl b_k`` (segments j, l; parameters i,
+    k): for Gaussian scores ``Cov(s_ij², s_kl²) = 2 T[j, l, i, k]²``, from which :func:`segment_scatter` takes the
+    degrees of freedom of any weighted sum of the squared scores."""
+    return _score_covariances(A, P)
+
+
+def _score_covariances(A: np.ndarray, P: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     m, n = A.shape[0], A.shape[1]
     S = A.sum(axis=0)
     Mi = np.linalg.pinv(S + (np.zeros((n, n)) if P is None else P))
+    X = A @ Mi  # (m, n, n): column i of X_j is A_j b_i
+    T = np.einsum("jai,ab,lbk->jlik", X, Mi @ S @ Mi - 2.0 * Mi, X, optimize=True)  # b_iᵀ C_jl b_k
+    T[np.arange(m), np.arange(m)] += np.einsum("ai,jak->jik", Mi, X)
+    E = np.einsum("jjii->i", T)
     factor, dof = np.ones(n), np.full(n, max(m - 1.0, 1.0))
-    for i in range(n):
-        b = Mi[:, i]
-        a = A @ b  # (m, n): A_j b
-        q = a @ Mi  # (m, n): (M⁻¹ A_j b)ᵀ
-        C = q @ S @ q.T - 2.0 * q @ a.T
-        C[np.diag_indices(m)] += a @ b
-        spread = float(np.trace(C))
-        if spread > 0.0:
-            factor[i] = float(b @ S @ b) / spread
-            dof[i] = spread ** 2 / float(np.sum(C ** 2))
-    return factor, dof
+    ok = E > 0.0
+    factor[ok] = np.diag(Mi @ S @ Mi)[ok] / E[ok]
+    dof[ok] = E[ok] ** 2 / np.einsum("jlii->i", T ** 2)[ok]
+    return factor, dof, T
 
 
 #: largest credible output change per 100 % change of a model parameter, in units of the output's range over
@@ -999,13 +1109,13 @@ class OutputErrorEstimator:
     def segment_bootstrap_std(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray, repeats: int = 400,
                               seed: int = 0, theta: np.ndarray | None = None
                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """Block bootstrap over manoeuvres (one linearised Gauss-Newton step per resample from the estimate,
-        Hu & Kalbfleisch's estimating-function bootstrap): (std, variance factor, degrees of freedom) of the
-        model parameters, or None with fewer than :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres (too few distinct
-        resamples). Whole manoeuvres are resampled, so coloured noise, per-record disturbances and model
-        mismatch that vary from record to record show in the spread. The std is corrected for the segments'
-        leverage (times the square root of the factor) and the degrees of freedom follow from how the
-        information is shared among them (:func:`segment_corrections`)."""
+        """Block bootstrap over manoeuvres (one linearised Gauss-Newton step per resample from the estimate with
+        the information held at the full sample's, Hu & Kalbfleisch's estimating-function bootstrap): (std,
+        variance factor, degrees of freedom) of the model parameters, or None with fewer than
+        :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres (too few distinct resamples). Whole manoeuvres are resampled, so
+        coloured noise, per-record disturbances and model mismatch that vary from record to record show in the
+        spread. The std is corrected for the segments' leverage (times the square root of the factor) and the
+        degrees of freedom follow from how the information is shared among them (:func:`segment_corrections`)."""
         m = len(res)
         if m < BOOTSTRAP_MIN_SEGMENTS or not self.free:
             return None
@@ -1016,11 +1126,22 @@ class OutputErrorEstimator:
         P = np.diag(self.prior_information(ng))  # the prior is not resampled: it is not data
         gp = P @ (self.prior_mean - theta[:ng]) if theta is not None else np.zeros(ng)
         reps = bootstrap_repeats(A, g, P, gp, repeats, seed)
-        # robust spread (IQR / 1.349): a resample that leaves a parameter unexcited gives a wild step, which
-        # would dominate a plain std
-        q75, q25 = np.percentile(np.array(reps), [75, 25], axis=0)
+        # the plain std: with the information held fixed no resample takes a wild step (the interquartile range
+        # / 1.349 was used while each resample re-solved with its own information), and the variance is the
+        # statistic whose expectation segment_corrections describes
         factor, dof = segment_corrections(A, P)
-        return (q75 - q25) / 1.349 * np.sqrt(factor), factor, dof
+        return np.std(np.array(reps), axis=0) * np.sqrt(factor), factor, dof
+
+    def segment_scatter(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray, crb: np.ndarray,
+                        theta: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """:func:`segment_scatter` of the model parameters at ``theta`` against the coloured Cramér-Rao std
+        ``crb`` (None with fewer than :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres, as the bootstrap)."""
+        if len(res) < BOOTSTRAP_MIN_SEGMENTS or not self.free:
+            return None
+        terms = self._segment_terms(res, jacs, W)
+        ng = len(self.free)
+        return segment_scatter(np.stack([t[0] for t in terms]), np.stack([t[1] for t in terms]),
+                               np.diag(self.prior_information(ng)), crb[:ng])
 
     def information(self, data: Sequence[Manoeuvre], theta: np.ndarray | None = None,
                     weight: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
@@ -1064,11 +1185,12 @@ class OutputErrorEstimator:
         corr = correlation(cov)  # zero-variance entries give 0 correlation, never NaN
         got = self.segment_bootstrap_std(res, jacs, W, theta=theta)
         boot, factor, dof = got if got is not None else (None, None, None)
+        scatter = self.segment_scatter(res, jacs, W, std, theta) if polys is not None and got is not None else None
         method = BOUND_METHODS[2] if polys is not None else BOUND_METHODS[1] if boot is not None else BOUND_METHODS[0]
         exc = input_excitation([m.u for m in data], list(self.model.inputs.index))
         ident = analyse(M + np.diag(prior_info), names, len(self.free), exc, cov=cov)
         printed = std.copy()
-        printed[:len(self.free)] = data_bound(std[:len(self.free)], boot, dof, len(data), method)
+        printed[:len(self.free)] = data_bound(std[:len(self.free)], boot, dof, len(data), method, scatter)
         warnings = []
         for i, n in enumerate(names[:len(self.free)]):
             if printed[i] > RELATIVE_STD_WARN * abs(theta[i]):
@@ -1093,7 +1215,8 @@ class OutputErrorEstimator:
                         n_global=ng, bootstrap_std=boot, bound_method=method, identifiability=ident,
                         prior_sd=self.prior_sd.copy(), covariance=cov[:ng, :ng].copy(), n_segments=len(data),
                         bootstrap_dof=dof, bootstrap_factor=factor, unbounded=unbounded,
-                        ar_orders=None if polys is None else [len(q) - 1 for q in polys])
+                        ar_orders=None if polys is None else [len(q) - 1 for q in polys],
+                        scatter=scatter)
 
 
 def scaled_pinv(M: np.ndarray) -> np.ndarray:
