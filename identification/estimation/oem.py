@@ -395,6 +395,9 @@ def segment_scatter(A: np.ndarray, g: np.ndarray, P: np.ndarray | None, crb: np.
     the same two segments' scores of all parameters tell how much those segments scatter with many more."""
     m, n = A.shape[0], A.shape[1]
     _, _, T = _score_covariances(A, P)
+    if T is None:
+        raise ValueError(f"segment_scatter: {m} segments x {n} parameters need {(m * n) ** 2:.3g} score "
+                         f"covariances, more than SCORE_COV_MAX_ELEMENTS = {SCORE_COV_MAX_ELEMENTS:.3g}")
     Mi = np.linalg.pinv(A.sum(axis=0) + (np.zeros((n, n)) if P is None else P))
     E = np.einsum("jjkk->kj", T)  # (n, m): c_kk,jj
     total = E.sum(axis=1)
@@ -500,18 +503,38 @@ def segment_corrections(A: np.ndarray, P: np.ndarray | None = None) -> tuple[np.
     return factor, dof
 
 
-def segment_spread(A: np.ndarray, P: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def segment_spread(A: np.ndarray, P: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """:func:`segment_corrections` (``variance_factor``, ``dof``) and the covariances of the parameters' scores at
     the estimate under the same working model, ``T[j, l, i, k] = b_iᵀ C_jl b_k`` (segments j, l; parameters i,
     k): for Gaussian scores ``Cov(s_ij², s_kl²) = 2 T[j, l, i, k]²``, from which :func:`segment_scatter` takes the
-    degrees of freedom of any weighted sum of the squared scores."""
+    degrees of freedom of any weighted sum of the squared scores (None when it would hold more than
+    :data:`SCORE_COV_MAX_ELEMENTS` values)."""
     return _score_covariances(A, P)
 
 
-def _score_covariances(A: np.ndarray, P: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+#: largest segment-score covariance array (m² n² float64 values, m segments, n parameters) formed: 4e6 (32 MB).
+#: Beyond it the corrections are computed parameter by parameter (m² values each) and the pooled segment scatter
+#: is not formed (:meth:`OutputErrorEstimator.segment_scatter` returns None: the per-parameter rule)
+SCORE_COV_MAX_ELEMENTS = 4_000_000
+
+
+def _score_covariances(A: np.ndarray, P: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     m, n = A.shape[0], A.shape[1]
     S = A.sum(axis=0)
     Mi = np.linalg.pinv(S + (np.zeros((n, n)) if P is None else P))
+    if m * m * n * n > SCORE_COV_MAX_ELEMENTS:  # bounded before allocating: one parameter at a time
+        factor, dof = np.ones(n), np.full(n, max(m - 1.0, 1.0))
+        for i in range(n):
+            b = Mi[:, i]
+            a = A @ b  # (m, n): A_j b
+            q = a @ Mi  # (m, n): (M⁻¹ A_j b)ᵀ
+            C = q @ S @ q.T - 2.0 * q @ a.T
+            C[np.diag_indices(m)] += a @ b
+            spread = float(np.trace(C))
+            if spread > 0.0:
+                factor[i] = float(b @ S @ b) / spread
+                dof[i] = spread ** 2 / float(np.sum(C ** 2))
+        return factor, dof, None
     X = A @ Mi  # (m, n, n): column i of X_j is A_j b_i
     T = np.einsum("jai,ab,lbk->jlik", X, Mi @ S @ Mi - 2.0 * Mi, X, optimize=True)  # b_iᵀ C_jl b_k
     T[np.arange(m), np.arange(m)] += np.einsum("ai,jak->jik", Mi, X)
@@ -1138,8 +1161,10 @@ class OutputErrorEstimator:
         ``crb`` (None with fewer than :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres, as the bootstrap)."""
         if len(res) < BOOTSTRAP_MIN_SEGMENTS or not self.free:
             return None
-        terms = self._segment_terms(res, jacs, W)
         ng = len(self.free)
+        if (len(res) * ng) ** 2 > SCORE_COV_MAX_ELEMENTS:
+            return None
+        terms = self._segment_terms(res, jacs, W)
         return segment_scatter(np.stack([t[0] for t in terms]), np.stack([t[1] for t in terms]),
                                np.diag(self.prior_information(ng)), crb[:ng])
 

@@ -164,3 +164,21 @@ def test_the_pooled_bound_covers_when_two_segments_are_disturbed() -> None:
     assert np.all(covered >= 0.88), covered.round(3)
     relative = np.median(bounds / crb, axis=0)
     assert min(relative[1], relative[4]) > max(relative[[0, 2, 3, 5]]), relative.round(2)
+
+
+def test_segment_corrections_past_the_memory_bound_are_the_same_one_parameter_at_a_time(monkeypatch):
+    """Many segments x parameters: the score covariances are not formed (memory bounded before allocating), the
+    corrections come out the same, and the pooled scatter refuses with the sizes."""
+    import pytest
+
+    from identification.estimation import oem as oem_module
+
+    rng = np.random.default_rng(2)
+    A = np.stack([(lambda x: x @ x.T)(rng.normal(size=(4, 6))) for _ in range(9)])
+    full = oem_module.segment_corrections(A)
+    monkeypatch.setattr(oem_module, "SCORE_COV_MAX_ELEMENTS", 10)
+    looped = oem_module.segment_corrections(A)
+    np.testing.assert_allclose(looped[0], full[0], rtol=1e-10)
+    np.testing.assert_allclose(looped[1], full[1], rtol=1e-10)
+    with pytest.raises(ValueError, match="SCORE_COV_MAX_ELEMENTS"):
+        oem_module.segment_scatter(A, rng.normal(size=(9, 4)), None, np.ones(4))
