@@ -19,3 +19,12 @@ def test_version_is_the_package_version(capsys: pytest.CaptureFixture[str]) -> N
     expected = pyproject["project"]["version"]
     assert version("uavfmu") == expected
     assert capsys.readouterr().out.strip() == f"uavfmu {expected}"
+
+
+def test_python_dash_m_uavfmu_runs_the_same_command_line() -> None:
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "uavfmu", "--version"], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == f"uavfmu {version('uavfmu')}"
