@@ -34,6 +34,7 @@ import argparse
 import math
 import sys
 import time
+from dataclasses import dataclass
 
 import numpy as np
 from replica_verdict import coverage_figure, overall, width_figure
@@ -60,12 +61,43 @@ def substeps(tau_s: float, rate_hz: float) -> int:
                MAX_SUBSTEPS)
 
 
-def excite_plan() -> object:
+@dataclass(frozen=True)
+class _Shifted:
+    """A plan block moved later by ``shift_s`` (start, end, axis: what the replica and the segments read)."""
+
+    start_s: float
+    end_s: float
+    axis: str
+
+
+class RepeatedPlan:
+    """``plan`` flown ``sets`` times back to back (as the SITL blocks are flown twice): the hold-out of
+    ``identify quadrotor`` takes every other block of an axis, so a plan flown once loses one of its kinds on each
+    axis to the held-out windows (its throttle drag doublet among them)."""
+
+    def __init__(self, plan: object, sets: int) -> None:
+        self.plan, self.sets = plan, sets
+        self.period_s = float(plan.duration_s)  # type: ignore[attr-defined]
+        self.duration_s = self.period_s * sets
+        self.blocks = [_Shifted(b.start_s + k * self.period_s, b.end_s + k * self.period_s, b.axis)
+                       for k in range(sets) for b in plan.blocks]  # type: ignore[attr-defined]
+
+    def sticks(self, t_s: np.ndarray) -> np.ndarray:
+        t = np.asarray(t_s, float)
+        out = np.zeros((len(t), 4))
+        for k in range(self.sets):
+            inside = (t >= k * self.period_s) & (t < (k + 1) * self.period_s)
+            out[inside] = self.plan.sticks(t[inside] - k * self.period_s)  # type: ignore[attr-defined]
+        return out
+
+
+def excite_plan(sets: int = 2) -> RepeatedPlan:
     """The plan ``uavfmu excite --vehicle quadrotor`` makes by default (PX4 ALTCTL; 3-2-1-1s, doublets and the
-    drag doublets timed by kd / m) on the nominal airframe, as a user plans before knowing the truth."""
+    drag doublets timed by kd / m) on the nominal airframe, as a user plans before knowing the truth, flown
+    ``sets`` times."""
     from identification.excite.quadrotor import QuadExciteOptions, plan_quadrotor_excitation
 
-    return plan_quadrotor_excitation(QuadrotorParams(), QuadExciteOptions())
+    return RepeatedPlan(plan_quadrotor_excitation(QuadrotorParams(), QuadExciteOptions()), sets)
 
 
 def one_draw(seed: int, rate_hz: float, plan: object = None) -> dict[str, tuple[float, float, float]]:
@@ -97,11 +129,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rate-hz", type=float, default=250.0)
     ap.add_argument("--plan", choices=("sitl", "excite"), default="sitl",
                     help="sitl: the shared PX4 SITL flight's blocks, twice; excite: the default plan of "
-                         "uavfmu excite --vehicle quadrotor (with its drag doublets), once")
+                         "uavfmu excite --vehicle quadrotor (with its drag doublets), --sets times")
+    ap.add_argument("--sets", type=int, default=2, help="times the excite plan is flown (1..4)")
     args = ap.parse_args(argv)
     if not 1 <= args.draws <= 200:
         ap.error("--draws must lie in 1..200")
-    plan = excite_plan() if args.plan == "excite" else None
+    if not 1 <= args.sets <= 4:
+        ap.error("--sets must lie in 1..4")
+    plan = excite_plan(args.sets) if args.plan == "excite" else None
     rows: dict[str, list[tuple[float, float, float]]] = {n: [] for n in CHECKED}
     misses = []
     for d in range(args.draws):
