@@ -6,6 +6,8 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from fmu_models.common.mathns import NP
+from fmu_models.common.rotations import euler_to_dcm_rows, transpose_apply
 from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.signals.pwm_mapping import MappingError, PwmMapping
 from identification.logs.flightlog import FlightLog, Signal
@@ -22,6 +24,20 @@ def unwrapped_angle(sig: Signal, t_s: np.ndarray) -> np.ndarray:
     """An angle [rad] at ``t_s`` as one continuous series (no jump at the +-180 deg seam): differences of it
     are true angular changes, so baselines and metrics need no special case."""
     return np.interp(t_s, sig.t_s, np.unwrap(sig.values))
+
+
+#: what :func:`body_velocity` reads: the logged attitude [rad] and NED velocity [m/s]
+BODY_VELOCITY_SIGNALS = ("roll_rad", "pitch_rad", "yaw_rad", "vel_north_m_s", "vel_east_m_s", "vel_down_m_s")
+
+
+def body_velocity(series: dict[str, tuple[np.ndarray, np.ndarray]], t_s: np.ndarray) -> np.ndarray:
+    """The logged NED velocity rotated into the body by the logged attitude at ``t_s`` (len x 3, body x, y, z)
+    [m/s]. ``series`` maps each of :data:`BODY_VELOCITY_SIGNALS` to ``(t_s, values)``; the angles are interpolated
+    on their unwrapped series (across yaw's +-pi seam a plain interpolation turns the velocity)."""
+    val = {n: np.interp(t_s, series[n][0], np.unwrap(series[n][1]) if n.endswith("_rad") else series[n][1])
+           for n in BODY_VELOCITY_SIGNALS}
+    rows = euler_to_dcm_rows(val["roll_rad"], val["pitch_rad"], val["yaw_rad"], NP)
+    return np.column_stack(transpose_apply(rows, [val["vel_north_m_s"], val["vel_east_m_s"], val["vel_down_m_s"]]))
 
 
 #: a quadrotor's motors count as idle up to this far above the idle PWM (ArduCopter spins them at

@@ -26,9 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from fmu_models.common.mathns import NP
 from fmu_models.common.model import init_function
-from fmu_models.common.rotations import euler_to_dcm_rows, transpose_apply
 from fmu_models.quadrotor.constants import N_MOTORS
 from fmu_models.quadrotor.model import QuadrotorModel
 from fmu_models.quadrotor.params import QuadrotorParams
@@ -44,7 +42,13 @@ from identification.estimation.oem import (
     student_factor,
 )
 from identification.logs.flightlog import BATTERY_VOLTAGE, FlightLog, LogError, check_quality
-from identification.logs.log_state import HOLD_TOLERANCE_S, hold, initial_values, resample_angle
+from identification.logs.log_state import (
+    BODY_VELOCITY_SIGNALS,
+    HOLD_TOLERANCE_S,
+    body_velocity,
+    hold,
+    initial_values,
+)
 from identification.quadrotor import rate_commands
 from identification.quadrotor import segments as qseg
 from identification.quadrotor.motor_lag import ExactLagModel
@@ -735,11 +739,8 @@ def _score_held_out(oe: OutputErrorEstimator, est: Estimate, logs: Sequence[Flig
 
 
 def _body_velocity(log: FlightLog, t: np.ndarray) -> np.ndarray:
-    """Logged NED velocity rotated into the body by the logged attitude (len(t) x 3) [m/s]; the angles are
-    interpolated the short way round (across yaw's +-pi seam a plain interpolation turns the velocity)."""
-    rows = euler_to_dcm_rows(*(resample_angle(log.signal(n), t) for n in ("roll_rad", "pitch_rad", "yaw_rad")), NP)
-    v_ned = [log.signal(f"vel_{a}_m_s").resample(t) for a in ("north", "east", "down")]
-    return np.column_stack(transpose_apply(rows, v_ned))
+    """Logged NED velocity rotated into the body by the logged attitude (len(t) x 3) [m/s]."""
+    return body_velocity({n: (log.signal(n).t_s, log.signal(n).values) for n in BODY_VELOCITY_SIGNALS}, t)
 
 
 def drag_equation_error(logs: Sequence[FlightLog], windows: Sequence[tuple[int, qseg.Segment]],

@@ -29,12 +29,11 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy import signal
 
-from fmu_models.common.mathns import NP
-from fmu_models.common.rotations import euler_to_dcm_rows, transpose_apply
 from fmu_models.common.units import RPM_TO_RAD_S
 from fmu_models.config import bounded, range_problems
 from fmu_models.quadrotor.anfis import AnfisMap
 from fmu_models.quadrotor.constants import N_MOTORS, PWM_IDLE_US
+from identification.logs.log_state import BODY_VELOCITY_SIGNALS, body_velocity
 
 PAPER_MIN_PEARSON = 0.85  #: paper 000 section 4: correlation needed "to proceed a good training"
 #: a motor PWM above this [us] counts as spinning for flight (ArduCopter spins its motors near 1100-1150 us armed)
@@ -479,16 +478,11 @@ def _extra_series(log: Any, name: str, src: str) -> tuple[np.ndarray, np.ndarray
 
 def _body_z_velocity(log: Any, t_s: np.ndarray, src: str) -> np.ndarray:
     """Body-z velocity [m/s, down positive] at ``t_s``: the logged NED velocity rotated by the logged attitude."""
-    names = ("roll_rad", "pitch_rad", "yaw_rad", "vel_north_m_s", "vel_east_m_s", "vel_down_m_s")
-    series = {n: _series(log, n) for n in names}
+    series = {n: _series(log, n) for n in BODY_VELOCITY_SIGNALS}
     missing = [n for n, v in series.items() if v is None or v[0].size < 2]
     if missing:
         raise ThrustDataError(f"{src}: a vertical drag correction needs {', '.join(missing)}, not in the log")
-    # yaw unwrapped first: interpolating across its +-pi jump would turn the horizontal velocity for a sample
-    val = {n: np.interp(t_s, v[0], np.unwrap(v[1]) if n == "yaw_rad" else v[1])  # type: ignore[index]
-           for n, v in series.items()}
-    rows = euler_to_dcm_rows(val["roll_rad"], val["pitch_rad"], val["yaw_rad"], NP)
-    return np.asarray(transpose_apply(rows, [val["vel_north_m_s"], val["vel_east_m_s"], val["vel_down_m_s"]])[2])
+    return body_velocity(series, t_s)[:, 2]  # type: ignore[arg-type]
 
 
 def _fz_aligner(
