@@ -7,8 +7,8 @@ setpoint), rate PID on the gyro through a first-order low-pass (PX4 ``IMU_GYRO_C
 filtered rate (``IMU_DGYRO_CUTOFF``), a mixer built from the *nominal* airframe (the controller does not know
 the truth) and the inverse of the thrust curve. The controller's PWM is held between its updates and logged at
 ``rate_hz`` (exactly what the motors get), with the gyro, accelerometer (white noise and a constant turn-on
-bias), attitude, NED velocity and altitude, as a :class:`FlightLog` in canonical signal names, and the
-excitation blocks as segments.
+bias), attitude, NED velocity, altitude and PX4's ``landed`` flag (never set: the flight starts in a hover), as a
+:class:`FlightLog` in canonical signal names, and the excitation blocks as segments.
 """
 
 from __future__ import annotations
@@ -206,6 +206,9 @@ def fly_replica(truth: QuadrotorParams, blocks: list[Block] | None = None, rate_
         x = np.asarray(x).ravel()
         y = np.asarray(yk).ravel()
     signals = {n: Signal(n, t_ctrl.copy(), v, "", "replica") for n, v in cols.items()}
+    # PX4's land detector (vehicle_land_detected.landed): airborne from the first sample, as the flight starts
+    # in a hover
+    signals["landed"] = Signal("landed", t_ctrl.copy(), np.zeros(n_ctrl), "", "replica")
     for m in range(N_MOTORS):
         for name in (f"motor_{m + 1}_pwm_us", f"servo_{m + 1}_pwm_us"):
             signals[name] = Signal(name, t_ctrl.copy(), pwm_log[:, m].copy(), "us", "replica")

@@ -76,9 +76,7 @@ def ground_samples(log: FlightLog, vehicle: str, t_s: np.ndarray, idle_pwm_us: f
     """Samples of ``t_s`` where the vehicle is on the ground, by criterion (plain-words name -> bool mask).
 
     Criteria: those of :func:`parked_samples`; height above the ground level below ``GROUND_HEIGHT_M``, the
-    ground level being the median altitude while parked, else, for a multirotor, the first altitude of a log
-    that starts at its lowest point and then rises by more than ``TAKEOFF_RISE_M`` (a take-off with no idle
-    phase logged); else no height criterion.
+    ground level being that of :func:`ground_level`; without one, no height criterion.
     """
     out = parked_samples(log, vehicle, t_s, idle_pwm_us)
     level = ground_level(log, vehicle, t_s, any_of(out, len(t_s)))
@@ -90,17 +88,36 @@ def ground_samples(log: FlightLog, vehicle: str, t_s: np.ndarray, idle_pwm_us: f
 
 def ground_level(log: FlightLog, vehicle: str, t_s: np.ndarray, parked: np.ndarray) -> float | None:
     """The log's ground level [m, its altitude scale]: the median altitude over the ``parked`` samples of
-    ``t_s``, else, for a multirotor, the first altitude of a log that starts at its lowest point and then rises
-    by more than ``TAKEOFF_RISE_M``; None without altitude or such evidence."""
+    ``t_s``; else, for a multirotor log without a ``landed`` flag, the first altitude of a log that takes off
+    (:func:`takes_off`: a take-off with no idle phase logged); None without altitude or such evidence. A log
+    whose ``landed`` flag is logged and never set was airborne throughout (a log started in flight): no
+    ground level is guessed from its altitude."""
     if not (log.has("altitude_m") and len(t_s)):
         return None
     alt = log.signal("altitude_m").resample(t_s)
     if parked.any():
         return float(np.median(alt[parked]))
-    if vehicle == "quadrotor" and alt[0] - np.min(alt) < GROUND_HEIGHT_M["quadrotor"] and \
-            np.max(alt) - alt[0] > TAKEOFF_RISE_M:
-        return float(alt[0])  # a multirotor log starting at its lowest point, then rising: a take-off
+    if vehicle == "quadrotor" and not log.has("landed") and takes_off(alt):
+        return float(alt[0])
     return None
+
+
+def takes_off(alt_m: np.ndarray) -> bool:
+    """Whether an altitude series [m] is a multirotor's take-off with no idle phase logged: it starts at its
+    lowest point (within ``GROUND_HEIGHT_M``) and, the first time it leaves that band, climbs on to more than
+    ``TAKEOFF_RISE_M`` above its start before it comes back into the band. A log started in a hover that bobs
+    out of the band and back (a throttle input) is not one: ground does not rise and fall back under a
+    vehicle; a hover start that climbs straight away cannot be told from a take-off without a ``landed`` flag."""
+    alt = np.asarray(alt_m, dtype=float)
+    band = GROUND_HEIGHT_M["quadrotor"]
+    if not len(alt) or alt[0] - np.nanmin(alt) >= band:
+        return False
+    above = np.flatnonzero(alt - alt[0] >= band)
+    if not len(above):
+        return False
+    back = np.flatnonzero(alt[above[0]:] - alt[0] < band)
+    climb = alt[above[0]:above[0] + back[0]] if len(back) else alt[above[0]:]
+    return bool(np.nanmax(climb) - alt[0] > TAKEOFF_RISE_M)
 
 
 #: a log sample within this much after a query time counts as at it [s]: half the 1 us resolution of log time

@@ -37,9 +37,12 @@ def add_imu_and_attitude(signals: dict[str, Signal]) -> None:
 
 
 def add_local_position(signals: dict[str, Signal]) -> None:
-    """``altitude_m`` and ``climb_rate_m_s`` (up) from ``vehicle_local_position`` (NED ``z``, ``vz``)."""
+    """``altitude_m`` and ``climb_rate_m_s`` (up) from ``vehicle_local_position`` (NED ``z``, ``vz``), and the
+    land detector's ``landed`` flag (``vehicle_land_detected.landed``, 1 on the ground: where the vehicle is
+    parked, and, never set, that a log started in flight has no ground phase)."""
     alias(signals, "altitude_m", "vehicle_local_position.z", "m", -1.0)
     alias(signals, "climb_rate_m_s", "vehicle_local_position.vz", "m/s", -1.0)
+    alias(signals, "landed", "vehicle_land_detected.landed", "")
 
 
 def add_outputs(signals: dict[str, Signal], n_motors: int) -> None:

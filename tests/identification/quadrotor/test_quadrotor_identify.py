@@ -157,3 +157,21 @@ def test_the_thrust_map_band_against_the_motors_is_stated(replica, identified):
     assert band["flown_pwm_us"][0] < 1450.0 < 1554.0 < band["flown_pwm_us"][1] <= pwm.max()
     assert band["share_outside"] > q.BAND_WARN_SHARE and "Jx, Jy" in band["warning"]
     assert band["warning"] in identified.summary() and identified.as_dict()["thrust_map_band"] == band
+
+
+
+def test_a_replica_started_in_a_hover_is_airborne_throughout():
+    """The replica flies ``uavfmu excite --vehicle quadrotor``'s plan from a hover at 10 m; its throttle 3-2-1-1
+    lifts it out of the start band and back, and its throttle drag doublet climbs 2 m later. Without its
+    ``landed`` flag that must not read as a take-off from the start altitude: that guess once left the drag
+    regression only the time after the vehicle had sunk below that band (a third of the flight, without some
+    axes' sideways speed)."""
+    from identification.excite.quadrotor import QuadExciteOptions, plan_quadrotor_excitation
+
+    plan = plan_quadrotor_excitation(QuadrotorParams(), QuadExciteOptions())
+    flight = fly_replica(QuadrotorParams(), rate_hz=100.0, sim_hz=200.0, seed=3, plan=plan)
+    signals = {n: s for n, s in flight.log.signals.items() if n != "landed"}
+    log = dataclasses.replace(flight.log, signals=signals)
+    air = q.qseg.airborne_segments(log, QuadrotorParams().pwm_idle_us, piece_s=q.DRAG_PIECE_S)
+    covered = sum(a.t1_s - a.t0_s for a in air)
+    assert covered > log.duration_s - 2.0 - 2 * q.DRAG_PIECE_S, (covered, log.duration_s)
