@@ -39,8 +39,9 @@ in every draw and redraws only the noise (seeds ``--seed``, ``--seed`` + 1, ...)
 
 Run: ``.venv/bin/python bench/aero_replica.py [--draws 1] [--seed 0] [--bound ar|bootstrap] [--start-state
 logged|exact] [--estimate-initial STATES] [--truth-seed N]`` (one identify run per draw: 15-60 s on 2 cores, more
-when they are shared). Exit 1 when a draw fails, or a primary derivative's
-coverage over the draws is below 0.90 or its median half-width above 2 x its RMS error; the log is read from
+when they are shared). Exit 1 when a draw fails, or the draws show a primary derivative's coverage below
+0.90 or its median half-width above 2 x its RMS error (``replica_verdict``: a point figure past its target
+within the Monte Carlo error of the draws is printed "(unresolved)", not called met); the log is read from
 ``../shared/data`` (exit 2 when absent).
 """
 
@@ -79,6 +80,7 @@ from identification.logs.readers import read_log
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from aero_coverage import white_plus_ar1  # the same noise as the coverage study
+from replica_verdict import coverage_figure, overall, width_figure
 
 LOG = Path(__file__).resolve().parents[2] / "shared" / "data" / "fixed_wing" / "arduplane_sitl_fmu_excitation.BIN"
 #: coefficients scaled in the truth: the primaries and the fixed ones that couple into them
@@ -238,24 +240,25 @@ MIN_COVERAGE = 0.90
 MAX_WIDTH = 2.0
 
 
-def summary(rel: list[dict[str, tuple[float, float, bool]]]) -> tuple[list[str], bool]:
+def summary(rel: list[dict[str, tuple[float, float, bool]]]) -> tuple[list[str], str]:
     """Per primary derivative over the draws: coverage, median relative 95 % half-width over the RMS relative
-    error (the actual scatter of estimate - truth, relative because every draw has its own truth), and in how many
-    draws the small-sample bound made the interval."""
-    lines = [f"{'derivative':<14} {'coverage':>8} {'RMS err %':>9} {'median hw %':>11} {'hw/rms':>7} "
-             f"{'small-sample':>12}"]
-    ok = True
+    error (the actual scatter of estimate - truth, relative because every draw has its own truth), each with its
+    one-sided 95 % Monte Carlo bound (``replica_verdict``), and in how many draws the small-sample bound made the
+    interval. Returns the lines and the overall verdict ("met", "miss" or "unresolved")."""
+    lines = [f"{'derivative':<14} {'RMS err %':>9} {'median hw %':>11}  {'coverage [upper]':<22} "
+             f"{'hw/rms [lower]':<22} {'small-sample':>12}"]
+    figures = []
     for n in PRIMARY:
         err = np.array([r[n][0] for r in rel])
         hw = np.array([r[n][1] for r in rel])
-        cov = float(np.mean(np.abs(err) <= hw))
+        cov = coverage_figure(np.abs(err) <= hw, MIN_COVERAGE)
+        width = width_figure(hw, err, MAX_WIDTH, stat="rms")
+        figures += [cov, width]
         rms = float(np.sqrt(np.mean(err ** 2)))
-        ratio = float(np.median(hw)) / max(rms, 1e-12)
-        ok &= cov >= MIN_COVERAGE and ratio <= MAX_WIDTH
         small = sum(r[n][2] for r in rel)
-        lines.append(f"{n:<14} {cov:8.2f} {100 * rms:9.2f} {100 * np.median(hw):11.2f} {ratio:7.2f} "
+        lines.append(f"{n:<14} {100 * rms:9.2f} {100 * np.median(hw):11.2f}  {cov.text():<22} {width.text():<22} "
                      f"{f'{small} of {len(rel)}':>12}")
-    return lines, ok
+    return lines, overall(figures)
 
 
 def main() -> int:
@@ -288,16 +291,20 @@ def main() -> int:
         print(table + "\n", flush=True)
         passed += ok
         rel.append(r)
-    lines, widths_ok = summary(rel)
+    lines, verdict = summary(rel)
     print(f"over {args.draws} draws (bound {args.bound!r}, segment starts {args.start_state}, nuisance "
           f"{'auto' if states is None else 'initial ' + ', '.join(states) + ' and biases'}; targets: coverage >= "
-          f"{MIN_COVERAGE:.2f}, median half-width <= {MAX_WIDTH:g} x the RMS error):")
+          f"{MIN_COVERAGE:.2f}, median half-width <= {MAX_WIDTH:g} x the RMS error; [bound]: the one-sided 95 % "
+          "Monte Carlo bound towards the target):")
     print("\n".join(lines))
+    widths = {"met": "met", "miss": "MISSED (the draws show it)",
+              "unresolved": f"no miss shown; the figures marked (unresolved) are past their targets by less than "
+                            f"the Monte Carlo error of {args.draws} draws"}[verdict]
+    failed = passed < args.draws or verdict == "miss"
     print(f"{passed} of {args.draws} draws: every primary derivative within 10 %, no failure; per derivative "
-          f"coverage and width {'met' if widths_ok else 'NOT met'} -> "
-          f"{'PASS' if passed == args.draws and widths_ok else 'FAIL'}")
-    return 0 if passed == args.draws and widths_ok else 1
-
+          f"coverage and width: {widths} -> "
+          f"{'FAIL' if failed else ('PASS' if verdict == 'met' else 'NO MISS SHOWN (unresolved, not a pass)')}")
+    return 1 if failed else 0
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -366,11 +366,12 @@ def manoeuvres(model: QuadrotorModel, p: np.ndarray, log: FlightLog, params: Qua
         if not (np.all(np.isfinite(y)) and np.all(np.isfinite(u))):
             continue
         pp = p.copy()
-        for name, value in initial_values(log, w.t0_s, forward_from_airspeed=False).items():
+        # the state where the record starts: on the command grid, not at the window's own start
+        for name, value in initial_values(log, t0, forward_from_airspeed=False).items():
             pp[model.params.index[name]] = value
         x0 = np.asarray(init(u[0], pp)[0]).ravel()
         if lag is not None:  # the motors still lag behind the commands before the window
-            x0[i_lag:i_lag + N_MOTORS] = lag.at(log, w.t0_s)
+            x0[i_lag:i_lag + N_MOTORS] = lag.at(log, t0)
         out.append(Manoeuvre(x0, u, y, 1.0 / rate_hz, str(w)))
     return out
 
@@ -571,6 +572,12 @@ def vertical_drag(logs: FlightLog | Sequence[FlightLog], params: QuadrotorParams
     return {"value": float(d["value"]), "std": float(d["std"])}
 
 
+#: the motor lag's history starts this many time constants before the thrust it gives: started in steady state
+#: at the commands there, it keeps exp(-15) = 3e-7 of that guess's error (with 6, 2.5e-3: right after a rate
+#: loop's saturated 3-2-1-1, 1.6e-4 N of differential thrust that a noise-free replica's fit put into Jx)
+LAG_LEAD_TAUS = 15.0
+
+
 class MotorThrust:
     """Per-motor thrust [N] of the model with ``params`` over a log: the thrust map of the logged PWMs (the
     model's own ``commanded_thrust``) through the first-order motor lag, discretised exactly between command
@@ -585,10 +592,11 @@ class MotorThrust:
         self.fn = ca.Function("cmd", [u], [ca.vertcat(*m.commanded_thrust(u, np.array(m.params.starts(), float)))])
 
     def samples(self, log: FlightLog, t0_s: float, t1_s: float) -> np.ndarray:
-        """Motor-command sample times in ``[t0 - lead, t1]``: the lead lets the lag settle before ``t0``."""
+        """Motor-command sample times in ``[t0 - lead, t1]``: the lead (:data:`LAG_LEAD_TAUS` time constants and
+        50 ms) lets the lag forget the steady state it is started in."""
         tau = max(self.params.tau_motor_s, 1e-6)
         ts = log.signal("motor_1_pwm_us").t_s
-        ts = ts[(ts >= t0_s - 6 * tau - 0.05) & (ts <= t1_s)]
+        ts = ts[(ts >= t0_s - LAG_LEAD_TAUS * tau - 0.05) & (ts <= t1_s)]
         return ts if len(ts) else np.array([t0_s])
 
     def lagged(self, ts: np.ndarray, cmd: np.ndarray) -> np.ndarray:
