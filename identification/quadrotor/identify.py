@@ -627,8 +627,8 @@ class MotorThrust:
 
 #: vertical drag: rules of the flexible static thrust that stands in for the thrust map's shape in the regression
 #: (Gaussian memberships evenly over the flown motor commands, consequents ``u^2, u``). ``bench/quadrotor_demo_map.py``
-#: (the demo's stick flight through identify thrust's map, truth 0.25 N s/m): the scaled map alone 0.524, 1-3 rules
-#: 0.56, 0.38, 0.28, 4-8 rules 0.21-0.29 (5: 0.255 +- 0.048)
+#: (the demo's stick flight through identify thrust's map, truth 0.25 N s/m): the scaled map alone 0.554, 1-3 rules
+#: 0.58, 0.33, 0.25, 4-8 rules 0.21-0.26 (5: 0.264 +- 0.050)
 DRAG_THRUST_RULES = 5
 
 
