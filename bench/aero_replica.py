@@ -21,8 +21,10 @@ aircraft comes within 10 m of the ground level (its notes are printed).
 Then the library path of the command a user types (``uavfmu identify aero LOG --out x.json``: every default,
 timeline found beside the log) runs on the replica, and per primary derivative the relative error, the
 printed 95 % interval, whether it covers the truth and what determines it are printed. Over the draws, per
-primary derivative: the coverage of its 95 % intervals and the median relative half-width over the RMS relative
-error (every draw has its own truth, so both are relative to |truth|).
+primary derivative: the coverage of its 95 % intervals and the half-width over the RMS error, each draw's error
+taken in its own interval's units (every draw has its own truth and interval: ``1.96 / rms z``, ``z = 1.96
+|error| / half-width``; ``replica_verdict.draw_width_figure``), beside the RMS relative error and the median
+relative half-width.
 
 A draw fails when a primary derivative misses 10 % or ``identify aero`` records a failure (e.g. a fitted model
 that runs away in a segment, whose bounds it then refuses to call credible). An interval that misses is not a
@@ -80,7 +82,7 @@ from identification.logs.readers import read_log
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from aero_coverage import white_plus_ar1  # the same noise as the coverage study
-from replica_verdict import coverage_figure, overall, width_figure
+from replica_verdict import coverage_figure, draw_width_figure, overall
 
 LOG = Path(__file__).resolve().parents[2] / "shared" / "data" / "fixed_wing" / "arduplane_sitl_fmu_excitation.BIN"
 #: coefficients scaled in the truth: the primaries and the fixed ones that couple into them
@@ -241,22 +243,24 @@ MAX_WIDTH = 2.0
 
 
 def summary(rel: list[dict[str, tuple[float, float, bool]]]) -> tuple[list[str], str]:
-    """Per primary derivative over the draws: coverage, median relative 95 % half-width over the RMS relative
-    error (the actual scatter of estimate - truth, relative because every draw has its own truth), each with its
-    one-sided 95 % Monte Carlo bound (``replica_verdict``), and in how many draws the small-sample bound made the
-    interval. Returns the lines and the overall verdict ("met", "miss" or "unresolved")."""
+    """Per primary derivative over the draws: coverage, and the half-width over the RMS error with each draw's
+    error in its own interval's units (``replica_verdict.draw_width_figure``: every draw has its own truth and
+    interval, so ``1.96 / rms z`` with ``z = 1.96 |error| / half-width``), each with its one-sided 95 % Monte Carlo
+    bound, and in how many draws the small-sample bound made the interval; the RMS relative error and the median
+    relative half-width are printed beside them. Returns the lines and the overall verdict ("met", "miss" or
+    "unresolved")."""
     lines = [f"{'derivative':<14} {'RMS err %':>9} {'median hw %':>11}  {'coverage [upper]':<22} "
-             f"{'hw/rms [lower]':<22} {'small-sample':>12}"]
+             f"{'hw/rms per draw [lower]':<24} {'small-sample':>12}"]
     figures = []
     for n in PRIMARY:
         err = np.array([r[n][0] for r in rel])
         hw = np.array([r[n][1] for r in rel])
         cov = coverage_figure(np.abs(err) <= hw, MIN_COVERAGE)
-        width = width_figure(hw, err, MAX_WIDTH, stat="rms")
+        width = draw_width_figure(hw, err, MAX_WIDTH, stat="rms")
         figures += [cov, width]
         rms = float(np.sqrt(np.mean(err ** 2)))
         small = sum(r[n][2] for r in rel)
-        lines.append(f"{n:<14} {100 * rms:9.2f} {100 * np.median(hw):11.2f}  {cov.text():<22} {width.text():<22} "
+        lines.append(f"{n:<14} {100 * rms:9.2f} {100 * np.median(hw):11.2f}  {cov.text():<22} {width.text():<24} "
                      f"{f'{small} of {len(rel)}':>12}")
     return lines, overall(figures)
 

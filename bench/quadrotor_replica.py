@@ -51,7 +51,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from replica_verdict import coverage_figure, overall, width_figure
+from replica_verdict import coverage_figure, draw_width_figure, overall
 
 from fmu_models.quadrotor.params import QuadrotorParams
 from identification.flights.quadrotor_replica import fly_replica, planned_blocks, random_truth
@@ -148,11 +148,10 @@ def summarise(rows: dict[str, list[tuple[float, float, float]]], misses: list[st
         err = np.abs(v - tr)
         inside = float(np.mean([within(n, a, b) for a, b in zip(tr, v, strict=True)]))
         cov = coverage_figure(err <= hw, COVERAGE_MIN)
-        # each draw's error in its own interval's units (every draw has its own truth and scale): the median
-        # half-width over the median error is 1.96 / median |z|, over the rms error 1.96 / rms z
+        # each draw's error in its own interval's units (every draw has its own truth and scale)
         z = 1.96 * err / hw
-        w_med = width_figure(np.full(len(z), 1.96), z, WIDTH_MAX, stat="median")
-        w_rms = width_figure(np.full(len(z), 1.96), z, SCATTER_MAX, stat="rms")
+        w_med = draw_width_figure(hw, err, WIDTH_MAX, stat="median")
+        w_rms = draw_width_figure(hw, err, SCATTER_MAX, stat="rms")
         figures += [cov, w_med, w_rms]
         print(f"{n:<14} {100 * np.max(err / np.abs(tr)):11.1f} {100 * inside:10.0f}% "
               f"{float(np.median(hw / np.maximum(err, 1e-300))):12.2f} {math.sqrt(float(np.mean(z ** 2))):7.2f}  "

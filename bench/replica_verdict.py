@@ -71,6 +71,17 @@ def width_figure(half_width: np.ndarray, error: np.ndarray, target: float, stat:
     return Figure(value, lower, verdict)
 
 
+def draw_width_figure(half_width: np.ndarray, error: np.ndarray, target: float, stat: str = "rms") -> Figure:
+    """:func:`width_figure` of draws that each have their own truth and interval scale: each draw's error is taken
+    in its own interval's units, ``z = 1.96 |error| / half-width``, so the figure is ``1.96 / median |z|``
+    (``stat="median"``) or ``1.96 / rms z`` (``"rms"``), the same as the plain ratio when every draw shares one
+    scale. A plain median half-width over the median (or RMS) error of unlike draws mixes their scales, which is
+    not one distribution's scatter."""
+    hw = np.asarray(half_width, float)
+    z = 1.96 * np.abs(np.asarray(error, float)) / np.maximum(hw, 1e-300)
+    return width_figure(np.full(len(z), 1.96), z, target, stat=stat)
+
+
 def overall(figures: list[Figure]) -> str:
     """"met" when every figure is, "miss" when any draws show a miss, else "unresolved"."""
     verdicts = {f.verdict for f in figures}

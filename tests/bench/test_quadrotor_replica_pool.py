@@ -40,10 +40,11 @@ def test_too_narrow_intervals_are_a_shown_miss(tmp_path: Path, capsys) -> None:
     assert "MISS" in capsys.readouterr().out
 
 
-def test_a_file_that_is_not_a_saved_run_is_named(tmp_path: Path) -> None:
+def test_a_file_that_is_not_a_saved_run_is_named(tmp_path: Path, capsys) -> None:
     import pytest
 
     bad = tmp_path / "bad.json"
     bad.write_text('{"rows": {}}')
-    with pytest.raises(SystemExit):
+    with pytest.raises(SystemExit) as stop:
         bench.main(["--pool", str(bad)])
+    assert stop.value.code == 2 and f"--pool {bad}: not a --save file" in capsys.readouterr().err
