@@ -331,11 +331,16 @@ class SignalDiscrepancy(Schema):
     #: the quantiles are of the residuals with both signs (a band centred on the FMU); False: of the residuals as
     #: they are, kept where their sign carries from one learning replay to another (informative, not read)
     symmetric: bool = True
-    #: ``validate --mc``: the draws (parameters, restart states and this discrepancy together) are stretched by
-    #: this about their per-sample median, chosen on the learning replays so that their band covers its nominal
-    #: level (the parameter spread is otherwise counted twice: the residuals learned already carry the
-    #: parameters' error). None: 1 (learned without parameter draws)
+    #: ``validate --mc``: the band (the parameter draws convolved with this discrepancy) is stretched by this
+    #: about its per-sample median, chosen on the learning replays so that it covers its nominal level there (the
+    #: parameter spread is otherwise counted twice: the residuals learned already carry the parameters' error).
+    #: None: 1 (learned without parameter draws)
     band_factor: float | None = Field(None, gt=0.0, le=100.0, allow_inf_nan=False)
+    #: ``validate --mc``: the weight of the parameter draws' deviations in the band: 1, the draws' spread
+    #: convolved with this discrepancy; 0, this discrepancy alone (the residuals learned already carry the
+    #: parameters' error, and where the draws' spread does not follow it, it only widens the band). Chosen on
+    #: the learning replays, each left out in turn. None: 1
+    parameter_weight: float | None = Field(None, ge=0.0, le=1.0, allow_inf_nan=False)
 
     @model_validator(mode="after")
     def _consistent(self) -> SignalDiscrepancy:

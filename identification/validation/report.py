@@ -144,13 +144,17 @@ def _band_note(res: ReplayResult) -> str:
     bad = [f"{m.fmu}: {res.bands.verdict(m.fmu)[1]}" for m in res.maps if res.bands.verdict(m.fmu)[0] ==
            "not explained"]
     learned = (info.get("discrepancy") or {}).get("signals") or []
-    parts = (f"plus a draw of the model discrepancy learned from {len(info['discrepancy']['logs'])} replay(s) on "
+    parts = (f"convolved with the model discrepancy learned from {len(info['discrepancy']['logs'])} replay(s) on "
              f"{', '.join(learned)} (it carries their sensor noise), sensor noise on the others" if learned else
              "each compared sample with the sensor noise estimated from the log")
     factors = {k: v for k, v in ((info.get("discrepancy") or {}).get("band_factor") or {}).items() if v is not None}
     if factors:
-        parts += (", the draws stretched about their median by the band factor calibrated on the "
+        parts += (", the band stretched about its median by the band factor calibrated on the "
                   "learning replays (" + ", ".join(f"{k} {v:.3g}" for k, v in factors.items()) + ")")
+    alone = [k for k, w in ((info.get("discrepancy") or {}).get("parameter_weight") or {}).items() if w == 0.0]
+    if alone:
+        parts += (f"; on {', '.join(alone)} the discrepancy alone (the parameter draws' spread did not follow the "
+                  "error on learning replays left out)")
     text = (f"Bands: {info['draws_run']} of {info['draws']} Monte Carlo replays (seed {info['seed']}) with "
             f"{', '.join(info['parameters'])} drawn from the identified covariance, each window's restart state "
             f"with the sensor noise estimated from the log, {parts}. Nominal level 90 % (the 5-95 % band); "

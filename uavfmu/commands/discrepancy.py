@@ -5,7 +5,8 @@ battery feed), pools the residuals logged - FMU per signal and horizon, and writ
 the JSON parameter file ``FILE`` under ``discrepancy``, beside ``uncertainty``
 (``identification.validation.discrepancy``). With ``--mc N`` (default 19 when FILE holds an ``uncertainty``) each
 log is also replayed N times with the parameters drawn, and the combined band is calibrated on them
-(``band_factor``). ``uavfmu validate --mc`` then adds it to every parameter draw. Give
+(``band_factor``; with two logs or more, ``parameter_weight`` 0 where the draws' spread widened the band of a
+log left out more than it helped). ``uavfmu validate --mc`` then convolves it with the parameter draws. Give
 flights the FMU's parameters were not fitted on where you have them (the bands are then honest on new flights).
 The work is done by ``identification.validation.workflow.learn_discrepancy``; this module parses and prints.
 

@@ -14,8 +14,16 @@ import pytest
 
 from fmu_models.common.errors import ParameterError
 from fmu_models.common.params import discrepancy_of
-from identification.validation.discrepancy import LEVELS, draws, horizons_s, learn, read_discrepancy, write_discrepancy
-from identification.validation.mc_bands import prediction_band
+from identification.validation.discrepancy import (
+    LEVELS,
+    horizons_s,
+    learn,
+    points,
+    read_discrepancy,
+    scale_of,
+    write_discrepancy,
+)
+from identification.validation.mc_bands import MIXTURE_POINTS, mixture_band
 from identification.validation.output_map import SignalMap
 from tests.identification.validation.test_mc_bands import (  # noqa: F401 - wing is a fixture
     IDENTIFIED,
@@ -50,6 +58,14 @@ def test_horizon_restarts_at_each_window_and_the_end_sample_belongs_to_its_windo
     assert horizons_s(res)[99] == pytest.approx(2.0) and horizons_s(res)[100] == pytest.approx(0.02)
 
 
+def _band(disc: object, res: SimpleNamespace, h: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The 90 % band of the discrepancy alone on ``res`` (validate --mc's, with the parameter draws left out)."""
+    s = disc.signals["roll_rad"]  # type: ignore[attr-defined]
+    h = horizons_s(res) if h is None else h
+    pts = points(disc.levels, s, h, MIXTURE_POINTS, scale_of(res, "roll_rad", s))  # type: ignore[attr-defined]
+    return mixture_band(np.zeros((1, h.size)), pts, 0.0)
+
+
 def test_learned_quantiles_follow_the_growth_with_horizon_and_draws_cover_ninety_percent() -> None:
     res, _ = _replay(1)
     disc = learn([res], ["synthetic"])
@@ -63,13 +79,13 @@ def test_learned_quantiles_follow_the_growth_with_horizon_and_draws_cover_ninety
     assert sum(s.samples) == res.t_s.size
     # fresh residuals of the same process fall inside the 5-95 % of the draws about 90 % of the time
     new, _ = _replay(2)
-    d = draws(disc, "roll_rad", horizons_s(new), 40, np.random.default_rng(3))
-    lo, hi = prediction_band(d)  # the ranks validate --mc takes (mc_bands.band_ranks)
+    lo, hi = _band(disc, new)
     inside = (new.measured["roll_rad"] >= lo) & (new.measured["roll_rad"] <= hi)
-    assert 0.86 <= inside.mean() <= 0.94
+    assert 0.87 <= inside.mean() <= 0.93
     # a horizon beyond the learned ones takes the last bin, not an extrapolation
-    far = draws(disc, "roll_rad", np.array([50.0]), 2000, np.random.default_rng(4))
+    far = points(disc.levels, s, np.array([50.0]), 2000, np.ones(1))
     assert np.abs(far).max() <= max(abs(s.quantiles[-1][0]), s.quantiles[-1][-1]) + 1e-12
+    assert np.abs(far).max() == pytest.approx(max(abs(s.quantiles[-1][0]), s.quantiles[-1][-1]))
 
 
 def test_the_parameter_file_stores_it_beside_the_covariance_and_names_each_problem(tmp_path: Path) -> None:
@@ -153,11 +169,33 @@ def test_the_scale_follows_the_models_own_departure_and_narrows_the_band_where_i
     s = disc.signals["roll_rad"]
     assert s.scale_floor is not None and s.scale_floor > 0.0
     new = replay(12)
-    lo, hi = prediction_band(draws(disc, "roll_rad", horizons_s(new), 40, np.random.default_rng(5), new))
+    lo, hi = _band(disc, new)
     r = new.measured["roll_rad"] - new.model["roll_rad"]
     assert 0.86 <= float(((r >= lo) & (r <= hi)).mean()) <= 0.97
     width = hi - lo
     assert width[~new.swing].mean() < 0.5 * width[new.swing].mean()
+
+
+def test_a_scale_is_kept_only_where_it_beats_the_unscaled_band_on_every_replay_left_out() -> None:
+    """Two learning replays whose residual follows the model's departure: the scaled form is kept (learned on one,
+    it scores better on the other both ways). One of them replaced by a replay whose residual is largest where
+    the model holds still: the departure's scale does not carry from one to the other, and the band is
+    unscaled."""
+    def replay(seed: int, follows: bool) -> SimpleNamespace:
+        res, h = _replay(seed, n_windows=200)
+        rng = np.random.default_rng(seed + 100)
+        swing = np.repeat(np.arange(200) % 2 == 0, 100)
+        model = np.where(swing, 2.0 * h, 0.0)
+        res.model["roll_rad"] = model
+        size = 0.3 * model if follows else np.where(swing, 0.02, 0.6)
+        res.measured["roll_rad"] = model + size * rng.standard_normal(h.size) + 0.01 * rng.standard_normal(h.size)
+        return res
+
+    both = learn([replay(71, True), replay(72, True)], ["a", "b"]).signals["roll_rad"]
+    assert both.scale_floor is not None and both.scale_by == "departure"
+    mixed = [replay(73, True), replay(74, False)]
+    assert learn(mixed, ["a", "b"]).signals["roll_rad"].scale_floor is None
+    assert learn(mixed[:1], ["a"]).signals["roll_rad"].scale_floor is not None  # one replay: the narrowest
 
 
 def test_the_band_is_symmetric_so_a_drift_of_the_other_sign_on_a_new_flight_stays_covered() -> None:
@@ -171,7 +209,7 @@ def test_the_band_is_symmetric_so_a_drift_of_the_other_sign_on_a_new_flight_stay
         np.testing.assert_allclose(row, -np.asarray(row[::-1]), atol=1e-12)
     new, _ = _replay(22)
     new.measured["roll_rad"] = -np.abs(new.measured["roll_rad"])
-    lo, hi = prediction_band(draws(disc, "roll_rad", horizons_s(new), 40, np.random.default_rng(6), new))
+    lo, hi = _band(disc, new)
     y = new.measured["roll_rad"]
     assert 0.85 <= float(((y >= lo) & (y <= hi)).mean()) <= 0.97
 
@@ -192,7 +230,7 @@ def test_a_lagging_model_is_scaled_by_its_slope_and_its_band_narrows_where_the_o
     disc = learn([replay(31)], ["synthetic"])
     assert disc.signals["roll_rad"].scale_by == "slope" and disc.signals["roll_rad"].scale_floor is not None
     new = replay(32)
-    lo, hi = prediction_band(draws(disc, "roll_rad", horizons_s(new), 40, np.random.default_rng(7), new))
+    lo, hi = _band(disc, new)
     r = new.measured["roll_rad"] - new.model["roll_rad"]
     assert 0.85 <= float(((r >= lo) & (r <= hi)).mean()) <= 0.98
     assert (hi - lo)[new.still].mean() < 0.5 * (hi - lo)[~new.still].mean()
@@ -208,23 +246,69 @@ def test_an_angle_is_inside_its_band_modulo_two_pi() -> None:
 
 
 def test_the_band_factor_brings_the_learning_replays_combined_band_to_its_level() -> None:
-    """Draws twice as wide as the residuals (a parameter spread counted on top of residuals that carry it): the
-    factor is about 1/2; draws half as wide: about 2. Either way the calibrated band covers 90 % of the
-    learning samples, and validate's Monte Carlo applies it."""
-    from identification.validation.mc_bands import calibrate
+    """Parameter draws twice as wide as the residuals (a spread counted on top of residuals that carry it),
+    convolved with the discrepancy: the band is sqrt(1 + 2^2) times too wide and the factor about 1/sqrt(5);
+    draws half as wide: 1/sqrt(1.25). Either way the calibrated band covers 90 % of the learning samples, and
+    the same band is what validate's Monte Carlo draws (mixture_band)."""
+    from identification.validation.discrepancy import points, scale_of
+    from identification.validation.mc_bands import MIXTURE_POINTS, calibrate, mixture_band
 
     res, _ = _replay(41, sigma_per_s=1.0)
     disc = learn([res], ["synthetic"])
     rng = np.random.default_rng(42)
     h = horizons_s(res)
-    for spread, expected in ((2.0, 0.5), (0.5, 2.0)):
+    r = res.measured["roll_rad"] - res.model["roll_rad"]
+    for spread in (2.0, 0.5):
         devs = spread * h * rng.standard_normal((40, h.size))  # residual sd is 1 x h
         s = calibrate(disc, [(res, {"roll_rad": devs})]).signals["roll_rad"]
-        assert s.band_factor == pytest.approx(expected, rel=0.1)
-        lo, hi = prediction_band(s.band_factor * devs)
-        r = res.measured["roll_rad"] - res.model["roll_rad"]
+        assert s.parameter_weight == 1.0  # one learning replay: nothing to leave out, the draws stay in
+        assert s.band_factor == pytest.approx(1.0 / math.sqrt(1.0 + spread**2), rel=0.1)
+        pts = points(disc.levels, s, h, MIXTURE_POINTS // 40, scale_of(res, "roll_rad", s))
+        lo, hi = mixture_band(devs, pts, 1.0, s.band_factor)
         assert float(((r >= lo) & (r <= hi)).mean()) == pytest.approx(0.90, abs=0.01)
     assert disc.signals["roll_rad"].band_factor is None  # calibrate returns a copy
+
+
+def test_the_discrepancy_alone_reproduces_its_stored_quantiles_and_draws_alone_their_spread() -> None:
+    """The band is computed, not drawn: weight 0 gives the stored 5-95 % quantiles per horizon bin to
+    interpolation; a discrepancy of zero gives the draws' own 5-95 % (the mixture is the draws)."""
+    from identification.validation.discrepancy import points, scale_of
+    from identification.validation.mc_bands import MIXTURE_POINTS, mixture_band
+
+    res, _ = _replay(43, sigma_per_s=1.0)
+    disc = learn([res], ["synthetic"])
+    s, h = disc.signals["roll_rad"], horizons_s(res)
+    pts = points(disc.levels, s, h, MIXTURE_POINTS, scale_of(res, "roll_rad", s))
+    lo, hi = mixture_band(np.zeros((19, h.size)), pts, 0.0)
+    q = np.asarray(s.quantiles)[np.clip(np.searchsorted(s.horizon_edges_s, h, side="right") - 1, 0, None)]
+    np.testing.assert_allclose(lo, q[:, LEVELS.index(0.05)], rtol=0.02, atol=1e-3)
+    np.testing.assert_allclose(hi, q[:, LEVELS.index(0.95)], rtol=0.02, atol=1e-3)
+    devs = np.random.default_rng(44).standard_normal((400, 50))
+    lo, hi = mixture_band(devs, np.zeros((3, 50)), 1.0)
+    np.testing.assert_allclose(lo, np.quantile(devs, 0.05, axis=0, method="hazen"), atol=1e-12)
+    np.testing.assert_allclose(hi, np.quantile(devs, 0.95, axis=0, method="hazen"), atol=1e-12)
+
+
+def test_the_parameter_draws_leave_the_band_where_they_do_not_follow_the_error() -> None:
+    """Three learning replays whose residual is white noise unrelated to the parameter draws, which swing wide
+    in half the windows: the draws only widen the band, and the weight chosen on replays left out is 0. When
+    the residual is the draws' own deviation (the model's error is the parameters'), the weight stays 1."""
+    from identification.validation.mc_bands import calibrate
+
+    def replay(seed: int, follows: bool) -> tuple[SimpleNamespace, np.ndarray]:
+        res, h = _replay(seed, n_windows=60)
+        rng = np.random.default_rng(seed + 300)
+        swing = np.repeat(np.arange(60) % 2 == 0, 100) * 3.0 + 0.1
+        devs = swing * h * rng.standard_normal((19, h.size))
+        err = swing * h * rng.standard_normal(h.size) if follows else 0.5 * h * rng.standard_normal(h.size)
+        res.measured["roll_rad"] = err
+        return res, devs
+
+    for follows, weight in ((False, 0.0), (True, 1.0)):
+        reps = [replay(61 + k, follows) for k in range(3)]
+        disc = learn([r for r, _ in reps], ["a", "b", "c"])
+        s = calibrate(disc, [(r, {"roll_rad": d}) for r, d in reps]).signals["roll_rad"]
+        assert s.parameter_weight == weight, follows
 
 
 def test_learning_with_parameter_draws_stores_a_factor_that_validate_applies(
@@ -246,6 +330,8 @@ def test_learning_with_parameter_draws_stores_a_factor_that_validate_applies(
     assert any("band factor" in line for line in learned.lines())
     out = validate_mc(job, wrong, 19, seed=3, workers=2, discrepancy=learned.discrepancy)
     assert out.replay.bands.info["discrepancy"]["band_factor"] == factors
+    # one learning flight: nothing to leave out, so the parameter draws stay in every band (weight 1)
+    assert out.replay.bands.info["discrepancy"]["parameter_weight"] == dict.fromkeys(factors, 1.0)
     cov = {s: v["band_coverage"] for s, v in out.signals.items()}
     assert all(0.8 <= cov[s] <= 0.98 for s in IDENTIFIED), cov
     from identification.validation.report import validation_page
