@@ -238,7 +238,12 @@ def mixture_band(devs: np.ndarray, disc: np.ndarray, weight: float, factor: floa
     draws + random discrepancy is their min..max, whose width scatters sample to sample and which had to be
     stretched wider to cover the same share (on the fixed-wing excitation log's held-out segments: altitude,
     pitch and roll 3.4-3.6x the RMSE that way against 2.8-3.0x exactly, both with the discrepancy alone)."""
-    lo, mid, hi = mixture_quantiles(devs, disc, weight)
+    return stretch(*mixture_quantiles(devs, disc, weight), factor)
+
+
+def stretch(lo: np.ndarray, mid: np.ndarray, hi: np.ndarray, factor: float) -> tuple[np.ndarray, np.ndarray]:
+    """The band [lo, hi] stretched by ``factor`` about ``mid`` (its median: it widens or narrows about its own
+    centre, so its coverage grows with the factor)."""
     return mid + factor * (lo - mid), mid + factor * (hi - mid)
 
 
@@ -305,8 +310,8 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
             weight = 1.0 if s.parameter_weight is None else s.parameter_weight
             a, mid, b = signal_band(discrepancy.levels, s, horizon, scale_of(res, m.fmu, s),  # type: ignore[union-attr,arg-type]
                                     ys - res.model[m.fmu], weight)
-            f = s.band_factor or 1.0
-            lo[m.fmu], hi[m.fmu] = res.model[m.fmu] + mid + f * (a - mid), res.model[m.fmu] + mid + f * (b - mid)
+            a, b = stretch(a, mid, b, s.band_factor or 1.0)
+            lo[m.fmu], hi[m.fmu] = res.model[m.fmu] + a, res.model[m.fmu] + b
         else:
             lo[m.fmu], hi[m.fmu] = prediction_band(ys)
         y = res.measured[m.fmu]
@@ -342,8 +347,8 @@ def mixture_levels(draws: int, weight: float) -> int:
     return MIXTURE_POINTS if weight == 0.0 else max(2, math.ceil(MIXTURE_POINTS / max(draws, 1)))
 
 
-def band_factor_for(levels: Sequence[float], table: Any, parts: list[tuple[Any, np.ndarray]], name: str, weight: float,
-            level: float) -> float:
+def band_factor_for(levels: Sequence[float], table: Any, parts: list[tuple[Any, np.ndarray]], name: str,
+                    weight: float, level: float) -> float:
     """The smallest factor (bisection, 1 % steps, in ``FACTOR_RANGE``) by which the band of ``weight`` x the
     parameter draws convolved with the discrepancy ``table`` must be stretched about its median to cover
     ``level`` of the replays' residuals in ``parts`` (replay, draws' deviations), pooled; the widest when even
@@ -359,7 +364,7 @@ def band_factor_for(levels: Sequence[float], table: Any, parts: list[tuple[Any, 
         inside = n = 0
         for r, mid, lo, hi in bands:
             ok = np.isfinite(r) & np.isfinite(mid) & np.isfinite(lo) & np.isfinite(hi)
-            inside += int(inside_band(r[ok], mid[ok] + f * (lo - mid)[ok], mid[ok] + f * (hi - mid)[ok]).sum())
+            inside += int(inside_band(r[ok], *stretch(lo[ok], mid[ok], hi[ok], f)).sum())
             n += int(ok.sum())
         return inside / n if n else math.nan
 
@@ -387,7 +392,7 @@ def _held_out(disc: Discrepancy, name: str, parts: list[tuple[Any, np.ndarray]],
             return math.nan
         f = band_factor_for(disc.levels, table, others, name, weight, level)
         lo, mid, hi = signal_band(disc.levels, table, horizons_s(res), scale_of(res, name, table), devs, weight)
-        a, k = interval_score(residuals(res, name), mid + f * (lo - mid), mid + f * (hi - mid), level)
+        a, k = interval_score(residuals(res, name), *stretch(lo, mid, hi, f), level)
         total, n = total + a, n + k
     return total / n if n else math.nan
 
