@@ -520,11 +520,15 @@ def _band_lines(r: ValidationResult) -> list[str]:
     bad = {s: v for s, v in r.signals.items() if v.get("band_verdict") == "not explained"}
     wide = [s for s, v in r.signals.items() if v.get("band_verdict") == "wide"]
     out = ["  band cover: share of logged samples inside the 5-95 % Monte Carlo band (nominal 90 %: parameters drawn "
-           "from the identified covariance, restart states from the log, plus the learned model discrepancy where the "
-           "parameter file has one, else sensor noise); a gated signal below 80 % or above 98 % is a finding "
-           "(status band, exit 4)"]
+           "from the identified covariance, restart states from the log, convolved with the learned model discrepancy "
+           "where the parameter file has one, else plus sensor noise); a gated signal below 80 % or above 98 % is a "
+           "finding (status band, exit 4)"]
     disc = (r.replay.bands.info.get("discrepancy") if r.replay is not None and r.replay.bands is not None
             else None) or {}
+    alone = [k for k, w in (disc.get("parameter_weight") or {}).items() if w == 0.0]
+    if alone:
+        out.append(f"  the discrepancy alone on {', '.join(alone)} (the parameter draws' spread widened the band of "
+                   "learning replays left out more than it helped: parameter_weight 0)")
     if disc.get("signals") and not disc.get("same_windows", True):
         out.append(f"  note: the discrepancy was learned with {disc['window_s']:g} s windows at another window length "
                    "or rate than this replay: its horizons do not match (learn it with the same --window-s, --rate-hz)")

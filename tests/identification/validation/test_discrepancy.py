@@ -339,6 +339,17 @@ def test_learning_with_parameter_draws_stores_a_factor_that_validate_applies(
     page = validation_page(out.replay)  # the report: the band, its nominal level, its calibration, the coverage
     assert "Nominal level 90 %" in page and "5-95 % band coverage" in page
     assert f"roll_rad {factors['roll_rad']:.3g}" in page
+    # weight 0 on roll: its band is the discrepancy alone (stretched), which the console, metrics and report name
+    roll = learned.discrepancy.signals["roll_rad"]
+    alone = learned.discrepancy.model_copy(update={"signals": {
+        **learned.discrepancy.signals, "roll_rad": roll.model_copy(update={"parameter_weight": 0.0})}})
+    out0 = validate_mc(job, wrong, 19, seed=3, workers=2, discrepancy=alone)
+    assert out0.replay.bands.info["discrepancy"]["parameter_weight"]["roll_rad"] == 0.0
+    assert any("the discrepancy alone on roll_rad" in line for line in out0.lines())
+    assert "on roll_rad the discrepancy alone" in validation_page(out0.replay)
+    b0, b1 = out0.replay.bands, out.replay.bands
+    assert not np.allclose(b0.hi["roll_rad"] - b0.lo["roll_rad"], b1.hi["roll_rad"] - b1.lo["roll_rad"])
+    np.testing.assert_array_equal(b0.hi["pitch_rad"], b1.hi["pitch_rad"])  # the other signals as they were
 
 
 def test_the_sign_is_kept_only_where_it_carries_from_one_learning_replay_to_another() -> None:
