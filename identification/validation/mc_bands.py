@@ -197,9 +197,11 @@ def prediction_band(ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def mixture_quantiles(devs: np.ndarray, disc: np.ndarray, weight: float
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The 5, 50 and 95 % quantiles per sample of the mixture of :func:`mixture_band` (unstretched)."""
+    """The 5, 50 and 95 % quantiles per sample of the mixture of :func:`mixture_band` (unstretched). A draw with no
+    value at a sample (NaN: not scored there, or its run stopped) is left out of that sample's mixture; a sample
+    with no value at all is NaN."""
     n = disc.shape[1]
-    lo, mid, hi = (np.full(n, np.nan) for _ in range(3))
+    out = np.full((3, n), np.nan)
     rows = disc.shape[0] * (devs.shape[0] if weight > 0.0 else 1)
     step = max(1, MIXTURE_CHUNK // max(rows, 1))
     for a in range(0, n, step):
@@ -207,8 +209,11 @@ def mixture_quantiles(devs: np.ndarray, disc: np.ndarray, weight: float
         pts = disc[:, a:b]
         if weight > 0.0:
             pts = (weight * devs[:, None, a:b] + pts[None, :, :]).reshape(-1, b - a)
-        lo[a:b], mid[a:b], hi[a:b] = np.quantile(pts, [BAND[0], 0.5, BAND[1]], axis=0, method="hazen")
-    return lo, mid, hi
+        gaps = np.isnan(pts).any(axis=0)
+        out[:, a:b][:, ~gaps] = np.quantile(pts[:, ~gaps], [BAND[0], 0.5, BAND[1]], axis=0, method="hazen")
+        for j in np.flatnonzero(gaps & ~np.isnan(pts).all(axis=0)):  # few: a stopped draw, a gap
+            out[:, a + j] = np.nanquantile(pts[:, j], [BAND[0], 0.5, BAND[1]], method="hazen")
+    return out[0], out[1], out[2]
 
 
 def signal_band(levels: Sequence[float], table: Any, h_s: np.ndarray, scale: np.ndarray, devs: np.ndarray,

@@ -287,6 +287,13 @@ def test_the_discrepancy_alone_reproduces_its_stored_quantiles_and_draws_alone_t
     lo, hi = mixture_band(devs, np.zeros((3, 50)), 1.0)
     np.testing.assert_allclose(lo, np.quantile(devs, 0.05, axis=0, method="hazen"), atol=1e-12)
     np.testing.assert_allclose(hi, np.quantile(devs, 0.95, axis=0, method="hazen"), atol=1e-12)
+    # a draw that stopped after sample 30 is left out there, not the sample; a sample no draw reached is NaN
+    devs[0, 30:] = np.nan
+    devs[:, 49] = np.nan
+    lo, hi = mixture_band(devs, np.zeros((1, 50)), 1.0)
+    np.testing.assert_allclose(hi[30:49], np.quantile(devs[1:, 30:49], 0.95, axis=0, method="hazen"), atol=1e-12)
+    np.testing.assert_allclose(lo[:30], np.quantile(devs[:, :30], 0.05, axis=0, method="hazen"), atol=1e-12)
+    assert np.isnan(lo[49]) and np.isnan(hi[49])
 
 
 def test_the_parameter_draws_leave_the_band_where_they_do_not_follow_the_error() -> None:
