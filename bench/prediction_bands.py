@@ -9,6 +9,7 @@ mass (the one ``identify thrust`` is given). Pooled over the folds, per signal: 
 samples inside the nominal 90 % band (target 80-95 % for every gated signal) and the band's mean width over the
 replay's RMSE (target <= 3), beside the oracle's: the width over RMSE of a band made of the held-out residuals'
 own 5-95 % quantiles per horizon bin (what a calibrated band of this form can at best reach; not a target).
+Per fold it prints the form each signal's band took (scale basis, sign, parameter weight, band factor).
 
 The shared fixed-wing excitation log has no second flight: ``identify aero`` on it (the timeline's fit and
 held-out segments, every default) writes the estimate and its covariance, the fixed-wing FMU is built from it,
@@ -123,6 +124,17 @@ class Pool:
         return ok
 
 
+def chosen(disc: object) -> str:
+    """Per signal the band form a fold learned: the scale basis (``none``: unscaled), ``signed`` where the sign is
+    kept, the parameter weight and the band factor."""
+    out = []
+    for k, v in disc.signals.items():  # type: ignore[attr-defined]
+        scale = v.scale_by if v.scale_floor is not None else "none"
+        weight = 1.0 if v.parameter_weight is None else v.parameter_weight
+        out.append(f"{k} {scale}{'' if v.symmetric else ' signed'} w{weight:g} f{v.band_factor or 1.0:.2f}")
+    return "    forms: " + ", ".join(out)
+
+
 def _fold(train: list[tuple[Path, float]], test: tuple[Path, float], work: Path, draws: int,
           fmu_mass: float | None, output_map: Path | None) -> object:
     """One fold: identify on ``train``, build, learn the discrepancy on replays of ``train``, score ``test``. Every
@@ -145,6 +157,7 @@ def _fold(train: list[tuple[Path, float]], test: tuple[Path, float], work: Path,
 
     unc = read_uncertainty(params)
     learn_discrepancy_jobs([job(p, m) for p, m in train], params, unc, draws)
+    print(chosen(read_discrepancy(params)))
     return validate_mc(job(*test), unc, draws, workers=2, discrepancy=read_discrepancy(params)).replay
 
 
@@ -195,6 +208,7 @@ def fixed_wing(draws: int, parameter_spread: bool = True, learn_on: str = "held"
         learned_on_fit = learn_discrepancy_jobs([job(x) for x in fit], None, unc, draws) if learn_on == "fit" else None
         for s in held:
             learned = learned_on_fit or learn_discrepancy_jobs([job(x) for x in held if x != s], None, unc, draws)
+            print(f"  segment {s[0]:g}-{s[1]:g} s\n{chosen(learned.discrepancy)}")
             pool.add(validate_mc(job(s), unc, draws, workers=2, discrepancy=learned.discrepancy).replay)
     return pool.table(f"fixed-wing excitation log, held-out segments of identify aero (discrepancy from the "
                       f"{'other held-out' if learn_on == 'held' else 'fit'} segments"
