@@ -1,6 +1,7 @@
 """Batch validation on a real dask cluster (scheduler and two workers as separate processes on loopback, started
 with the ``dask`` command line) gives byte-identical metrics.json to the default local run; a worker killed with
-SIGKILL mid-batch costs one task one retry and the batch completes."""
+SIGKILL mid-batch costs a retry of the tasks it held (one, or two when the scheduler had queued a second one on
+it) and the batch completes."""
 
 from __future__ import annotations
 
@@ -105,13 +106,15 @@ def test_real_cluster_gives_the_local_metrics_bit_for_bit(fixed_wing_fmu: Path, 
 
 
 def test_worker_killed_mid_batch_costs_one_retry(fixed_wing_fmu: Path, batch, tmp_path: Path) -> None:
-    """SIGKILL to the worker process running a task after 8 results: every pair still gets its result, exactly
-    one is retried (on the other worker or the restarted one), and it matches an undisturbed run."""
+    """SIGKILL to the worker process running a task after 8 results: every pair still gets its result, only the
+    tasks the killed worker held are retried (on the other worker or the restarted one: one, or two when the
+    scheduler had queued a second task on it, which it does with four in flight on two workers, see the
+    xfail in test_dask_parallel.py), each once, and a retried one matches an undisturbed run."""
     mapping, logs = batch
     jobs = _jobs(fixed_wing_fmu, mapping, logs[:16], tmp_path / "killed")
     with Executor(workers=2) as ex:
         pids = ex.client.run(os.getpid)
-        killed: list[int] = []
+        killed: list[int] = []  # the killed worker's pid, then how many tasks it held
 
         def kill_busy_worker(done: int, total: int) -> None:
             if done == 8 and not killed:
@@ -122,7 +125,7 @@ def test_worker_killed_mid_batch_costs_one_retry(fixed_wing_fmu: Path, batch, tm
     assert all(r.status != "error" and (tmp_path / "killed" / f"{k:03d}" / "metrics.json").is_file()
                for k, r in enumerate(results))
     retried = [r for r in results if r.retried]
-    assert len(retried) == 1 and "died" in retried[0].retried
+    assert 1 <= len(retried) <= killed[1] and all("died" in r.retried for r in retried), (killed, retried)
     again = validate_batch([jobs[logs.index(Path(retried[0].log))]], workers=1)
     assert again[0].signals == retried[0].signals
 
@@ -132,7 +135,9 @@ def _kill_one(ex: Executor, pids: dict[str, int], killed: list[int]) -> None:
     for _ in range(200):
         busy = [w for w, keys in ex.client.processing().items() if keys and w in pids]
         if busy:
+            held = len(ex.client.processing()[busy[0]])  # what it loses: read before the kill and after
             os.kill(pids[busy[0]], signal.SIGKILL)
-            killed.append(pids[busy[0]])
+            held = max(held, len(ex.client.processing().get(busy[0], ())))
+            killed += [pids[busy[0]], held]
             return
         time.sleep(0.01)
