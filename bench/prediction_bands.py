@@ -17,6 +17,7 @@ and each held-out segment is scored with the discrepancy learned and calibrated 
 (``--wing-learn-on fit``: on the fit segments), same targets.
 
     .venv/bin/python bench/prediction_bands.py [--draws N] [--only erle,px4,wing] [--no-parameter-spread]
+        [--forms auto|unscaled] [--weight auto|1]
     # exit 1 on a miss
 
 Heavy (tens of minutes on a loaded 2-core machine): every fold builds an FMU and runs N Monte Carlo replays of
@@ -33,6 +34,7 @@ import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -136,7 +138,7 @@ def chosen(disc: object) -> str:
 
 
 def _fold(train: list[tuple[Path, float]], test: tuple[Path, float], work: Path, draws: int,
-          fmu_mass: float | None, output_map: Path | None) -> object:
+          fmu_mass: float | None, output_map: Path | None, study: dict[str, Any]) -> object:
     """One fold: identify on ``train``, build, learn the discrepancy on replays of ``train``, score ``test``. Every
     flight is replayed at its own mass (``mass_kg``, the one ``identify thrust`` was given): the logged thrust is
     the specific force times that mass."""
@@ -156,22 +158,23 @@ def _fold(train: list[tuple[Path, float]], test: tuple[Path, float], work: Path,
         return ValidationJob(fmu, log, output_map=output_map, params_file=params, start_values={"mass_kg": mass_kg})
 
     unc = read_uncertainty(params)
-    learn_discrepancy_jobs([job(p, m) for p, m in train], params, unc, draws)
+    learn_discrepancy_jobs([job(p, m) for p, m in train], params, unc, draws, **study)
     print(chosen(read_discrepancy(params)))
     return validate_mc(job(*test), unc, draws, workers=2, discrepancy=read_discrepancy(params)).replay
 
 
 def quadrotor(name: str, flights: list[tuple[Path, float]], draws: int, fmu_mass: float | None,
-              output_map: Path | None) -> bool:
+              output_map: Path | None, study: dict[str, Any]) -> bool:
     pool = Pool()
     for i, test in enumerate(flights):
         train = [f for j, f in enumerate(flights) if j != i]
         with tempfile.TemporaryDirectory() as tmp:
-            pool.add(_fold(train, test, Path(tmp), draws, fmu_mass, output_map))
+            pool.add(_fold(train, test, Path(tmp), draws, fmu_mass, output_map, study))
     return pool.table(f"{name} leave-one-flight-out")
 
 
-def fixed_wing(draws: int, parameter_spread: bool = True, learn_on: str = "held") -> bool:
+def fixed_wing(draws: int, parameter_spread: bool = True, learn_on: str = "held",
+               study: dict[str, Any] | None = None) -> bool:
     """``identify aero`` on the excitation log (its timeline's fit and held-out segments), the FMU built from the
     estimate, the bands scored on each held-out segment with the discrepancy learned on the other held-out segments
     (``learn_on`` "held": where the truth is known and the parameters were not fitted; leave-one-segment-out so no
@@ -205,9 +208,12 @@ def fixed_wing(draws: int, parameter_spread: bool = True, learn_on: str = "held"
         if not parameter_spread:  # a study: the discrepancy alone, the parameters at their estimate
             unc = Uncertainty(names=unc.names, mean=unc.mean, covariance=[[0.0] * len(unc.names)] * len(unc.names))
         pool = Pool()
-        learned_on_fit = learn_discrepancy_jobs([job(x) for x in fit], None, unc, draws) if learn_on == "fit" else None
+        study = study or {}
+        learned_on_fit = (learn_discrepancy_jobs([job(x) for x in fit], None, unc, draws, **study)
+                          if learn_on == "fit" else None)
         for s in held:
-            learned = learned_on_fit or learn_discrepancy_jobs([job(x) for x in held if x != s], None, unc, draws)
+            learned = learned_on_fit or learn_discrepancy_jobs([job(x) for x in held if x != s], None, unc, draws,
+                                                               **study)
             print(f"  segment {s[0]:g}-{s[1]:g} s\n{chosen(learned.discrepancy)}")
             pool.add(validate_mc(job(s), unc, draws, workers=2, discrepancy=learned.discrepancy).replay)
     return pool.table(f"fixed-wing excitation log, held-out segments of identify aero (discrepancy from the "
@@ -224,21 +230,26 @@ def main() -> int:
                     help="fixed wing: the parameters at their estimate (a zero covariance), the discrepancy alone")
     ap.add_argument("--wing-learn-on", choices=("held", "fit"), default="held",
                     help="fixed wing: learn the discrepancy on the other held-out segments (default) or the fit ones")
+    ap.add_argument("--forms", choices=("auto", "unscaled"), default="auto",
+                    help="a study: the band forms chosen on learning replays left out (auto), or unscaled only")
+    ap.add_argument("--weight", choices=("auto", "1"), default="auto",
+                    help="a study: the parameter weight chosen on learning replays left out (auto), or always 1")
     args = ap.parse_args()
+    study = {"scaled": args.forms == "auto", "weights": (1.0, 0.0) if args.weight == "auto" else (1.0,)}
     if not all(p.exists() for p in [*ERLE, *(p for p, _ in PX4), WING]):
         print(f"bench/prediction_bands.py: needs {DATA} (../shared/data beside the checkout)")
         return 2
     only = set(args.only.split(","))
     ok = True
     if "erle" in only:
-        ok &= quadrotor("Erle", [(p, 1.14) for p in ERLE], args.draws, None, None)
+        ok &= quadrotor("Erle", [(p, 1.14) for p in ERLE], args.draws, None, None, study)
     if "px4" in only:
         with tempfile.TemporaryDirectory() as tmp:
             omap = Path(tmp) / "px4_map.toml"
             omap.write_text(px4_map_toml())
-            ok &= quadrotor("PX4 csv", list(PX4), args.draws, PX4_FMU_MASS_KG, omap)
+            ok &= quadrotor("PX4 csv", list(PX4), args.draws, PX4_FMU_MASS_KG, omap, study)
     if "wing" in only:
-        ok &= fixed_wing(args.draws, not args.no_parameter_spread, args.wing_learn_on)
+        ok &= fixed_wing(args.draws, not args.no_parameter_spread, args.wing_learn_on, study)
     print(f"\nall targets: {'met' if ok else 'NOT met'}")
     return 0 if ok else 1
 

@@ -149,12 +149,11 @@ def summarise(rows: dict[str, list[tuple[float, float, float]]], misses: list[st
         inside = float(np.mean([within(n, a, b) for a, b in zip(tr, v, strict=True)]))
         cov = coverage_figure(err <= hw, COVERAGE_MIN)
         # each draw's error in its own interval's units (every draw has its own truth and scale)
-        z = 1.96 * err / hw
         w_med = draw_width_figure(hw, err, WIDTH_MAX, stat="median")
-        w_rms = draw_width_figure(hw, err, SCATTER_MAX, stat="rms")
+        w_rms = draw_width_figure(hw, err, SCATTER_MAX, stat="rms")  # 1.96 / rms z
         figures += [cov, w_med, w_rms]
         print(f"{n:<14} {100 * np.max(err / np.abs(tr)):11.1f} {100 * inside:10.0f}% "
-              f"{float(np.median(hw / np.maximum(err, 1e-300))):12.2f} {math.sqrt(float(np.mean(z ** 2))):7.2f}  "
+              f"{float(np.median(hw / np.maximum(err, 1e-300))):12.2f} {1.96 / w_rms.value:7.2f}  "
               f"{cov.text():<20} {w_med.text():<20} {w_rms.text()}")
     for m in misses:
         print(f"MISS {m}")

@@ -242,7 +242,8 @@ def held_out_score(results: Sequence[ReplayResult], name: str, form: SignalDiscr
     return out
 
 
-def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "") -> Discrepancy:
+def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "",
+          scaled: bool = True) -> Discrepancy:
     """The discrepancy of the replays ``results`` (same FMU, same options), pooled per signal and horizon bin.
     Per signal the form is unscaled, or scaled by the departure, the magnitude or the slope (:func:`scale_of`).
     With two replays or more, each left out in turn, a scaled form is kept only where its band scores better
@@ -251,9 +252,8 @@ def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "") 
     (every form covers its learning samples at its level by construction; the scale helps where the error
     follows the model's own motion, e.g. a diverging attitude, not where it does not, e.g. vibration on a
     thrust measured at the PWM rate). Why not the narrowest, or the best pooled score, always: with two or three
-    replays a scaled form that is narrow on them is often wide on the next (a study on the fixed-wing
-    excitation log's held-out segments, each learned on the other two: the altitude band scaled by its slope
-    was 4.7x its RMSE, unscaled 3.0x)."""
+    replays a scaled form that is narrow on them is often wide on the next (docs/validation.md#prediction-bands).
+    ``scaled=False``: the unscaled form only (a study of the choice)."""
     if not results:
         raise ValidationInputError("discrepancy: no replay to learn from")
     first = results[0]
@@ -263,7 +263,7 @@ def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "") 
     one = {"horizon_edges_s": [0.0, 1.0], "quantiles": [[0.0] * len(LEVELS)], "samples": [0]}
     for m in first.maps:
         forms = [SignalDiscrepancy(**one, wrap=m.wrap)]
-        for basis in ("departure", "magnitude", "slope"):
+        for basis in ("departure", "magnitude", "slope") if scaled else ():
             raw = SignalDiscrepancy(**one, scale_floor=1.0, scale_by=basis, wrap=m.wrap)
             b = np.concatenate([scale_of(res, m.fmu, raw) - 1.0 for res in results])
             floor = float(np.nanmean(b)) if np.isfinite(b).any() else 0.0

@@ -403,7 +403,7 @@ def _held_out(disc: Discrepancy, name: str, parts: list[tuple[Any, np.ndarray]],
 
 
 def calibrate(disc: Discrepancy, kept: Sequence[tuple[ReplayResult, dict[str, np.ndarray]]],
-              level: float = 0.90) -> Discrepancy:
+              level: float = 0.90, weights: Sequence[float] = (1.0, 0.0)) -> Discrepancy:
     """``disc`` with each signal's ``parameter_weight`` and ``band_factor``. The factor: the smallest by which the
     band of the Monte Carlo draws' deviations from the nominal replay (parameters + restart states, ``kept`` per
     learning replay by :func:`monte_carlo`) times the weight, convolved with this discrepancy
@@ -414,17 +414,18 @@ def calibrate(disc: Discrepancy, kept: Sequence[tuple[ReplayResult, dict[str, np
     draws' spread in the band) or 0 (the discrepancy alone), whichever band scores better (mean interval score)
     on each learning replay when learned and calibrated on the others; 1 with a single learning replay. Where
     the draws' spread follows the error (the body rates of the fixed wing) it narrows the band; where it does not
-    (its lateral specific force: 4.7x the RMSE with it, 2.5x without) it only widens it."""
+    (docs/validation.md#prediction-bands) it only widens it. ``weights``: the candidates, the first kept on a tie
+    or with a single learning replay (``(1.0,)``: the draws always in, a study of the choice)."""
     signals = dict(disc.signals)
     for name, s in disc.signals.items():
         parts = [(res, devs[name]) for res, devs in kept if name in devs]
         if not parts:
             continue
-        weight = 1.0
-        if len(parts) >= 2:
-            score = {w: _held_out(disc, name, parts, w, level) for w in (1.0, 0.0)}
-            if all(math.isfinite(v) for v in score.values()) and score[0.0] < score[1.0]:
-                weight = 0.0
+        weight = float(weights[0])
+        if len(parts) >= 2 and len(weights) > 1:
+            score = {float(w): _held_out(disc, name, parts, float(w), level) for w in weights}
+            if all(math.isfinite(v) for v in score.values()):
+                weight = min(score, key=lambda w: (score[w], w != weight))
         factor = band_factor_for(disc.levels, s, parts, name, weight, level)
         signals[name] = s.model_copy(update={"band_factor": round(factor, 4), "parameter_weight": weight})
     return disc.model_copy(update={"signals": signals})

@@ -280,12 +280,15 @@ def learn_discrepancy(job: ValidationJob, logs: Sequence[Path], params_out: Path
 
 def learn_discrepancy_jobs(jobs: Sequence[ValidationJob], params_out: Path | None = None,
                            uncertainty: Uncertainty | None = None, draws: int = 0, seed: int = 0,
-                           workers: int | None = 2) -> DiscrepancyResult:
+                           workers: int | None = 2, scaled: bool = True,
+                           weights: Sequence[float] = (1.0, 0.0)) -> DiscrepancyResult:
     """Replay each job (same FMU and options; e.g. one log each, each at its own ``--set`` mass) and learn the
     model's discrepancy (``identification.validation.discrepancy``); with ``uncertainty`` and ``draws`` (>= the
     Monte Carlo minimum) also ``draws`` parameter draws of each, on which the combined band is calibrated
     (``mc_bands.calibrate``: the ``band_factor`` that brings the learning replays' band to its level). With
-    ``params_out`` (a JSON parameter file) store it there under ``discrepancy``. Raises like :func:`validate`."""
+    ``params_out`` (a JSON parameter file) store it there under ``discrepancy``. ``scaled``, ``weights``: as
+    ``discrepancy.learn`` and ``mc_bands.calibrate`` take them (studies of their choices). Raises like
+    :func:`validate`."""
     from identification.common.parallel import Executor
     from identification.validation.discrepancy import DiscrepancyResult, learn, write_discrepancy
     from identification.validation.mc_bands import calibrate, check_draws
@@ -301,7 +304,7 @@ def learn_discrepancy_jobs(jobs: Sequence[ValidationJob], params_out: Path | Non
         assert res is not None
         results.append(res)
     names = [str(j.log) + (f" {j.t_range_s[0]:g}-{j.t_range_s[1]:g} s" if j.t_range_s else "") for j in jobs]
-    disc = learn(results, names)
+    disc = learn(results, names, scaled=scaled)
     if uncertainty is not None and draws:
         kept = []
         with Executor(None, workers) as ex:
@@ -310,7 +313,7 @@ def learn_discrepancy_jobs(jobs: Sequence[ValidationJob], params_out: Path | Non
                 out = validate_mc(replace(job, report_dir=None), uncertainty, draws, seed, executor=ex,
                                   discrepancy=disc, keep=keep)
                 kept.append((out.replay, keep))
-        disc = calibrate(disc, kept)
+        disc = calibrate(disc, kept, weights=weights)
     written = None
     if params_out is not None:
         write_discrepancy(params_out, disc)

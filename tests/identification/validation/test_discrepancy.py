@@ -191,8 +191,10 @@ def test_a_scale_is_kept_only_where_it_beats_the_unscaled_band_on_every_replay_l
         res.measured["roll_rad"] = model + size * rng.standard_normal(h.size) + 0.01 * rng.standard_normal(h.size)
         return res
 
-    both = learn([replay(71, True), replay(72, True)], ["a", "b"]).signals["roll_rad"]
+    pair = [replay(71, True), replay(72, True)]
+    both = learn(pair, ["a", "b"]).signals["roll_rad"]
     assert both.scale_floor is not None and both.scale_by == "departure"
+    assert learn(pair, ["a", "b"], scaled=False).signals["roll_rad"].scale_floor is None  # the study switch
     mixed = [replay(73, True), replay(74, False)]
     assert learn(mixed, ["a", "b"]).signals["roll_rad"].scale_floor is None
     assert learn(mixed[:1], ["a"]).signals["roll_rad"].scale_floor is not None  # one replay: the narrowest
@@ -316,6 +318,8 @@ def test_the_parameter_draws_leave_the_band_where_they_do_not_follow_the_error()
         disc = learn([r for r, _ in reps], ["a", "b", "c"])
         s = calibrate(disc, [(r, {"roll_rad": d}) for r, d in reps]).signals["roll_rad"]
         assert s.parameter_weight == weight, follows
+        forced = calibrate(disc, [(r, {"roll_rad": d}) for r, d in reps], weights=(1.0,)).signals["roll_rad"]
+        assert forced.parameter_weight == 1.0  # the study switch: the draws always in
 
 
 def test_learning_with_parameter_draws_stores_a_factor_that_validate_applies(
