@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from fmu_models.common.model import init_function
-from fmu_models.quadrotor.constants import N_MOTORS
+from fmu_models.quadrotor.constants import MOTOR_LAG_SETTLE_TAUS, N_MOTORS
 from fmu_models.quadrotor.model import QuadrotorModel
 from fmu_models.quadrotor.params import QuadrotorParams
 from fmu_models.quadrotor.thrust import command, constants_of, motor_out_of_band
@@ -572,12 +572,6 @@ def vertical_drag(logs: FlightLog | Sequence[FlightLog], params: QuadrotorParams
     return {"value": float(d["value"]), "std": float(d["std"])}
 
 
-#: the motor lag's history starts this many time constants before the thrust it gives: started in steady state
-#: at the commands there, it keeps exp(-15) = 3e-7 of that guess's error (with 6, 2.5e-3: right after a rate
-#: loop's saturated 3-2-1-1, 1.6e-4 N of differential thrust that a noise-free replica's fit put into Jx)
-LAG_LEAD_TAUS = 15.0
-
-
 class MotorThrust:
     """Per-motor thrust [N] of the model with ``params`` over a log: the thrust map of the logged PWMs (the
     model's own ``commanded_thrust``) through the first-order motor lag, discretised exactly between command
@@ -592,11 +586,11 @@ class MotorThrust:
         self.fn = ca.Function("cmd", [u], [ca.vertcat(*m.commanded_thrust(u, np.array(m.params.starts(), float)))])
 
     def samples(self, log: FlightLog, t0_s: float, t1_s: float) -> np.ndarray:
-        """Motor-command sample times in ``[t0 - lead, t1]``: the lead (:data:`LAG_LEAD_TAUS` time constants and
+        """Motor-command sample times in ``[t0 - lead, t1]``: the lead (``MOTOR_LAG_SETTLE_TAUS`` time constants and
         50 ms) lets the lag forget the steady state it is started in."""
         tau = max(self.params.tau_motor_s, 1e-6)
         ts = log.signal("motor_1_pwm_us").t_s
-        ts = ts[(ts >= t0_s - LAG_LEAD_TAUS * tau - 0.05) & (ts <= t1_s)]
+        ts = ts[(ts >= t0_s - MOTOR_LAG_SETTLE_TAUS * tau - 0.05) & (ts <= t1_s)]
         return ts if len(ts) else np.array([t0_s])
 
     def lagged(self, ts: np.ndarray, cmd: np.ndarray) -> np.ndarray:

@@ -27,7 +27,7 @@ from pydantic import Field, model_validator
 
 from fmu_models.config import ConfigError, Schema, validate_config
 from fmu_models.fmi.host import FmuHost, FmuRunError
-from fmu_models.quadrotor.constants import INIT_THRUST_NAMES, N_MOTORS, PWM_IDLE_US
+from fmu_models.quadrotor.constants import INIT_THRUST_NAMES, MOTOR_LAG_SETTLE_TAUS, N_MOTORS, PWM_IDLE_US
 from fmu_models.signals.pwm_mapping import PwmMapping
 from identification.common.metrics import (
     VERDICTS,
@@ -388,9 +388,9 @@ def _simulate_windows(host: FmuHost, t: np.ndarray, inputs: Mapping[str, np.ndar
     return model, first
 
 
-#: a quadrotor restart's motor lags are run this many motor time constants over the logged commands before it (the
-#: warm-up's own start at the commanded thrust then weighs exp(-8) = 3e-4), and at most this long [s]
-LAG_WARMUP_TAUS, LAG_WARMUP_MAX_S = 8.0, 2.0
+#: a quadrotor restart's motor lags are run over ``MOTOR_LAG_SETTLE_TAUS`` motor time constants of the logged
+#: commands before it, and at most this long [s]
+LAG_WARMUP_MAX_S = 2.0
 INIT_THRUST = INIT_THRUST_NAMES
 
 
@@ -402,7 +402,7 @@ def lagged_thrust(host: FmuHost, t: np.ndarray, inputs: Mapping[str, np.ndarray]
     if the commands had been steady for ever: with a 25 ms motor lag and a rate loop swinging the commands, the
     moment of that false start alone loses a 0.5 s replay of the body rates. The FMU's own motor lag (its
     thrust outputs, which depend on the PWM and voltage inputs alone) is run over the grid's inputs of the
-    ``LAG_WARMUP_TAUS`` time constants before ``a`` (``start`` gives ``tau_motor_s`` and the body state, which
+    ``MOTOR_LAG_SETTLE_TAUS`` time constants before ``a`` (``start`` gives ``tau_motor_s`` and the body state, which
     the thrust does not depend on). Empty when the FMU has no such parameters (built before them), no motor
     lag, or no sample before ``a``."""
     if INIT_THRUST[0] not in host.variables or a < 1:
@@ -411,7 +411,7 @@ def lagged_thrust(host: FmuHost, t: np.ndarray, inputs: Mapping[str, np.ndarray]
     dt = float(t[1] - t[0])
     if not tau > 0:
         return {}
-    k = min(a, max(1, int(np.ceil(min(LAG_WARMUP_TAUS * tau, LAG_WARMUP_MAX_S) / dt))))
+    k = min(a, max(1, int(np.ceil(min(MOTOR_LAG_SETTLE_TAUS * tau, LAG_WARMUP_MAX_S) / dt))))
     outs = [f"thrust_{j}_N" for j in range(1, N_MOTORS + 1)]
     res = host.simulate(t[a - k:a + 1], {n: v[a - k:a + 1] for n, v in inputs.items()}, outs,
                         {**start, **dict.fromkeys(INIT_THRUST, -1.0)})
