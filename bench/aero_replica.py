@@ -16,7 +16,8 @@ at the segment starts) stays a trim. Noise per output: the demo's white sensor n
 The truth is flown open loop with the logged servo PWM (the log's FBWA recoveries included): a draw with an
 unstable spiral can dive into the ground inside a segment, which a real flight, recovered by its autopilot,
 would not; the truth's modes at trim are printed per draw, and ``identify aero`` cuts such segments where the
-aircraft comes within 10 m of the ground level (its notes are printed).
+aircraft comes within 10 m of the ground level (its notes are printed). A draw whose truth diverges numerically
+inside a segment leaves no replica to identify: it is printed as skipped and left out of the summary.
 
 Then the library path of the command a user types (``uavfmu identify aero LOG --out x.json``: every default,
 timeline found beside the log) runs on the replica, and per primary derivative the relative error, the
@@ -112,6 +113,11 @@ STATE_OUTPUTS = ("yaw_rad", "vel_north_m_s", "vel_east_m_s", "vel_down_m_s", "al
 STATE_NOISE = {"vel_north_m_s": 0.05, "vel_east_m_s": 0.05, "vel_down_m_s": 0.05, "altitude_m": 0.1}
 
 
+class TruthDivergesError(RuntimeError):
+    """A drawn truth whose open-loop flight from the logged state diverges inside a segment: there is no replica
+    log to identify (a draw of the truth, not a failure of the tool)."""
+
+
 def replica_log(log: FlightLog, model: FixedWingModel, p_truth: np.ndarray, segments: list[aero.Segment],
                 mapping: PwmMapping, outputs: list[str], rate_hz: float, rng: np.random.Generator,
                 exact_start: bool = False) -> FlightLog:
@@ -127,7 +133,7 @@ def replica_log(log: FlightLog, model: FixedWingModel, p_truth: np.ndarray, segm
     for seg, m in zip(segments, data, strict=True):
         y, _, bad = sim.simulate(p_truth[sim.i_free], m, sensitivities=False)
         if bad:
-            raise RuntimeError(f"the truth model diverges in segment {seg}")
+            raise TruthDivergesError(f"the truth model diverges in segment {seg}")
         runs.append((aero.grid(seg, rate_hz)[1:], y))
     signals = dict(log.signals)
     for i, name in enumerate(names):
@@ -296,23 +302,32 @@ def main() -> int:
     if not LOG.exists():
         print(f"{LOG} is absent; nothing to replicate")
         return 2
-    passed, rel = 0, []
+    passed, rel, skipped = 0, [], []
     for k in range(args.draws):
-        ok, table, r = run_draw(args.seed + k, args.bound, args.start_state == "exact", states, args.truth_seed)
+        try:
+            ok, table, r = run_draw(args.seed + k, args.bound, args.start_state == "exact", states, args.truth_seed)
+        except TruthDivergesError as err:
+            print(f"draw {args.seed + k}: skipped, {err} (no replica to identify)\n", flush=True)
+            skipped.append(args.seed + k)
+            continue
         print(table + "\n", flush=True)
         passed += ok
         rel.append(r)
+    if not rel:
+        print(f"every drawn truth diverges (draws {', '.join(map(str, skipped))}): nothing judged")
+        return 1
     lines, verdict = summary(rel)
-    print(f"over {args.draws} draws (bound {args.bound!r}, segment starts {args.start_state}, nuisance "
+    gone = f" ({len(skipped)} skipped: the truth diverges)" if skipped else ""
+    print(f"over {len(rel)} draws{gone} (bound {args.bound!r}, segment starts {args.start_state}, nuisance "
           f"{'auto' if states is None else 'initial ' + ', '.join(states) + ' and biases'}; targets: coverage >= "
           f"{MIN_COVERAGE:.2f}, median half-width <= {MAX_WIDTH:g} x the RMS error; [bound]: the one-sided 95 % "
           "Monte Carlo bound towards the target):")
     print("\n".join(lines))
     widths = {"met": "met", "miss": "MISSED (the draws show it)",
               "unresolved": f"no miss shown; the figures marked (unresolved) are past their targets by less than "
-                            f"the Monte Carlo error of {args.draws} draws"}[verdict]
-    failed = passed < args.draws or verdict == "miss"
-    print(f"{passed} of {args.draws} draws: every primary derivative within 10 %, no failure; per derivative "
+                            f"the Monte Carlo error of {len(rel)} draws"}[verdict]
+    failed = passed < len(rel) or verdict == "miss"
+    print(f"{passed} of {len(rel)} draws: every primary derivative within 10 %, no failure; per derivative "
           f"coverage and width: {widths} -> "
           f"{'FAIL' if failed else ('PASS' if verdict == 'met' else 'NO MISS SHOWN (unresolved, not a pass)')}")
     return 1 if failed else 0
