@@ -169,14 +169,20 @@ def _fit(results: Sequence[ReplayResult], name: str, form: SignalDiscrepancy, wi
     return table, width / r.size
 
 
-def _covered(table: SignalDiscrepancy, res: ReplayResult, name: str) -> tuple[int, int]:
-    """Samples of ``res`` whose residual lies in the 5-95 % of ``table`` (scaled as it says), and samples scored."""
-    i5, i95 = LEVELS.index(0.05), LEVELS.index(0.95)
+def band_on(table: SignalDiscrepancy, res: ReplayResult, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """The 5 and 95 % of ``table`` (scaled as it says) per sample of ``res``, as residuals logged - FMU of signal
+    ``name`` (NaN where the FMU output is not scored)."""
     q = np.asarray(table.quantiles)[discrepancy_bins(table, horizons_s(res))]
     scale = scale_of(res, name, table)
+    return q[:, LEVELS.index(0.05)] * scale, q[:, LEVELS.index(0.95)] * scale
+
+
+def _covered(table: SignalDiscrepancy, res: ReplayResult, name: str) -> tuple[int, int]:
+    """Samples of ``res`` whose residual lies in the 5-95 % of ``table`` (scaled as it says), and samples scored."""
+    lo, hi = band_on(table, res, name)
     r = residuals(res, name)
-    ok = np.isfinite(r) & np.isfinite(scale)
-    inside = (r[ok] >= q[ok, i5] * scale[ok]) & (r[ok] <= q[ok, i95] * scale[ok])
+    ok = np.isfinite(r) & np.isfinite(lo)
+    inside = (r[ok] >= lo[ok]) & (r[ok] <= hi[ok])
     return int(inside.sum()), int(ok.sum())
 
 
@@ -227,15 +233,12 @@ def held_out_score(results: Sequence[ReplayResult], name: str, form: SignalDiscr
     it when learned on the others; empty with fewer than two replays or too few samples."""
     if len(results) < 2:
         return []
-    i5, i95 = LEVELS.index(0.05), LEVELS.index(0.95)
     out = []
     for i, res in enumerate(results):
         fit = _fit([x for j, x in enumerate(results) if j != i], name, form, window_s, signed=signed)
         if fit is None:
             return []
-        q = np.asarray(fit[0].quantiles)[discrepancy_bins(fit[0], horizons_s(res))]
-        scale = scale_of(res, name, fit[0])
-        total, n = interval_score(residuals(res, name), q[:, i5] * scale, q[:, i95] * scale)
+        total, n = interval_score(residuals(res, name), *band_on(fit[0], res, name))
         if not n:
             return []
         out.append(total / n)

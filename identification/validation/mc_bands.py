@@ -216,13 +216,15 @@ def mixture_quantiles(devs: np.ndarray, disc: np.ndarray, weight: float
     return out[0], out[1], out[2]
 
 
-def signal_band(levels: Sequence[float], table: Any, h_s: np.ndarray, scale: np.ndarray, devs: np.ndarray,
+def signal_band(levels: Sequence[float], table: Any, res: Any, name: str, devs: np.ndarray,
                 weight: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`mixture_quantiles` of the parameter draws' deviations ``devs`` (draws x samples) and the discrepancy
-    ``table`` (a ``SignalDiscrepancy``) at horizons ``h_s`` [s] times ``scale``, a block of samples at a time so
-    that no more than ``MIXTURE_CHUNK`` values are held."""
-    from identification.validation.discrepancy import points
+    """:func:`mixture_quantiles` of the parameter draws' deviations ``devs`` (draws x samples of the replay ``res``)
+    and the discrepancy ``table`` (a ``SignalDiscrepancy``) of signal ``name`` at each sample's horizon, scaled as
+    it says on ``res`` (``discrepancy.points``), a block of samples at a time so that no more than
+    ``MIXTURE_CHUNK`` values are held."""
+    from identification.validation.discrepancy import horizons_s, points, scale_of
 
+    h_s, scale = horizons_s(res), scale_of(res, name, table)
     count = mixture_levels(len(devs), weight)
     n = h_s.size
     lo, mid, hi = (np.full(n, np.nan) for _ in range(3))
@@ -283,7 +285,6 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
     against the logged signal: they carry its noise), stretched about its per-sample median by the
     discrepancy's ``band_factor`` where it has one. ``keep``: filled with each signal's draws minus the nominal
     replay (draws x samples; without the discrepancy: what :func:`calibrate` calibrates it on)."""
-    from identification.validation.discrepancy import horizons_s, scale_of
     from identification.validation.job import job_files
 
     check_draws(draws, len(res.t_s) + 1, len(res.maps), res.options["max_memory_mb"])
@@ -291,7 +292,6 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
     state_std, out_std = _state_noise(log), output_noise(log, res.maps, units, params)
     learned = [m.fmu for m in res.maps if discrepancy is not None and m.fmu in discrepancy.signals]
     out_std = {k: (0.0 if k in learned else v) for k, v in out_std.items()}
-    horizon = horizons_s(res) if learned else None
     chunk = max(1, math.ceil(draws / (2 * executor.threads())))  # each chunk reads the log and sets up once
     tasks = [McTask(job, unc, seed, tuple(range(a, min(draws, a + chunk))), state_std, out_std)
              for a in range(0, draws, chunk)]
@@ -313,8 +313,8 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
         if m.fmu in learned:  # about the band's median: it widens or narrows about its own centre
             s = discrepancy.signals[m.fmu]  # type: ignore[union-attr]
             weight = 1.0 if s.parameter_weight is None else s.parameter_weight
-            a, mid, b = signal_band(discrepancy.levels, s, horizon, scale_of(res, m.fmu, s),  # type: ignore[union-attr,arg-type]
-                                    ys - res.model[m.fmu], weight)
+            a, mid, b = signal_band(discrepancy.levels, s, res, m.fmu, ys - res.model[m.fmu],  # type: ignore[union-attr]
+                                    weight)
             a, b = stretch(a, mid, b, s.band_factor or 1.0)
             lo[m.fmu], hi[m.fmu] = res.model[m.fmu] + a, res.model[m.fmu] + b
         else:
@@ -358,11 +358,11 @@ def band_factor_for(levels: Sequence[float], table: Any, parts: list[tuple[Any, 
     parameter draws convolved with the discrepancy ``table`` must be stretched about its median to cover
     ``level`` of the replays' residuals in ``parts`` (replay, draws' deviations), pooled; the widest when even
     that is short."""
-    from identification.validation.discrepancy import horizons_s, residuals, scale_of
+    from identification.validation.discrepancy import residuals
 
     bands = []
     for res, devs in parts:
-        lo, mid, hi = signal_band(levels, table, horizons_s(res), scale_of(res, name, table), devs, weight)
+        lo, mid, hi = signal_band(levels, table, res, name, devs, weight)
         bands.append((residuals(res, name), mid, lo, hi))
 
     def covered(f: float) -> float:
@@ -387,7 +387,7 @@ def _held_out(disc: Discrepancy, name: str, parts: list[tuple[Any, np.ndarray]],
     """Mean interval score (``discrepancy.interval_score``) of the calibrated band with parameter weight
     ``weight`` on each learning replay when its discrepancy and factor are learned on the others (NaN when a
     table cannot be learned)."""
-    from identification.validation.discrepancy import horizons_s, interval_score, refit, residuals, scale_of
+    from identification.validation.discrepancy import interval_score, refit, residuals
 
     total, n = 0.0, 0
     for i, (res, devs) in enumerate(parts):
@@ -396,7 +396,7 @@ def _held_out(disc: Discrepancy, name: str, parts: list[tuple[Any, np.ndarray]],
         if table is None:
             return math.nan
         f = band_factor_for(disc.levels, table, others, name, weight, level)
-        lo, mid, hi = signal_band(disc.levels, table, horizons_s(res), scale_of(res, name, table), devs, weight)
+        lo, mid, hi = signal_band(disc.levels, table, res, name, devs, weight)
         a, k = interval_score(residuals(res, name), *stretch(lo, mid, hi, f), level)
         total, n = total + a, n + k
     return total / n if n else math.nan
