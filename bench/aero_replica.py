@@ -38,14 +38,16 @@ at every segment start (a sample there holding the original log's value, which t
 the tool interpolates between the last original sample and the first noisy replica one, as it would between
 noisy samples of a real log); ``--estimate-initial STATE,...`` fits those per-segment initial states (with the
 gyro and accelerometer biases) instead of the tool's automatic choice; ``--truth-seed N`` keeps draw N's truth
-in every draw and redraws only the noise (seeds ``--seed``, ``--seed`` + 1, ...).
+in every draw and redraws only the noise (seeds ``--seed``, ``--seed`` + 1, ...); ``--initial-sd STATE=SD,...``
+gives some of the ``--estimate-initial`` states their logged start as a measurement of that std (a prior at the
+logged value, ``AeroOptions.initial_sd``) instead of leaving them free.
 
 Run: ``.venv/bin/python bench/aero_replica.py [--draws 1] [--seed 0] [--bound ar|bootstrap] [--start-state
-logged|exact] [--estimate-initial STATES] [--truth-seed N]`` (one identify run per draw: 15-60 s on 2 cores, more
-when they are shared). Exit 1 when a draw fails, or the draws show a primary derivative's coverage below
-0.90 or its median half-width above 2 x its RMS error (``replica_verdict``: a point figure past its target
-within the Monte Carlo error of the draws is printed "(unresolved)", not called met); the log is read from
-``../shared/data`` (exit 2 when absent).
+logged|exact] [--estimate-initial STATES [--initial-sd STATE=SD,...]] [--truth-seed N]`` (one identify run per
+draw: 15-60 s on 2 cores, more when they are shared). Exit 1 when a draw fails, or the draws show a primary
+derivative's coverage below 0.90 or its median half-width above 2 x its RMS error (``replica_verdict``: a point
+figure past its target within the Monte Carlo error of the draws is printed "(unresolved)", not called met); the
+log is read from ``../shared/data`` (exit 2 when absent).
 """
 
 from __future__ import annotations
@@ -170,19 +172,21 @@ def modes_line(model: FixedWingModel, p_truth: np.ndarray, data: list[Manoeuvre]
 
 
 def replica_fit(seed: int, bound: str = "ar", exact_start: bool = False,
-                estimate_initial: Sequence[str] | None = None, truth_seed: int | None = None
+                estimate_initial: Sequence[str] | None = None, truth_seed: int | None = None,
+                initial_sd: dict[str, float] | None = None
                 ) -> tuple[FixedWingModel, np.ndarray, list[Manoeuvre], AeroResult, dict[str, float]]:
     """One truth draw identified as ``identify aero`` does: (model, the truth's parameters, the fit segments of
     the original log, the result, per state the RMS over the fit segments of the initial state the tool reads
     minus the truth's). ``exact_start``: see :func:`replica_log`; ``estimate_initial``: these
     per-segment initial states and the gyro/accelerometer biases instead of the tool's automatic nuisance choice;
-    ``truth_seed``: the truth of that draw, only the noise from ``seed``."""
+    ``truth_seed``: the truth of that draw, only the noise from ``seed``; ``initial_sd``: those estimated initial
+    states with their logged start as a measurement of that std (``AeroOptions.initial_sd``)."""
     log = read_log(LOG)
     mapping = PwmMapping.from_ardupilot(log.params)
     init, opt = FixedWingParams(), AeroOptions(bound=bound)
     if estimate_initial is not None:
         opt = AeroOptions(bound=bound, nuisance="given", estimate_initial=tuple(estimate_initial),
-                          biases=tuple(b for b in AUTO_BIASES if b in opt.outputs))
+                          biases=tuple(b for b in AUTO_BIASES if b in opt.outputs), initial_sd=dict(initial_sd or {}))
     model = FixedWingModel(init)
     p = np.array(model.params.starts(), dtype=float)
     pool = _pool([AeroSource(log, mapping)], model, opt, [])
@@ -202,12 +206,14 @@ def replica_fit(seed: int, bound: str = "ar", exact_start: bool = False,
 
 
 def run_draw(seed: int, bound: str = "ar", exact_start: bool = False, estimate_initial: Sequence[str] | None = None,
-             truth_seed: int | None = None) -> tuple[bool, str, dict[str, tuple[float, float, bool, float]]]:
+             truth_seed: int | None = None, initial_sd: dict[str, float] | None = None
+             ) -> tuple[bool, str, dict[str, tuple[float, float, bool, float]]]:
     """One truth draw (:func:`replica_fit`): returns (all primaries within 10 % and no failure, the printed table,
     per primary derivative its relative error and the relative 95 % half-width, both over |truth|, whether the
     small-sample bound made its interval, and the relative half-width the AR bound alone would give (with the
     consider share))."""
-    model, p_truth, start, result, start_rms = replica_fit(seed, bound, exact_start, estimate_initial, truth_seed)
+    model, p_truth, start, result, start_rms = replica_fit(seed, bound, exact_start, estimate_initial, truth_seed,
+                                                           initial_sd)
     est = result.fit.estimate
     values, std, dom = est.derivatives(), est.std, est.dominance()
     data_std, small = est.data_std, est.small_sample()
@@ -291,6 +297,9 @@ def main() -> int:
                              "biases) instead of the tool's automatic nuisance choice, e.g. "
                              "rate_body_x_rad_s,rate_body_y_rad_s,rate_body_z_rad_s,vel_body_y_m_s,quat_x")
     parser.add_argument("--truth-seed", type=int, default=None, help="keep this draw's truth, redraw only the noise")
+    parser.add_argument("--initial-sd", default=None, metavar="STATE=SD,...",
+                        help="with --estimate-initial: those states' logged start as a measurement of this std "
+                             "(a prior at the logged value), e.g. vel_body_x_m_s=0.07,vel_body_y_m_s=0.07")
     args = parser.parse_args()
     if not 1 <= args.draws <= 50:
         parser.error("--draws must be in 1..50")
@@ -299,13 +308,23 @@ def main() -> int:
     if states is not None and (not states or any(x not in known for x in states)):
         parser.error(f"--estimate-initial {args.estimate_initial!r}: give states of the fixed-wing model "
                      f"({', '.join(known)})")
+    initial_sd: dict[str, float] = {}
+    for item in args.initial_sd.split(",") if args.initial_sd is not None else ():
+        name, _, sd = item.partition("=")
+        try:
+            initial_sd[name] = float(sd)
+        except ValueError:
+            parser.error(f"--initial-sd {args.initial_sd!r}: {item!r} is not STATE=SD")
+        if states is None or name not in states or not (np.isfinite(initial_sd[name]) and initial_sd[name] > 0):
+            parser.error(f"--initial-sd {item!r}: give a state of --estimate-initial and a finite std > 0")
     if not LOG.exists():
         print(f"{LOG} is absent; nothing to replicate")
         return 2
     passed, rel, skipped = 0, [], []
     for k in range(args.draws):
         try:
-            ok, table, r = run_draw(args.seed + k, args.bound, args.start_state == "exact", states, args.truth_seed)
+            ok, table, r = run_draw(args.seed + k, args.bound, args.start_state == "exact", states, args.truth_seed,
+                                    initial_sd)
         except TruthDivergesError as err:
             print(f"draw {args.seed + k}: skipped, {err} (no replica to identify)\n", flush=True)
             skipped.append(args.seed + k)

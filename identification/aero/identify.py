@@ -85,6 +85,11 @@ class AeroOptions:
     rate_hz: float = 50.0
     nuisance: str = "auto"
     estimate_initial: Sequence[str] = ()
+    #: estimated initial state -> the std [state unit] of the start the log gives for it: each segment's logged
+    #: start enters as a measurement of that state (a prior at the logged value), so the state takes up the
+    #: start's noise but not, as a free one can, the force of a model that is not the aircraft's
+    #: (identification.estimation.oem.OutputErrorEstimator ``initial_sd``); {}: estimated states are free
+    initial_sd: dict[str, float] = field(default_factory=dict)
     biases: Sequence[str] = ()
     bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
     sigma: dict[str, float] | None = None
@@ -259,6 +264,10 @@ def _check_names(model: FixedWingModel, opt: AeroOptions) -> None:
     bad += [f"output {n!r}" for n in opt.outputs if n not in model.outputs.index]
     bad += [f"state {n!r}" for n in opt.estimate_initial if n not in model.states.index]
     bad += [f"biased output {n!r} (not fitted)" for n in opt.biases if n not in opt.outputs]
+    estimated = {"given": opt.estimate_initial, "auto": AUTO_STATES}.get(opt.nuisance, ())
+    bad += [f"initial-state std {n}={sd!r} (an estimated initial state, {', '.join(estimated) or 'none'} with "
+            f"nuisance {opt.nuisance!r}, needs a finite std > 0)" for n, sd in opt.initial_sd.items()
+            if n not in estimated or not (math.isfinite(sd) and sd > 0)]
     bad += [f"bounds {n}={lo:g}:{hi:g} (need finite lo < hi)" for n, (lo, hi) in opt.bounds.items()
             if not lo < hi]
     if bad:
@@ -375,7 +384,7 @@ def _estimator(model: FixedWingModel, p: np.ndarray, free: list[str], opt: AeroO
                                 output_filters={n: fc for n, fc in (opt.sensor_filters or {}).items()
                                                 if n in opt.outputs},
                                 prior={n: (v.value, v.sd) for n, v in _priors(model, free, opt).items()},
-                                bound=opt.bound)
+                                bound=opt.bound, initial_sd={n: sd for n, sd in opt.initial_sd.items() if n in states})
 
 
 def _priors(model: FixedWingModel, free: Sequence[str], opt: AeroOptions) -> dict[str, Prior]:

@@ -13,7 +13,9 @@ biases (``m<j>.x0.<state>``, ``m<j>.bias.<output>``).
 
 A-priori values with standard deviations turn the fit into a maximum-a-posteriori estimate: the prior enters
 the cost as ``1/2 Σ ((θ - θ_p)/σ_p)²`` (a priori information as in Klein & Morelli 2006 and Jategaonkar 2015),
-and the bounds include it (its information enters the sandwich beside the coloured-residual term).
+and the bounds include it (its information enters the sandwich beside the coloured-residual term). An estimated
+initial state can have one too (``initial_sd``): each manoeuvre's given x0 as a measurement of it, which belongs to
+that manoeuvre and so enters its nuisance block wherever the nuisance is profiled out per manoeuvre.
 Parameters kept fixed at uncertain values enter the bounds as a consider covariance
 (:func:`consider_covariance`).
 
@@ -709,6 +711,9 @@ class OutputErrorEstimator:
     free parameters; a trial step that breaks one, or makes the simulation diverge, is rejected.
     ``output_filters`` (output -> cut-off [Hz]) pass those outputs through the sensor low-pass before they meet
     the data; ``substeps`` integration steps per sample (default: :func:`filter_substeps`, 1 without filters).
+    ``initial_sd`` (estimated state -> std, in the state's unit) treats each manoeuvre's given ``x0`` of those
+    states as a measurement of the initial state: a prior at that value with that std enters the cost as the
+    model parameters' priors do, so the state can take up the error of a noisy logged start but no more.
     """
 
     def __init__(self, model: VehicleModel, p_nominal: Sequence[float], free: Sequence[str],
@@ -717,7 +722,7 @@ class OutputErrorEstimator:
                  estimate_states: Sequence[str] = (), estimate_biases: Sequence[str] = (),
                  compile: bool = True, prior: dict[str, tuple[float, float]] | None = None,
                  output_filters: dict[str, float] | None = None, bound: str = "bootstrap",
-                 substeps: int | None = None) -> None:
+                 substeps: int | None = None, initial_sd: dict[str, float] | None = None) -> None:
         unknown = [f"parameter {n!r}" for n in free if n not in model.params.index]
         unknown += [f"output {n!r}" for n in outputs if n not in model.outputs.index]
         unknown += [f"state {n!r}" for n in estimate_states if n not in model.states.index]
@@ -725,6 +730,9 @@ class OutputErrorEstimator:
                     if n not in outputs]
         unknown += [f"filtered output {n!r} (not among the fitted outputs, or a cut-off that is not > 0)"
                     for n, fc in (output_filters or {}).items() if n not in outputs or not fc > 0]
+        unknown += [f"initial-state std of {n!r} = {sd!r} (not an estimated state, or not a finite std > 0)"
+                    for n, sd in (initial_sd or {}).items()
+                    if n not in estimate_states or not (np.isfinite(sd) and sd > 0)]
         if unknown:
             raise EstimationError(f"not known to the {model.name} model: {', '.join(unknown)}")
         if bound not in BOUNDS:
@@ -762,6 +770,9 @@ class OutputErrorEstimator:
         pr = prior or {}
         self.prior_mean = np.array([pr.get(n, (0.0, np.inf))[0] for n in free], dtype=float)
         self.prior_sd = np.array([pr.get(n, (0.0, np.inf))[1] for n in free], dtype=float)
+        #: per estimated initial state, the std of the manoeuvre's given x0 as its measurement (inf: none)
+        self.initial_sd = dict(initial_sd or {})
+        self.x0_prior_sd = np.array([self.initial_sd.get(n, np.inf) for n in self.states_est], dtype=float)
         self.state_limits = np.asarray(model.state_limits, dtype=float)
         #: sensor low-pass per output [Hz]: the model output passes the same filter before it meets the data
         self.output_filters = dict(output_filters or {})
@@ -779,21 +790,44 @@ class OutputErrorEstimator:
         return len(self.i_x0) + len(self.i_bias)
 
     def prior_information(self, n_total: int) -> np.ndarray:
-        """Diagonal a-priori information ``1/σ_p²`` over the full parameter vector (0 where no prior)."""
+        """Diagonal a-priori information ``1/σ_p²`` over the full parameter vector (0 where no prior): the model
+        parameters' priors, then per manoeuvre the initial states' (``initial_sd``)."""
         out = np.zeros(n_total)
-        out[:len(self.free)] = 1.0 / self.prior_sd ** 2
+        nth = len(self.free)
+        out[:nth] = 1.0 / self.prior_sd ** 2
+        if n_total > nth and self.n_local:
+            local = np.concatenate([1.0 / self.x0_prior_sd ** 2, np.zeros(len(self.i_bias))])
+            out[nth:] = np.tile(local, (n_total - nth) // self.n_local)
         return out
 
-    def prior_cost(self, theta: np.ndarray) -> float:
-        """``1/2 Σ ((θ - θ_p)/σ_p)²`` over the parameters that have a prior."""
-        return 0.5 * float(np.sum(((theta[:len(self.free)] - self.prior_mean) / self.prior_sd) ** 2))
+    def prior_mean_of(self, theta: np.ndarray, data: Sequence[Manoeuvre] | None) -> np.ndarray:
+        """The prior's mean over the full parameter vector: the model parameters' prior means, each manoeuvre's
+        given x0 for its estimated initial states; ``theta`` itself where there is no prior. ``data`` is needed
+        when an initial state has a prior and ``theta`` holds the manoeuvres' parameters."""
+        nth = len(self.free)
+        mean = theta.astype(float).copy()
+        mean[:nth] = np.where(np.isfinite(self.prior_sd), self.prior_mean, theta[:nth])
+        if len(theta) > nth and np.any(np.isfinite(self.x0_prior_sd)):
+            if data is None:
+                raise EstimationError("an initial-state prior needs the manoeuvres (their given x0 is its mean)")
+            nxe, has = len(self.i_x0), np.isfinite(self.x0_prior_sd)
+            for j, m in enumerate(data):
+                i = nth + j * self.n_local + np.arange(nxe)
+                mean[i[has]] = np.asarray(m.x0, dtype=float)[self.i_x0][has]
+        return mean
 
-    def _add_prior(self, M: np.ndarray, g: np.ndarray, theta: np.ndarray) -> None:
+    def prior_cost(self, theta: np.ndarray, data: Sequence[Manoeuvre] | None = None) -> float:
+        """``1/2 Σ ((θ - θ_p)/σ_p)²`` over the parameters that have a prior (``data``: see :meth:`prior_mean_of`)."""
+        info = self.prior_information(len(theta))
+        d = theta - self.prior_mean_of(theta, data)
+        return 0.5 * float(np.sum(info * d * d))
+
+    def _add_prior(self, M: np.ndarray, g: np.ndarray, theta: np.ndarray,
+                   data: Sequence[Manoeuvre] | None = None) -> None:
         """Add the prior's information and gradient in place (Gauss-Newton normal equations)."""
-        n = len(self.free)
         info = self.prior_information(len(theta))
         M[np.diag_indices_from(M)] += info
-        g[:n] += info[:n] * (self.prior_mean - theta[:n])
+        g += info * (self.prior_mean_of(theta, data) - theta)
 
     def substeps_for(self, dt_s: float) -> int:
         """Integration sub-steps per sample of ``dt_s`` [s]: the given ``substeps``, else 1 without output filters
@@ -1019,7 +1053,7 @@ class OutputErrorEstimator:
         if any(s[2] for s in sims):
             raise EstimationError("the model diverges at the start values: start closer or fix more parameters")
         res, jacs, W, cost = _linearised(data, sims, weight)
-        cost += self.prior_cost(theta)
+        cost += self.prior_cost(theta, data)
         lam = 1e-3
         converged = False
         n_extra = len(theta) - len(self.free)
@@ -1027,7 +1061,7 @@ class OutputErrorEstimator:
                   np.concatenate([self.upper, np.full(n_extra, np.inf)]))
         for _ in range(max_iter):
             M, g = self._normal_equations(res, jacs, W, len(theta))
-            self._add_prior(M, g, theta)
+            self._add_prior(M, g, theta, data)
             trial, cost_t, lam = self._damped_step(data, theta, M, g, W, cost, lam, bounds)
             if trial is None:
                 converged = True  # no descent direction left at machine precision: a minimum
@@ -1038,7 +1072,7 @@ class OutputErrorEstimator:
             sims = [self.simulate(theta, m, j) for j, m in enumerate(data)]
             # with ML weighting the new cost is N*ny/2 by construction: report the fitted cost
             res, jacs, W, cost = _linearised(data, sims, weight)
-            cost += self.prior_cost(theta)
+            cost += self.prior_cost(theta, data)
             history.append(Iteration(cost_t, step_norm, lam))
             log.info("iteration %d: cost %.6g, relative step %.3g, damping %.1e", len(history), cost_t, step_norm, lam)
             bar.update(1)
@@ -1064,7 +1098,7 @@ class OutputErrorEstimator:
                 plain = [self.simulate(trial, m, j, sensitivities=False) for j, m in enumerate(data)]
                 if not any(s[2] for s in plain):
                     cost_t = _cost([m.y - s[0] for m, s in zip(data, plain, strict=True)], W) + \
-                        self.prior_cost(trial)
+                        self.prior_cost(trial, data)
                     if cost_t <= cost:
                         return trial, cost_t, lam
             lam *= 10.0
@@ -1112,16 +1146,26 @@ class OutputErrorEstimator:
             g[idx] += Jw.T @ (r @ L.T).ravel()
         return M, g
 
-    def _segment_terms(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray
+    def _segment_terms(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray,
+                       theta: np.ndarray | None = None, data: Sequence[Manoeuvre] | None = None
                        ) -> list[tuple[np.ndarray, np.ndarray]]:
         """Per manoeuvre, the information ``A_j`` and gradient ``g_j`` of the model parameters with that
-        manoeuvre's nuisance parameters profiled out (Schur complement)."""
+        manoeuvre's nuisance parameters profiled out (Schur complement); its initial states' prior
+        (``initial_sd``) belongs to the manoeuvre and enters its nuisance block (its gradient with ``theta`` and
+        ``data``)."""
         L = np.linalg.cholesky(W).T
         ng, out = len(self.free), []
-        for r, J in zip(res, jacs, strict=True):
+        n_total = ng + len(res) * self.n_local
+        info = self.prior_information(n_total)
+        d = self.prior_mean_of(theta, data) - theta if theta is not None and len(theta) == n_total \
+            else np.zeros(n_total)
+        for j, (r, J) in enumerate(zip(res, jacs, strict=True)):
             Jw = np.matmul(L, J).reshape(-1, J.shape[2])
             M = Jw.T @ Jw
             g = Jw.T @ (r @ L.T).ravel()
+            loc = self._local_index(j)[ng:]
+            M[ng:, ng:][np.diag_indices(len(loc))] += info[loc]
+            g[ng:] += info[loc] * d[loc]
             if M.shape[0] > ng:
                 K = M[:ng, ng:] @ np.linalg.pinv(M[ng:, ng:])
                 out.append((M[:ng, :ng] - K @ M[ng:, :ng], g[:ng] - K @ g[ng:]))
@@ -1130,7 +1174,8 @@ class OutputErrorEstimator:
         return out
 
     def segment_bootstrap_std(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray, repeats: int = 400,
-                              seed: int = 0, theta: np.ndarray | None = None
+                              seed: int = 0, theta: np.ndarray | None = None,
+                              data: Sequence[Manoeuvre] | None = None
                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """Block bootstrap over manoeuvres (one linearised Gauss-Newton step per resample from the estimate with
         the information held at the full sample's, Hu & Kalbfleisch's estimating-function bootstrap): (std,
@@ -1142,7 +1187,7 @@ class OutputErrorEstimator:
         m = len(res)
         if m < BOOTSTRAP_MIN_SEGMENTS or not self.free:
             return None
-        terms = self._segment_terms(res, jacs, W)
+        terms = self._segment_terms(res, jacs, W, theta, data)
         A = np.stack([t[0] for t in terms])
         g = np.stack([t[1] for t in terms])
         ng = len(self.free)
@@ -1156,7 +1201,8 @@ class OutputErrorEstimator:
         return np.std(np.array(reps), axis=0) * np.sqrt(factor), factor, dof
 
     def segment_scatter(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray, crb: np.ndarray,
-                        theta: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+                        theta: np.ndarray, data: Sequence[Manoeuvre] | None = None
+                        ) -> tuple[np.ndarray, np.ndarray] | None:
         """:func:`segment_scatter` of the model parameters at ``theta`` against the coloured Cramér-Rao std
         ``crb`` (None with fewer than :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres, as the bootstrap)."""
         if len(res) < BOOTSTRAP_MIN_SEGMENTS or not self.free:
@@ -1164,7 +1210,7 @@ class OutputErrorEstimator:
         ng = len(self.free)
         if (len(res) * ng) ** 2 > SCORE_COV_MAX_ELEMENTS:
             return None
-        terms = self._segment_terms(res, jacs, W)
+        terms = self._segment_terms(res, jacs, W, theta, data)
         return segment_scatter(np.stack([t[0] for t in terms]), np.stack([t[1] for t in terms]),
                                np.diag(self.prior_information(ng)), crb[:ng])
 
@@ -1208,9 +1254,10 @@ class OutputErrorEstimator:
         cov = M_inv @ middle @ M_inv
         std = np.sqrt(np.maximum(np.diag(cov), 0.0))
         corr = correlation(cov)  # zero-variance entries give 0 correlation, never NaN
-        got = self.segment_bootstrap_std(res, jacs, W, theta=theta)
+        got = self.segment_bootstrap_std(res, jacs, W, theta=theta, data=data)
         boot, factor, dof = got if got is not None else (None, None, None)
-        scatter = self.segment_scatter(res, jacs, W, std, theta) if polys is not None and got is not None else None
+        scatter = (self.segment_scatter(res, jacs, W, std, theta, data)
+                   if polys is not None and got is not None else None)
         method = BOUND_METHODS[2] if polys is not None else BOUND_METHODS[1] if boot is not None else BOUND_METHODS[0]
         exc = input_excitation([m.u for m in data], list(self.model.inputs.index))
         ident = analyse(M + np.diag(prior_info), names, len(self.free), exc, cov=cov)
@@ -1320,7 +1367,7 @@ def consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Sequence[
     # one pass with sensitivities: by default CasADi's virtual machine, not a C compile of a function used once
     big = OutputErrorEstimator(oe.model, p, oe.free + names, oe.outputs, estimate_states=oe.states_est,
                                estimate_biases=oe.biases, compile=compile, output_filters=oe.output_filters,
-                               bound=oe.bound, substeps=oe.substeps)
+                               bound=oe.bound, substeps=oe.substeps, initial_sd=oe.initial_sd)
     nc = len(names)
     theta = np.concatenate([est.values[:ng], p[big.i_free[ng:]], est.values[ng:]])
     sims = [big.simulate(theta, m, j) for j, m in enumerate(data)]

@@ -80,7 +80,7 @@ def _refine(oe: OutputErrorEstimator, theta: np.ndarray, data: Sequence[Manoeuvr
     """:func:`refine_unlogged`, and per manoeuvre the output change per unit ``w`` of each command left inside its
     bracket (N x ny x n_inside: the columns the profiled step projects out), and the weighted cost (with the
     prior's) of the refined manoeuvres."""
-    out, dirs, cost = [], [], oe.prior_cost(theta)
+    out, dirs, cost = [], [], oe.prior_cost(theta, data)
     for j, (m, br) in enumerate(zip(data, brackets, strict=True)):
         pairs = br.free()
         ny = m.y.shape[1]
@@ -149,7 +149,7 @@ def profiled_step(oe: OutputErrorEstimator, theta: np.ndarray, data: Sequence[Ma
             rw = rw - Dw @ np.linalg.lstsq(Dw, rw, rcond=None)[0]
         M[np.ix_(idx, idx)] += Jw.T @ Jw
         g[idx] += Jw.T @ rw
-    oe._add_prior(M, g, theta)
+    oe._add_prior(M, g, theta, data)
     return np.linalg.lstsq(M, g, rcond=None)[0]
 
 

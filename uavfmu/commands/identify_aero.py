@@ -93,6 +93,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--nuisance", choices=("auto", "none"), default="auto",
                    help="per-segment initial rates and output biases: auto (kept when they lower the AIC), none")
     p.add_argument("--estimate-initial", help="states whose initial value is estimated per segment (by hand)")
+    p.add_argument("--initial-sd", metavar="STATE=SD,...",
+                   help="estimated initial states whose logged start is a measurement of this std [state unit] (a "
+                        "prior at the logged value), e.g. vel_body_y_m_s=0.07; default: estimated states are free")
     p.add_argument("--biases", help="outputs given a constant bias per segment (by hand)")
     p.add_argument("--max-delay", type=_bounded(0.0, 1.0), default=0.1,
                    help="longest command -> surface delay scanned [s] (0 turns the scan off; 0.1)")
@@ -164,6 +167,10 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
                                                                      for v in sigma.values())):
         raise ValueError(f"--sigma needs a positive value for each fitted output ({', '.join(outputs)}), "
                          f"got {args.sigma!r}")
+    try:
+        initial_sd = {n: float(v) for n, v in _pairs(args.initial_sd, "--initial-sd").items()}
+    except ValueError:
+        raise ValueError(f"--initial-sd: {args.initial_sd!r} is not state=number,...") from None
     given = bool(args.estimate_initial or args.biases)
     free = "auto" if args.free.strip() == "auto" else list(comma_list(args.free))
     if len(args.log) > 1 and (args.segments or args.validate_segments or args.timeline):
@@ -182,7 +189,7 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         if args.validate_segments else None,
         window_s=args.window, rate_hz=args.rate, nuisance="given" if given else args.nuisance,
         estimate_initial=list(comma_list(args.estimate_initial)), biases=list(comma_list(args.biases)), bounds=bounds,
-        sigma=sigma,
+        initial_sd=initial_sd, sigma=sigma,
         stability_constraints=not args.no_stability_constraints, max_iter=args.max_iter, horizon_s=args.horizon,
         max_delay_s=args.max_delay, min_delay_s=args.min_delay, sensor_filters=None if args.sensor_filters else {},
         progress=not args.quiet, force=args.force, max_damage=args.max_damage,
