@@ -437,13 +437,20 @@ def _choose_free(model: FixedWingModel, p: np.ndarray, data: list[Manoeuvre], op
     return [n for n in (*PRIMARY, *(TRIM_OFFSETS if pitch_seen else ())) if n in model.params.index]
 
 
+def _given_text(opt: AeroOptions) -> str:
+    """The nuisance set given by hand, with the std of each initial state whose logged start is its measurement."""
+    states = [f"{n} (logged start +- {opt.initial_sd[n]:g})" if n in opt.initial_sd else n
+              for n in opt.estimate_initial]
+    return f"given: per-segment initial {', '.join(states) or 'none'}; biases of {', '.join(opt.biases) or 'none'}"
+
+
 def _nuisance_fits(model: FixedWingModel, p: np.ndarray, free: list[str], data: list[Manoeuvre],
                    opt: AeroOptions, weight: np.ndarray | None) -> tuple[Fit, str, list[str]]:
     """The fit with the nuisance set of ``opt.nuisance``; "auto" keeps the lower Akaike criterion."""
     notes: list[str] = []
     if opt.nuisance == "given":
         return _fit(_estimator(model, p, free, opt, opt.estimate_initial, opt.biases), data, opt, weight), \
-            "given", notes
+            _given_text(opt), notes
     plain = _fit(_estimator(model, p, free, opt, (), ()), data, opt, weight)
     if opt.nuisance == "none":
         return plain, "none", notes
@@ -467,8 +474,9 @@ def _nuisance_fits(model: FixedWingModel, p: np.ndarray, free: list[str], data: 
         return plain, f"none (per-segment states and biases are confounded with derivatives: " \
             f"{', '.join(confounded[:4])}{' ...' if len(confounded) > 4 else ''})", notes
     if rich.aic < plain.aic:
+        priors = "".join(f"; {n} with its logged start +- {sd:g}" for n, sd in opt.initial_sd.items())
         return rich, f"per-segment initial rates and biases of {', '.join(biases)} (AIC {rich.aic:.0f} < " \
-            f"{plain.aic:.0f} without)", notes
+            f"{plain.aic:.0f} without{priors})", notes
     return plain, f"none (per-segment states and biases did not lower the AIC: {rich.aic:.0f} >= {plain.aic:.0f})", \
         notes
 

@@ -51,3 +51,10 @@ def test_the_cli_option_reaches_the_options() -> None:
     assert cmd._options(args).initial_sd == {VEL: 0.07}
     with pytest.raises(ValueError, match="--initial-sd"):
         cmd._options(parser.parse_args(["x.BIN", "--out", "x.json", "--initial-sd", f"{VEL}=fast"]))
+
+
+def test_the_given_set_names_each_prior() -> None:
+    opt = AeroOptions(nuisance="given", estimate_initial=(RATES[0], VEL), biases=("accel_body_y_m_s2",),
+                      initial_sd={VEL: 0.07})
+    assert ai._given_text(opt) == (f"given: per-segment initial {RATES[0]}, {VEL} (logged start +- 0.07); "
+                                   "biases of accel_body_y_m_s2")
