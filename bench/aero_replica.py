@@ -40,14 +40,16 @@ noisy samples of a real log); ``--estimate-initial STATE,...`` fits those per-se
 gyro and accelerometer biases) instead of the tool's automatic choice; ``--truth-seed N`` keeps draw N's truth
 in every draw and redraws only the noise (seeds ``--seed``, ``--seed`` + 1, ...); ``--initial-sd STATE=SD,...``
 gives some of the ``--estimate-initial`` states their logged start as a measurement of that std (a prior at the
-logged value, ``AeroOptions.initial_sd``) instead of leaving them free.
+logged value, ``AeroOptions.initial_sd``) instead of leaving them free; ``--fixed-spread zeros`` also draws the
+scaled coefficients at 0 in Aerosonde's set (C_Y_p, C_Y_r: a factor leaves them at 0 in every draw, while the tool
+gives each, when it stays fixed, a consider std of 0.05) about 0 with that std.
 
 Run: ``.venv/bin/python bench/aero_replica.py [--draws 1] [--seed 0] [--bound ar|bootstrap] [--start-state
-logged|exact] [--estimate-initial STATES [--initial-sd STATE=SD,...]] [--truth-seed N]`` (one identify run per
-draw: 15-60 s on 2 cores, more when they are shared). Exit 1 when a draw fails, or the draws show a primary
-derivative's coverage below 0.90 or its median half-width above 2 x its RMS error (``replica_verdict``: a point
-figure past its target within the Monte Carlo error of the draws is printed "(unresolved)", not called met); the
-log is read from ``../shared/data`` (exit 2 when absent).
+logged|exact] [--estimate-initial STATES [--initial-sd STATE=SD,...]] [--truth-seed N] [--fixed-spread
+factor|zeros]`` (one identify run per draw: 15-60 s on 2 cores, more when they are shared). Exit 1 when a draw
+fails, or the draws show a primary derivative's coverage below 0.90 or its median half-width above 2 x its RMS
+error (``replica_verdict``: a point figure past its target within the Monte Carlo error of the draws is printed
+"(unresolved)", not called met); the log is read from ``../shared/data`` (exit 2 when absent).
 """
 
 from __future__ import annotations
@@ -94,13 +96,22 @@ SCALED = (*PRIMARY, "C_m_delta_e", "C_Y_delta_r", "C_Y_p", "C_Y_r", "C_Y_delta_a
 
 
 def truth_params(model: FixedWingModel, p: np.ndarray, rng: np.random.Generator, data: list[Manoeuvre],
-                 scaled: Sequence[str] = SCALED) -> np.ndarray:
+                 scaled: Sequence[str] = SCALED, fixed_spread: str = "factor") -> np.ndarray:
     """Aerosonde's parameters with ``scaled`` times factors in [0.6, 1.6] and ``C_m_0`` re-balanced at the
-    median trim (elevator, angle of attack) of the segment starts in ``data``."""
+    median trim (elevator, angle of attack) of the segment starts in ``data``. ``fixed_spread`` "zeros": besides,
+    each of ``scaled`` whose Aerosonde value is 0 (C_Y_p and C_Y_r, which a factor leaves at 0 in every draw) is
+    drawn about 0 with the std the tool's consider covariance gives it when it stays fixed (``priors.fixed_sd``,
+    normal, clipped at 2 std); neither acts at the trim, so the logged trim stays one."""
+    from identification.aero.priors import fixed_sd
+
     ix, st, inp = model.params.index, model.states.index, list(model.inputs.index)
     out = p.copy()
     for n in dict.fromkeys(scaled):
         out[ix[n]] *= rng.uniform(0.6, 1.6)
+    if fixed_spread == "zeros":
+        for n in dict.fromkeys(scaled):
+            if p[ix[n]] == 0.0:
+                out[ix[n]] = fixed_sd(n, 0.0) * float(np.clip(rng.normal(), -2.0, 2.0))
     alpha = float(np.median([np.arctan2(m.x0[st["vel_body_z_m_s"]], m.x0[st["vel_body_x_m_s"]]) for m in data]))
     elev = float(np.median([m.u[0, inp.index("elevator_rad")] for m in data]))
     out[ix["C_m_0"]] = p[ix["C_m_0"]] + sum((p[ix[a]] - out[ix[a]]) * v for a, v in
@@ -173,7 +184,7 @@ def modes_line(model: FixedWingModel, p_truth: np.ndarray, data: list[Manoeuvre]
 
 def replica_fit(seed: int, bound: str = "ar", exact_start: bool = False,
                 estimate_initial: Sequence[str] | None = None, truth_seed: int | None = None,
-                initial_sd: dict[str, float] | None = None
+                initial_sd: dict[str, float] | None = None, fixed_spread: str = "factor"
                 ) -> tuple[FixedWingModel, np.ndarray, list[Manoeuvre], AeroResult, dict[str, float]]:
     """One truth draw identified as ``identify aero`` does: (model, the truth's parameters, the fit segments of
     the original log, the result, per state the RMS over the fit segments of the initial state the tool reads
@@ -193,7 +204,7 @@ def replica_fit(seed: int, bound: str = "ar", exact_start: bool = False,
     segs = [s for _, s in pool.fit + pool.val]
     rng = np.random.default_rng(seed if truth_seed is None else truth_seed)
     start = aero.manoeuvres(model, p, log, mapping, [s for _, s in pool.fit], list(opt.outputs), opt.rate_hz)
-    p_truth = truth_params(model, p, rng, start)
+    p_truth = truth_params(model, p, rng, start, fixed_spread=fixed_spread)
     if truth_seed is not None:
         rng = np.random.default_rng(seed)
     rep = replica_log(log, model, p_truth, segs, mapping, list(opt.outputs), opt.rate_hz, rng, exact_start)
@@ -206,21 +217,23 @@ def replica_fit(seed: int, bound: str = "ar", exact_start: bool = False,
 
 
 def run_draw(seed: int, bound: str = "ar", exact_start: bool = False, estimate_initial: Sequence[str] | None = None,
-             truth_seed: int | None = None, initial_sd: dict[str, float] | None = None
-             ) -> tuple[bool, str, dict[str, tuple[float, float, bool, float]]]:
+             truth_seed: int | None = None, initial_sd: dict[str, float] | None = None,
+             fixed_spread: str = "factor") -> tuple[bool, str, dict[str, tuple[float, float, bool, float]]]:
     """One truth draw (:func:`replica_fit`): returns (all primaries within 10 % and no failure, the printed table,
     per primary derivative its relative error and the relative 95 % half-width, both over |truth|, whether the
     small-sample bound made its interval, and the relative half-width the AR bound alone would give (with the
     consider share))."""
     model, p_truth, start, result, start_rms = replica_fit(seed, bound, exact_start, estimate_initial, truth_seed,
-                                                           initial_sd)
+                                                           initial_sd, fixed_spread)
     est = result.fit.estimate
     values, std, dom = est.derivatives(), est.std, est.dominance()
     data_std, small = est.data_std, est.small_sample()
     cons = est.consider_std if est.consider_std is not None else np.zeros(est.n_global)
     freed = ", ".join(n for n in result.free if n not in PRIMARY) or "none"
     truth = "" if truth_seed is None else f" (draw {truth_seed}'s, noise of seed {seed})"
-    lines = [f"draw {seed}: truth = Aerosonde x U(0.6, 1.6) on {len(dict.fromkeys(SCALED))} coefficients{truth}; "
+    family = f"Aerosonde x U(0.6, 1.6) on {len(dict.fromkeys(SCALED))} coefficients" + (
+        "" if fixed_spread == "factor" else ", those at 0 drawn with their consider std")
+    lines = [f"draw {seed}: truth = {family}{truth}; "
              f"freed: {freed}; failures: {result.failures or 'none'}", modes_line(model, p_truth, start),
              f"nuisance: {result.nuisance_choice}; segment starts: "
              f"{'the truth state' if exact_start else 'interpolated from the log (noisy)'}; the tool's initial state "
@@ -297,6 +310,9 @@ def main() -> int:
                              "biases) instead of the tool's automatic nuisance choice, e.g. "
                              "rate_body_x_rad_s,rate_body_y_rad_s,rate_body_z_rad_s,vel_body_y_m_s,quat_x")
     parser.add_argument("--truth-seed", type=int, default=None, help="keep this draw's truth, redraw only the noise")
+    parser.add_argument("--fixed-spread", choices=("factor", "zeros"), default="factor",
+                        help="the truths' coefficients: times U(0.6, 1.6) (factor), and those at 0 (C_Y_p, C_Y_r) "
+                             "drawn with the std the tool's consider covariance gives them (zeros)")
     parser.add_argument("--initial-sd", default=None, metavar="STATE=SD,...",
                         help="with --estimate-initial: those states' logged start as a measurement of this std "
                              "(a prior at the logged value), e.g. vel_body_x_m_s=0.07,vel_body_y_m_s=0.07")
@@ -324,7 +340,7 @@ def main() -> int:
     for k in range(args.draws):
         try:
             ok, table, r = run_draw(args.seed + k, args.bound, args.start_state == "exact", states, args.truth_seed,
-                                    initial_sd)
+                                    initial_sd, args.fixed_spread)
         except TruthDivergesError as err:
             print(f"draw {args.seed + k}: skipped, {err} (no replica to identify)\n", flush=True)
             skipped.append(args.seed + k)

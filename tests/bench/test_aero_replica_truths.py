@@ -1,0 +1,41 @@
+"""The fixed-wing replica's truth families: ``--fixed-spread zeros`` draws the coefficients a factor cannot move
+(Aerosonde's zeros among the scaled ones) with the std the tool's consider covariance gives them, and leaves
+every other draw as the factor family makes it."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))  # the bench imports its sibling scripts
+import aero_replica as bench
+
+from fmu_models.fixed_wing.model import FixedWingModel
+from fmu_models.fixed_wing.params import FixedWingParams
+from identification.aero.priors import fixed_sd
+from identification.estimation.oem import Manoeuvre
+
+
+def test_zeros_are_drawn_with_their_consider_std_and_the_rest_is_the_factor_family() -> None:
+    model = FixedWingModel(FixedWingParams())
+    p = np.array(model.params.starts(), dtype=float)
+    ix = model.params.index
+    x0 = np.zeros(len(model.states))
+    x0[model.states.index["vel_body_x_m_s"]] = 25.0
+    data = [Manoeuvre(x0, np.zeros((1, len(model.inputs))), np.zeros((1, 1)), 0.02)]
+    zeros = [n for n in dict.fromkeys(bench.SCALED) if p[ix[n]] == 0.0]
+    assert set(zeros) == {"C_Y_p", "C_Y_r"}
+    drawn = np.array([[bench.truth_params(model, p, np.random.default_rng(s), data, fixed_spread="zeros")[ix[n]]
+                       for n in zeros] for s in range(400)])
+    sd = np.array([fixed_sd(n, 0.0) for n in zeros])
+    assert np.all(np.abs(drawn) <= 2.0 * sd + 1e-15)  # clipped at 2 std
+    # a normal clipped at 2 std keeps sqrt(erf(sqrt 2) - 4 phi(2) + 4 P(|z| > 2)) = 0.96 of its std
+    np.testing.assert_allclose(np.std(drawn, axis=0), 0.96 * sd, rtol=0.1)
+    for s in range(5):  # everything else as the factor family draws it, C_m_0's re-balance included
+        a = bench.truth_params(model, p, np.random.default_rng(s), data, fixed_spread="factor")
+        b = bench.truth_params(model, p, np.random.default_rng(s), data, fixed_spread="zeros")
+        other = [i for n, i in ix.items() if n not in zeros]
+        np.testing.assert_array_equal(a[other], b[other])
+        assert np.all(a[[ix[n] for n in zeros]] == 0.0)
