@@ -353,7 +353,8 @@ def main() -> int:
         return 1
     lines, verdict = summary(rel)
     gone = f" ({len(skipped)} skipped: the truth diverges)" if skipped else ""
-    print(f"over {len(rel)} draws{gone} (bound {args.bound!r}, segment starts {args.start_state}, nuisance "
+    print(f"over {len(rel)} draws{gone} (truths {args.fixed_spread}, bound {args.bound!r}, segment starts "
+          f"{args.start_state}, nuisance "
           f"{'auto' if states is None else 'initial ' + ', '.join(states) + ' and biases'}; targets: coverage >= "
           f"{MIN_COVERAGE:.2f}, median half-width <= {MAX_WIDTH:g} x the RMS error; [bound]: the one-sided 95 % "
           "Monte Carlo bound towards the target):")
