@@ -265,9 +265,9 @@ def _check_names(model: FixedWingModel, opt: AeroOptions) -> None:
     bad += [f"state {n!r}" for n in opt.estimate_initial if n not in model.states.index]
     bad += [f"biased output {n!r} (not fitted)" for n in opt.biases if n not in opt.outputs]
     estimated = {"given": opt.estimate_initial, "auto": AUTO_STATES}.get(opt.nuisance, ())
-    bad += [f"initial-state std {n}={sd!r} (an estimated initial state, {', '.join(estimated) or 'none'} with "
-            f"nuisance {opt.nuisance!r}, needs a finite std > 0)" for n, sd in opt.initial_sd.items()
-            if n not in estimated or not (math.isfinite(sd) and sd > 0)]
+    bad += [f"initial-state std {n}={sd!r} (needs a state estimated per segment, with nuisance {opt.nuisance!r} "
+            f"{', '.join(estimated) or 'none'}: name it in estimate_initial; and a finite std > 0)"
+            for n, sd in opt.initial_sd.items() if n not in estimated or not (math.isfinite(sd) and sd > 0)]
     bad += [f"bounds {n}={lo:g}:{hi:g} (need finite lo < hi)" for n, (lo, hi) in opt.bounds.items()
             if not lo < hi]
     if bad:
