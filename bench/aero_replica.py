@@ -101,17 +101,19 @@ def truth_params(model: FixedWingModel, p: np.ndarray, rng: np.random.Generator,
     median trim (elevator, angle of attack) of the segment starts in ``data``. ``fixed_spread`` "zeros": besides,
     each of ``scaled`` whose Aerosonde value is 0 (C_Y_p and C_Y_r, which a factor leaves at 0 in every draw) is
     drawn about 0 with the std the tool's consider covariance gives it when it stays fixed (``priors.fixed_sd``,
-    normal, clipped at 2 std); neither acts at the trim, so the logged trim stays one."""
+    normal, clipped at 2 std, from a child stream of ``rng`` that leaves its own draws, and so the replica's noise,
+    as they are); neither acts at the trim, so the logged trim stays one."""
     from identification.aero.priors import fixed_sd
 
     ix, st, inp = model.params.index, model.states.index, list(model.inputs.index)
     out = p.copy()
     for n in dict.fromkeys(scaled):
         out[ix[n]] *= rng.uniform(0.6, 1.6)
-    if fixed_spread == "zeros":
+    if fixed_spread == "zeros":  # from a child stream: the other coefficients and the noise stay the factor family's
+        child = rng.spawn(1)[0]
         for n in dict.fromkeys(scaled):
             if p[ix[n]] == 0.0:
-                out[ix[n]] = fixed_sd(n, 0.0) * float(np.clip(rng.normal(), -2.0, 2.0))
+                out[ix[n]] = fixed_sd(n, 0.0) * float(np.clip(child.normal(), -2.0, 2.0))
     alpha = float(np.median([np.arctan2(m.x0[st["vel_body_z_m_s"]], m.x0[st["vel_body_x_m_s"]]) for m in data]))
     elev = float(np.median([m.u[0, inp.index("elevator_rad")] for m in data]))
     out[ix["C_m_0"]] = p[ix["C_m_0"]] + sum((p[ix[a]] - out[ix[a]]) * v for a, v in

@@ -33,9 +33,11 @@ def test_zeros_are_drawn_with_their_consider_std_and_the_rest_is_the_factor_fami
     assert np.all(np.abs(drawn) <= 2.0 * sd + 1e-15)  # clipped at 2 std
     # a normal clipped at 2 std keeps sqrt(erf(sqrt 2) - 4 phi(2) + 4 P(|z| > 2)) = 0.96 of its std
     np.testing.assert_allclose(np.std(drawn, axis=0), 0.96 * sd, rtol=0.1)
-    for s in range(5):  # everything else as the factor family draws it, C_m_0's re-balance included
-        a = bench.truth_params(model, p, np.random.default_rng(s), data, fixed_spread="factor")
-        b = bench.truth_params(model, p, np.random.default_rng(s), data, fixed_spread="zeros")
+    for s in range(5):  # everything else as the factor family draws it, C_m_0's re-balance included ...
+        rng_a, rng_b = np.random.default_rng(s), np.random.default_rng(s)
+        a = bench.truth_params(model, p, rng_a, data, fixed_spread="factor")
+        b = bench.truth_params(model, p, rng_b, data, fixed_spread="zeros")
         other = [i for n, i in ix.items() if n not in zeros]
         np.testing.assert_array_equal(a[other], b[other])
         assert np.all(a[[ix[n] for n in zeros]] == 0.0)
+        assert rng_a.normal() == rng_b.normal()  # ... and the noise drawn after the truth
