@@ -232,6 +232,11 @@ def run_draw(seed: int, bound: str = "ar", exact_start: bool = False, estimate_i
     data_std, small = est.data_std, est.small_sample()
     cons = est.consider_std if est.consider_std is not None else np.zeros(est.n_global)
     freed = ", ".join(n for n in result.free if n not in PRIMARY) or "none"
+    x0_bounds = {}  # per estimated initial state, the range over the segments of its coloured Cramér-Rao std
+    for s in result.fit.oe.states_est:
+        sd = [float(est.crb_std[i]) for i, n in enumerate(est.names) if n.endswith(f".x0.{s}")]
+        if sd:
+            x0_bounds[s] = (min(sd), max(sd))
     truth = "" if truth_seed is None else f" (draw {truth_seed}'s, noise of seed {seed})"
     family = f"Aerosonde x U(0.6, 1.6) on {len(dict.fromkeys(SCALED))} coefficients" + (
         "" if fixed_spread == "factor" else ", those at 0 drawn with their consider std")
@@ -243,6 +248,8 @@ def run_draw(seed: int, bound: str = "ar", exact_start: bool = False, estimate_i
                  f"{n} {v:.2g}" for n, v in start_rms.items() if v > 1e-9 and n not in ("lat_rad", "lon_rad"))
                  or "none"),
              *[f"note: {n}" for n in result.notes if "airborne" in n],
+             *(["estimated initial states, their coloured bound over the segments: " + ", ".join(
+                 f"{s} {lo:.2g}-{hi:.2g}" for s, (lo, hi) in x0_bounds.items())] if x0_bounds else []),
              f"{'derivative':<14} {'truth':>9} {'estimate':>9} {'err %':>7} {'95 % interval':>22} {'covers':>6} "
              f"{'data %':>7} {'consider %':>10}  determined by"]
     ok = not result.failures  # e.g. bounds that are not credible
