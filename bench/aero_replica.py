@@ -247,7 +247,7 @@ def run_draw(seed: int, bound: str = "ar", exact_start: bool = False, estimate_i
              "- the truth's, RMS over the fit segments: " + (", ".join(
                  f"{n} {v:.2g}" for n, v in start_rms.items() if v > 1e-9 and n not in ("lat_rad", "lon_rad"))
                  or "none"),
-             *[f"note: {n}" for n in result.notes if "airborne" in n],
+             *[f"note: {n}" for n in result.notes if "airborne" in n or "restart" in n],
              *(["estimated initial states, their coloured bound over the segments: " + ", ".join(
                  f"{s} {lo:.2g}-{hi:.2g}" for s, (lo, hi) in x0_bounds.items())] if x0_bounds else []),
              f"{'derivative':<14} {'truth':>9} {'estimate':>9} {'err %':>7} {'95 % interval':>22} {'covers':>6} "

@@ -96,6 +96,11 @@ class AeroOptions:
     stability_constraints: bool = True
     max_iter: int = 40
     horizon_s: float = 1.0
+    #: further continuation schedules (first fitted span [s], doubled up to the whole segment) each fit from the
+    #: start values is restarted with; the lowest criterion is kept (:func:`_cold_fit`). The output-error cost of
+    #: long lateral records has several minima, and which one a start walks into depends on the spans it walks
+    #: (identification/aero/readme.md, "Several minima from one start"). (): one schedule
+    restart_horizons_s: Sequence[float] = (0.5, 2.0)
     max_delay_s: float = 0.1
     #: most negative delay scanned [s] (the surfaces act the logged command of a later time: servo outputs logged
     #: after they took effect, or below the loop rate); None: one servo-log interval when the servo outputs are
@@ -270,6 +275,11 @@ def _check_names(model: FixedWingModel, opt: AeroOptions) -> None:
             for n, sd in opt.initial_sd.items() if n not in estimated or not (math.isfinite(sd) and sd > 0)]
     bad += [f"bounds {n}={lo:g}:{hi:g} (need finite lo < hi)" for n, (lo, hi) in opt.bounds.items()
             if not lo < hi]
+    if len(opt.restart_horizons_s) > MAX_RESTARTS:
+        bad.append(f"restart_horizons_s {tuple(opt.restart_horizons_s)} (at most {MAX_RESTARTS} restarts: each is "
+                   "a whole fit)")
+    bad += [f"restart horizon {h!r} s (needs {HORIZON_RANGE_S[0]:g}..{HORIZON_RANGE_S[1]:g} s)"
+            for h in opt.restart_horizons_s if not HORIZON_RANGE_S[0] <= h <= HORIZON_RANGE_S[1]]
     if bad:
         raise AeroInputError(f"not known to the fixed-wing model or not valid: {', '.join(bad)}")
 
@@ -418,6 +428,58 @@ def _aic(est: Estimate, data: list[Manoeuvre]) -> float:
     return float(n * logdet + 2 * len(est.values)) if sign > 0 else float("inf")
 
 
+#: most continuation restarts (``AeroOptions.restart_horizons_s``): each is a whole cold fit
+MAX_RESTARTS = 4
+#: the continuation spans accepted [s] (the CLI's --horizon range)
+HORIZON_RANGE_S = (0.05, 600.0)
+#: criterion spread over the restarts above which the notes say the cost has several minima (an AIC
+#: difference of 10: one fit is e^5 ~ 150 times less likely)
+RESTART_SPREAD = 10.0
+#: criterion difference below which a restart is no better than the first schedule's fit (an AIC difference
+#: below 2 is no evidence for one model over another; Burnham & Anderson)
+RESTART_TIE = 2.0
+
+
+def _criterion(fit: Fit) -> float:
+    """What a cold fit's restarts are compared by: the Akaike criterion ``n ln det R + 2 k`` (equal ``k``) plus
+    twice the prior term, i.e. twice the negative log posterior of the ML output-error fit up to constants."""
+    return fit.aic + 2.0 * fit.oe.prior_cost(fit.estimate.values, fit.data)
+
+
+def _cold_fit(oe: OutputErrorEstimator, data: list[Manoeuvre], opt: AeroOptions, weight: np.ndarray | None,
+              notes: list[str]) -> Fit:
+    """A fit from the start values with ``opt.horizon_s``'s continuation, restarted with every schedule of
+    ``opt.restart_horizons_s``; kept: the lowest :func:`_criterion` (a fit stopped at ``max_iter`` included: a lower
+    criterion is a better point whether or not it converged; the warm refits go on from it), the first schedule's
+    unless another is lower by more than :data:`RESTART_TIE`. The first schedule's errors propagate (the caller's
+    fallbacks handle them); a restart that fails is named and skipped."""
+    first = _fit(oe, data, opt, weight)
+    fits = [(opt.horizon_s, first)]
+    for h in dict.fromkeys(opt.restart_horizons_s):
+        if h == opt.horizon_s:
+            continue
+        try:
+            fits.append((h, _fit(oe, data, dataclasses.replace(opt, horizon_s=h), weight)))
+        except EstimationError as err:
+            notes.append(f"output-error restart with {h:g} s continuation spans failed ({err}); not compared")
+    if len(fits) == 1:
+        return first
+    crit = {h: _criterion(f) for h, f in fits}
+    kept, best = min(fits, key=lambda hf: crit[hf[0]])
+    if crit[opt.horizon_s] <= crit[kept] + RESTART_TIE:
+        kept, best = opt.horizon_s, first  # the same minimum, or one no better: the first schedule's fit
+    lo = min(crit.values())
+    spread = max(crit.values()) - lo
+    text = [f"{h:g} s spans {crit[h] - lo:+.0f}{'' if f.estimate.converged else ' (not converged)'}" for h, f in fits]
+    notes.append("output-error restarts from the start values, criterion n ln det R + 2 k + prior above the "
+                 f"lowest: {'; '.join(text)}; kept the "
+                 f"{kept:g} s spans" + ("" if spread < RESTART_SPREAD else
+                                        "; the cost has several minima from this start, and a start nearer the "
+                                        "aircraft (identify aero --init, an identified parameter file) may find "
+                                        "a lower one"))
+    return best
+
+
 def _fit(oe: OutputErrorEstimator, data: list[Manoeuvre], opt: AeroOptions, weight: np.ndarray | None,
          delay_s: float = 0.0, warm: bool = False) -> Fit:
     """One output-error fit from ``oe``'s nominal values; ``warm``: they are a converged estimate (a refit with
@@ -449,9 +511,9 @@ def _nuisance_fits(model: FixedWingModel, p: np.ndarray, free: list[str], data: 
     """The fit with the nuisance set of ``opt.nuisance``; "auto" keeps the lower Akaike criterion."""
     notes: list[str] = []
     if opt.nuisance == "given":
-        return _fit(_estimator(model, p, free, opt, opt.estimate_initial, opt.biases), data, opt, weight), \
-            _given_text(opt), notes
-    plain = _fit(_estimator(model, p, free, opt, (), ()), data, opt, weight)
+        return _cold_fit(_estimator(model, p, free, opt, opt.estimate_initial, opt.biases), data, opt, weight,
+                         notes), _given_text(opt), notes
+    plain = _cold_fit(_estimator(model, p, free, opt, (), ()), data, opt, weight, notes)
     if opt.nuisance == "none":
         return plain, "none", notes
     biases = [b for b in AUTO_BIASES if b in opt.outputs]

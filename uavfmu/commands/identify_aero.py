@@ -120,6 +120,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-iter", type=_bounded(1, 1000, int), default=40)
     p.add_argument("--horizon", type=_bounded(0.05, 600.0), default=1.0,
                    help="continuation: first fitted span per segment [s], doubled up to the whole segment")
+    p.add_argument("--restarts", metavar="S,S",
+                   help="further continuation first spans [s] each cold fit is restarted with from the same start; "
+                        "the lowest criterion is kept (at most 4; 'none' for a single schedule; default 0.5,2)")
     p.add_argument("--plots", type=Path, help="folder for PNG plots (fit, validation, residuals, parameters, "
                    "correlation)")
     p.add_argument("--metrics", type=Path, help="metrics JSON (default: OUT with suffix .metrics.json)")
@@ -171,6 +174,13 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         initial_sd = {n: float(v) for n, v in _pairs(args.initial_sd, "--initial-sd").items()}
     except ValueError:
         raise ValueError(f"--initial-sd: {args.initial_sd!r} is not state=number,...") from None
+    restarts: dict[str, tuple[float, ...]] = {}
+    if args.restarts is not None:
+        try:
+            restarts["restart_horizons_s"] = () if args.restarts.strip() == "none" else tuple(
+                float(x) for x in comma_list(args.restarts))
+        except ValueError:
+            raise ValueError(f"--restarts: {args.restarts!r} is not seconds,... or 'none'") from None
     given = bool(args.estimate_initial or args.biases)
     free = "auto" if args.free.strip() == "auto" else list(comma_list(args.free))
     if len(args.log) > 1 and (args.segments or args.validate_segments or args.timeline):
@@ -194,7 +204,8 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         max_delay_s=args.max_delay, min_delay_s=args.min_delay, sensor_filters=None if args.sensor_filters else {},
         progress=not args.quiet, force=args.force, max_damage=args.max_damage,
         priors=args.priors, prior_values=priors, consider=not args.no_consider, timeline=args.timeline,
-        equation_error=not args.no_equation_error, loop_ticks=args.loop_ticks, estimate_unlogged=args.estimate_unlogged)
+        equation_error=not args.no_equation_error, loop_ticks=args.loop_ticks, estimate_unlogged=args.estimate_unlogged,
+        **restarts)
 
 
 def run(args: argparse.Namespace) -> int:
