@@ -180,7 +180,7 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
             restarts["restart_horizons_s"] = () if args.restarts.strip() == "none" else tuple(
                 float(x) for x in comma_list(args.restarts))
         except ValueError:
-            raise ValueError(f"--restarts: {args.restarts!r} is not seconds,... or 'none'") from None
+            raise ValueError(f"--restarts: {args.restarts!r} is not seconds,... ('none' for one schedule)") from None
     given = bool(args.estimate_initial or args.biases)
     free = "auto" if args.free.strip() == "auto" else list(comma_list(args.free))
     if len(args.log) > 1 and (args.segments or args.validate_segments or args.timeline):
