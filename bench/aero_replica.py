@@ -95,6 +95,10 @@ SCALED = (*PRIMARY, "C_m_delta_e", "C_Y_delta_r", "C_Y_p", "C_Y_r", "C_Y_delta_a
           "C_n_delta_a", "C_L_q")
 
 
+#: the truth families (``--fixed-spread``): every scaled coefficient times U(0.6, 1.6); and besides, those at 0 drawn
+FIXED_SPREADS = ("factor", "zeros")
+
+
 def truth_params(model: FixedWingModel, p: np.ndarray, rng: np.random.Generator, data: list[Manoeuvre],
                  scaled: Sequence[str] = SCALED, fixed_spread: str = "factor") -> np.ndarray:
     """Aerosonde's parameters with ``scaled`` times factors in [0.6, 1.6] and ``C_m_0`` re-balanced at the
@@ -105,6 +109,8 @@ def truth_params(model: FixedWingModel, p: np.ndarray, rng: np.random.Generator,
     as they are); neither acts at the trim, so the logged trim stays one."""
     from identification.aero.priors import fixed_sd
 
+    if fixed_spread not in FIXED_SPREADS:
+        raise ValueError(f"fixed_spread {fixed_spread!r}: expected one of {', '.join(FIXED_SPREADS)}")
     ix, st, inp = model.params.index, model.states.index, list(model.inputs.index)
     out = p.copy()
     for n in dict.fromkeys(scaled):
@@ -319,7 +325,7 @@ def main() -> int:
                              "biases) instead of the tool's automatic nuisance choice, e.g. "
                              "rate_body_x_rad_s,rate_body_y_rad_s,rate_body_z_rad_s,vel_body_y_m_s,quat_x")
     parser.add_argument("--truth-seed", type=int, default=None, help="keep this draw's truth, redraw only the noise")
-    parser.add_argument("--fixed-spread", choices=("factor", "zeros"), default="factor",
+    parser.add_argument("--fixed-spread", choices=FIXED_SPREADS, default="factor",
                         help="the truths' coefficients: times U(0.6, 1.6) (factor), and those at 0 (C_Y_p, C_Y_r) "
                              "drawn with the std the tool's consider covariance gives them (zeros)")
     parser.add_argument("--initial-sd", default=None, metavar="STATE=SD,...",

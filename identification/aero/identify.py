@@ -275,6 +275,8 @@ def _check_names(model: FixedWingModel, opt: AeroOptions) -> None:
             for n, sd in opt.initial_sd.items() if n not in estimated or not (math.isfinite(sd) and sd > 0)]
     bad += [f"bounds {n}={lo:g}:{hi:g} (need finite lo < hi)" for n, (lo, hi) in opt.bounds.items()
             if not lo < hi]
+    bad += [f"horizon {opt.horizon_s!r} s (needs {HORIZON_RANGE_S[0]:g}..{HORIZON_RANGE_S[1]:g} s)"] if not (
+        HORIZON_RANGE_S[0] <= opt.horizon_s <= HORIZON_RANGE_S[1]) else []
     if len(opt.restart_horizons_s) > MAX_RESTARTS:
         bad.append(f"restart_horizons_s {tuple(opt.restart_horizons_s)} (at most {MAX_RESTARTS} restarts: each is "
                    "a whole fit)")
@@ -430,7 +432,7 @@ def _aic(est: Estimate, data: list[Manoeuvre]) -> float:
 
 #: most continuation restarts (``AeroOptions.restart_horizons_s``): each is a whole cold fit
 MAX_RESTARTS = 4
-#: the continuation spans accepted [s] (the CLI's --horizon range)
+#: the continuation's first spans accepted [s] (``horizon_s``, ``restart_horizons_s``; the CLI's --horizon range)
 HORIZON_RANGE_S = (0.05, 600.0)
 #: criterion spread over the restarts above which the notes say the cost has several minima (an AIC
 #: difference of 10: one fit is e^5 ~ 150 times less likely)

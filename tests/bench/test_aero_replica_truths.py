@@ -41,3 +41,12 @@ def test_zeros_are_drawn_with_their_consider_std_and_the_rest_is_the_factor_fami
         np.testing.assert_array_equal(a[other], b[other])
         assert np.all(a[[ix[n] for n in zeros]] == 0.0)
         assert rng_a.normal() == rng_b.normal()  # ... and the noise drawn after the truth
+
+
+def test_an_unknown_truth_family_is_refused() -> None:
+    import pytest
+
+    model = FixedWingModel(FixedWingParams())
+    p = np.array(model.params.starts(), dtype=float)
+    with pytest.raises(ValueError, match="fixed_spread 'zero'"):
+        bench.truth_params(model, p, np.random.default_rng(0), [], fixed_spread="zero")

@@ -128,6 +128,12 @@ def test_restarts_are_bounded_before_any_fit(restarts, needle) -> None:  # type:
     assert needle in str(err.value)
 
 
+@pytest.mark.parametrize("horizon", [0.0, -1.0, float("nan"), 1e4])
+def test_the_first_horizon_is_bounded_as_the_restarts_are(horizon: float) -> None:
+    with pytest.raises(AeroInputError, match=f"horizon {horizon!r} s"):
+        ai._check_names(FixedWingModel(FixedWingParams()), AeroOptions(horizon_s=horizon))
+
+
 def test_the_cli_passes_restarts_to_the_options() -> None:
     import argparse
 
