@@ -230,7 +230,7 @@ def run_draw(seed: int, bound: str = "ar", exact_start: bool = False, estimate_i
     """One truth draw (:func:`replica_fit`): returns (all primaries within 10 % and no failure, the printed table,
     per primary derivative its relative error and the relative 95 % half-width, both over |truth|, whether the
     small-sample bound made its interval, and the relative half-width the AR bound alone would give (with the
-    consider share))."""
+    consider shares of the fixed coefficients and of the logged start states))."""
     model, p_truth, start, result, start_rms = replica_fit(seed, bound, exact_start, estimate_initial, truth_seed,
                                                            initial_sd, fixed_spread)
     est = result.fit.estimate
@@ -253,7 +253,9 @@ def run_draw(seed: int, bound: str = "ar", exact_start: bool = False, estimate_i
              "- the truth's, RMS over the fit segments: " + (", ".join(
                  f"{n} {v:.2g}" for n, v in start_rms.items() if v > 1e-9 and n not in ("lat_rad", "lon_rad"))
                  or "none"),
-             *[f"note: {n}" for n in result.notes if "airborne" in n or "restart" in n],
+             *[f"note: {n}" for n in result.notes if "airborne" in n or "restart" in n or "logged start" in n],
+             *(["the start's std the tool reads from the log's noise, RMS over the fit segments: " + ", ".join(
+                 f"{n} {v:.2g}" for n, v in result.start_state_sd.items())] if result.start_state_sd else []),
              *(["estimated initial states, their coloured bound over the segments: " + ", ".join(
                  f"{s} {lo:.2g}-{hi:.2g}" for s, (lo, hi) in x0_bounds.items())] if x0_bounds else []),
              f"{'derivative':<14} {'truth':>9} {'estimate':>9} {'err %':>7} {'95 % interval':>22} {'covers':>6} "
@@ -261,7 +263,8 @@ def run_draw(seed: int, bound: str = "ar", exact_start: bool = False, estimate_i
     ok = not result.failures  # e.g. bounds that are not credible
     worst, covered = (0.0, ""), 0
     rel: dict[str, tuple[float, float, bool, float]] = {}
-    ar_alone = np.hypot(est.crb_std[:est.n_global], cons)
+    start = est.start_var if est.start_var is not None else np.zeros(est.n_global)
+    ar_alone = np.hypot(np.sqrt(est.crb_std[:est.n_global] ** 2 + start), cons)
     for n in PRIMARY:
         i = est.names.index(n)
         truth, v = float(p_truth[model.params.index[n]]), values[n]

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from fmu_models.common.model import init_function
 from fmu_models.fixed_wing.model import FixedWingModel
 from fmu_models.fixed_wing.params import FixedWingParams
 from fmu_models.signals.pwm_mapping import PwmMapping
@@ -46,6 +47,7 @@ from identification.estimation.oem import (
     OutputErrorEstimator,
     consider_covariance,
     fixed_worth_freeing,
+    start_consider_covariance,
 )
 from identification.estimation.unlogged_inputs import fit_with_unlogged
 from identification.logs.flightlog import DEFAULT_MAX_DAMAGE, FlightLog, check_quality
@@ -101,6 +103,11 @@ class AeroOptions:
     #: long lateral records has several minima, and which one a start walks into depends on the spans it walks
     #: (identification/aero/readme.md, "Several minima from one start"). (): one schedule
     restart_horizons_s: Sequence[float] = (0.5, 2.0)
+    #: the error of each segment's start state read from the log (the white noise of the signals it is read from,
+    #: estimated on the fit segments) enters the bounds as a consider covariance of the states not estimated, and
+    #: the small-sample test expects the scatter it brings (``oem.start_consider_covariance``); False: the logged
+    #: starts count as exact (the bound before 2026-11-29)
+    start_noise: bool = True
     max_delay_s: float = 0.1
     #: most negative delay scanned [s] (the surfaces act the logged command of a later time: servo outputs logged
     #: after they took effect, or below the loop rate); None: one servo-log interval when the servo outputs are
@@ -171,6 +178,9 @@ class AeroResult:
     pool: Pool | None = None  #: the logs and their segments
     rival: Any = None  #: the equation-error estimate (``identification.aero.equation_error.EquationErrorResult``)
     consider: Consider | None = None  #: the fixed parameters and their effect on the bounds
+    #: per model state, the std of the segments' start read from the log (RMS over the fit segments of each
+    #: segment's, from the logged signals' noise; ``_start_consider``); {}: the starts counted as exact
+    start_state_sd: dict[str, float] = field(default_factory=dict)
 
     @property
     def losing_outputs(self) -> list[str]:
@@ -213,6 +223,7 @@ class AeroResult:
             "prior_dominated": self.estimate.prior_dominated(),
             "not_data_dominated": self.estimate.not_data_dominated(),
             "considered_fixed": self.estimate.considered,
+            "start_state_sd": self.start_state_sd,
             "equation_error": self.rival.as_dict() if self.rival is not None else None,
         }
 
@@ -718,6 +729,11 @@ def _after_fit(result: AeroResult, model: FixedWingModel, p: np.ndarray, init: F
             result.identified = {**init.to_dict(), **fit.estimate.derivatives()}
     except (ValueError, EstimationError) as err:
         result.failures.append(f"delay scan: {err}")
+    if opt.start_noise:
+        try:
+            _start_consider(result, model, p, opt, weight)
+        except (ValueError, EstimationError, np.linalg.LinAlgError) as err:
+            result.failures.append(f"start-state consider covariance: {err}")
     if result.fit.estimate.unbounded:
         result.failures.append(f"bounds: the fitted model runs away in {', '.join(result.fit.estimate.unbounded)} "
                                "(output sensitivities above 1e3 x the measured range): no printed interval is "
@@ -737,6 +753,33 @@ def _consider(result: AeroResult, model: FixedWingModel, p: np.ndarray, opt: Aer
     fit.estimate.considered = dict(zip(con.names, con.sd.tolist(), strict=True))
     result.consider = con
     return con
+
+
+def _start_consider(result: AeroResult, model: FixedWingModel, p: np.ndarray, opt: AeroOptions,
+                    weight: np.ndarray | None) -> None:
+    """Put the consider covariance of the segments' logged start states into the estimate's bounds: per log the
+    noise of the signals a start is read from, estimated on its fit segments (``aero.start_noise``), per fit
+    segment the covariance of its start (``aero.start_covariance``), and what those do to the estimate
+    (``oem.start_consider_covariance``)."""
+    fit, pool = result.fit, result.pool
+    init = init_function(model)
+    covs = []
+    for k, src in enumerate(pool.sources):
+        segs = [s for i, s in pool.fit if i == k]
+        if not segs:
+            continue
+        noise = aero.start_noise(src.log, [(s.t0_s, s.t1_s) for s in segs])
+        result.notes.append(f"{Path(src.log.source).name}: the noise of the logged start (robust, on the fit "
+                            "segments), in the bounds: " + ", ".join(f"{n} {v:.2g}" for n, v in noise.items()))
+        clock = pool.clocks[k] if k < len(pool.clocks) else None
+        if clock is not None and abs(clock.period_s * opt.rate_hz - 1.0) > 0.1:
+            clock = None
+        for seg in segs:
+            t0 = float(clock.grid(seg.t0_s, seg.t1_s)[0]) if clock is not None else seg.t0_s
+            covs.append(aero.start_covariance(model, p, src.log, t0, fit.data[len(covs)].u[0], noise, init))
+    fit.estimate.start_cov = start_consider_covariance(fit.oe, fit.estimate, fit.data, covs, weight)
+    rms = np.sqrt(np.mean([np.diag(c) for c in covs], axis=0))
+    result.start_state_sd = {n: float(rms[i]) for n, i in model.states.index.items() if rms[i] > 0.0}
 
 
 def _free_fixed(result: AeroResult, model: FixedWingModel, p: np.ndarray, opt: AeroOptions,
@@ -831,7 +874,8 @@ def write_results(result: AeroResult, out: Path, metrics: Path, log_name: str, r
     write_json(out, {"fixed_wing": result.identified, "_identification": {
         "method": "output error (identification.estimation.oem)", "log": log_name, "free": result.free,
         "bound_method": est.bound_method + (" + consider covariance of the fixed coefficients"
-                                            if est.considered else ""),
+                                            if est.considered else "")
+        + (" + consider covariance of the logged start states" if est.start_cov is not None else ""),
         "std": {n: float(s) for n, s in zip(result.free, est.std[:n], strict=True)},
         "prior_dominated": est.prior_dominated()},
         "uncertainty": {"names": list(est.names[:n]), "mean": [float(v) for v in est.values[:n]],

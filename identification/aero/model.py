@@ -23,7 +23,15 @@ from identification.common.metrics import FitMetrics, fit_metrics
 from identification.estimation.oem import Manoeuvre
 from identification.estimation.unlogged_inputs import Unlogged
 from identification.logs.flightlog import FlightLog, LogError
-from identification.logs.log_state import initial_values, mapped_inputs
+from identification.logs.log_state import (
+    START_SIGNALS,
+    initial_values,
+    initial_values_from,
+    interpolation_variance_factor,
+    mapped_inputs,
+    noise_std,
+    start_signal_values,
+)
 from identification.logs.sensor_chain import LoopClock
 from identification.logs.timeline import SpanError, parse_spans
 
@@ -120,6 +128,41 @@ def manoeuvres(model: VehicleModel, p: np.ndarray, log: FlightLog, mapping: PwmM
         out.append(Manoeuvre(x0, u, y, 1.0 / rate_hz if clock is None else clock.period_s, str(seg)))
     return out
 
+
+def start_noise(log: FlightLog, windows: Sequence[tuple[float, float]]) -> dict[str, float]:
+    """Per logged signal a start state is read from (``log_state.start_signal_values``), the white
+    noise std [its unit] inside ``windows`` ([t0, t1] s; ``log_state.noise_std``)."""
+    used = start_signal_values(log, np.array([windows[0][0] if windows else 0.0]), True)
+    return {n: noise_std(log.signal(n), windows) for n in START_SIGNALS if n in used}
+
+
+def start_covariance(model: VehicleModel, p: np.ndarray, log: FlightLog, t0_s: float, u0: np.ndarray,
+                     noise: dict[str, float], init: ca.Function | None = None) -> np.ndarray:
+    """Covariance (nx x nx) of the model state :func:`initial_state` reads at ``t0_s`` about the true one, from
+    the white noise of the logged signals it is read from (``noise``: signal -> std, :func:`start_noise`; each
+    value interpolated between two samples, ``log_state.interpolation_variance_factor``): ``J diag(var) Jᵀ`` with
+    ``J`` the state's central-difference derivative by those values (the attitude's noise turns the GPS velocity
+    into the body axes: at 27 m/s a pitch noise of 0.003 rad is 0.08 m/s of vertical body velocity)."""
+    fn = init or init_function(model)
+    vals = {n: float(v[0]) for n, v in start_signal_values(log, np.array([t0_s]), True).items()}
+
+    def x0_of(v: dict[str, float]) -> np.ndarray:
+        q = p.copy()
+        for name, value in initial_values_from(v).items():
+            q[model.params.index[name]] = value
+        return np.asarray(fn(u0, q)[0], dtype=float).ravel()
+
+    names = [n for n in vals if noise.get(n, 0.0) > 0.0]
+    nx = len(model.states.index)
+    jac, var = np.zeros((nx, len(names))), np.zeros(len(names))
+    for i, n in enumerate(names):
+        h = 1e-3 * noise[n]
+        up, down = dict(vals), dict(vals)
+        up[n] += h
+        down[n] -= h
+        jac[:, i] = (x0_of(up) - x0_of(down)) / (2.0 * h)
+        var[i] = noise[n] ** 2 * interpolation_variance_factor(log.signal(n), t0_s)
+    return (jac * var) @ jac.T
 
 def unlogged_brackets(model: VehicleModel, log: FlightLog, mapping: PwmMapping, segments: Sequence[Segment],
                       clock: LoopClock, input_delay_s: float = 0.0) -> list[Unlogged]:

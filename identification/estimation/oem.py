@@ -125,6 +125,10 @@ class Estimate:
     #: freedom, pooled over the parameters (:func:`segment_scatter`); the small-sample test and bound of bound "ar"
     #: use it (None: each parameter's own bootstrap spread, the rule before 2026-11-29)
     scatter: tuple[np.ndarray, np.ndarray] | None = None
+    #: consider covariance of the model parameters from the error of the given (logged) manoeuvre starts
+    #: (:func:`start_consider_covariance`); it enters the data bound in quadrature and the small-sample test expects
+    #: its share of the segments' scatter (:func:`data_bound`); None: the starts count as exact
+    start_cov: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.n_global < 0:
@@ -152,10 +156,17 @@ class Estimate:
         consider share of the parameters held fixed (:func:`data_bound`; with :attr:`bootstrap_min_dof`, the
         segment bootstrap enters only where it has that many degrees of freedom)."""
         out = data_bound(self.crb_std[:self.n_global], self.bootstrap_std, self.bootstrap_dof, self.n_segments,
-                         self.bound_method, self.scatter)
+                         self.bound_method, self.scatter, self.start_var)
         if self.bound_method == BOUND_METHODS[1]:
-            out = np.where(self.bootstrap_in_bound(), out, self.crb_std[:self.n_global])
+            out = np.where(self.bootstrap_in_bound(), out,
+                           data_bound(self.crb_std[:self.n_global], None, None, 0, self.bound_method,
+                                      None, self.start_var))
         return out
+
+    @property
+    def start_var(self) -> np.ndarray | None:
+        """Per model parameter, the variance the start errors give it (:attr:`start_cov`), None without."""
+        return None if self.start_cov is None else np.maximum(np.diag(self.start_cov), 0.0)
 
     def small_sample(self) -> list[str]:
         """Model parameters whose printed bound is the small-sample bound (bound "ar": the segments scatter
@@ -163,7 +174,7 @@ class Estimate:
         if self.bound_method != BOUND_METHODS[2] or self.bootstrap_std is None:
             return []
         use = small_sample_needed(self.crb_std[:self.n_global], self.bootstrap_std, self.bootstrap_dofs(),
-                                  self.scatter)
+                                  self.scatter, self.start_var)
         return [n for n, u in zip(self.names, use, strict=False) if u]
 
     def segment_scatter(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -228,7 +239,8 @@ class Estimate:
         """Covariance of the model parameters whose diagonal is the printed bound squared: the data's
         (coloured Cramér-Rao correlations, scaled up where the bootstrap is wider) plus the consider term."""
         data_std = self.data_std
-        cov = np.diag(data_std ** 2) if self.covariance is None else self.covariance
+        cov = np.diag(data_std ** 2) if self.covariance is None else (
+            self.covariance if self.start_cov is None else self.covariance + self.start_cov)
         d = np.sqrt(np.maximum(np.diag(cov), 1e-300))
         scale = data_std / d
         out = cov * np.outer(scale, scale)
@@ -268,6 +280,11 @@ class Estimate:
             rows.append(f"small-sample bound (the {self.n_segments} segments scatter more than the residual model "
                         f"explains: {how}) for {', '.join(small)}; "
                         f"about {self.segments_to_tighten()} segments like these would tighten it")
+        if self.start_var is not None and np.any(self.start_var > 0.0):
+            share = np.sqrt(self.start_var) / np.maximum(self.crb_std[:self.n_global], 1e-300)
+            rows.append(f"start states read from the log: their noise enters the data bound in quadrature (its "
+                        f"share over the coloured bound {share.min():.2g}-{share.max():.2g}), and the small-sample "
+                        "test expects the scatter it brings")
         if len(self.names) > self.n_global:
             rows.append(f"{len(self.names) - self.n_global} nuisance parameters (initial states, biases) estimated "
                         "per manoeuvre: see 'nuisance' in the metrics JSON")
@@ -289,6 +306,7 @@ class Estimate:
                          else float(scatter[0][i]),
                          "segment_scatter_dof": None if scatter is None else float(scatter[1][i]),
                          "consider_std": None if self.consider_std is None else float(self.consider_std[i]),
+                         "start_state_std": None if self.start_var is None else float(np.sqrt(self.start_var[i])),
                          "prior_sd": None if self.prior_sd is None or not np.isfinite(self.prior_sd[i])
                          else float(self.prior_sd[i]),
                          "determined_by": self.dominance()[i],
@@ -431,15 +449,29 @@ def segment_scatter(A: np.ndarray, g: np.ndarray, P: np.ndarray | None, crb: np.
 
 
 def small_sample_needed(crb: np.ndarray, boot: np.ndarray, dof: np.ndarray,
-                        scatter: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+                        scatter: tuple[np.ndarray, np.ndarray] | None = None,
+                        start_var: np.ndarray | None = None) -> np.ndarray:
     """Per parameter: the segments scatter more than the residual model explains (record-to-record disturbances
     or mismatch), by more than the scatter's own sampling spread allows (one-sided 95 %: ``ratio > χ²_{0.95}(d) /
     d``), with ``ratio, d`` from ``scatter`` (:func:`segment_scatter`, pooled over the parameters) or, without it,
-    ``boot² / crb²`` of the parameter alone at its bootstrap's degrees of freedom (the test before 2026-11-29)."""
+    ``boot² / crb²`` of the parameter alone at its bootstrap's degrees of freedom (the test before 2026-11-29).
+    ``start_var`` (the variance the start errors give each parameter, :func:`start_consider_covariance`): the
+    scatter expected is ``crb² + start_var``, not ``crb²`` (the start errors scatter the segments too, in about the
+    proportion they move the estimate), so the ratio is taken over that."""
     from scipy.stats import chi2
 
     ratio, d = _scatter(crb, boot, dof, scatter)
+    ratio = ratio * _start_scale(crb, start_var)
     return ratio > chi2.ppf(0.95, d) / d
+
+
+def _start_scale(crb: np.ndarray, start_var: np.ndarray | None) -> np.ndarray | float:
+    """``crb² / (crb² + start_var)``: the scatter the residual model expects over the one it and the start errors
+    expect (1 without ``start_var``)."""
+    if start_var is None:
+        return 1.0
+    c2 = np.asarray(crb, float) ** 2
+    return c2 / np.maximum(c2 + np.maximum(np.asarray(start_var, float), 0.0), 1e-300)
 
 
 def _scatter(crb: np.ndarray, boot: np.ndarray, dof: np.ndarray,
@@ -454,7 +486,8 @@ def _scatter(crb: np.ndarray, boot: np.ndarray, dof: np.ndarray,
 
 
 def data_bound(crb: np.ndarray, boot: np.ndarray | None, dof: np.ndarray | None, n_segments: int, method: str,
-               scatter: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+               scatter: tuple[np.ndarray, np.ndarray] | None = None,
+               start_var: np.ndarray | None = None) -> np.ndarray:
     """The data bound of the model parameters (1 sigma) by ``method`` (:data:`BOUND_METHODS`):
 
     - ``[0]``: the coloured Cramér-Rao std ``crb``;
@@ -462,17 +495,23 @@ def data_bound(crb: np.ndarray, boot: np.ndarray | None, dof: np.ndarray | None,
     - ``[2]``: ``crb`` (with the AR residual model), and the small-sample bound ``crb x sqrt(ratio) x t(d)/z``
       only where :func:`small_sample_needed`, ``ratio, d`` from ``scatter`` (:func:`segment_scatter`); without
       it that is ``boot x t(dof)/z``, the bound before 2026-11-29.
+
+    ``start_var`` (per parameter, the variance the errors of the given starts give it,
+    :func:`start_consider_covariance`) adds to ``crb²`` in every method, and the small-sample test of ``[2]``
+    expects its share of the scatter (:func:`small_sample_needed`); where that bound enters it already holds it
+    (the scatter is measured, start errors and all).
     """
     out = np.asarray(crb, float).copy()
+    base = out if start_var is None else np.sqrt(out ** 2 + np.maximum(np.asarray(start_var, float), 0.0))
     if boot is None or method == BOUND_METHODS[0]:
-        return out
+        return base
     d = np.broadcast_to(np.asarray(dof if dof is not None else n_segments - 1.0, float), out.shape)
     if method == BOUND_METHODS[2]:
         ratio, d_scatter = _scatter(out, boot, d, scatter)
         with np.errstate(invalid="ignore"):
-            wide = np.maximum(out, out * np.sqrt(np.maximum(ratio, 0.0)) * student_factor(d_scatter))
-        return np.where(small_sample_needed(out, boot, d, scatter), wide, out)
-    return np.maximum(out, boot * student_factor(d))
+            wide = np.maximum(base, out * np.sqrt(np.maximum(ratio, 0.0)) * student_factor(d_scatter))
+        return np.where(small_sample_needed(out, boot, d, scatter, start_var), wide, base)
+    return np.maximum(base, boot * student_factor(d))
 
 
 def student_factor(dof: float | np.ndarray) -> float | np.ndarray:
@@ -1387,6 +1426,52 @@ def consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Sequence[
     informed = np.sqrt(np.maximum(np.diag(aug)[cons], 0.0)) / sd
     return Consider(names, sd, (A * sd ** 2) @ A.T, A, informed)
 
+
+
+def start_consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Sequence[Manoeuvre],
+                              x0_cov: Sequence[np.ndarray], weight: np.ndarray | None = None) -> np.ndarray:
+    """Consider covariance of the model parameters (n_global x n_global) from the error of each manoeuvre's given
+    start ``x0``: ``x0_cov[j]`` (nx x nx, the model's states) is the covariance of manoeuvre ``j``'s ``x0`` about
+    the true start (e.g. the logged signals' noise it is read from). The states ``oe`` estimates per manoeuvre take
+    their error up and are left out; for the others, as :func:`consider_covariance` does for fixed parameters, with
+    ``A_j = (M_θθ⁻¹ M_θx)_j`` the linearised shift of the estimate per unit error of manoeuvre ``j``'s start (its
+    nuisance parameters profiled out), the covariance is ``Σ_j A_j Σ_j A_jᵀ``: the manoeuvres' start errors are
+    independent. Zeros when no state outside the estimated ones has a variance."""
+    ng = len(oe.free)
+    if len(x0_cov) != len(data):
+        raise EstimationError(f"start consider covariance: {len(x0_cov)} start covariances for {len(data)} "
+                              "manoeuvres")
+    names = list(oe.model.states.index)
+    diag = np.array([np.diag(np.asarray(c, float)) for c in x0_cov]).reshape(len(data), len(names))
+    extra = [n for i, n in enumerate(names) if n not in oe.states_est and np.any(diag[:, i] > 0.0)]
+    if not extra:
+        return np.zeros((ng, ng))
+    big = OutputErrorEstimator(oe.model, oe.p_nominal, oe.free, oe.outputs, estimate_states=oe.states_est + extra,
+                               estimate_biases=oe.biases, compile=False, output_filters=oe.output_filters,
+                               bound=oe.bound, substeps=oe.substeps, initial_sd=oe.initial_sd)
+    ne, nx, nl = len(oe.states_est), len(extra), oe.n_local
+    ix = [oe.model.states.index[n] for n in extra]
+    theta, keep, cons = list(est.values[:ng]), list(range(ng)), []
+    for j, m in enumerate(data):
+        loc = est.values[ng + j * nl: ng + (j + 1) * nl]
+        base = len(theta)
+        theta += [*loc[:ne], *np.asarray(m.x0, float)[ix], *loc[ne:]]
+        keep += [*range(base, base + ne), *range(base + ne + nx, base + nl + nx)]
+        cons.append(list(range(base + ne, base + ne + nx)))
+    th = np.asarray(theta, float)
+    sims = [big.simulate(th, m, j) for j, m in enumerate(data)]
+    if any(s[2] for s in sims):
+        raise EstimationError("start consider covariance: the model diverges at the estimate")
+    res, jacs, W, _ = _linearised(list(data), sims, weight)
+    M, _ = big._normal_equations(res, jacs, W, len(th))
+    Mtt = M[np.ix_(keep, keep)] + np.diag(oe.prior_information(len(keep)))
+    flat = [c for cj in cons for c in cj]
+    A = np.linalg.lstsq(Mtt, M[np.ix_(keep, flat)], rcond=None)[0][:ng]
+    out = np.zeros((ng, ng))
+    for j, c in enumerate(x0_cov):
+        Aj = A[:, j * nx:(j + 1) * nx]
+        out += Aj @ np.asarray(c, float)[np.ix_(ix, ix)] @ Aj.T
+    return 0.5 * (out + out.T)
 
 #: a fixed parameter is worth freeing when its consider share shifts a free one by more than this many of
 #: its data-only std (0.5: the share would widen that bound by 12 % or more; 1 before 2026-11-28, when

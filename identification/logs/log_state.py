@@ -163,34 +163,87 @@ def initial_values(log: FlightLog, t0_s: float, forward_from_airspeed: bool) -> 
 def initial_values_at(log: FlightLog, t_s: np.ndarray, forward_from_airspeed: bool) -> list[dict[str, float]]:
     """:func:`initial_values` at every time of ``t_s``, each signal resampled once for all of them."""
     t_s = np.asarray(t_s, dtype=float)
+    read = start_signal_values(log, t_s, forward_from_airspeed)
+    return [initial_values_from({n: float(v[i]) for n, v in read.items()}) for i in range(len(t_s))]
 
-    def val(name: str) -> np.ndarray:
-        return log.signal(name).resample(t_s)
 
-    roll, pitch = val("roll_rad"), val("pitch_rad")
-    yaw = resample_angle(log.signal("yaw_rad"), t_s)
-    rates = [val(f"gyro_body_{axis}_rad_s") for axis in "xyz"]
-    has_gps_vel = all(log.has(f"vel_{a}_m_s") for a in ("north", "east", "down"))
-    v_ned = np.column_stack([val(f"vel_{a}_m_s") for a in ("north", "east", "down")]) if has_gps_vel else None
-    airspeed = val("airspeed_m_s") if forward_from_airspeed and log.has("airspeed_m_s") else None
-    altitude = val("altitude_m") if log.has("altitude_m") else None
-    out = []
-    for i in range(len(t_s)):
-        d = {"init_roll_rad": float(roll[i]), "init_pitch_rad": float(pitch[i]), "init_yaw_rad": float(yaw[i])}
-        for axis, r in zip("xyz", rates, strict=True):
-            d[f"init_rate_body_{axis}_rad_s"] = float(r[i])
-        if v_ned is not None:
-            v_body = _euler_dcm(roll[i], pitch[i], yaw[i]).T @ v_ned[i]
-        elif airspeed is not None:
-            v_body = np.array([airspeed[i], 0.0, 0.0])
-        else:
-            v_body = np.zeros(3)
-        for axis, v in zip("xyz", v_body, strict=True):
-            d[f"init_vel_body_{axis}_m_s"] = float(v)
-        if altitude is not None:
-            d["init_pos_down_m"] = -float(altitude[i])
-        out.append(d)
+#: the logged signals a start state is read from (:func:`initial_values_from`), each optional but the attitude
+#: and gyro; ``airspeed_m_s`` only where the GPS velocity is not logged and the forward speed comes from it
+START_SIGNALS = ("roll_rad", "pitch_rad", "yaw_rad", "gyro_body_x_rad_s", "gyro_body_y_rad_s", "gyro_body_z_rad_s",
+                 "vel_north_m_s", "vel_east_m_s", "vel_down_m_s", "airspeed_m_s", "altitude_m")
+
+
+def start_signal_values(log: FlightLog, t_s: np.ndarray, forward_from_airspeed: bool) -> dict[str, np.ndarray]:
+    """The :data:`START_SIGNALS` a start state at each time of ``t_s`` is read from, interpolated (yaw on its
+    unwrapped series): the attitude and gyro always, the NED velocity where all three are logged, else the airspeed
+    with ``forward_from_airspeed``, the altitude where logged."""
+    out = {n: log.signal(n).resample(t_s) for n in ("roll_rad", "pitch_rad")}
+    out["yaw_rad"] = resample_angle(log.signal("yaw_rad"), t_s)
+    out.update({n: log.signal(n).resample(t_s) for n in START_SIGNALS[3:6]})
+    if all(log.has(n) for n in START_SIGNALS[6:9]):
+        out.update({n: log.signal(n).resample(t_s) for n in START_SIGNALS[6:9]})
+    elif forward_from_airspeed and log.has("airspeed_m_s"):
+        out["airspeed_m_s"] = log.signal("airspeed_m_s").resample(t_s)
+    if log.has("altitude_m"):
+        out["altitude_m"] = log.signal("altitude_m").resample(t_s)
     return out
+
+
+def initial_values_from(v: dict[str, float]) -> dict[str, float]:
+    """The ``init_*`` parameters from the logged values ``v`` at one instant (:func:`start_signal_values`): attitude
+    and rates as logged, body velocity from the NED velocity rotated by the attitude where given, else the airspeed
+    along body x, else rest; ``init_pos_down_m = -altitude`` where given."""
+    d = {"init_roll_rad": v["roll_rad"], "init_pitch_rad": v["pitch_rad"], "init_yaw_rad": v["yaw_rad"]}
+    for axis in "xyz":
+        d[f"init_rate_body_{axis}_rad_s"] = v[f"gyro_body_{axis}_rad_s"]
+    if "vel_north_m_s" in v:
+        v_body = _euler_dcm(v["roll_rad"], v["pitch_rad"], v["yaw_rad"]).T @ np.array(
+            [v["vel_north_m_s"], v["vel_east_m_s"], v["vel_down_m_s"]])
+    elif "airspeed_m_s" in v:
+        v_body = np.array([v["airspeed_m_s"], 0.0, 0.0])
+    else:
+        v_body = np.zeros(3)
+    for axis, x in zip("xyz", v_body, strict=True):
+        d[f"init_vel_body_{axis}_m_s"] = float(x)
+    if "altitude_m" in v:
+        d["init_pos_down_m"] = -float(v["altitude_m"])
+    return d
+
+
+#: fewest samples inside the windows for :func:`noise_std` to estimate a signal's noise
+NOISE_MIN_SAMPLES = 20
+
+
+def noise_std(sig: Signal, windows: Sequence[tuple[float, float]]) -> float:
+    """The white measurement noise std of ``sig`` [its unit] inside ``windows`` ([t0, t1] s each): the
+    median absolute second difference of consecutive samples over ``sqrt(6)`` x 0.6745 (a robust estimate:
+    the second difference of white noise has variance 6 sigma^2, while a smooth motion sampled fast adds
+    little to it, and a manoeuvre's few large steps do not move a median). Angles on their unwrapped series.
+    0 with fewer than :data:`NOISE_MIN_SAMPLES` samples, or a signal held between samples (a median second
+    difference of 0: no noise to read)."""
+    vals = np.unwrap(sig.values) if sig.unit == "rad" else np.asarray(sig.values, float)
+    d2 = []
+    for t0, t1 in windows:
+        sel = np.flatnonzero((sig.t_s >= t0) & (sig.t_s <= t1))
+        if len(sel) >= 3:
+            x = vals[sel]
+            d2.append(x[2:] - 2.0 * x[1:-1] + x[:-2])
+    d = np.concatenate(d2) if d2 else np.empty(0)
+    d = d[np.isfinite(d)]
+    if len(d) + 2 * len(d2) < NOISE_MIN_SAMPLES:
+        return 0.0
+    return float(np.median(np.abs(d)) / (0.6745 * np.sqrt(6.0)))
+
+
+def interpolation_variance_factor(sig: Signal, t_s: float) -> float:
+    """The variance of ``sig`` linearly interpolated at ``t_s`` over that of one sample, for white noise:
+    ``(1 - w)^2 + w^2`` with ``w`` the weight of the later sample (1 on a sample, 1/2 midway)."""
+    k = int(np.searchsorted(sig.t_s, t_s, side="right"))
+    if k <= 0 or k >= len(sig.t_s):
+        return 1.0
+    a, b = float(sig.t_s[k - 1]), float(sig.t_s[k])
+    w = (t_s - a) / (b - a) if b > a else 0.0
+    return (1.0 - w) ** 2 + w ** 2
 
 
 def _euler_dcm(roll: float, pitch: float, yaw: float) -> np.ndarray:

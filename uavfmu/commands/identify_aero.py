@@ -15,7 +15,8 @@ identifiability of the free set is printed (condition number, correlated pairs, 
 than their bound and that the data inform. Priors (a MAP term): a built-in estimate from the wing geometry
 for C_ell_p, C_n_r, C_m_q, C_Y_beta, C_n_beta, C_m_alpha (``--priors none`` turns it off) and the user's
 ``--prior``/``--prior-file``; each estimate is reported as determined by the data or by the prior. Fixed
-coefficients enter the bounds with their prior std (consider covariance; ``--no-consider`` turns it off). An
+coefficients enter the bounds with their prior std (consider covariance; ``--no-consider`` turns it off), and so
+does the noise of each segment's start state read from the log (``--no-start-noise`` turns it off). An
 equation-error estimate (smoothed states, stepwise regression of the measured accelerations) starts the
 output-error fit and is printed beside it. Per-segment initial rates and gyro/accelerometer biases are
 estimated when they lower the Akaike criterion (``--nuisance auto``; ``--estimate-initial``/``--biases``
@@ -78,6 +79,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--prior-file", type=Path, help="JSON {name: {value, sd}} of a-priori values")
     p.add_argument("--no-consider", action="store_true",
                    help="leave the uncertainty of the fixed coefficients out of the bounds")
+    p.add_argument("--no-start-noise", action="store_true",
+                   help="count each segment's start state read from the log as exact (by default the noise of the "
+                        "signals it is read from, estimated on the fit segments, enters the bounds)")
     p.add_argument("--no-equation-error", action="store_true",
                    help="skip the equation-error start and rival")
     p.add_argument("--out", type=Path, required=True, help="identified parameter file (JSON) to write")
@@ -203,7 +207,8 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         stability_constraints=not args.no_stability_constraints, max_iter=args.max_iter, horizon_s=args.horizon,
         max_delay_s=args.max_delay, min_delay_s=args.min_delay, sensor_filters=None if args.sensor_filters else {},
         progress=not args.quiet, force=args.force, max_damage=args.max_damage,
-        priors=args.priors, prior_values=priors, consider=not args.no_consider, timeline=args.timeline,
+        priors=args.priors, prior_values=priors, consider=not args.no_consider, start_noise=not args.no_start_noise,
+        timeline=args.timeline,
         equation_error=not args.no_equation_error, loop_ticks=args.loop_ticks, estimate_unlogged=args.estimate_unlogged,
         **restarts)
 

@@ -60,3 +60,10 @@ def test_every_primary_derivative_is_free_and_bounded_and_the_model_beats_persis
     assert unc["names"] == est.names[:est.n_global] and cov.shape == (len(unc["names"]),) * 2
     assert np.allclose(np.sqrt(np.diag(cov)), est.std[:est.n_global], rtol=1e-9)
     assert np.allclose(cov, cov.T) and np.linalg.eigvalsh(cov).min() > -1e-12
+    # the noise of each segment's logged start is read from the log and enters the bounds, named
+    assert est.start_var is not None and np.all(est.start_var >= 0.0) and np.any(est.start_var > 0.0)
+    assert any("noise of the logged start" in n for n in result.notes)
+    metrics = json.loads((tmp_path / "m.json").read_text())
+    assert "logged start states" in json.loads(out.read_text())["_identification"]["bound_method"]
+    assert all(metrics["estimate"]["parameters"][n]["start_state_std"] >= 0.0 for n in PRIMARY)
+    assert set(metrics["start_state_sd"]) >= {"vel_body_x_m_s", "vel_body_z_m_s", "quat_y", "pos_down_m"}
