@@ -367,7 +367,8 @@ def run_demo(args: DemoOptions) -> DemoResult:
         for name in ROLL_FREE.split(","):
             e = est[name]
             err = abs(e["value"] - getattr(truth, name))
-            print(f"  {name:<16} {e['value']:10.4f} +- {e['std']:.4f} ({e['bound_method']})   "
+            how = e["bound_method"] + (" + the logged start's noise" if e.get("start_state_std") else "")
+            print(f"  {name:<16} {e['value']:10.4f} +- {e['std']:.4f} ({how})   "
                   f"truth {getattr(truth, name):8.4f}; 95 % half-width {1.96 * e['std']:.4f} = "
                   f"{1.96 * e['std'] / max(err, 1e-12):.1f} x the error {err:.4f}")
         theil = found["aero"]["metrics"]["validation"]["roll_rad"]["theil_u"]
