@@ -772,10 +772,8 @@ def _start_consider(result: AeroResult, model: FixedWingModel, p: np.ndarray, op
         result.notes.append(f"{Path(src.log.source).name}: the noise of the logged start (robust, on the fit "
                             "segments), in the bounds: " + ", ".join(f"{n} {v:.2g}" for n, v in noise.items()))
         clock = pool.clocks[k] if k < len(pool.clocks) else None
-        if clock is not None and abs(clock.period_s * opt.rate_hz - 1.0) > 0.1:
-            clock = None
         for seg in segs:
-            t0 = float(clock.grid(seg.t0_s, seg.t1_s)[0]) if clock is not None else seg.t0_s
+            t0 = float(aero.segment_grid(seg, opt.rate_hz, clock)[0])
             covs.append(aero.start_covariance(model, p, src.log, t0, fit.data[len(covs)].u[0], noise, init))
     fit.estimate.start_cov = start_consider_covariance(fit.oe, fit.estimate, fit.data, covs, weight)
     rms = np.sqrt(np.mean([np.diag(c) for c in covs], axis=0))

@@ -94,11 +94,31 @@ def initial_state(model: VehicleModel, p: np.ndarray, log: FlightLog, t0_s: floa
                   init: ca.Function | None = None) -> np.ndarray:
     """The model state at ``t0_s`` from the log, through the model's own initial-state function (``init``:
     ``init_function(model)``, built once by the caller when it needs many states)."""
-    p = p.copy()
-    for name, value in initial_values(log, t0_s, forward_from_airspeed=True).items():
-        p[model.params.index[name]] = value
-    x0, _ = (init or init_function(model))(u0, p)
-    return np.asarray(x0).ravel()
+    return state_from(model, p, initial_values(log, t0_s, forward_from_airspeed=True), u0, init)
+
+
+def state_from(model: VehicleModel, p: np.ndarray, init_values: dict[str, float], u0: np.ndarray,
+               init: ca.Function | None = None) -> np.ndarray:
+    """The model state from its ``init_*`` parameters ``init_values`` (``log_state.initial_values_from``) and the
+    first input ``u0``, through the model's own initial-state function (``init``: ``init_function(model)``)."""
+    q = p.copy()
+    for name, value in init_values.items():
+        q[model.params.index[name]] = value
+    x0, _ = (init or init_function(model))(u0, q)
+    return np.asarray(x0, dtype=float).ravel()
+
+
+def loop_clock_for(clock: LoopClock | None, rate_hz: float) -> LoopClock | None:
+    """``clock`` where the grid steps on the autopilot's loop ticks: ``rate_hz`` within 10 % of its loop rate;
+    else None (the fixed grid of :func:`grid`)."""
+    return None if clock is None or abs(clock.period_s * rate_hz - 1.0) > 0.1 else clock
+
+
+def segment_grid(segment: Segment, rate_hz: float, clock: LoopClock | None = None) -> np.ndarray:
+    """The sample times a segment is fitted on: :func:`grid`, or the loop ticks of ``clock``
+    (:func:`loop_clock_for`)."""
+    clock = loop_clock_for(clock, rate_hz)
+    return grid(segment, rate_hz) if clock is None else clock.grid(segment.t0_s, segment.t1_s)
 
 
 def manoeuvres(model: VehicleModel, p: np.ndarray, log: FlightLog, mapping: PwmMapping,
@@ -108,15 +128,14 @@ def manoeuvres(model: VehicleModel, p: np.ndarray, log: FlightLog, mapping: PwmM
     ``input_delay_s`` the surfaces act the logged command of ``t_k - delay`` (command -> surface lag). With
     ``clock`` (the autopilot's loop ticks, ``rate_hz`` within 10 % of its loop rate) the grid steps on the ticks
     and each step holds that loop's command (``identification.logs.sensor_chain``)."""
-    if clock is not None and abs(clock.period_s * rate_hz - 1.0) > 0.1:
-        clock = None
+    clock = loop_clock_for(clock, rate_hz)
     out = []
     end = log.duration_s
     init = init_function(model)
     for seg in segments:
         if seg.t1_s > end + 1e-6:
             raise SegmentError(f"{log.source}: segment {seg} ends after the log ({end:.2f} s)")
-        t = grid(seg, rate_hz) if clock is None else clock.grid(seg.t0_s, seg.t1_s)
+        t = segment_grid(seg, rate_hz, clock)
         if len(t) < 3:
             raise SegmentError(f"segment {seg} holds fewer than 3 samples at {rate_hz:g} Hz")
         u = log_inputs(model, log, mapping, np.maximum(t[:-1] - input_delay_s, 0.0), clock)
@@ -147,10 +166,7 @@ def start_covariance(model: VehicleModel, p: np.ndarray, log: FlightLog, t0_s: f
     vals = {n: float(v[0]) for n, v in start_signal_values(log, np.array([t0_s]), True).items()}
 
     def x0_of(v: dict[str, float]) -> np.ndarray:
-        q = p.copy()
-        for name, value in initial_values_from(v).items():
-            q[model.params.index[name]] = value
-        return np.asarray(fn(u0, q)[0], dtype=float).ravel()
+        return state_from(model, p, initial_values_from(v), u0, fn)
 
     names = [n for n in vals if noise.get(n, 0.0) > 0.0]
     nx = len(model.states.index)
@@ -163,6 +179,7 @@ def start_covariance(model: VehicleModel, p: np.ndarray, log: FlightLog, t0_s: f
         jac[:, i] = (x0_of(up) - x0_of(down)) / (2.0 * h)
         var[i] = noise[n] ** 2 * interpolation_variance_factor(log.signal(n), t0_s)
     return (jac * var) @ jac.T
+
 
 def unlogged_brackets(model: VehicleModel, log: FlightLog, mapping: PwmMapping, segments: Sequence[Segment],
                       clock: LoopClock, input_delay_s: float = 0.0) -> list[Unlogged]:

@@ -1388,6 +1388,16 @@ def _sensor_lowpass(cutoff_hz: float, dt_s: float) -> tuple[np.ndarray, np.ndarr
     return bz, az, lfilter_zi(bz, az)
 
 
+def _widened(oe: OutputErrorEstimator, p: np.ndarray, free: list[str], states: list[str],
+             compile: bool) -> OutputErrorEstimator:
+    """``oe``'s problem (outputs, biases, filters, bound, sub-steps, initial-state priors) with ``free`` model
+    parameters and ``states`` estimated per manoeuvre, at the nominal values ``p``: the consider analyses' wider
+    problem, whose sensitivities give the shift per unit error of what ``oe`` holds fixed."""
+    return OutputErrorEstimator(oe.model, p, free, oe.outputs, estimate_states=states, estimate_biases=oe.biases,
+                                compile=compile, output_filters=oe.output_filters, bound=oe.bound,
+                                substeps=oe.substeps, initial_sd=oe.initial_sd)
+
+
 def consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Sequence[Manoeuvre],
                         consider: dict[str, float], weight: np.ndarray | None = None, compile: bool = False
                         ) -> Consider:
@@ -1404,9 +1414,7 @@ def consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Sequence[
     p = oe.p_nominal.copy()
     p[oe.i_free] = est.values[:ng]
     # one pass with sensitivities: by default CasADi's virtual machine, not a C compile of a function used once
-    big = OutputErrorEstimator(oe.model, p, oe.free + names, oe.outputs, estimate_states=oe.states_est,
-                               estimate_biases=oe.biases, compile=compile, output_filters=oe.output_filters,
-                               bound=oe.bound, substeps=oe.substeps, initial_sd=oe.initial_sd)
+    big = _widened(oe, p, oe.free + names, oe.states_est, compile)
     nc = len(names)
     theta = np.concatenate([est.values[:ng], p[big.i_free[ng:]], est.values[ng:]])
     sims = [big.simulate(theta, m, j) for j, m in enumerate(data)]
@@ -1446,9 +1454,7 @@ def start_consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Seq
     extra = [n for i, n in enumerate(names) if n not in oe.states_est and np.any(diag[:, i] > 0.0)]
     if not extra:
         return np.zeros((ng, ng))
-    big = OutputErrorEstimator(oe.model, oe.p_nominal, oe.free, oe.outputs, estimate_states=oe.states_est + extra,
-                               estimate_biases=oe.biases, compile=False, output_filters=oe.output_filters,
-                               bound=oe.bound, substeps=oe.substeps, initial_sd=oe.initial_sd)
+    big = _widened(oe, oe.p_nominal, oe.free, oe.states_est + extra, False)
     ne, nx, nl = len(oe.states_est), len(extra), oe.n_local
     ix = [oe.model.states.index[n] for n in extra]
     theta, keep, cons = list(est.values[:ng]), list(range(ng)), []
