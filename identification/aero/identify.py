@@ -47,7 +47,7 @@ from identification.estimation.oem import (
     OutputErrorEstimator,
     consider_covariance,
     fixed_worth_freeing,
-    start_consider_covariance,
+    start_consider_terms,
 )
 from identification.estimation.unlogged_inputs import fit_with_unlogged
 from identification.logs.flightlog import DEFAULT_MAX_DAMAGE, FlightLog, check_quality
@@ -105,7 +105,7 @@ class AeroOptions:
     restart_horizons_s: Sequence[float] = (0.5, 2.0)
     #: the error of each segment's start state read from the log (the white noise of the signals it is read from,
     #: estimated on the fit segments) enters the bounds as a consider covariance of the states not estimated, and
-    #: the small-sample test expects the scatter it brings (``oem.start_consider_covariance``); False: the logged
+    #: the small-sample test expects the scatter it brings (``oem.start_consider_terms``); False: the logged
     #: starts count as exact (the bound before 2026-11-29)
     start_noise: bool = True
     max_delay_s: float = 0.1
@@ -760,7 +760,7 @@ def _start_consider(result: AeroResult, model: FixedWingModel, p: np.ndarray, op
     """Put the consider covariance of the segments' logged start states into the estimate's bounds: per log the
     noise of the signals a start is read from, estimated on its fit segments (``aero.start_noise``), per fit
     segment the covariance of its start (``aero.start_covariance``), and what those do to the estimate
-    (``oem.start_consider_covariance``)."""
+    (``oem.start_consider_terms``)."""
     fit, pool = result.fit, result.pool
     init = init_function(model)
     covs = []
@@ -775,7 +775,7 @@ def _start_consider(result: AeroResult, model: FixedWingModel, p: np.ndarray, op
         for seg in segs:
             t0 = float(aero.segment_grid(seg, opt.rate_hz, clock)[0])
             covs.append(aero.start_covariance(model, p, src.log, t0, fit.data[len(covs)].u[0], noise, init))
-    fit.estimate.start_cov = start_consider_covariance(fit.oe, fit.estimate, fit.data, covs, weight)
+    fit.estimate.add_start(start_consider_terms(fit.oe, fit.estimate, fit.data, covs, weight))
     rms = np.sqrt(np.mean([np.diag(c) for c in covs], axis=0))
     result.start_state_sd = {n: float(rms[i]) for n, i in model.states.index.items() if rms[i] > 0.0}
 

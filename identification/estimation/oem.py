@@ -129,6 +129,12 @@ class Estimate:
     #: (:func:`start_consider_covariance`); it enters the data bound in quadrature and the small-sample test expects
     #: its share of the segments' scatter (:func:`data_bound`); None: the starts count as exact
     start_cov: np.ndarray | None = None
+    #: per manoeuvre, the information and score of the model parameters at the estimate and the prior's
+    #: information (:func:`segment_scatter`'s ``A, g, P``), kept so the scatter can be taken again with the
+    #: start errors' share (:meth:`add_start`); None without the scatter
+    segment_terms: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None
+    #: :attr:`scatter` expects each segment's own start-error share (:meth:`add_start`)
+    scatter_start: bool = False
 
     def __post_init__(self) -> None:
         if self.n_global < 0:
@@ -156,12 +162,26 @@ class Estimate:
         consider share of the parameters held fixed (:func:`data_bound`; with :attr:`bootstrap_min_dof`, the
         segment bootstrap enters only where it has that many degrees of freedom)."""
         out = data_bound(self.crb_std[:self.n_global], self.bootstrap_std, self.bootstrap_dof, self.n_segments,
-                         self.bound_method, self.scatter, self.start_var)
+                         self.bound_method, self.scatter, self.start_var, self.scatter_start)
         if self.bound_method == BOUND_METHODS[1]:
             out = np.where(self.bootstrap_in_bound(), out,
                            data_bound(self.crb_std[:self.n_global], None, None, 0, self.bound_method,
                                       None, self.start_var))
         return out
+
+    def add_start(self, shifts: np.ndarray) -> None:
+        """Put the errors of the manoeuvres' given starts into the bounds: ``shifts`` (m x n x n,
+        :func:`start_consider_terms`) per manoeuvre the covariance of the estimate's shift its start error gives.
+        Their sum is :attr:`start_cov`; with :attr:`segment_terms` the scatter is taken again expecting each
+        segment's own share (:func:`segment_scatter`), else the small-sample test scales each parameter's ratio by
+        its share (:func:`small_sample_needed`)."""
+        shifts = np.asarray(shifts, float)
+        total = shifts.sum(axis=0)
+        self.start_cov = 0.5 * (total + total.T)
+        if self.segment_terms is not None and self.scatter is not None and len(shifts) == len(self.segment_terms[0]):
+            A, g, P = self.segment_terms
+            self.scatter = segment_scatter(A, g, P, self.crb_std[:self.n_global], shifts)
+            self.scatter_start = True
 
     @property
     def start_var(self) -> np.ndarray | None:
@@ -174,7 +194,7 @@ class Estimate:
         if self.bound_method != BOUND_METHODS[2] or self.bootstrap_std is None:
             return []
         use = small_sample_needed(self.crb_std[:self.n_global], self.bootstrap_std, self.bootstrap_dofs(),
-                                  self.scatter, self.start_var)
+                                  self.scatter, self.start_var, self.scatter_start)
         return [n for n, u in zip(self.names, use, strict=False) if u]
 
     def segment_scatter(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -388,8 +408,8 @@ def tight_dof() -> float:
     return float(brentq(lambda d: student_factor(d) - TIGHT_STUDENT, 1.0, 1e4))
 
 
-def segment_scatter(A: np.ndarray, g: np.ndarray, P: np.ndarray | None, crb: np.ndarray
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def segment_scatter(A: np.ndarray, g: np.ndarray, P: np.ndarray | None, crb: np.ndarray,
+                    start: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Per model parameter, how much more the segments scatter than the residual model explains, as a variance
     ratio (1: as the model says) with its degrees of freedom: ``(ratio, dof)``. ``A`` (m x n x n) and ``g``
     (m x n) are each segment's information and score at the estimate (nuisance profiled out), ``P`` the prior's
@@ -412,7 +432,15 @@ def segment_scatter(A: np.ndarray, g: np.ndarray, P: np.ndarray | None, crb: np.
     Why pooled: a parameter whose information sits in two segments has a spread of 1-2 degrees of freedom of its
     own, from which no excess can be told from chance (Student's factor 2-5; the small-sample bound of before
     widened such parameters 2-10 times on the excitation-log replica where the residual model was right), while
-    the same two segments' scores of all parameters tell how much those segments scatter with many more."""
+    the same two segments' scores of all parameters tell how much those segments scatter with many more.
+
+    ``start`` (m x n x n, :func:`start_consider_terms`): per segment ``V_j``, the covariance of the estimate's shift
+    its start's error gives. The start errors scatter the segments too, each its own: segment ``j``'s pull
+    ``M⁻¹ ĝ_j`` carries ``(I - L_j) δ_j - L_j Σ_{l≠j} δ_l`` of them (``L_j = M⁻¹ A_j``, ``δ_j`` the shift of
+    covariance ``V_j``), of variance ``e_kj = [V_j - L_j V_j - V_j L_jᵀ + L_j (Σ_l V_l) L_jᵀ]_kk``; each ``z_kj``
+    is then divided by its expectation ``1 + e_kj / (c_kk,jj x scale_k)``, so a ratio of 1 means the segments
+    scatter as the residual model and the start errors together say (one scale per parameter for all segments, the
+    rule this replaced, read a segment with a noisy start as excess scatter and let a quiet one hide some)."""
     m, n = A.shape[0], A.shape[1]
     _, _, T = _score_covariances(A, P)
     if T is None:
@@ -435,6 +463,8 @@ def segment_scatter(A: np.ndarray, g: np.ndarray, P: np.ndarray | None, crb: np.
     scale = np.where(ok, crb ** 2 / np.where(true_var > 0.0, true_var, 1.0), 1.0)
     s2 = (g @ Mi) ** 2  # (m, n): s_kj²
     z = s2 / scale[None, :]  # (m, n): squared scores in units of the residual model's scale
+    if start is not None:
+        z = z / (1.0 + start_score_variance(A, Mi, start) / np.maximum(E.T * scale[None, :], 1e-300))
     T2 = T ** 2
     for i in np.flatnonzero(ok):
         pooled = share[i][None, :] * gamma  # weights on z[j, k] (as (k, j)) of Σ_j π_ij κ_j
@@ -448,20 +478,37 @@ def segment_scatter(A: np.ndarray, g: np.ndarray, P: np.ndarray | None, crb: np.
     return ratio, dof
 
 
+def start_score_variance(A: np.ndarray, Mi: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """(m, n): the variance the start errors give each segment's pull at the estimate, per model parameter,
+    ``e_kj`` of :func:`segment_scatter` (``A`` the segments' information, ``Mi`` the inverse of their sum and the
+    prior's, ``start`` the per-segment shift covariances ``V_j``)."""
+    V = np.asarray(start, float)
+    if V.shape != A.shape:
+        raise ValueError(f"segment_scatter: start shifts of shape {V.shape} for segment information {A.shape}")
+    L = np.einsum("ab,jbc->jac", Mi, A)  # L_j = M⁻¹ A_j
+    LV = np.einsum("jab,jbc->jac", L, V)
+    total = V.sum(axis=0)
+    e = (np.einsum("jkk->jk", V) - 2.0 * np.einsum("jkk->jk", LV)
+         + np.einsum("jka,ab,jkb->jk", L, total, L))
+    return np.maximum(e, 0.0)
+
+
 def small_sample_needed(crb: np.ndarray, boot: np.ndarray, dof: np.ndarray,
                         scatter: tuple[np.ndarray, np.ndarray] | None = None,
-                        start_var: np.ndarray | None = None) -> np.ndarray:
+                        start_var: np.ndarray | None = None, start_in_scatter: bool = False) -> np.ndarray:
     """Per parameter: the segments scatter more than the residual model explains (record-to-record disturbances
     or mismatch), by more than the scatter's own sampling spread allows (one-sided 95 %: ``ratio > χ²_{0.95}(d) /
     d``), with ``ratio, d`` from ``scatter`` (:func:`segment_scatter`, pooled over the parameters) or, without it,
     ``boot² / crb²`` of the parameter alone at its bootstrap's degrees of freedom (the test before 2026-11-29).
     ``start_var`` (the variance the start errors give each parameter, :func:`start_consider_covariance`): the
     scatter expected is ``crb² + start_var``, not ``crb²`` (the start errors scatter the segments too, in about the
-    proportion they move the estimate), so the ratio is taken over that."""
+    proportion they move the estimate), so the ratio is taken over that; ``start_in_scatter``: ``scatter`` already
+    expects each segment's own share (:func:`segment_scatter` with ``start``), and is taken as it is."""
     from scipy.stats import chi2
 
     ratio, d = _scatter(crb, boot, dof, scatter)
-    ratio = ratio * _start_scale(crb, start_var)
+    if not (start_in_scatter and scatter is not None):
+        ratio = ratio * _start_scale(crb, start_var)
     return ratio > chi2.ppf(0.95, d) / d
 
 
@@ -487,7 +534,7 @@ def _scatter(crb: np.ndarray, boot: np.ndarray, dof: np.ndarray,
 
 def data_bound(crb: np.ndarray, boot: np.ndarray | None, dof: np.ndarray | None, n_segments: int, method: str,
                scatter: tuple[np.ndarray, np.ndarray] | None = None,
-               start_var: np.ndarray | None = None) -> np.ndarray:
+               start_var: np.ndarray | None = None, start_in_scatter: bool = False) -> np.ndarray:
     """The data bound of the model parameters (1 sigma) by ``method`` (:data:`BOUND_METHODS`):
 
     - ``[0]``: the coloured Cramér-Rao std ``crb``;
@@ -499,7 +546,9 @@ def data_bound(crb: np.ndarray, boot: np.ndarray | None, dof: np.ndarray | None,
     ``start_var`` (per parameter, the variance the errors of the given starts give it,
     :func:`start_consider_covariance`) adds to ``crb²`` in every method, and the small-sample test of ``[2]``
     expects its share of the scatter (:func:`small_sample_needed`); where that bound enters it already holds it
-    (the scatter is measured, start errors and all).
+    (the scatter is measured, start errors and all). ``start_in_scatter``: ``scatter``'s ratio is over the scatter
+    the residual model and each segment's start error expect (:func:`segment_scatter` with ``start``), so the
+    small-sample bound is ``sqrt(crb² + start_var) x sqrt(ratio) x t(d)/z``.
     """
     out = np.asarray(crb, float).copy()
     base = out if start_var is None else np.sqrt(out ** 2 + np.maximum(np.asarray(start_var, float), 0.0))
@@ -508,9 +557,11 @@ def data_bound(crb: np.ndarray, boot: np.ndarray | None, dof: np.ndarray | None,
     d = np.broadcast_to(np.asarray(dof if dof is not None else n_segments - 1.0, float), out.shape)
     if method == BOUND_METHODS[2]:
         ratio, d_scatter = _scatter(out, boot, d, scatter)
+        carried = start_in_scatter and scatter is not None
         with np.errstate(invalid="ignore"):
-            wide = np.maximum(base, out * np.sqrt(np.maximum(ratio, 0.0)) * student_factor(d_scatter))
-        return np.where(small_sample_needed(out, boot, d, scatter, start_var), wide, base)
+            wide = np.maximum(base, (base if carried else out) * np.sqrt(np.maximum(ratio, 0.0))
+                              * student_factor(d_scatter))
+        return np.where(small_sample_needed(out, boot, d, scatter, start_var, carried), wide, base)
     return np.maximum(base, boot * student_factor(d))
 
 
@@ -1239,19 +1290,20 @@ class OutputErrorEstimator:
         factor, dof = segment_corrections(A, P)
         return np.std(np.array(reps), axis=0) * np.sqrt(factor), factor, dof
 
-    def segment_scatter(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray, crb: np.ndarray,
-                        theta: np.ndarray, data: Sequence[Manoeuvre] | None = None
-                        ) -> tuple[np.ndarray, np.ndarray] | None:
-        """:func:`segment_scatter` of the model parameters at ``theta`` against the coloured Cramér-Rao std
-        ``crb`` (None with fewer than :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres, as the bootstrap)."""
+    def segment_scatter_terms(self, res: list[np.ndarray], jacs: list[Any], W: np.ndarray, theta: np.ndarray,
+                              data: Sequence[Manoeuvre] | None = None
+                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """:func:`segment_scatter`'s ``A, g, P`` of the model parameters at ``theta`` (None with fewer than
+        :data:`BOOTSTRAP_MIN_SEGMENTS` manoeuvres, as the bootstrap, or more score covariances than
+        :data:`SCORE_COV_MAX_ELEMENTS`)."""
         if len(res) < BOOTSTRAP_MIN_SEGMENTS or not self.free:
             return None
         ng = len(self.free)
         if (len(res) * ng) ** 2 > SCORE_COV_MAX_ELEMENTS:
             return None
         terms = self._segment_terms(res, jacs, W, theta, data)
-        return segment_scatter(np.stack([t[0] for t in terms]), np.stack([t[1] for t in terms]),
-                               np.diag(self.prior_information(ng)), crb[:ng])
+        return (np.stack([t[0] for t in terms]), np.stack([t[1] for t in terms]),
+                np.diag(self.prior_information(ng)))
 
     def information(self, data: Sequence[Manoeuvre], theta: np.ndarray | None = None,
                     weight: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
@@ -1295,8 +1347,9 @@ class OutputErrorEstimator:
         corr = correlation(cov)  # zero-variance entries give 0 correlation, never NaN
         got = self.segment_bootstrap_std(res, jacs, W, theta=theta, data=data)
         boot, factor, dof = got if got is not None else (None, None, None)
-        scatter = (self.segment_scatter(res, jacs, W, std, theta, data)
-                   if polys is not None and got is not None else None)
+        terms = (self.segment_scatter_terms(res, jacs, W, theta, data)
+                 if polys is not None and got is not None else None)
+        scatter = None if terms is None else segment_scatter(*terms, std[:len(self.free)])
         method = BOUND_METHODS[2] if polys is not None else BOUND_METHODS[1] if boot is not None else BOUND_METHODS[0]
         exc = input_excitation([m.u for m in data], list(self.model.inputs.index))
         ident = analyse(M + np.diag(prior_info), names, len(self.free), exc, cov=cov)
@@ -1327,7 +1380,7 @@ class OutputErrorEstimator:
                         prior_sd=self.prior_sd.copy(), covariance=cov[:ng, :ng].copy(), n_segments=len(data),
                         bootstrap_dof=dof, bootstrap_factor=factor, unbounded=unbounded,
                         ar_orders=None if polys is None else [len(q) - 1 for q in polys],
-                        scatter=scatter)
+                        scatter=scatter, segment_terms=terms)
 
 
 def scaled_pinv(M: np.ndarray) -> np.ndarray:
@@ -1438,13 +1491,21 @@ def consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Sequence[
 
 def start_consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Sequence[Manoeuvre],
                               x0_cov: Sequence[np.ndarray], weight: np.ndarray | None = None) -> np.ndarray:
-    """Consider covariance of the model parameters (n_global x n_global) from the error of each manoeuvre's given
-    start ``x0``: ``x0_cov[j]`` (nx x nx, the model's states) is the covariance of manoeuvre ``j``'s ``x0`` about
+    """The sum over manoeuvres of :func:`start_consider_terms`: the consider covariance of the model parameters
+    (n_global x n_global) from the errors of the manoeuvres' given starts."""
+    total = start_consider_terms(oe, est, data, x0_cov, weight).sum(axis=0)
+    return 0.5 * (total + total.T)
+
+
+def start_consider_terms(oe: OutputErrorEstimator, est: Estimate, data: Sequence[Manoeuvre],
+                         x0_cov: Sequence[np.ndarray], weight: np.ndarray | None = None) -> np.ndarray:
+    """Per manoeuvre (m x n_global x n_global), the covariance of the model parameters' shift from the error of its
+    given start ``x0``: ``x0_cov[j]`` (nx x nx, the model's states) is the covariance of manoeuvre ``j``'s ``x0`` about
     the true start (e.g. the logged signals' noise it is read from). The states ``oe`` estimates per manoeuvre take
     their error up and are left out; for the others, as :func:`consider_covariance` does for fixed parameters, with
     ``A_j = (M_θθ⁻¹ M_θx)_j`` the linearised shift of the estimate per unit error of manoeuvre ``j``'s start (its
-    nuisance parameters profiled out), the covariance is ``Σ_j A_j Σ_j A_jᵀ``: the manoeuvres' start errors are
-    independent. Zeros when no state outside the estimated ones has a variance."""
+    nuisance parameters profiled out), ``A_j Σ_j A_jᵀ``; the manoeuvres' start errors are independent, so the
+    consider covariance is their sum. Zeros when no state outside the estimated ones has a variance."""
     ng = len(oe.free)
     if len(x0_cov) != len(data):
         raise EstimationError(f"start consider covariance: {len(x0_cov)} start covariances for {len(data)} "
@@ -1453,7 +1514,7 @@ def start_consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Seq
     diag = np.array([np.diag(np.asarray(c, float)) for c in x0_cov]).reshape(len(data), len(names))
     extra = [n for i, n in enumerate(names) if n not in oe.states_est and np.any(diag[:, i] > 0.0)]
     if not extra:
-        return np.zeros((ng, ng))
+        return np.zeros((len(data), ng, ng))
     big = _widened(oe, oe.p_nominal, oe.free, oe.states_est + extra, False)
     ne, nx, nl = len(oe.states_est), len(extra), oe.n_local
     ix = [oe.model.states.index[n] for n in extra]
@@ -1473,11 +1534,11 @@ def start_consider_covariance(oe: OutputErrorEstimator, est: Estimate, data: Seq
     Mtt = M[np.ix_(keep, keep)] + np.diag(oe.prior_information(len(keep)))
     flat = [c for cj in cons for c in cj]
     A = np.linalg.lstsq(Mtt, M[np.ix_(keep, flat)], rcond=None)[0][:ng]
-    out = np.zeros((ng, ng))
+    out = np.zeros((len(data), ng, ng))
     for j, c in enumerate(x0_cov):
         Aj = A[:, j * nx:(j + 1) * nx]
-        out += Aj @ np.asarray(c, float)[np.ix_(ix, ix)] @ Aj.T
-    return 0.5 * (out + out.T)
+        out[j] = Aj @ np.asarray(c, float)[np.ix_(ix, ix)] @ Aj.T
+    return 0.5 * (out + out.transpose(0, 2, 1))
 
 #: a fixed parameter is worth freeing when its consider share shifts a free one by more than this many of
 #: its data-only std (0.5: the share would widen that bound by 12 % or more; 1 before 2026-11-28, when

@@ -62,6 +62,8 @@ def test_every_primary_derivative_is_free_and_bounded_and_the_model_beats_persis
     assert np.allclose(cov, cov.T) and np.linalg.eigvalsh(cov).min() > -1e-12
     # the noise of each segment's logged start is read from the log and enters the bounds, named
     assert est.start_var is not None and np.all(est.start_var >= 0.0) and np.any(est.start_var > 0.0)
+    # ... and the segments' scatter is taken expecting each segment's own start error
+    assert est.scatter_start and est.scatter is not None and np.all(np.isfinite(est.scatter[0]))
     assert any("noise of the logged start" in n for n in result.notes)
     metrics = json.loads((tmp_path / "m.json").read_text())
     assert "logged start states" in json.loads(out.read_text())["_identification"]["bound_method"]

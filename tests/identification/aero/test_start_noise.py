@@ -21,6 +21,7 @@ from identification.estimation.oem import (
     data_bound,
     small_sample_needed,
     start_consider_covariance,
+    student_factor,
 )
 from identification.flights.synthetic import multistep
 from identification.logs.flightlog import FlightLog, Signal
@@ -163,6 +164,11 @@ def test_the_start_share_adds_to_the_bound_and_the_scatter_test_expects_it() -> 
     assert bound[0] == pytest.approx(np.sqrt(2.5))
     assert bound[1] == pytest.approx(wide[1])  # where it still fires, the measured scatter holds the starts'
     assert data_bound(crb, None, None, 9, ar, None, start) == pytest.approx(np.sqrt(crb ** 2 + start))
+    # a scatter that already expects each segment's start error (segment_scatter with its shifts) is taken as it
+    # is, and the small-sample bound scales the coloured bound and the start share together
+    assert small_sample_needed(crb, boot, dof, scatter, start, start_in_scatter=True).all()
+    carried = data_bound(crb, boot, dof, 9, ar, scatter, start, start_in_scatter=True)
+    assert carried == pytest.approx(np.sqrt((crb ** 2 + start) * 2.5) * student_factor(8.0))
 
 
 def test_the_cli_turns_the_start_noise_off_and_the_default_keeps_it() -> None:
