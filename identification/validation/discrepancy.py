@@ -11,7 +11,8 @@ evenly spread levels, around every draw), so the band is parameters + discrepanc
 **Method: empirical quantiles of the scaled residual per signal and horizon bin, symmetric about the FMU.** The
 residual is logged - FMU, the horizon the time since the replay window restarted from the logged state, and the
 scale one of (per signal, :func:`learn` keeps a scaled form only where its band scores better than the unscaled
-one on every learning replay left out in turn, by the interval score; with one replay the narrowest):
+one on every learning replay left out in turn, by the interval score, and on more of their windows than chance
+gives; with one replay the narrowest):
 none; ``|FMU(t) - FMU(t0)| + floor``, how far the model itself moved since the window's first sample;
 ``|FMU(t)| + floor``, the output's size; ``|dFMU/dt| + floor``, how fast it changes (a small lag or phase error
 of the model) - each floor the mean of its basis over the learning replays. The same procedure for every signal,
@@ -64,15 +65,22 @@ MIN_BIN_SAMPLES = 20  #: a horizon bin with fewer residuals is merged into its n
 #: the residual's sign is kept unless dropping it raises the coverage of the replays left out in turn by more than
 #: this (two points: about the scatter of a pooled coverage of a few thousand autocorrelated samples)
 SIGN_TOLERANCE = 0.02
+#: a scaled band form is kept only where it beats the unscaled one on more replay windows left out than chance
+#: gives at this one-sided level, over the scaled forms tried (:func:`scale_carries`)
+SCALE_EVIDENCE = 0.05
+
+
+def window_index(res: ReplayResult) -> np.ndarray:
+    """Per sample of ``res.t_s``: the index of its replay window (a window's end sample belongs to it)."""
+    starts = np.array([a for a, _ in res.windows], dtype=float)
+    return np.clip(np.searchsorted(starts, np.asarray(res.t_s, float), side="left") - 1, 0, len(starts) - 1)
 
 
 def horizons_s(res: ReplayResult) -> np.ndarray:
     """Per sample of ``res.t_s``: time [s] since its replay window restarted from the logged state (a window's
     end sample belongs to it, not to the next window, which restarts there)."""
     starts = np.array([a for a, _ in res.windows], dtype=float)
-    t = np.asarray(res.t_s, dtype=float)
-    idx = np.clip(np.searchsorted(starts, t, side="left") - 1, 0, len(starts) - 1)
-    return t - starts[idx]
+    return np.asarray(res.t_s, dtype=float) - starts[window_index(res)]
 
 
 def residuals(res: ReplayResult, name: str) -> np.ndarray:
@@ -86,9 +94,8 @@ def window_first(res: ReplayResult, name: str) -> np.ndarray:
     """Per sample of ``res.t_s``: the FMU output of signal ``name`` at its window's first scored sample (NaN where
     the window has none)."""
     mod = np.asarray(res.model[name], float)
-    starts = np.array([a for a, _ in res.windows], dtype=float)
-    idx = np.clip(np.searchsorted(starts, np.asarray(res.t_s, float), side="left") - 1, 0, len(starts) - 1)
-    first = np.full(len(starts), np.nan)
+    idx = window_index(res)
+    first = np.full(len(res.windows), np.nan)
     ok = np.flatnonzero(np.isfinite(mod))
     if ok.size:
         w, pos = np.unique(idx[ok], return_index=True)  # the first finite sample of each window
@@ -109,8 +116,7 @@ def slope_of(res: ReplayResult, name: str) -> np.ndarray:
         d = (d + math.pi) % (2.0 * math.pi) - math.pi
     d = d / np.diff(t)
     back = np.r_[np.nan, d]
-    starts = np.array([a for a, _ in res.windows], dtype=float)
-    idx = np.clip(np.searchsorted(starts, t, side="left") - 1, 0, len(starts) - 1)
+    idx = window_index(res)
     new_window = np.r_[True, idx[1:] != idx[:-1]] | ~np.isfinite(back)
     fwd = np.r_[d, np.nan]
     return np.abs(np.where(new_window, fwd, back))
@@ -228,21 +234,42 @@ def refit(results: Sequence[ReplayResult], name: str, like: SignalDiscrepancy,
 
 
 def held_out_score(results: Sequence[ReplayResult], name: str, form: SignalDiscrepancy, window_s: float,
-                   signed: bool) -> list[float]:
-    """Per replay of ``results``: the mean interval score (:func:`interval_score`) of the 90 % band of ``form`` on
-    it when learned on the others; empty with fewer than two replays or too few samples."""
+                   signed: bool) -> tuple[list[float], np.ndarray]:
+    """Each replay of ``results`` scored by the 90 % band of ``form`` learned on the others: per replay the mean
+    interval score (:func:`interval_score`), and per replay window (all replays' windows in order) its mean
+    interval score (NaN where the window has no scored sample); ``([], empty)`` with fewer than two replays or too
+    few samples."""
+    none: tuple[list[float], np.ndarray] = ([], np.zeros(0))
     if len(results) < 2:
-        return []
-    out = []
+        return none
+    out, windows = [], []
     for i, res in enumerate(results):
         fit = _fit([x for j, x in enumerate(results) if j != i], name, form, window_s, signed=signed)
         if fit is None:
-            return []
-        total, n = interval_score(residuals(res, name), *band_on(fit[0], res, name))
+            return none
+        r, (lo, hi) = residuals(res, name), band_on(fit[0], res, name)
+        total, n = interval_score(r, lo, hi)
         if not n:
-            return []
+            return none
         out.append(total / n)
-    return out
+        idx = window_index(res)
+        for w in range(len(res.windows)):
+            sel = idx == w
+            total, n = interval_score(r[sel], lo[sel], hi[sel])
+            windows.append(total / n if n else math.nan)
+    return out, np.asarray(windows, float)
+
+
+def scale_carries(scaled: np.ndarray, unscaled: np.ndarray, forms: int) -> bool:
+    """Whether a scaled form's band beats the unscaled one on more replay windows left out than chance gives: the
+    one-sided sign test of its per-window interval scores against the unscaled form's (:func:`held_out_score`)
+    at :data:`SCALE_EVIDENCE` over the ``forms`` scaled forms tried (Bonferroni)."""
+    from scipy.stats import binom
+
+    ok = np.isfinite(scaled) & np.isfinite(unscaled)
+    n = int(ok.sum())
+    wins = int(np.sum(scaled[ok] < unscaled[ok]))
+    return n > 0 and float(binom.sf(wins - 1, n, 0.5)) <= SCALE_EVIDENCE / max(forms, 1)
 
 
 def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "",
@@ -250,8 +277,10 @@ def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "",
     """The discrepancy of the replays ``results`` (same FMU, same options), pooled per signal and horizon bin.
     Per signal the form is unscaled, or scaled by the departure, the magnitude or the slope (:func:`scale_of`).
     With two replays or more, each left out in turn, a scaled form is kept only where its band scores better
-    than the unscaled one (mean interval score, :func:`held_out_score`) on every replay left out, the best such;
-    else the unscaled form. With one replay nothing is left to score on: the form whose band is narrowest on it
+    than the unscaled one (mean interval score, :func:`held_out_score`) on every replay left out and on more of
+    their replay windows than chance gives (:func:`scale_carries`: the fourteen 2 s windows of two 12 s segments, as
+    the fixed-wing bench learns on, can hardly show it; flights of hundreds of windows can), the best such; else
+    the unscaled form. With one replay nothing is left to score on: the form whose band is narrowest on it
     (every form covers its learning samples at its level by construction; the scale helps where the error
     follows the model's own motion, e.g. a diverging attitude, not where it does not, e.g. vibration on a
     thrust measured at the PWM rate). Why not the narrowest, or the best pooled score, always: with two or three
@@ -278,11 +307,12 @@ def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "",
             fit = _fit(results, m.fmu, form, window_s, signed)
             if fit is not None:
                 scored.append((held_out_score(results, m.fmu, form, window_s, signed), fit[1], fit[0]))
-        if scored and len(results) >= 2 and scored[0][2].scale_floor is None and scored[0][0]:
-            base = scored[0][0]  # the unscaled form's, replay by replay
-            better = [f for f in scored[1:] if len(f[0]) == len(base) and all(
-                a < b for a, b in zip(f[0], base, strict=True))]
-            signals[m.fmu] = min(better, key=lambda f: sum(f[0]))[2] if better else scored[0][2]
+        if scored and len(results) >= 2 and scored[0][2].scale_floor is None and scored[0][0][0]:
+            (base, base_windows), tried = scored[0][0], len(scored) - 1  # the unscaled form's, replay by replay
+            better = [f for f in scored[1:] if len(f[0][0]) == len(base) and all(
+                a < b for a, b in zip(f[0][0], base, strict=True))
+                and scale_carries(f[0][1], base_windows, tried)]
+            signals[m.fmu] = min(better, key=lambda f: sum(f[0][0]))[2] if better else scored[0][2]
         elif scored:
             signals[m.fmu] = min(scored, key=lambda f: f[1])[2]
     if not signals:

@@ -20,6 +20,7 @@ from identification.validation.discrepancy import (
     learn,
     points,
     read_discrepancy,
+    scale_carries,
     scale_of,
     write_discrepancy,
 )
@@ -198,6 +199,33 @@ def test_a_scale_is_kept_only_where_it_beats_the_unscaled_band_on_every_replay_l
     mixed = [replay(73, True), replay(74, False)]
     assert learn(mixed, ["a", "b"]).signals["roll_rad"].scale_floor is None
     assert learn(mixed[:1], ["a"]).signals["roll_rad"].scale_floor is not None  # one replay: the narrowest
+
+
+def test_a_scale_needs_more_winning_windows_than_chance_gives() -> None:
+    """The sign test over the windows left out: 12 of 14 windows won is evidence at 5 % over three forms tried
+    (one-sided p 0.0065), 11 of 14 is not (0.029); windows with no scored sample do not count. Two learning
+    replays of two windows each whose residual follows the model's departure: the scale wins everywhere, but four
+    windows cannot show it (p 1/16), and the band is unscaled; with 200 windows each it is kept (above)."""
+    base = np.ones(14)
+    assert scale_carries(np.r_[np.zeros(12), 2.0, 2.0], base, forms=3)
+    assert not scale_carries(np.r_[np.zeros(11), 2.0, 2.0, 2.0], base, forms=3)
+    assert scale_carries(np.r_[np.zeros(11), 2.0, 2.0, 2.0], base, forms=1)  # p 0.029 < 0.05 with one form
+    # windows with no scored sample drop out: 11 of 11 won (p 0.0005)
+    assert scale_carries(np.r_[np.zeros(11), np.nan, np.nan, 2.0], np.r_[np.ones(11), np.nan, 1.0, np.nan], forms=3)
+    assert not scale_carries(np.zeros(0), np.zeros(0), forms=3)
+
+    def replay(seed: int, windows: int) -> SimpleNamespace:
+        res, h = _replay(seed, n_windows=windows)
+        rng = np.random.default_rng(seed + 100)
+        swing = np.repeat(np.arange(windows) % 2 == 0, 100)
+        model = np.where(swing, 2.0 * h, 0.0)
+        res.model["roll_rad"] = model
+        res.measured["roll_rad"] = model + 0.3 * model * rng.standard_normal(h.size) + 0.01 * rng.standard_normal(
+            h.size)
+        return res
+
+    few = [replay(81, 2), replay(82, 2)]
+    assert learn(few, ["a", "b"]).signals["roll_rad"].scale_floor is None
 
 
 def test_the_band_is_symmetric_so_a_drift_of_the_other_sign_on_a_new_flight_stays_covered() -> None:
