@@ -219,10 +219,15 @@ def interval_score(r: np.ndarray, lo: np.ndarray, hi: np.ndarray, level: float =
     samples scored: width + (2 / alpha) x how far a value falls outside (alpha = 1 - level; Gneiting & Raftery
     2007, a proper score: lowest in expectation for the true quantiles, so it trades width against coverage
     and neither a band too wide nor one too narrow wins)."""
-    ok = np.isfinite(r) & np.isfinite(lo) & np.isfinite(hi)
-    r, lo, hi = r[ok], lo[ok], hi[ok]
+    per_sample = interval_scores(r, lo, hi, level)
+    ok = np.isfinite(per_sample)
+    return float(np.sum(per_sample[ok])), int(ok.sum())
+
+
+def interval_scores(r: np.ndarray, lo: np.ndarray, hi: np.ndarray, level: float = 0.90) -> np.ndarray:
+    """Per value of ``r``, the interval score of :func:`interval_score` (NaN where ``r``, ``lo`` or ``hi`` is)."""
     miss = np.maximum(lo - r, 0.0) + np.maximum(r - hi, 0.0)
-    return float(np.sum(hi - lo + 2.0 / (1.0 - level) * miss)), int(ok.sum())
+    return np.asarray(hi - lo + 2.0 / (1.0 - level) * miss, float)
 
 
 def refit(results: Sequence[ReplayResult], name: str, like: SignalDiscrepancy,
@@ -252,12 +257,13 @@ def held_out_score(results: Sequence[ReplayResult], name: str, form: SignalDiscr
         if not n:
             return none
         out.append(total / n)
-        idx = window_index(res)
-        for w in range(len(res.windows)):
-            sel = idx == w
-            total, n = interval_score(r[sel], lo[sel], hi[sel])
-            windows.append(total / n if n else math.nan)
-    return out, np.asarray(windows, float)
+        per_sample = interval_scores(r, lo, hi)
+        ok = np.isfinite(per_sample)
+        idx = window_index(res)[ok]
+        count = np.bincount(idx, minlength=len(res.windows))
+        summed = np.bincount(idx, weights=per_sample[ok], minlength=len(res.windows))
+        windows.append(np.where(count > 0, summed / np.maximum(count, 1), math.nan))
+    return out, np.concatenate(windows) if windows else np.zeros(0)
 
 
 def scale_carries(scaled: np.ndarray, unscaled: np.ndarray, forms: int) -> bool:
