@@ -252,13 +252,11 @@ def held_out_score(results: Sequence[ReplayResult], name: str, form: SignalDiscr
         fit = _fit([x for j, x in enumerate(results) if j != i], name, form, window_s, signed=signed)
         if fit is None:
             return none
-        r, (lo, hi) = residuals(res, name), band_on(fit[0], res, name)
-        total, n = interval_score(r, lo, hi)
-        if not n:
-            return none
-        out.append(total / n)
-        per_sample = interval_scores(r, lo, hi)
+        per_sample = interval_scores(residuals(res, name), *band_on(fit[0], res, name))
         ok = np.isfinite(per_sample)
+        if not ok.any():
+            return none
+        out.append(float(np.mean(per_sample[ok])))
         idx = window_index(res)[ok]
         count = np.bincount(idx, minlength=len(res.windows))
         summed = np.bincount(idx, weights=per_sample[ok], minlength=len(res.windows))
