@@ -31,6 +31,7 @@ from fmu_models.common.model import init_function
 from fmu_models.fixed_wing.model import FixedWingModel
 from fmu_models.fixed_wing.params import FixedWingParams
 from fmu_models.signals.pwm_mapping import PwmMapping
+from identification.aero import HORIZON_RANGE_S
 from identification.aero import model as aero
 from identification.aero import segments as aero_segments
 from identification.aero.priors import CONSIDERED, Prior, fixed_sd, geometry_priors
@@ -443,8 +444,6 @@ def _aic(est: Estimate, data: list[Manoeuvre]) -> float:
 
 #: most continuation restarts (``AeroOptions.restart_horizons_s``): each is a whole cold fit
 MAX_RESTARTS = 4
-#: the continuation's first spans accepted [s] (``horizon_s``, ``restart_horizons_s``; the CLI's --horizon range)
-HORIZON_RANGE_S = (0.05, 600.0)
 #: criterion spread over the restarts above which the notes say the cost has several minima (an AIC
 #: difference of 10: one fit is e^5 ~ 150 times less likely)
 RESTART_SPREAD = 10.0

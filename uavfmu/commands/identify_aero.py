@@ -46,6 +46,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from identification.aero import HORIZON_RANGE_S
 from identification.logs.flightlog import DEFAULT_MAX_DAMAGE
 from uavfmu.commands.common import comma_list
 
@@ -122,7 +123,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-stability-constraints", action="store_true",
                    help="allow sign changes of C_ell_p, C_m_q, C_n_r, C_m_alpha, C_n_beta")
     p.add_argument("--max-iter", type=_bounded(1, 1000, int), default=40)
-    p.add_argument("--horizon", type=_bounded(0.05, 600.0), default=1.0,
+    p.add_argument("--horizon", type=_bounded(*HORIZON_RANGE_S), default=1.0,
                    help="continuation: first fitted span per segment [s], doubled up to the whole segment")
     p.add_argument("--restarts", metavar="S,S",
                    help="further continuation first spans [s] each cold fit is restarted with from the same start; "
