@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import importlib.util
+import json
+import os
+from collections.abc import Callable
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -19,15 +23,45 @@ def shared_data(*parts: str) -> Path:
     return path
 
 
+@contextmanager
+def _locked(path: Path):  # type: ignore[no-untyped-def]
+    """An exclusive lock on ``path`` (POSIX ``flock``; where there is none, no lock: each worker builds its own)."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX
+        yield
+        return
+    with path.open("a") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def _built_once(factory: pytest.TempPathFactory, name: str, build: Callable[[Path], list[Path]]) -> dict[str, Path]:
+    """``build(folder)``'s FMUs by stem, built once per test run: under pytest-xdist the first worker builds into
+    the run's shared temporary folder and the others use its files (read only, as every test uses them), instead of
+    each worker compiling the same FMUs again."""
+    if "PYTEST_XDIST_WORKER" not in os.environ:
+        return {p.stem: p for p in build(factory.mktemp(name))}
+    root = factory.getbasetemp().parent  # shared by the run's workers
+    done = root / f"{name}.json"
+    with _locked(root / f"{name}.lock"):
+        if not done.exists():
+            out = root / name
+            out.mkdir(exist_ok=True)
+            done.write_text(json.dumps([str(p) for p in build(out)]))
+    return {Path(p).stem: Path(p) for p in json.loads(done.read_text())}
+
+
 @pytest.fixture(scope="session")
 def built_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """``{"quadrotor": Path, "fixed_wing": Path}``: both FMUs (native backend) with default parameters, built once."""
     from build_fmus import MODELS, build
 
-    out = tmp_path_factory.mktemp("fmus")
     available = [m for m in MODELS if importlib.util.find_spec(f"fmu_models.{m}.model") is not None]
-    paths = build(None, out, available)
-    return {p.stem: p for p in paths}
+    return _built_once(tmp_path_factory, "fmus", lambda out: build(None, out, available))
 
 
 @pytest.fixture(scope="session")
@@ -36,9 +70,8 @@ def fmi3_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     from build_fmus import BuildOptions, build
     from fmu_models.fmi import zigcc
 
-    out = tmp_path_factory.mktemp("fmi3")
     opts = BuildOptions(fmi_version=3, kinds=("cs", "me"), platforms=(zigcc.host_platform().fmi_name,))
-    return {p.stem: p for p in build(None, out, None, options=opts)}
+    return _built_once(tmp_path_factory, "fmi3", lambda out: build(None, out, None, options=opts))
 
 
 @pytest.fixture(scope="session")
@@ -46,8 +79,7 @@ def python_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Both FMUs built with the pythonfmu backend (``uavfmu build --backend python``), once."""
     from build_fmus import build
 
-    out = tmp_path_factory.mktemp("python_fmus")
-    return {p.stem: p for p in build(None, out, backend="python")}
+    return _built_once(tmp_path_factory, "python_fmus", lambda out: build(None, out, backend="python"))
 
 
 @pytest.fixture(scope="session")

@@ -123,7 +123,9 @@ BATCH = textwrap.dedent("""
 
 def test_batch_of_many_fmu_log_pairs(built_fmus: dict[str, Path], python_fmus: dict[str, Path],
                                      tmp_path: Path) -> None:
-    """4 FMUs (both vehicles, both backends) x 6 logs in one batch, 3 times: every pair gets a verdict, no abort."""
+    """4 FMUs (both vehicles, both backends) x 6 logs in one batch: every pair gets a verdict, no abort. One batch
+    (it was three while the abort's cause was being found): the exit-time paths that aborted are now driven
+    deterministically by the hundreds of host cycles above and under valgrind below."""
     logs = []
     for k in range(6):
         t, sig = synthetic.fixed_wing_flight(seconds=6.0 + k, rate_hz=50.0)
@@ -133,14 +135,13 @@ def test_batch_of_many_fmu_log_pairs(built_fmus: dict[str, Path], python_fmus: d
     (tmp_path / "batch.toml").write_text(
         "[defaults]\nwindow_s = 2.0\nmapping = 'mapping.toml'\n"
         f"[[job]]\nfmu = {json.dumps(fmus)}\nlog = {json.dumps(logs)}\n")
-    for run in range(3):
-        report = tmp_path / f"rep{run}"
-        proc = run_python(BATCH, str(tmp_path / "batch.toml"), str(python_fmus["quadrotor"]), str(report))
-        assert_clean(proc, ok_codes=(0, 1))
-        results = json.loads((report / "results.json").read_text())
-        assert len(results) == len(fmus) * len(logs)
-        assert not [r for r in results if "worker process failed" in r.get("error", "")], results
-        assert sum(r["status"] != "error" for r in results) == 2 * len(logs)  # fixed-wing FMUs score every log
+    report = tmp_path / "report"
+    proc = run_python(BATCH, str(tmp_path / "batch.toml"), str(python_fmus["quadrotor"]), str(report))
+    assert_clean(proc, ok_codes=(0, 1))
+    results = json.loads((report / "results.json").read_text())
+    assert len(results) == len(fmus) * len(logs)
+    assert not [r for r in results if "worker process failed" in r.get("error", "")], results
+    assert sum(r["status"] != "error" for r in results) == 2 * len(logs)  # fixed-wing FMUs score every log
 
 
 EXIT_ONLY = textwrap.dedent("""
