@@ -326,6 +326,10 @@ class SignalDiscrepancy(Schema):
     #: model itself moved since the restart), ``magnitude`` |FMU| (with the output's size) or ``slope`` |dFMU/dt|
     #: [unit/s] (with how fast the output changes: a small lag or phase error of the model)
     scale_by: Literal["departure", "magnitude", "slope"] = "departure"
+    #: the largest scale (basis + ``scale_floor``) among the learning residuals: a larger one is held at it. The
+    #: quantiles say nothing of scales no learning replay reached, and carried linearly past them a replay that
+    #: moves faster than any learning one gets a band many times its error. None: not held
+    scale_max: float | None = Field(None, gt=0.0, allow_inf_nan=False)
     #: an angle compared modulo 2 pi (residual and departure taken the short way round)
     wrap: bool = False
     #: the quantiles are of the residuals with both signs (a band centred on the FMU); False: of the residuals as
@@ -353,6 +357,9 @@ class SignalDiscrepancy(Schema):
                              "horizon bins (allowed: one of each per bin)")
         if any(any(b < a for a, b in itertools.pairwise(row)) for row in self.quantiles):
             raise ValueError("a quantile row decreases (allowed: non-decreasing along the levels)")
+        if self.scale_max is not None and (self.scale_floor is None or self.scale_max < self.scale_floor):
+            raise ValueError(f"scale_max = {self.scale_max}: allowed only with a scale_floor, at least "
+                             f"scale_floor ({self.scale_floor})")
         return self
 
 
@@ -391,18 +398,21 @@ def discrepancy_scale(s: SignalDiscrepancy, model: np.ndarray, first: np.ndarray
     """What the stored quantiles of ``s`` multiply, per sample: 1 when they are of logged - FMU itself, else the
     basis (``scale_by``) + ``scale_floor``. ``model``: the FMU output; ``first``: the FMU output at the first sample
     of each sample's replay window; ``slope``: |dFMU/dt| [unit/s] (same shapes). The one definition for learning,
-    ``validate --mc`` and the HIL record's band."""
+    ``validate --mc`` and the HIL record's band. Held at ``scale_max`` where given."""
     model = np.asarray(model, float)
     if s.scale_floor is None:
         return np.ones_like(model)
     if s.scale_by == "magnitude":
-        return np.abs(model) + s.scale_floor
-    if s.scale_by == "slope":
-        return np.abs(np.asarray(slope, float)) + s.scale_floor
-    d = model - np.asarray(first, float)
-    if s.wrap:
-        d = (d + math.pi) % (2.0 * math.pi) - math.pi
-    return np.abs(d) + s.scale_floor
+        basis = np.abs(model)
+    elif s.scale_by == "slope":
+        basis = np.abs(np.asarray(slope, float))
+    else:
+        d = model - np.asarray(first, float)
+        if s.wrap:
+            d = (d + math.pi) % (2.0 * math.pi) - math.pi
+        basis = np.abs(d)
+    scale = basis + s.scale_floor
+    return scale if s.scale_max is None else np.minimum(scale, s.scale_max)  # NaN stays NaN
 
 
 def discrepancy_quantile(disc: Discrepancy, name: str, level: float, h_s: np.ndarray, model: np.ndarray,

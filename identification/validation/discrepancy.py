@@ -15,11 +15,12 @@ one on every learning replay left out in turn, by the interval score, and on mor
 gives; with one replay the narrowest):
 none; ``|FMU(t) - FMU(t0)| + floor``, how far the model itself moved since the window's first sample;
 ``|FMU(t)| + floor``, the output's size; ``|dFMU/dt| + floor``, how fast it changes (a small lag or phase error
-of the model) - each floor the mean of its basis over the learning replays. The same procedure for every signal,
-no per-signal factor. Chosen over an AR model or a Gaussian process because the replay error of an open-loop
-unstable vehicle is not Gaussian or stationary: it grows with the horizon and is heavy-tailed (a few windows
-with a manoeuvre carry most of the error). Quantiles need no distribution, cost nothing to evaluate and say how
-many samples they rest on; the horizon bins carry the growth, the scale the state.
+of the model) - each floor the mean of its basis over the learning replays, and the scale held at the 99th
+percentile of the learning residuals' scales (``scale_max``: the quantiles say nothing of larger ones). The same
+procedure for every signal, no per-signal factor. Chosen over an AR model or a Gaussian process because the
+replay error of an open-loop unstable vehicle is not Gaussian or stationary: it grows with the horizon and is
+heavy-tailed (a few windows with a manoeuvre carry most of the error). Quantiles need no distribution, cost
+nothing to evaluate and say how many samples they rest on; the horizon bins carry the growth, the scale the state.
 
 **Symmetric unless the sign carries**: the residuals enter with both signs (a band centred on the FMU) unless,
 each learning replay left out in turn, the band keeping their sign covers the left-out replays as well as the
@@ -68,6 +69,9 @@ SIGN_TOLERANCE = 0.02
 #: a scaled band form is kept only where it beats the unscaled one on more replay windows left out than chance
 #: gives at this one-sided level, over the scaled forms tried (:func:`scale_carries`)
 SCALE_EVIDENCE = 0.05
+#: a scaled table's scale is held at this quantile of the learning residuals' scales (``scale_max``): the
+#: quantiles say nothing of larger scales, and the maximum of a slope is one sample's spike
+SCALE_HELD_AT = 0.99
 
 
 def window_index(res: ReplayResult) -> np.ndarray:
@@ -146,7 +150,9 @@ def _fit(results: Sequence[ReplayResult], name: str, form: SignalDiscrepancy, wi
          signed: bool = False) -> tuple[SignalDiscrepancy, float] | None:
     """The quantile table of signal ``name`` in the form of ``form`` (its scale basis and floor; its quantiles
     are ignored) and the mean width of its 90 % band over the learning samples (None: too few samples). The
-    residuals enter with both signs (the band symmetric about the FMU) unless ``signed``."""
+    residuals enter with both signs (the band symmetric about the FMU) unless ``signed``. A scaled table holds
+    its scale at the largest the learning residuals reached (``scale_max``)."""
+    form = form.model_copy(update={"scale_max": None})
     hs, rs, ss = [], [], []
     for res in results:
         scale = scale_of(res, name, form)
@@ -170,8 +176,9 @@ def _fit(results: Sequence[ReplayResult], name: str, form: SignalDiscrepancy, wi
             q = [0.5 * (v - w) for v, w in zip(q, q[::-1], strict=True)]  # exactly antisymmetric (rounding)
         rows.append(q)
         width += float(np.sum((q[i95] - q[i5]) * sc[sel]))
+    held = None if form.scale_floor is None else float(np.quantile(sc, SCALE_HELD_AT))
     table = form.model_copy(update={"horizon_edges_s": [float(e) for e in edges], "quantiles": rows,
-                                    "samples": counts, "symmetric": not signed})
+                                    "samples": counts, "symmetric": not signed, "scale_max": held})
     return table, width / r.size
 
 

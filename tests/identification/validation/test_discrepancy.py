@@ -177,6 +177,47 @@ def test_the_scale_follows_the_models_own_departure_and_narrows_the_band_where_i
     assert width[~new.swing].mean() < 0.5 * width[new.swing].mean()
 
 
+def test_the_scale_is_held_where_a_replay_moves_further_than_any_learning_one() -> None:
+    """Learned where the model departs by up to 4 rad from its restart (residual 0.3 x (departure + 1)), the band is
+    used on a replay departing five times further whose error stays at the learned size: the scale is held at
+    the learning residuals' 99th-percentile scale, so the band there keeps its level (89 % of those samples)
+    instead of growing with the departure (carried linearly: 99 %, 2.6 times as wide); below that scale nothing
+    changes."""
+    def replay(seed: int, rate: float) -> SimpleNamespace:
+        res, h = _replay(seed, n_windows=200)
+        rng = np.random.default_rng(seed + 300)
+        swing = np.repeat(np.arange(200) % 2 == 0, 100)
+        model = np.where(swing, rate * h, 0.0)
+        res.model["roll_rad"] = model
+        # 0.3 x (departure + 1) up to the learning's largest: the floor is the departure's mean, 1 rad
+        err = 0.3 * (np.minimum(model, 4.0) + 1.0) * rng.standard_normal(h.size)
+        res.measured["roll_rad"] = model + err
+        res.swing = swing
+        return res
+
+    learning = replay(41, 2.0)
+    disc = learn([learning], ["synthetic"])
+    s = disc.signals["roll_rad"]  # the model starts at 0: its departure is its magnitude
+    assert s.scale_by in ("departure", "magnitude") and s.scale_floor is not None and s.scale_max is not None
+    raw = scale_of(learning, "roll_rad", s.model_copy(update={"scale_max": None}))
+    assert np.quantile(raw, 0.98) <= s.scale_max <= raw.max()
+    far = replay(42, 10.0)
+    beyond = scale_of(far, "roll_rad", s.model_copy(update={"scale_max": None})) > s.scale_max
+    assert beyond.mean() > 0.3  # most of the swinging samples lie past the learned scale
+    lo, hi = _band(disc, far)
+    r = far.measured["roll_rad"] - far.model["roll_rad"]
+    assert 0.85 <= float(((r >= lo) & (r <= hi))[beyond].mean()) <= 0.97
+    unheld = disc.model_copy(update={"signals": {"roll_rad": s.model_copy(update={"scale_max": None})}})
+    lo1, hi1 = _band(unheld, far)
+    assert float(((r >= lo1) & (r <= hi1))[beyond].mean()) > 0.98  # the linear extrapolation: far too wide
+    assert (hi1 - lo1)[beyond].mean() > 2.0 * (hi - lo)[beyond].mean()
+    np.testing.assert_allclose((hi - lo)[~beyond], (hi1 - lo1)[~beyond])
+    with pytest.raises(ValueError, match="scale_max"):
+        s.model_validate({**s.model_dump(), "scale_max": 0.5 * s.scale_floor})
+    with pytest.raises(ValueError, match="scale_max"):
+        s.model_validate({**s.model_dump(), "scale_floor": None, "scale_max": 1.0})
+
+
 def test_a_scale_is_kept_only_where_it_beats_the_unscaled_band_on_every_replay_left_out() -> None:
     """Two learning replays whose residual follows the model's departure: the scaled form is kept (learned on one,
     it scores better on the other both ways). One of them replaced by a replay whose residual is largest where
