@@ -326,7 +326,7 @@ class SignalDiscrepancy(Schema):
     #: model itself moved since the restart), ``magnitude`` |FMU| (with the output's size) or ``slope`` |dFMU/dt|
     #: [unit/s] (with how fast the output changes: a small lag or phase error of the model)
     scale_by: Literal["departure", "magnitude", "slope"] = "departure"
-    #: the largest scale (basis + ``scale_floor``) among the learning residuals: a larger one is held at it. The
+    #: the scale (basis + ``scale_floor``) is held at this, a high quantile of the learning residuals' scales: the
     #: quantiles say nothing of scales no learning replay reached, and carried linearly past them a replay that
     #: moves faster than any learning one gets a band many times its error. None: not held
     scale_max: float | None = Field(None, gt=0.0, allow_inf_nan=False)

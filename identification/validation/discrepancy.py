@@ -151,19 +151,23 @@ def _fit(results: Sequence[ReplayResult], name: str, form: SignalDiscrepancy, wi
     """The quantile table of signal ``name`` in the form of ``form`` (its scale basis and floor; its quantiles
     are ignored) and the mean width of its 90 % band over the learning samples (None: too few samples). The
     residuals enter with both signs (the band symmetric about the FMU) unless ``signed``. A scaled table holds
-    its scale at the largest the learning residuals reached (``scale_max``)."""
+    its scale at the ``SCALE_HELD_AT`` quantile of the learning residuals' scales (``scale_max``), learning too."""
     form = form.model_copy(update={"scale_max": None})
-    hs, rs, ss = [], [], []
+    hs, es, ss = [], [], []
     for res in results:
         scale = scale_of(res, name, form)
-        r = residuals(res, name) / scale
-        ok = np.isfinite(r)
+        err = residuals(res, name)
+        ok = np.isfinite(err) & np.isfinite(scale)
         hs.append(horizons_s(res)[ok])
-        rs.append(r[ok])
+        es.append(err[ok])
         ss.append(scale[ok])
-    h, r, sc = np.concatenate(hs), np.concatenate(rs), np.concatenate(ss)
-    if r.size < MIN_BIN_SAMPLES:
+    h, err, sc = np.concatenate(hs), np.concatenate(es), np.concatenate(ss)
+    if err.size < MIN_BIN_SAMPLES:
         return None
+    held = None if form.scale_floor is None else float(np.quantile(sc, SCALE_HELD_AT))
+    if held is not None:
+        sc = np.minimum(sc, held)  # as discrepancy_scale holds it wherever the table is used
+    r = err / sc
     edges = _edges(h, window_s if window_s > 0 else float(h.max()))
     rows, counts, width = [], [], 0.0
     i5, i95 = LEVELS.index(0.05), LEVELS.index(0.95)
@@ -176,7 +180,6 @@ def _fit(results: Sequence[ReplayResult], name: str, form: SignalDiscrepancy, wi
             q = [0.5 * (v - w) for v, w in zip(q, q[::-1], strict=True)]  # exactly antisymmetric (rounding)
         rows.append(q)
         width += float(np.sum((q[i95] - q[i5]) * sc[sel]))
-    held = None if form.scale_floor is None else float(np.quantile(sc, SCALE_HELD_AT))
     table = form.model_copy(update={"horizon_edges_s": [float(e) for e in edges], "quantiles": rows,
                                     "samples": counts, "symmetric": not signed, "scale_max": held})
     return table, width / r.size
