@@ -9,7 +9,8 @@ mass (the one ``identify thrust`` is given). Pooled over the folds, per signal: 
 samples inside the nominal 90 % band (target 80-95 % for every gated signal) and the band's mean width over the
 replay's RMSE (target <= 3), beside the oracle's: the width over RMSE of a band made of the held-out residuals'
 own 5-95 % quantiles per horizon bin (what a calibrated band of this form can at best reach; not a target).
-Per fold it prints the form each signal's band took (scale basis, sign, parameter weight, band factor).
+Per fold it prints the form each signal's band took (scale basis, sign, parameter weight, band factor), and with
+``--per-set`` each held-out set's own coverage, width and RMSE per signal (where a pooled figure comes from).
 
 The shared fixed-wing excitation log has no second flight: ``identify aero`` on it (the timeline's fit and
 held-out segments, every default) writes the estimate and its covariance, the fixed-wing FMU is built from it,
@@ -17,7 +18,7 @@ and each held-out segment is scored with the discrepancy learned and calibrated 
 (``--wing-learn-on fit``: on the fit segments), same targets.
 
     .venv/bin/python bench/prediction_bands.py [--draws N] [--only erle,px4,wing] [--no-parameter-spread]
-        [--forms auto|unscaled] [--weight auto|1]
+        [--forms auto|unscaled] [--weight auto|1] [--per-set]
     # exit 1 on a miss
 
 Heavy (tens of minutes on a loaded 2-core machine): every fold builds an FMU and runs N Monte Carlo replays of
@@ -75,11 +76,16 @@ class Pool:
     gated: dict[str, bool] = field(default_factory=dict)
     #: per signal: (residual, horizon [s]) arrays of every held-out set, for the oracle width
     kept: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)
+    #: print each held-out set's own figures as it is added
+    per_set: bool = False
 
     def add(self, res: object) -> None:
         from identification.validation.discrepancy import horizons_s
         from identification.validation.mc_bands import inside_band
 
+        if self.per_set:
+            print(f"    {'this set':<18} {'samples':>8} {'coverage':>9} {'mean width':>11} {'RMSE':>9} "
+                  f"{'width/RMSE':>10}")
         for m in res.maps:  # type: ignore[attr-defined]
             y, mod = res.measured[m.fmu], res.model[m.fmu]  # type: ignore[attr-defined]
             lo, hi = res.bands.lo[m.fmu], res.bands.hi[m.fmu]  # type: ignore[attr-defined]
@@ -93,6 +99,12 @@ class Pool:
             if m.wrap:
                 e = (e + math.pi) % (2 * math.pi) - math.pi
             self.sse[k] = self.sse.get(k, 0.0) + float((e * e).sum())
+            if self.per_set and e.size:
+                cov = float(inside_band(y[ok], lo[ok], hi[ok], m.wrap).mean())
+                w, rmse = float(np.minimum(width, 2 * math.pi if m.wrap else np.inf).mean()), math.sqrt(float(
+                    np.mean(e * e)))
+                print(f"    {k:<18} {e.size:>8} {cov:>9.1%} {w:>11.4g} {rmse:>9.4g} "
+                      f"{w / rmse if rmse > 0 else math.inf:>10.2f}")
             self.gated[k] = m.gate
             self.kept.setdefault(k, []).append((e, horizons_s(res)[ok]))  # type: ignore[arg-type]
 
@@ -164,8 +176,8 @@ def _fold(train: list[tuple[Path, float]], test: tuple[Path, float], work: Path,
 
 
 def quadrotor(name: str, flights: list[tuple[Path, float]], draws: int, fmu_mass: float | None,
-              output_map: Path | None, study: dict[str, Any]) -> bool:
-    pool = Pool()
+              output_map: Path | None, study: dict[str, Any], per_set: bool = False) -> bool:
+    pool = Pool(per_set=per_set)
     for i, test in enumerate(flights):
         train = [f for j, f in enumerate(flights) if j != i]
         with tempfile.TemporaryDirectory() as tmp:
@@ -174,7 +186,7 @@ def quadrotor(name: str, flights: list[tuple[Path, float]], draws: int, fmu_mass
 
 
 def fixed_wing(draws: int, parameter_spread: bool = True, learn_on: str = "held",
-               study: dict[str, Any] | None = None) -> bool:
+               study: dict[str, Any] | None = None, per_set: bool = False) -> bool:
     """``identify aero`` on the excitation log (its timeline's fit and held-out segments), the FMU built from the
     estimate, the bands scored on each held-out segment with the discrepancy learned on the other held-out segments
     (``learn_on`` "held": where the truth is known and the parameters were not fitted; leave-one-segment-out so no
@@ -207,7 +219,7 @@ def fixed_wing(draws: int, parameter_spread: bool = True, learn_on: str = "held"
         unc = read_uncertainty(params)
         if not parameter_spread:  # a study: the discrepancy alone, the parameters at their estimate
             unc = Uncertainty(names=unc.names, mean=unc.mean, covariance=[[0.0] * len(unc.names)] * len(unc.names))
-        pool = Pool()
+        pool = Pool(per_set=per_set)
         study = study or {}
         learned_on_fit = (learn_discrepancy_jobs([job(x) for x in fit], None, unc, draws, **study)
                           if learn_on == "fit" else None)
@@ -234,6 +246,7 @@ def main() -> int:
                     help="a study: the band forms chosen on learning replays left out (auto), or unscaled only")
     ap.add_argument("--weight", choices=("auto", "1"), default="auto",
                     help="a study: the parameter weight chosen on learning replays left out (auto), or always 1")
+    ap.add_argument("--per-set", action="store_true", help="also each held-out set's own figures per signal")
     args = ap.parse_args()
     study = {"scaled": args.forms == "auto", "weights": (1.0, 0.0) if args.weight == "auto" else (1.0,)}
     if not all(p.exists() for p in [*ERLE, *(p for p, _ in PX4), WING]):
@@ -242,14 +255,14 @@ def main() -> int:
     only = set(args.only.split(","))
     ok = True
     if "erle" in only:
-        ok &= quadrotor("Erle", [(p, 1.14) for p in ERLE], args.draws, None, None, study)
+        ok &= quadrotor("Erle", [(p, 1.14) for p in ERLE], args.draws, None, None, study, args.per_set)
     if "px4" in only:
         with tempfile.TemporaryDirectory() as tmp:
             omap = Path(tmp) / "px4_map.toml"
             omap.write_text(px4_map_toml())
-            ok &= quadrotor("PX4 csv", list(PX4), args.draws, PX4_FMU_MASS_KG, omap, study)
+            ok &= quadrotor("PX4 csv", list(PX4), args.draws, PX4_FMU_MASS_KG, omap, study, args.per_set)
     if "wing" in only:
-        ok &= fixed_wing(args.draws, not args.no_parameter_spread, args.wing_learn_on, study)
+        ok &= fixed_wing(args.draws, not args.no_parameter_spread, args.wing_learn_on, study, args.per_set)
     print(f"\nall targets: {'met' if ok else 'NOT met'}")
     return 0 if ok else 1
 
