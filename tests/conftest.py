@@ -25,12 +25,9 @@ def shared_data(*parts: str) -> Path:
 
 @contextmanager
 def _locked(path: Path):  # type: ignore[no-untyped-def]
-    """An exclusive lock on ``path`` (POSIX ``flock``; where there is none, no lock: each worker builds its own)."""
-    try:
-        import fcntl
-    except ImportError:  # not POSIX
-        yield
-        return
+    """An exclusive lock on ``path`` (POSIX ``flock``)."""
+    import fcntl
+
     with path.open("a") as f:
         fcntl.flock(f, fcntl.LOCK_EX)
         try:
@@ -42,8 +39,8 @@ def _locked(path: Path):  # type: ignore[no-untyped-def]
 def _built_once(factory: pytest.TempPathFactory, name: str, build: Callable[[Path], list[Path]]) -> dict[str, Path]:
     """``build(folder)``'s FMUs by stem, built once per test run: under pytest-xdist the first worker builds into
     the run's shared temporary folder and the others use its files (read only, as every test uses them), instead of
-    each worker compiling the same FMUs again."""
-    if "PYTEST_XDIST_WORKER" not in os.environ:
+    each worker compiling the same FMUs again. Without xdist, or without ``flock`` (not POSIX), each builds its own."""
+    if "PYTEST_XDIST_WORKER" not in os.environ or importlib.util.find_spec("fcntl") is None:
         return {p.stem: p for p in build(factory.mktemp(name))}
     root = factory.getbasetemp().parent  # shared by the run's workers
     done = root / f"{name}.json"
