@@ -10,10 +10,15 @@ MUT_STAMP := $(VENV)/.installed-mutation
 
 .PHONY: demo demo-real test lint bench fmus clean mutation docs docs-check libtbb
 
+# uv (from PyPI) installs what pip would, in under half the time: parallel downloads, and the bytecode compiled in
+# parallel (--compile-bytecode: where PYTHONDONTWRITEBYTECODE is set, nothing would cache it on first import). pip
+# does the install where uv cannot be installed or cannot install (no wheel for this machine).
+INSTALL = { $(PY) -m pip install --quiet uv && $(PY) -m uv pip install --quiet --python $(PY) --compile-bytecode $(1); } \
+	|| { $(PY) -m pip install --quiet --upgrade pip && $(PY) -m pip install --quiet $(1); }
+
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[test]"
+	$(call INSTALL,-e ".[test]")
 	touch $(STAMP)
 
 # Ecos (ecospy, a test extra) loads Debian's libtbb12: installed when missing; where that cannot be done (not root,
@@ -28,11 +33,11 @@ libtbb:
 	fi
 
 $(BENCH_STAMP): $(STAMP)
-	$(PY) -m pip install --quiet -e ".[test,bench]"
+	$(call INSTALL,-e ".[test,bench]")
 	touch $(BENCH_STAMP)
 
 $(MUT_STAMP): $(STAMP)
-	$(PY) -m pip install --quiet -e ".[test,mutation]"
+	$(call INSTALL,-e ".[test,mutation]")
 	touch $(MUT_STAMP)
 
 # the demo builds this machine's platform only; `make fmus` builds linux64, win64 and darwin64 in parallel

@@ -43,7 +43,7 @@ def hac_least_squares(xs: Sequence[np.ndarray], ys: Sequence[np.ndarray], min_la
     acov = np.zeros(span + 1)
     for r in rs:
         m = min(span + 1, len(r))
-        acov[:m] += [float(r[:len(r) - k] @ r[k:]) for k in range(m)]
+        acov[:m] += _lagged(r[:, None], m)[:, 0, 0]
     acov /= n_total
     k = np.arange(span + 1)
     n_groups = len(xs) if groups is None else len(set(groups))
@@ -63,11 +63,21 @@ def _middle(xs: Sequence[np.ndarray], acov: np.ndarray) -> np.ndarray:
     p = xs[0].shape[1]
     middle = np.zeros((p, p))
     for x in xs:
-        middle += acov[0] * (x.T @ x)
-        for k in range(1, min(len(acov), len(x))):
-            c = x[:-k].T @ x[k:]
-            middle += acov[k] * (c + c.T)
+        m = min(len(acov), len(x))
+        c = np.tensordot(acov[1:m], _lagged(x, m)[1:], axes=1)  # sum_k R(k) x[:-k]' x[k:]
+        middle += acov[0] * (x.T @ x) + c + c.T
     return middle
+
+
+def _lagged(x: np.ndarray, lags: int) -> np.ndarray:
+    """``out[k] = x[:-k]' x[k:]`` (p x p) for the columns of ``x`` (N x p), lags k = 0..``lags``-1, by FFT: one
+    transform per column instead of a product per lag (the drag regression's windows take hundreds of lags).
+    Zero-padded to at least N + lags samples, so no lag wraps around."""
+    n = len(x)
+    size = 1 << int(n + lags - 1).bit_length()
+    f = np.fft.rfft(x, size, axis=0)
+    cross = np.fft.irfft(np.conj(f)[:, :, None] * f[:, None, :], size, axis=0)[:lags]
+    return np.asarray(cross)
 
 
 __all__ = ["hac_least_squares"]

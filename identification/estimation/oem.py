@@ -372,7 +372,9 @@ def bootstrap_task(task: dict[str, Any]) -> dict[str, Any]:
     m = A.shape[0]
     Mi = np.linalg.pinv(A.sum(axis=0) + P, hermitian=True)
     rng = task_rng(task["seed"], task["index"])
-    w = np.stack([np.bincount(rng.integers(0, m, m), minlength=m).astype(float) for _ in range(task["count"])])
+    count = int(task["count"])
+    picks = rng.integers(0, m, (count, m)) + m * np.arange(count)[:, None]  # the same draws as row by row
+    w = np.bincount(picks.ravel(), minlength=count * m).reshape(count, m).astype(float)
     return {"reps": (w @ g + gp) @ Mi.T}
 
 
@@ -465,16 +467,22 @@ def segment_scatter(A: np.ndarray, g: np.ndarray, P: np.ndarray | None, crb: np.
     z = s2 / scale[None, :]  # (m, n): squared scores in units of the residual model's scale
     if start is not None:
         z = z / (1.0 + start_score_variance(A, Mi, start) / np.maximum(E.T * scale[None, :], 1e-300))
-    T2 = T ** 2
-    for i in np.flatnonzero(ok):
-        pooled = share[i][None, :] * gamma  # weights on z[j, k] (as (k, j)) of Σ_j π_ij κ_j
-        own = np.zeros((n, m))
-        own[i] = 1.0 / total[i]  # the parameter's own spread, Σ_j z_ji / Σ_j c_ii,jj
-        d_pool = 1.0 / max(float(np.einsum("kj,lm,jmkl->", pooled, pooled, T2)), 1e-12)
-        d_own = 1.0 / max(float(np.einsum("kj,lm,jmkl->", own, own, T2)), 1e-12)
-        weights = (d_own * own + d_pool * pooled) / (d_own + d_pool)
-        ratio[i] = float(np.sum(weights * z.T))
-        dof[i] = max(1.0 / max(float(np.einsum("kj,lm,jmkl->", weights, weights, T2)), 1e-12), 1.0)
+    # the variance of a weighted sum Σ w_kj z_jk of squared scores is 2 wᵀ Q w / scale², Q[(k, j), (l, m)] =
+    # T[j, m, k, l]² (Gaussian scores); every parameter's weights as one row, (k, j) flattened
+    Q = (T ** 2).transpose(2, 0, 3, 1).reshape(n * m, n * m)
+    rows = np.flatnonzero(ok)
+    pooled = (share[rows][:, None, :] * gamma[None]).reshape(len(rows), n * m)  # Σ_j π_ij κ_j
+    own = np.zeros((len(rows), n, m))
+    own[np.arange(len(rows)), rows] = (1.0 / total[rows])[:, None]  # own spread, Σ_j z_ji / Σ_j c_ii,jj
+    own = own.reshape(len(rows), n * m)
+
+    def inverse_variance(w: np.ndarray) -> np.ndarray:
+        return 1.0 / np.maximum(np.einsum("ra,ab,rb->r", w, Q, w), 1e-12)
+
+    d_pool, d_own = inverse_variance(pooled)[:, None], inverse_variance(own)[:, None]
+    weights = (d_own * own + d_pool * pooled) / (d_own + d_pool)
+    ratio[rows] = weights @ z.T.ravel()
+    dof[rows] = np.maximum(inverse_variance(weights), 1.0)
     return ratio, dof
 
 
@@ -628,7 +636,8 @@ def _score_covariances(A: np.ndarray, P: np.ndarray | None) -> tuple[np.ndarray,
                 dof[i] = spread ** 2 / float(np.sum(C ** 2))
         return factor, dof, None
     X = A @ Mi  # (m, n, n): column i of X_j is A_j b_i
-    T = np.einsum("jai,ab,lbk->jlik", X, Mi @ S @ Mi - 2.0 * Mi, X, optimize=True)  # b_iᵀ C_jl b_k
+    Y = np.einsum("ab,lbk->lak", Mi @ S @ Mi - 2.0 * Mi, X)
+    T = np.tensordot(X, Y, axes=([1], [1])).transpose(0, 2, 1, 3)  # (j, l, i, k): b_iᵀ C_jl b_k
     T[np.arange(m), np.arange(m)] += np.einsum("ai,jak->jik", Mi, X)
     E = np.einsum("jjii->i", T)
     factor, dof = np.ones(n), np.full(n, max(m - 1.0, 1.0))
