@@ -2,8 +2,11 @@
 
 CasADi's own ``jit`` option recompiles on every process start; the estimator evaluates the same
 sensitivity function for every iteration of every run, so the generated C is compiled once into a
-library under the user's cache directory, keyed by the hash of its source, and loaded with
-``casadi.external``. Without a C compiler the CasADi virtual machine evaluates the same function.
+library under the user's cache directory and loaded with ``casadi.external``. The library is keyed by the
+functions' own serialization (with CasADi's version, the compiler and its flags): a cached one is loaded
+without eliminating common subexpressions or generating C again, which on the estimator's sensitivity
+function costs more than building it. Without a C compiler the CasADi virtual machine evaluates the same
+function.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ import hashlib
 import logging
 import os
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 import casadi as ca
@@ -29,21 +33,36 @@ def cache_dir() -> Path:
     return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "uavfmu"
 
 
-def compiled(functions: list[ca.Function], tag: str) -> list[ca.Function]:
-    """The same functions, compiled (or unchanged when no compiler is available or compiling fails)."""
+#: what the key hashes besides the functions; change it when the library built from the same functions changes
+KEY_FORMAT = "jit-1 -O1"
+
+
+def compiled(functions: list[ca.Function], tag: str,
+             build: Callable[[], list[ca.Function]] | None = None) -> list[ca.Function]:
+    """The same functions, compiled (or unchanged when no compiler is available or compiling fails).
+    ``build``: the same functions in the form to generate C from (e.g. with common subexpressions eliminated,
+    same names and values), called only when no library of ``functions`` is cached yet; without a compiler its
+    functions are returned (the virtual machine evaluates them)."""
     compiler = os.environ.get("CC") or find_compiler()
     if compiler is None:
         log.info("no C compiler found: evaluating %s in the CasADi virtual machine", tag)
-        return functions
-    with tempfile.TemporaryDirectory() as tmp:
-        gen = ca.CodeGenerator(f"{tag}.c", {"with_header": False})
-        for f in functions:
-            gen.add(f)
-        gen.generate(tmp + os.sep)
-        src = Path(tmp) / f"{tag}.c"
-        digest = hashlib.sha256(src.read_bytes()).hexdigest()[:16]
-        lib = cache_dir() / f"{tag}_{digest}.so"
-        if not lib.exists():
+        return build() if build is not None else functions
+    key = hashlib.sha256()
+    for part in (KEY_FORMAT, ca.__version__, compiler, *(f.serialize() for f in functions)):
+        key.update(part.encode())
+        key.update(b"\0")
+    lib = cache_dir() / f"{tag}_{key.hexdigest()[:16]}.so"
+    if not lib.exists():
+        source = build() if build is not None else functions
+        if [f.name() for f in source] != [f.name() for f in functions]:
+            raise ValueError(f"compiled {tag}: build gave {[f.name() for f in source]}, "
+                             f"not {[f.name() for f in functions]}")
+        with tempfile.TemporaryDirectory() as tmp:
+            gen = ca.CodeGenerator(f"{tag}.c", {"with_header": False})
+            for f in source:
+                gen.add(f)
+            gen.generate(tmp + os.sep)
+            src = Path(tmp) / f"{tag}.c"
             lib.parent.mkdir(parents=True, exist_ok=True)
             partial = lib.with_suffix(f".{os.getpid()}.tmp")
             log.info("compiling %s (%d kB of C) into %s", tag, src.stat().st_size // 1024, lib)
@@ -52,6 +71,6 @@ def compiled(functions: list[ca.Function], tag: str) -> list[ca.Function]:
                 compile_library(src, partial, compiler, optimisation="-O1")
             except CompileError as exc:
                 log.warning("compiling %s failed, using the CasADi virtual machine: %s", tag, exc)
-                return functions
+                return source
             partial.replace(lib)  # atomic: concurrent runs never load a half-written library
     return [ca.external(f.name(), str(lib)) for f in functions]

@@ -876,9 +876,11 @@ class OutputErrorEstimator:
         #: sensor low-pass per output [Hz]: the model output passes the same filter before it meets the data
         self.output_filters = dict(output_filters or {})
         plain = self._plain_step()
-        sens = self._sensitivity_step()
-        if compile:
-            plain, sens = compiled([plain, sens], f"oem_{model.name}")
+        if compile:  # keyed by the function before its common subexpressions are eliminated (the costly part)
+            plain, sens = compiled([plain, self._sensitivity_step(eliminate=False)], f"oem_{model.name}",
+                                   build=lambda: [plain, self._sensitivity_step()])
+        else:
+            sens = self._sensitivity_step()
         self._step, self._sens = plain, sens
         self._maps: dict[tuple[str, int], ca.Function] = {}
 
@@ -942,8 +944,9 @@ class OutputErrorEstimator:
         x1, y1 = step(x, u, p, dt)
         return ca.Function("oem_step", [x, u, p, dt], [x1, y1[self.i_out]])
 
-    def _sensitivity_step(self) -> ca.Function:
-        """``(xa, u, p, dt) -> (xa_next, [y; vec(dy/dθ)])`` with ``xa = [x; vec(S)]``, ``S = dx/dθ``.
+    def _sensitivity_step(self, eliminate: bool = True) -> ca.Function:
+        """``(xa, u, p, dt) -> (xa_next, [y; vec(dy/dθ)])`` with ``xa = [x; vec(S)]``, ``S = dx/dθ``; its common
+        subexpressions eliminated unless ``eliminate`` is False (the same values; the key of its compiled library).
 
         θ is the free parameters followed by the estimated initial states (whose sensitivity enters only
         through ``S0``). RK4 on ``ẋ = f``, ``Ṡ = f_x S + f_θ`` with shared stages equals the Jacobian of the
@@ -979,7 +982,9 @@ class OutputErrorEstimator:
         out_f = ca.Function("out", [xs, u, p], [y, ca.jacobian(y, xs), ca.jacobian(y, th)])
         y1, Hx, Hth = out_f(x1, u, p)
         dy = Hx @ S1 + ca.horzcat(Hth, ca.SX(len(self.i_out), ns - nth))
-        xa1, ya = ca.cse([ca.vertcat(x1, ca.vec(S1)), ca.vertcat(y1, ca.vec(dy))])
+        xa1, ya = ca.vertcat(x1, ca.vec(S1)), ca.vertcat(y1, ca.vec(dy))
+        if eliminate:
+            xa1, ya = ca.cse([xa1, ya])
         return ca.Function("oem_sens", [ca.vertcat(x, ca.vec(S)), u, p, dt], [xa1, ya])
 
     def _run(self, kind: str, xa0: np.ndarray, u: np.ndarray, p: np.ndarray, dt: float
