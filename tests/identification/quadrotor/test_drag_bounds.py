@@ -87,3 +87,13 @@ def test_variance_matches_the_exact_one_of_a_centred_moving_average_residual():
         _, cov = hac_least_squares(xs, ys, min_lags=4 * smooth)
         ratios.append(cov[0, 0] / _exact_variance(xs, smooth))
     assert 0.92 <= np.mean(ratios) <= 1.08, np.mean(ratios)
+
+
+def test_lagged_products_by_fft_equal_the_products_lag_by_lag():
+    from identification.estimation.least_squares import _lagged
+
+    rng = np.random.default_rng(7)
+    for n, p, lags in ((600, 1, 320), (97, 3, 97), (5, 2, 2), (1, 1, 1)):
+        x = rng.normal(size=(n, p))
+        direct = np.array([x[:n - k].T @ x[k:] for k in range(lags)])
+        np.testing.assert_allclose(_lagged(x, lags), direct, rtol=0, atol=1e-12 * max(1.0, float(np.abs(x).sum())))
