@@ -10,7 +10,7 @@ MUT_STAMP := $(VENV)/.installed-mutation
 
 .PHONY: demo demo-real test lint bench fmus clean mutation docs docs-check libtbb
 
-# uv (from PyPI) installs what pip would, in under half the time: parallel downloads, and the bytecode compiled in
+# uv (from PyPI) installs what pip would, faster: parallel downloads, and the bytecode compiled in
 # parallel (--compile-bytecode: where PYTHONDONTWRITEBYTECODE is set, nothing would cache it on first import). pip
 # does the install where uv cannot be installed or cannot install (no wheel for this machine).
 INSTALL = { $(PY) -m pip install --quiet uv && $(PY) -m uv pip install --quiet --python $(PY) --compile-bytecode $(1); } \
