@@ -50,7 +50,8 @@ def _raw_signals(ulog: ULog) -> tuple[dict[str, Signal], list[str]]:
             arr = np.asarray(vals)
             if fld != "timestamp" and arr.shape == t.shape and arr.dtype.kind in "iufb":
                 key = f"{prefix}.{fld}"
-                signals[key] = Signal(key, t, arr.astype(float), "", f"raw {key}")
+                with np.errstate(invalid="ignore"):  # a damaged float's signalling NaN reads as NaN, no warning
+                    signals[key] = Signal(key, t, arr.astype(float), "", f"raw {key}")
     return signals, skipped
 
 

@@ -131,6 +131,23 @@ def _ulog(path: Path, jump: float | None) -> Path:
     return path
 
 
+def test_a_signalling_nan_in_a_ulog_float_reads_as_nan_without_a_warning(tmp_path: Path) -> None:
+    """Damaged bytes can form a float32 signalling NaN; widening it to float64 raises the invalid flag (numpy
+    warns). The reader keeps the sample as NaN, quietly, and the rest of the signal as logged."""
+    import warnings
+
+    data = bytearray(_ulog(tmp_path / "ok.ulg", None).read_bytes())
+    good = struct.pack("<f", 12.4)
+    at = data.index(good)
+    data[at:at + 4] = struct.pack("<I", 0x7F800001)  # the first voltage sample: a signalling NaN
+    (tmp_path / "snan.ulg").write_bytes(bytes(data))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        log = read_log(tmp_path / "snan.ulg")
+    volts = log.signals["battery_status.voltage_v"].values
+    assert np.isnan(volts[0]) and np.all(volts[1:] == np.float32(12.4))
+
+
 def _csv(path: Path, jump: float | None) -> Path:
     rows = [f"{t!r},{-9.8 + 0.01 * math.sin(t)!r},1500,12.5" for t in _times(20.0, jump).tolist()]
     path.write_text("time_s,az,pwm1,vbat\n" + "\n".join(rows) + "\n")
