@@ -467,8 +467,8 @@ def segment_scatter(A: np.ndarray, g: np.ndarray, P: np.ndarray | None, crb: np.
     z = s2 / scale[None, :]  # (m, n): squared scores in units of the residual model's scale
     if start is not None:
         z = z / (1.0 + start_score_variance(A, Mi, start) / np.maximum(E.T * scale[None, :], 1e-300))
-    # the variance of a weighted sum Σ w_kj z_jk of squared scores is 2 wᵀ Q w / scale², Q[(k, j), (l, m)] =
-    # T[j, m, k, l]² (Gaussian scores); every parameter's weights as one row, (k, j) flattened
+    # each parameter's weights w on z as one row, (k, j) flattened; the degrees of freedom of a weighted sum are
+    # 1 / wᵀ Q w with Q[(k, j), (l, m)] = T[j, m, k, l]² (Satterthwaite, as the loop over parameters had them)
     Q = (T ** 2).transpose(2, 0, 3, 1).reshape(n * m, n * m)
     rows = np.flatnonzero(ok)
     pooled = (share[rows][:, None, :] * gamma[None]).reshape(len(rows), n * m)  # Σ_j π_ij κ_j
