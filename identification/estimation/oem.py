@@ -468,7 +468,7 @@ def segment_scatter(A: np.ndarray, g: np.ndarray, P: np.ndarray | None, crb: np.
     if start is not None:
         z = z / (1.0 + start_score_variance(A, Mi, start) / np.maximum(E.T * scale[None, :], 1e-300))
     # each parameter's weights w on z as one row, (k, j) flattened; the degrees of freedom of a weighted sum are
-    # 1 / wᵀ Q w with Q[(k, j), (l, m)] = T[j, m, k, l]² (Satterthwaite, as the loop over parameters had them)
+    # 1 / wᵀ Q w with Q[(k, j), (l, m)] = T[j, m, k, l]² (Satterthwaite, for Gaussian scores)
     Q = (T ** 2).transpose(2, 0, 3, 1).reshape(n * m, n * m)
     rows = np.flatnonzero(ok)
     pooled = (share[rows][:, None, :] * gamma[None]).reshape(len(rows), n * m)  # Σ_j π_ij κ_j
