@@ -51,14 +51,17 @@ fmus: $(STAMP)
 	$(PY) build_fmus.py --out dist
 
 # our sources' bytecode is written once before the suite: where PYTHONDONTWRITEBYTECODE is set (CI images often set
-# it) every test worker, Dask worker and subprocess would otherwise compile them again on import
+# it) every test worker, Dask worker and subprocess would otherwise compile them again on import. pytest runs without
+# it: pytest caches its assertion-rewritten test modules only where bytecode may be written, and without that cache
+# each of its processes rewrites every test module again while collecting
+PYTEST := env -u PYTHONDONTWRITEBYTECODE $(PY) -m pytest
 test: $(STAMP) libtbb
 	$(PY) -m ruff check .
 	$(VENV)/bin/lint-imports
 	$(PY) -m compileall -q -j 0 fmu_models identification hil_adapter uavfmu bench tests build_fmus.py > /dev/null
-	@$(PY) -m pytest -q -n $(TEST_WORKERS) -m "not realtime"; rc=$$?; \
+	@$(PYTEST) -q -n $(TEST_WORKERS) -m "not realtime"; rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "make test: pytest collected no tests - the suite is missing" >&2; fi; \
-	$(PY) -m pytest -q -m realtime; rt=$$?; \
+	$(PYTEST) -q -m realtime; rt=$$?; \
 	if [ $$rt -eq 5 ]; then echo "make test: no wall-clock pacing tests collected" >&2; fi; \
 	if [ $$rc -ne 0 ]; then exit $$rc; fi; exit $$rt
 

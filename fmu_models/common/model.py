@@ -8,6 +8,11 @@ The generic step (``step_function``) and the FMI layer only see these and the va
 
 from __future__ import annotations
 
+import dataclasses
+import json
+import threading
+from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import Any, Protocol
@@ -75,9 +80,67 @@ class VehicleModel(Protocol):
     def post_step(self, x: Any, u: Any, p: Any) -> Any: ...
 
 
+def fingerprint(value: Any) -> str | None:
+    """A string equal for equal values of plain data (numbers, strings, None, tuples, lists, dicts and dataclasses
+    of them; floats to the last bit), None for anything else: a key :func:`traced` can trust."""
+    def plain(v: Any) -> Any:
+        if v is None or isinstance(v, (bool, int, str)):
+            return v
+        if isinstance(v, float):
+            return ["float", v.hex()]
+        if isinstance(v, (tuple, list)):
+            return [type(v).__name__, [plain(x) for x in v]]
+        if isinstance(v, dict):
+            return ["dict", [[plain(k), plain(x)] for k, x in v.items()]]
+        if dataclasses.is_dataclass(v) and not isinstance(v, type):
+            return [type(v).__module__, type(v).__qualname__,
+                    [[f.name, plain(getattr(v, f.name))] for f in dataclasses.fields(v)]]
+        raise TypeError(type(v).__name__)
+
+    try:
+        return json.dumps(plain(value), separators=(",", ":"))
+    except TypeError:
+        return None
+
+
+#: most symbolic functions :func:`traced` keeps per process
+TRACED_MAX = 64
+_TRACED: OrderedDict[tuple[Any, ...], ca.Function] = OrderedDict()
+_TRACED_LOCK = threading.Lock()
+
+
+def traced(kind: str, model: VehicleModel, args: tuple[Any, ...], make: Callable[[], ca.Function]) -> ca.Function:
+    """The function ``make()`` traces from ``model``'s equations, kept per process and reused for a model of the
+    same structure. Tracing a model (and eliminating its common subexpressions) takes 0.1-0.5 s, and one process
+    builds the same model's functions many times over: every simulator, estimator, excitation check and FMU
+    build. The key is the model's ``structure_key()`` (a string that determines every function of the model, e.g.
+    its class and parameter defaults), ``kind`` and ``args``; a model without one, or whose key is None, is traced
+    every time. CasADi functions are immutable, so callers share one safely."""
+    key_of = getattr(model, "structure_key", None)
+    structure = key_of() if callable(key_of) else None
+    if structure is None:
+        return make()
+    key = (kind, structure, args)
+    with _TRACED_LOCK:
+        f = _TRACED.get(key)
+        if f is not None:
+            _TRACED.move_to_end(key)
+            return f
+    f = make()
+    with _TRACED_LOCK:
+        _TRACED[key] = f
+        while len(_TRACED) > TRACED_MAX:
+            _TRACED.popitem(last=False)
+    return f
+
+
 def step_function(model: VehicleModel, name: str = "step", with_outputs: bool = True) -> ca.Function:
     """``step(x, u, p, dt) -> (x_next, y_next)``: one fixed RK4 step and the outputs after it (``x_next`` alone
     without ``with_outputs``: a caller that sub-steps evaluates the outputs once, after the last step)."""
+    return traced("step", model, (name, with_outputs), lambda: _step_function(model, name, with_outputs))
+
+
+def _step_function(model: VehicleModel, name: str, with_outputs: bool) -> ca.Function:
     x = model.states.sym("x")
     u = model.inputs.sym("u")
     p = model.params.sym("p")
@@ -97,6 +160,10 @@ def step_function(model: VehicleModel, name: str = "step", with_outputs: bool = 
 
 def init_function(model: VehicleModel, name: str = "init") -> ca.Function:
     """``init(u, p) -> (x0, y0)``: the initial state from the parameters and the outputs there."""
+    return traced("init", model, (name,), lambda: _init_function(model, name))
+
+
+def _init_function(model: VehicleModel, name: str) -> ca.Function:
     u = model.inputs.sym("u")
     p = model.params.sym("p")
     x0 = model.initial_state(p, u)
@@ -106,15 +173,17 @@ def init_function(model: VehicleModel, name: str = "init") -> ca.Function:
 
 def derivative_function(model: VehicleModel) -> ca.Function:
     """``f(x, u, p) -> x_dot``, for linearisation, trim and identification."""
-    x = model.states.sym("x")
-    u = model.inputs.sym("u")
-    p = model.params.sym("p")
-    return ca.Function("f", [x, u, p], [model.derivatives(0.0, x, u, p)], ["x", "u", "p"], ["x_dot"])
+    def make() -> ca.Function:
+        x, u, p = model.states.sym("x"), model.inputs.sym("u"), model.params.sym("p")
+        return ca.Function("f", [x, u, p], [model.derivatives(0.0, x, u, p)], ["x", "u", "p"], ["x_dot"])
+
+    return traced("derivatives", model, (), make)
 
 
 def output_function(model: VehicleModel) -> ca.Function:
     """``h(x, u, p) -> y``."""
-    x = model.states.sym("x")
-    u = model.inputs.sym("u")
-    p = model.params.sym("p")
-    return ca.Function("h", [x, u, p], [model.outputs_fn(x, u, p)], ["x", "u", "p"], ["y"])
+    def make() -> ca.Function:
+        x, u, p = model.states.sym("x"), model.inputs.sym("u"), model.params.sym("p")
+        return ca.Function("h", [x, u, p], [model.outputs_fn(x, u, p)], ["x", "u", "p"], ["y"])
+
+    return traced("outputs", model, (), make)

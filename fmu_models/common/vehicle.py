@@ -14,7 +14,7 @@ from typing import Any
 import casadi as ca
 
 from fmu_models.common import wgs84
-from fmu_models.common.model import Layout, Variable
+from fmu_models.common.model import Layout, Variable, fingerprint
 from fmu_models.common.params import to_variables
 from fmu_models.common.rigid_body import (
     euler_from_quat,
@@ -178,6 +178,11 @@ def normalize_quaternion(x: Any) -> Any:
     return ca.vertcat(x[0:6], qn, x[10:])
 
 
+def _no_structure_key(self: Any) -> None:
+    """A subclass's constructor may take more than the defaults: traced anew every time."""
+    return None
+
+
 class BodyVehicleModel:
     """The part of a ``VehicleModel`` every vehicle shares (see ``fmu_models.common.model``).
 
@@ -206,6 +211,18 @@ class BodyVehicleModel:
         self.inputs = Layout(inputs)
         self.params = Layout(INIT_PARAMS + GROUND_PARAMS + to_variables(defaults) + params)
         self.outputs = Layout(NAV_OUTPUTS + outputs)
+
+    def structure_key(self) -> str | None:
+        """What determines this model's symbolic functions (``fmu_models.common.model.traced``): its class and its
+        parameter defaults, the one constructor argument. A subclass that defines ``__init__`` traces anew every
+        time unless it defines its own ``structure_key`` holding every argument its constructor takes."""
+        fp = fingerprint(self.defaults)
+        return None if fp is None else f"{type(self).__module__}.{type(self).__qualname__}:{fp}"
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "__init__" in cls.__dict__ and "structure_key" not in cls.__dict__:
+            cls.structure_key = _no_structure_key  # type: ignore[method-assign]
 
     def forces_moments(self, x: Any, u: Any, p: Any) -> tuple[Any, Any, dict[str, Any]]:
         raise NotImplementedError

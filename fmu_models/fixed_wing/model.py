@@ -60,6 +60,10 @@ class FixedWingModel(vehicle.BodyVehicleModel):
         )
         super().__init__(params or FixedWingParams(), inputs, outputs=outputs)
 
+    def structure_key(self) -> str | None:
+        """Built from its parameter defaults alone (``BodyVehicleModel.structure_key``)."""
+        return super().structure_key()
+
     # ------------------------------------------------------------------ pieces
     def air_data(self, x: Any, p: Any) -> tuple[Any, Any, Any, Any, Any]:
         """``(v_air_body, Va, alpha, beta, rho)`` at state ``x``."""

@@ -83,6 +83,10 @@ class QuadrotorModel(vehicle.BodyVehicleModel):
         )
         self.gear_points = self._gear_points()
 
+    def structure_key(self) -> str | None:
+        """Built from its parameter defaults alone (``BodyVehicleModel.structure_key``)."""
+        return super().structure_key()
+
     def _gear_points(self) -> list[tuple[float, float, float]]:
         """Four landing-gear points under the arms, at CG height (the NED origin is the landed CG)."""
         r = 0.6 * self.defaults.arm_length_m

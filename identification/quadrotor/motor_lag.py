@@ -42,6 +42,11 @@ class ExactLagModel(QuadrotorModel):
         self.sample_s = float(sample_s)
         self.lag0 = int(self.states.index["thrust_state_1_N"])  #: motor 1's lag state (after the body states)
 
+    def structure_key(self) -> str | None:
+        """The quadrotor's key and the step ``sample_s`` the exact lag is solved over."""
+        key = super().structure_key()
+        return None if key is None else f"{key}:sample_s={self.sample_s.hex()}"
+
     def _lag_at(self, x: Any, u: Any, p: Any, t: Any, impulse: bool = False) -> list[Any]:
         """Per-motor thrust [N] ``t`` [s] after the step's start from the lag states ``x`` held then.
 
