@@ -137,10 +137,13 @@ def traced(kind: str, model: VehicleModel, args: tuple[Any, ...], make: Callable
 def step_function(model: VehicleModel, name: str = "step", with_outputs: bool = True) -> ca.Function:
     """``step(x, u, p, dt) -> (x_next, y_next)``: one fixed RK4 step and the outputs after it (``x_next`` alone
     without ``with_outputs``: a caller that sub-steps evaluates the outputs once, after the last step)."""
-    return traced("step", model, (name, with_outputs), lambda: _step_function(model, name, with_outputs))
+    full = traced("step", model, (), lambda: _step_function(model))
+    if name == "step" and with_outputs:
+        return full
+    return traced("step", model, (name, with_outputs), lambda: _renamed(full, name, 2 if with_outputs else 1))
 
 
-def _step_function(model: VehicleModel, name: str, with_outputs: bool) -> ca.Function:
+def _step_function(model: VehicleModel) -> ca.Function:
     x = model.states.sym("x")
     u = model.inputs.sym("u")
     p = model.params.sym("p")
@@ -150,25 +153,31 @@ def _step_function(model: VehicleModel, name: str, with_outputs: bool) -> ca.Fun
         return model.derivatives(t, xx, u, p)
 
     x1 = model.post_step(rk4_step(f, 0.0, x, dt), u, p)
-    if not with_outputs:
-        return ca.Function(name, [x, u, p, dt], [ca.cse(x1)], ["x", "u", "p", "dt"], ["x_next"])
     y1 = model.outputs_fn(x1, u, p)
     # u and p are constant over the step, so the four RK4 stages share much work: eliminate it once.
     x1, y1 = ca.cse([x1, y1])
-    return ca.Function(name, [x, u, p, dt], [x1, y1], ["x", "u", "p", "dt"], ["x_next", "y"])
+    return ca.Function("step", [x, u, p, dt], [x1, y1], ["x", "u", "p", "dt"], ["x_next", "y"])
+
+
+def _renamed(f: ca.Function, name: str, n_out: int) -> ca.Function:
+    """``f`` (SX) under another name with its first ``n_out`` outputs: milliseconds, where tracing the model's
+    equations again takes a good part of a second (an SX function's expressions hold only what its outputs need)."""
+    args = [ca.SX.sym(f.name_in(i), f.sparsity_in(i)) for i in range(f.n_in())]
+    return ca.Function(name, args, f.call(args)[:n_out], f.name_in(), [f.name_out(i) for i in range(n_out)])
 
 
 def init_function(model: VehicleModel, name: str = "init") -> ca.Function:
     """``init(u, p) -> (x0, y0)``: the initial state from the parameters and the outputs there."""
-    return traced("init", model, (name,), lambda: _init_function(model, name))
+    full = traced("init", model, (), lambda: _init_function(model))
+    return full if name == "init" else traced("init", model, (name,), lambda: _renamed(full, name, 2))
 
 
-def _init_function(model: VehicleModel, name: str) -> ca.Function:
+def _init_function(model: VehicleModel) -> ca.Function:
     u = model.inputs.sym("u")
     p = model.params.sym("p")
     x0 = model.initial_state(p, u)
     x0, y0 = ca.cse([x0, model.outputs_fn(x0, u, p)])
-    return ca.Function(name, [u, p], [x0, y0], ["u", "p"], ["x0", "y0"])
+    return ca.Function("init", [u, p], [x0, y0], ["u", "p"], ["x0", "y0"])
 
 
 def derivative_function(model: VehicleModel) -> ca.Function:

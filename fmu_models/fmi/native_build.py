@@ -25,7 +25,7 @@ from xml.etree import ElementTree as ET
 
 import casadi as ca
 
-from fmu_models.common.model import Variable, VehicleModel
+from fmu_models.common.model import Variable, VehicleModel, derivative_function, output_function
 from fmu_models.fmi import codegen, fmuzip, statemachine, zigcc
 from fmu_models.fmi.postprocess import complete_model_description, unit_definitions
 
@@ -76,7 +76,8 @@ def tunable_parameters(model: VehicleModel) -> set[str]:
     correction depend on, and the internal step. The others (e.g. ``init_*``) only shape the initial state:
     they are ``fixed`` (settable until initialisation ends)."""
     x, u, p = model.states.sym("x"), model.inputs.sym("u"), model.params.sym("p")
-    expr = ca.vertcat(model.derivatives(0.0, x, u, p), model.outputs_fn(x, u, p), model.post_step(x, u, p))
+    # the traced functions (kept per model structure) called on symbols: the same expressions, not traced again
+    expr = ca.vertcat(derivative_function(model)(x, u, p), output_function(model)(x, u, p), model.post_step(x, u, p))
     used = ca.which_depends(expr, p, 1, False)
     return {n for n, d in zip(model.params.names, used, strict=True) if d} | {"step_internal_s"}
 

@@ -20,7 +20,7 @@ def test_models_of_one_structure_share_their_functions_and_equal_a_fresh_trace()
     a, b = QuadrotorModel(), QuadrotorModel(QuadrotorParams())
     for fn in (step_function, init_function, derivative_function, output_function):
         assert fn(a) is fn(b), fn.__name__
-    fresh = model_module._step_function(a, "step", True)  # traced anew, no cache
+    fresh = model_module._step_function(a)  # traced anew, no cache
     x, u, p = a.states.starts(), [1600.0] * 4 + [11.1], a.params.starts()
     x[9] = 1.0 if x[6] == 0.0 else x[9]
     for got, want in zip(step_function(a)(x, u, p, 0.004), fresh(x, u, p, 0.004), strict=True):
