@@ -14,6 +14,7 @@ Step Mode being the table's StepComplete. At least 1000 sequences (printed).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterator
 from typing import Any, ClassVar
@@ -67,11 +68,12 @@ NO_ARGUMENTS = ("stepMode", "eventMode", "config", "exitConfig", "evaluate", "ct
                 "dependencies")
 
 
-def _call_ops(every_vr: list[int], settable: list[int]) -> st.SearchStrategy[list[list[Any]]]:
+@functools.cache  # built once: a strategy built anew for every sequence costs Hypothesis more than the FMU calls
+def _call_ops(every_vr: tuple[int, ...], settable: tuple[int, ...]) -> st.SearchStrategy[list[list[Any]]]:
     """One call, or a burst of calls on one instance: values set into inputs and parameters (``settable``), then
     what makes the model check them (a step, the end of initialisation, outputs, derivatives)."""
     single = st.one_of(
-        *fo.shared_ops(every_vr, ["Float64", "Float64", "Float64", "Boolean", "Int32", "String"],
+        *fo.shared_ops(list(every_vr), ["Float64", "Float64", "Float64", "Boolean", "Int32", "String"],
                        (st.sampled_from([0, 0, 0, 1]),), 3),
         st.tuples(st.just("inst"), MODEL, SLOT, st.integers(0, ME)).map(list),
         st.tuples(st.just("enter"), MODEL, SLOT, *SETUP).map(list),
@@ -84,7 +86,7 @@ def _call_ops(every_vr: list[int], settable: list[int]) -> st.SearchStrategy[lis
     ).map(lambda op: [op])
     then = st.sampled_from([["step", 0, 0, 0, 0.0, 0.01, 0], ["exit", 0, 0], ["getState", 0, 0], ["me", 0, 0, 1, 0],
                             ["get", 0, 0, "Float64", [OUT, OUT + 1], [], 0], ["me", 0, 0, 7, 0]])
-    burst = st.tuples(st.lists(st.sampled_from(settable), min_size=1, max_size=2), st.lists(VALUES, max_size=2),
+    burst = st.tuples(st.lists(st.sampled_from(list(settable)), min_size=1, max_size=2), st.lists(VALUES, max_size=2),
                       st.lists(then, min_size=1, max_size=3))
     own_state = st.one_of(  # "own": an FMU state of the instance's own model
         st.tuples(st.sampled_from(["setState", "freeState"]), st.just(0), st.just(0), st.just(OWN),
@@ -114,7 +116,7 @@ def sequences(draw: st.DrawFn, every_vr: list[int], settable: list[int]) -> list
             life += [["step", model, slot, 0, 0.0, 0.01, 0]] * draw(st.integers(0, 3))
         seq += life[: draw(st.integers(1, len(life)))]
         lives.append([model, slot])
-    for calls in draw(st.lists(_call_ops(every_vr, settable), min_size=1, max_size=12)):
+    for calls in draw(st.lists(_call_ops(tuple(every_vr), tuple(settable)), min_size=1, max_size=12)):
         target = draw(st.sampled_from(lives))
         aim = len(calls) > 1 or (calls[0][0] != "null" and draw(st.integers(0, 3)) > 0)
         seq += [[op[0], *target, *(target[0] if a == OWN else a for a in op[3:])] if aim else op for op in calls]

@@ -15,6 +15,7 @@ test_fmi3_sequences.py does the same for FMI 3.0.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterator
 from pathlib import Path
@@ -69,11 +70,12 @@ def backends(python_fmus: dict[str, Path], tmp_path_factory: pytest.TempPathFact
 
 
 # ----------------------------------------------------------------------------------------- strategies
-def _call_ops(every_vr: list[int]) -> st.SearchStrategy[list[Any]]:
+@functools.cache  # built once: a strategy built anew for every sequence costs Hypothesis more than the FMU calls
+def _call_ops(every_vr: tuple[int, ...]) -> st.SearchStrategy[list[Any]]:
     null_comp = st.sampled_from(["fmi2EnterInitializationMode", "fmi2ExitInitializationMode", "fmi2Terminate",
                                  "fmi2Reset", "fmi2CancelStep", "fmi2FreeInstance"])
     return st.one_of(
-        *shared_ops(every_vr, ["Real", "Real", "Real", "Boolean", "Integer", "String"], (), 2),
+        *shared_ops(list(every_vr), ["Real", "Real", "Real", "Boolean", "Integer", "String"], (), 2),
         st.tuples(st.just("inst"), MODEL, SLOT, st.integers(0, 5)).map(list),
         st.tuples(st.sampled_from(["enter", "cancel"]), MODEL, SLOT).map(list),
         st.tuples(st.just("setup"), MODEL, SLOT, *SETUP).map(list),
@@ -93,7 +95,7 @@ def sequences(draw: st.DrawFn, every_vr: list[int]) -> list[list[Any]]:
                 ["exit", model, slot]]
         life += [["step", model, slot, 0, 0.0, 0.01]] * draw(st.integers(0, 3))
         seq += life[: draw(st.integers(1, len(life)))]
-    return seq + draw(st.lists(_call_ops(every_vr), min_size=1, max_size=20))
+    return seq + draw(st.lists(_call_ops(tuple(every_vr)), min_size=1, max_size=20))
 
 
 #: instantiate, set up, initialise and make one step (slot 0 of the quadrotor), for explicit examples
