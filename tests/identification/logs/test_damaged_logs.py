@@ -11,6 +11,7 @@ At least 1000 examples in all; the counts per family are printed.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -186,8 +187,8 @@ def bases(tmp_path_factory: pytest.TempPathFactory) -> dict[tuple[str, float | N
 
 
 # ------------------------------------------------------------------------------------------------ damage
-@st.composite
-def damage(draw: Any, size: int) -> list[tuple]:
+@functools.cache  # built once per size: a strategy built anew for every example costs Hypothesis more than it draws
+def damage(size: int) -> st.SearchStrategy[list[tuple]]:
     """1..4 damage operations on a file of ``size`` bytes (positions as fractions, applied in order)."""
     frac = st.floats(0.0, 1.0)
     op = st.one_of(
@@ -198,7 +199,7 @@ def damage(draw: Any, size: int) -> list[tuple]:
         st.tuples(st.just("junk"), frac, st.binary(min_size=1, max_size=64)),
         st.tuples(st.just("insert"), frac, st.binary(min_size=1, max_size=64)),
     )
-    return draw(st.lists(op, min_size=1, max_size=4))
+    return st.lists(op, min_size=1, max_size=4)
 
 
 def _apply(data: bytes, ops: list[tuple]) -> bytes:
