@@ -111,7 +111,7 @@ _TRACED_LOCK = threading.Lock()
 
 def traced(kind: str, model: VehicleModel, args: tuple[Any, ...], make: Callable[[], ca.Function]) -> ca.Function:
     """The function ``make()`` traces from ``model``'s equations, kept per process and reused for a model of the
-    same structure. Tracing a model (and eliminating its common subexpressions) takes 0.1-0.5 s, and one process
+    same structure. Tracing a model (and eliminating its common subexpressions) takes 0.1-0.6 s, and one process
     builds the same model's functions many times over: every simulator, estimator, excitation check and FMU
     build. The key is the model's ``structure_key()`` (a string that determines every function of the model, e.g.
     its class and parameter defaults), ``kind`` and ``args``; a model without one, or whose key is None, is traced

@@ -214,8 +214,9 @@ class BodyVehicleModel:
 
     def structure_key(self) -> str | None:
         """What determines this model's symbolic functions (``fmu_models.common.model.traced``): its class and its
-        parameter defaults, the one constructor argument. A subclass that defines ``__init__`` traces anew every
-        time unless it defines its own ``structure_key`` holding every argument its constructor takes."""
+        parameter defaults, the one constructor argument (every attribute the equations read is set from them at
+        construction and not changed after). A subclass that defines ``__init__`` traces anew every time unless it
+        defines its own ``structure_key`` holding every argument its constructor takes."""
         fp = fingerprint(self.defaults)
         return None if fp is None else f"{type(self).__module__}.{type(self).__qualname__}:{fp}"
 
