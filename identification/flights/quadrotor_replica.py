@@ -202,9 +202,7 @@ def fly_replica(truth: QuadrotorParams, blocks: list[Block] | None = None, rate_
         pwm_log[k] = pwm
         u[:N_MOTORS] = pwm
         for _ in range(sub):
-            x, yk = sim.step(x, u, p, dt_sim)
-        x = np.asarray(x).ravel()
-        y = np.asarray(yk).ravel()
+            x, y = sim.step_arrays(x, u, p, dt_sim)
     signals = {n: Signal(n, t_ctrl.copy(), v, "", "replica") for n, v in cols.items()}
     # PX4's land detector (vehicle_land_detected.landed): airborne from the first sample, as the flight starts
     # in a hover
