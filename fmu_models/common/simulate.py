@@ -13,6 +13,7 @@ import casadi as ca
 import numpy as np
 
 from fmu_models.common.model import (
+    NumericCall,
     VehicleModel,
     derivative_function,
     init_function,
@@ -36,29 +37,15 @@ class Simulator:
         self.init = init_function(self.model)
         self.f = derivative_function(self.model)
         self.h = output_function(self.model)
-        self._step_io: tuple[Any, ...] | None = None
+        self._step_numeric: NumericCall | None = None
 
     def step_arrays(self, x: Any, u: Any, p: Any, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """``step`` on numbers: (next state, outputs after the step) as new 1-D arrays. Through CasADi's buffer
-        interface into arrays kept per simulator: a call with conversion to and from CasADi matrices costs several
-        times the step itself."""
-        if self._step_io is None:
-            f = self.step
-            args = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
-            res = [np.zeros(f.nnz_out(i)) for i in range(f.n_out())]
-            buf, evaluate = f.buffer()
-            for i, a in enumerate(args):
-                buf.set_arg(i, memoryview(a))
-            for i, r in enumerate(res):
-                buf.set_res(i, memoryview(r))
-            self._step_io = (buf, evaluate, args, res)
-        _, evaluate, (xa, ua, pa, dta), (xo, yo) = self._step_io
-        xa[:] = x
-        ua[:] = self.full_inputs(u)
-        pa[:] = p
-        dta[0] = dt_s
-        evaluate()
-        return xo.copy(), yo.copy()
+        """``step`` on numbers: (next state, outputs after the step) as new 1-D arrays (``NumericCall``: several
+        times faster per call than ``step`` with its conversions to and from CasADi matrices)."""
+        if self._step_numeric is None:
+            self._step_numeric = NumericCall(self.step)
+        x1, y1 = self._step_numeric(x, self.full_inputs(u), p, dt_s)
+        return x1, y1
 
     def params(self, **overrides: float) -> np.ndarray:
         """Default parameter vector with ``overrides`` by name (KeyError naming the unknown one)."""

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fmu_models.common.model import step_function
+from fmu_models.common.model import NumericCall, step_function
 from fmu_models.fixed_wing.model import SURFACE_LIMIT_RAD, FixedWingModel
 from fmu_models.signals.names import FIXED_WING_FIT_OUTPUTS as DEFAULT_OUTPUTS
 from identification.estimation.identifiability import CONDITION_LIMIT, CORRELATION_LIMIT, analyse, normalised
@@ -105,7 +105,7 @@ def fly_closed_loop(plan: ExcitationPlan, gains: Gains = Gains(), p: np.ndarray 
     """Fly ``plan`` on the model with parameters ``p`` (default: the plan's) under a PD attitude hold."""
     model = FixedWingModel(plan.params)
     p = np.array(model.params.starts()) if p is None else np.asarray(p, float)
-    step = step_function(model)
+    step = NumericCall(step_function(model))
     t = plan.times()
     dt = 1.0 / plan.options.rate_hz
     du = plan.deflection(t)
@@ -120,11 +120,10 @@ def fly_closed_loop(plan: ExcitationPlan, gains: Gains = Gains(), p: np.ndarray 
                                      -gains.pitch_p * (theta0 - pitch) + gains.pitch_d * qr,
                                      gains.yaw_damper * rr, 0.0])
         u[:3] = np.clip(u[:3], -SURFACE_LIMIT_RAD, SURFACE_LIMIT_RAD)
-        xn, y = step(x, u, p, dt)
-        x = np.asarray(xn, dtype=float).ravel()
+        x, y = step(x, u, p, dt)
         xs.append(x)
         us.append(u)
-        ys.append(np.asarray(y, dtype=float).ravel())
+        ys.append(y)
     X, Y = np.array(xs), np.array(ys)
     names = tuple(model.outputs.names)
     roll_i, pitch_i = names.index("roll_rad"), names.index("pitch_rad")

@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fmu_models.common.model import NumericCall
 from fmu_models.common.simulate import Simulator
 from fmu_models.fmi.jit import compiled
 from fmu_models.quadrotor.constants import N_MOTORS
@@ -94,7 +95,7 @@ def fly_closed_loop(plan: QuadExcitationPlan, compile: bool = True) -> QuadFligh
         notes.append(f"tau_motor_s = 0 in the parameters has no sensitivity: flown and checked at {CHECK_TAU_S:g} s")
     model = QuadrotorModel(params)
     sim = Simulator(model)
-    step = compiled([sim.step], "excite_quadrotor_step")[0] if compile else sim.step
+    step = NumericCall(compiled([sim.step], "excite_quadrotor_step")[0] if compile else sim.step)
     p = sim.params(init_pos_down_m=IN_AIR_DOWN_M)
     dt = 1.0 / plan.options.rate_hz
     t = plan.times()
@@ -141,8 +142,7 @@ def fly_closed_loop(plan: QuadExcitationPlan, compile: bool = True) -> QuadFligh
             act += lp.mix[j] * np.asarray(h.signs[a]) * cmd[j]
         u = u.copy()
         u[:N_MOTORS] = np.clip(PWM_MIN_US + act * span, PWM_MIN_US, PWM_MAX_US)
-        x1, y1 = step(x, u, p, dt)
-        x, y = np.asarray(x1).ravel(), np.asarray(y1).ravel()
+        x, y = step(x, u, p, dt)
         if not (np.all(np.isfinite(x)) and max(abs(y[out["roll_rad"]]), abs(y[out["pitch_rad"]])) < DIVERGED_RAD):
             raise ExciteError(f"the closed-loop check flight diverged at {t[k]:.2f} s of the plan (tilt beyond "
                               f"{math.degrees(DIVERGED_RAD):.0f} deg or a non-finite state): the {lp.name} loops at "

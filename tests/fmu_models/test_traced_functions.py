@@ -6,6 +6,7 @@ import dataclasses
 import math
 
 import numpy as np
+import pytest
 
 from fmu_models.common import model as model_module
 from fmu_models.common.model import derivative_function, fingerprint, init_function, output_function, step_function
@@ -93,3 +94,15 @@ def test_a_simulators_array_step_equals_its_casadi_step_bit_for_bit_and_returns_
         assert xb is not xa and not np.array_equal(xb, xa)
         x = xa
     assert xa.shape == (len(sim.model.states),) and ya.shape == (len(sim.model.outputs),)
+
+
+def test_a_numeric_call_refuses_an_argument_of_another_size_naming_it() -> None:
+    from fmu_models.common.model import NumericCall
+
+    m = QuadrotorModel()
+    call = NumericCall(step_function(m))
+    x, u, p = m.states.starts(), [1500.0] * 5, m.params.starts()
+    with pytest.raises(ValueError, match="argument x has 3 elements, allowed 20"):
+        call(x[:3], u, p, 0.004)
+    with pytest.raises(ValueError, match="argument dt has 2 elements, allowed 1"):
+        call(x, u, p, [0.004, 0.004])
