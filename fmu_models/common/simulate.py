@@ -41,7 +41,8 @@ class Simulator:
 
     def step_arrays(self, x: Any, u: Any, p: Any, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
         """``step`` on numbers: (next state, outputs after the step) as new 1-D arrays (``NumericCall``: several
-        times faster per call than ``step`` with its conversions to and from CasADi matrices)."""
+        times faster per call than ``step`` with its conversions to and from CasADi matrices). It keeps its
+        buffers in the simulator: one simulator per thread."""
         if self._step_numeric is None:
             self._step_numeric = NumericCall(self.step)
         x1, y1 = self._step_numeric(x, self.full_inputs(u), p, dt_s)
