@@ -112,11 +112,11 @@ _TRACED_LOCK = threading.Lock()
 
 def traced(kind: str, model: VehicleModel, args: tuple[Any, ...], make: Callable[[], ca.Function]) -> ca.Function:
     """The function ``make()`` traces from ``model``'s equations, kept per process and reused for a model of the
-    same structure. Tracing a model (and eliminating its common subexpressions) takes 0.1-0.6 s, and one process
-    builds the same model's functions many times over: every simulator, estimator, excitation check and FMU
-    build. The key is the model's ``structure_key()`` (a string that determines every function of the model, e.g.
-    its class and parameter defaults), ``kind`` and ``args``; a model without one, or whose key is None, is traced
-    every time. CasADi functions are immutable, so callers share one safely."""
+    same structure. Tracing a model (and eliminating its common subexpressions) takes a good part of a second,
+    and one process builds the same model's functions many times over: every simulator, estimator, excitation
+    check and FMU build. The key is the model's ``structure_key()`` (a string that determines every function of
+    the model, e.g. its class and parameter defaults), ``kind`` and ``args``; a model without one, or whose key is
+    None, is traced every time. CasADi functions are immutable, so callers share one safely."""
     key_of = getattr(model, "structure_key", None)
     structure = key_of() if callable(key_of) else None
     if structure is None:
@@ -138,7 +138,7 @@ def traced(kind: str, model: VehicleModel, args: tuple[Any, ...], make: Callable
 class NumericCall:
     """``f`` called on numbers many times over: its results as new 1-D arrays (column-major for a matrix output),
     through CasADi's buffer interface into arrays kept per caller. A call converting to and from CasADi matrices
-    costs several times a model step itself (measured on the quadrotor: 165 us against 28 us). Each argument is
+    costs several times a model step itself. Each argument is
     copied in (any array-like with the argument's number of elements, a scalar for a scalar); one caller is not
     to be shared between threads."""
 
