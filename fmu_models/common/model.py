@@ -139,8 +139,9 @@ class NumericCall:
     """``f`` called on numbers many times over: its results as new 1-D arrays (column-major for a matrix output),
     through CasADi's buffer interface into arrays kept per caller. A call converting to and from CasADi matrices
     costs several times a model step itself. Each argument is
-    copied in (any array-like with the argument's number of elements, a scalar for a scalar); one caller is not
-    to be shared between threads."""
+    copied in (any array-like with the argument's number of elements, a scalar for a scalar; a matrix argument's
+    elements in CasADi's column-major order, as a ``DM`` gives them); one caller is not to be shared between
+    threads."""
 
     def __init__(self, f: ca.Function) -> None:
         self.function = f
@@ -156,7 +157,7 @@ class NumericCall:
         if len(args) != len(self._args):
             raise TypeError(f"{self.function.name()}: {len(args)} arguments given, {len(self._args)} taken")
         for i, (a, v) in enumerate(zip(self._args, args, strict=True)):
-            v = np.ravel(v)
+            v = v.full().ravel(order="F") if isinstance(v, ca.DM) else np.ravel(v)
             if v.size != a.size:
                 raise ValueError(f"{self.function.name()}: argument {self.function.name_in(i)} has {v.size} "
                                  f"elements, allowed {a.size}")

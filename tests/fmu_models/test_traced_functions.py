@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -106,3 +107,6 @@ def test_a_numeric_call_refuses_an_argument_of_another_size_naming_it() -> None:
         call(x[:3], u, p, 0.004)
     with pytest.raises(ValueError, match="argument dt has 2 elements, allowed 1"):
         call(x, u, p, [0.004, 0.004])
+    x[6] = 1.0  # a unit quaternion
+    got = call(ca.DM(x), u, p, 0.004)  # CasADi matrices are read as CasADi gives them
+    np.testing.assert_array_equal(got[0], call(np.array(x), u, p, 0.004)[0])
