@@ -23,7 +23,11 @@ Faults: a task whose worker dies under it (a crashing FMU, SIGKILL, out of memor
 more, on another worker when there is one (not the worker it failed on, nor a worker of the same name: the one
 a nanny restarted in place of a worker that died); a task that fails twice is listed in
 :attr:`TaskRun.failures` with its error, and the rest completes. At most ``max_in_flight`` tasks are submitted
-at a time, so memory on client and workers is bounded by the tasks in flight, not by the number of tasks.
+at a time (default: one per worker thread), so memory on client and workers is bounded by the tasks in flight, not
+by the number of tasks. One per thread: no task waits on a worker behind another, so a task that kills its worker
+takes no queued task with it (with two per thread the scheduler queued a second task on each worker, and that task
+died with the first and was charged an attempt it never ran; the scheduler's own queue holds back only task groups
+larger than twice the threads).
 
 Results are dicts: ``numpy`` array values go to ``NNNNNN.npz``, the rest to ``NNNNNN.json`` (no pickle on disk).
 """
@@ -229,7 +233,7 @@ class Executor(AbstractContextManager):
             raise ValueError(f"{len(tasks)} tasks: allowed at most {MAX_TASKS:,}")
         run = _new_run(out_dir, len(tasks), self.threads())
         per_task = files if callable(files) else (lambda _task, common=list(files): common)
-        limit = max(1, max_in_flight or 2 * run.workers)
+        limit = max(1, max_in_flight or run.workers)
         attempt: dict[int, int] = {}
 
         def submit(i: int, avoid: tuple[str | None, Any] | None = None) -> None:

@@ -107,9 +107,8 @@ def test_real_cluster_gives_the_local_metrics_bit_for_bit(fixed_wing_fmu: Path, 
 
 def test_worker_killed_mid_batch_costs_one_retry(fixed_wing_fmu: Path, batch, tmp_path: Path) -> None:
     """SIGKILL to the worker process running a task after 8 results: every pair still gets its result, only the
-    tasks the killed worker held are retried (on the other worker or the restarted one: one, or two when the
-    scheduler had queued a second task on it, which it does with four in flight on two workers, see the
-    xfail in test_dask_parallel.py), each once, and a retried one matches an undisturbed run."""
+    tasks the killed worker held are retried (on the other worker or the restarted one: one task, as each worker
+    runs one at a time), each once, and a retried one matches an undisturbed run."""
     mapping, logs = batch
     jobs = _jobs(fixed_wing_fmu, mapping, logs[:16], tmp_path / "killed")
     with Executor(workers=2) as ex:

@@ -140,11 +140,10 @@ def sleep_then(task: dict) -> dict:
     return {"k": task["k"]}
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "measured: with four tasks in flight on two single-threaded workers the scheduler sends each worker two (the "
-    "worker-saturation queue only holds back root-ish task groups, larger than twice the threads), so a task "
-    "waiting behind one that kills its worker dies with it and is charged an attempt it never ran"))
 def test_a_task_waiting_behind_a_crashing_one_is_not_charged(tmp_path: Path) -> None:
+    """Four tasks on two single-threaded workers, the first killing its worker: only it is retried. With two
+    tasks in flight per worker thread the scheduler queued a second task on each worker, which died with the
+    crashing one and was charged an attempt it never ran."""
     log = tmp_path / "attempts.txt"
     tasks = [{"k": k, "log": str(log), "s": 0.5 if k == 0 else 0.3, "die": k == 0} for k in range(4)]
     with Executor(workers=2) as ex:
