@@ -172,7 +172,7 @@ def step_function(model: VehicleModel, name: str = "step", with_outputs: bool = 
     full = traced("step", model, (), lambda: _step_function(model))
     if name == "step" and with_outputs:
         return full
-    return traced("step", model, (name, with_outputs), lambda: _renamed(full, name, 2 if with_outputs else 1))
+    return traced("step", model, (name, with_outputs), lambda: renamed(full, name, 2 if with_outputs else 1))
 
 
 def _step_function(model: VehicleModel) -> ca.Function:
@@ -191,17 +191,21 @@ def _step_function(model: VehicleModel) -> ca.Function:
     return ca.Function("step", [x, u, p, dt], [x1, y1], ["x", "u", "p", "dt"], ["x_next", "y"])
 
 
-def _renamed(f: ca.Function, name: str, n_out: int) -> ca.Function:
-    """``f`` (SX) under another name with its first ``n_out`` outputs: milliseconds, where tracing the model's
-    equations again takes a good part of a second (an SX function's expressions hold only what its outputs need)."""
+def renamed(f: ca.Function, name: str, n_out: int | None = None, eliminate: bool = False) -> ca.Function:
+    """``f`` (SX) under another name with its first ``n_out`` outputs (all: None), each output's common
+    subexpressions eliminated with ``eliminate``: milliseconds, where tracing the model's equations again takes a
+    good part of a second (an SX function's expressions hold only what its outputs need)."""
     args = [ca.SX.sym(f.name_in(i), f.sparsity_in(i)) for i in range(f.n_in())]
-    return ca.Function(name, args, f.call(args)[:n_out], f.name_in(), [f.name_out(i) for i in range(n_out)])
+    outs = f.call(args)[:n_out]
+    if eliminate:
+        outs = [ca.cse(r) for r in outs]
+    return ca.Function(name, args, outs, f.name_in(), [f.name_out(i) for i in range(len(outs))])
 
 
 def init_function(model: VehicleModel, name: str = "init") -> ca.Function:
     """``init(u, p) -> (x0, y0)``: the initial state from the parameters and the outputs there."""
     full = traced("init", model, (), lambda: _init_function(model))
-    return full if name == "init" else traced("init", model, (name,), lambda: _renamed(full, name, 2))
+    return full if name == "init" else traced("init", model, (name,), lambda: renamed(full, name, 2))
 
 
 def _init_function(model: VehicleModel) -> ca.Function:

@@ -8,7 +8,14 @@ from pathlib import Path
 
 import casadi as ca
 
-from fmu_models.common.model import VehicleModel, derivative_function, init_function, output_function, step_function
+from fmu_models.common.model import (
+    VehicleModel,
+    derivative_function,
+    init_function,
+    output_function,
+    renamed,
+    step_function,
+)
 from fmu_models.fmi.statemachine import MAX_INTERNAL_STEPS
 
 
@@ -95,20 +102,14 @@ int {names["outputs"]}(const double* x, const double* u, const double* p, double
 """
 
 
-def _renamed(f: ca.Function, name: str) -> ca.Function:
-    """``f`` (SX inputs x, u, p) under a model-prefixed C name, common subexpressions eliminated."""
-    args = [ca.SX.sym(f.name_in(i), f.size1_in(i)) for i in range(f.n_in())]
-    return ca.Function(name, args, [ca.cse(r) for r in f.call(args)], f.name_in(), f.name_out())
-
-
 def generate(model: VehicleModel, out_dir: Path) -> dict[str, Path]:
     """Write ``<name>_model.c`` and the serialised ``<name>_step.casadi``/``<name>_init.casadi``."""
     prefix = f"uavfmu_{model.name}"
     step = step_function(model, f"{prefix}_step")
     init = init_function(model, f"{prefix}_init")
     funcs = {"step": step, "step_state": step_function(model, f"{prefix}_step_state", with_outputs=False),
-             "init": init, "derivatives": _renamed(derivative_function(model), f"{prefix}_derivatives"),
-             "outputs": _renamed(output_function(model), f"{prefix}_outputs")}
+             "init": init, "derivatives": renamed(derivative_function(model), f"{prefix}_derivatives", eliminate=True),
+             "outputs": renamed(output_function(model), f"{prefix}_outputs", eliminate=True)}
     out_dir.mkdir(parents=True, exist_ok=True)
     c_name = f"{model.name}_model.c"
     gen = ca.CodeGenerator(c_name, {"with_header": False, "casadi_real": "double", "casadi_int": "long long int"})
