@@ -15,7 +15,7 @@ from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
 from types import SimpleNamespace
-from typing import Any, Protocol
+from typing import Any, Protocol, TypeVar
 
 import casadi as ca
 import numpy as np
@@ -104,19 +104,22 @@ def fingerprint(value: Any) -> str | None:
         return None
 
 
+_T = TypeVar("_T")
+
 #: most symbolic functions :func:`traced` keeps per process
 TRACED_MAX = 64
-_TRACED: OrderedDict[tuple[Any, ...], ca.Function] = OrderedDict()
+_TRACED: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
 _TRACED_LOCK = threading.Lock()
 
 
-def traced(kind: str, model: VehicleModel, args: tuple[Any, ...], make: Callable[[], ca.Function]) -> ca.Function:
+def traced(kind: str, model: VehicleModel, args: tuple[Any, ...], make: Callable[[], _T]) -> _T:
     """The function ``make()`` traces from ``model``'s equations, kept per process and reused for a model of the
     same structure. Tracing a model (and eliminating its common subexpressions) takes a good part of a second,
     and one process builds the same model's functions many times over: every simulator, estimator, excitation
     check and FMU build. The key is the model's ``structure_key()`` (a string that determines every function of
     the model, e.g. its class and parameter defaults), ``kind`` and ``args``; a model without one, or whose key is
-    None, is traced every time. CasADi functions are immutable, so callers share one safely."""
+    None, is traced every time. CasADi functions are immutable, so callers share one safely (what ``make``
+    returns besides a function, e.g. an estimator's compiled steps, must be as safe to share)."""
     key_of = getattr(model, "structure_key", None)
     structure = key_of() if callable(key_of) else None
     if structure is None:

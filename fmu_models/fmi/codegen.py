@@ -139,6 +139,9 @@ def compile_library(c_file: Path, library: Path, compiler: str, extra: list[str]
                     optimisation: str = "-O2") -> None:
     """Compile generated C into a shared library; raise ``CompileError`` with the compiler's output."""
     cmd = [compiler, optimisation, "-fPIC", "-shared", "-o", str(library), str(c_file), "-lm", *(extra or [])]
-    proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    except OSError as err:  # no such compiler, not executable: the caller's CompileError, not a crash
+        raise CompileError(f"C compiler {compiler!r} could not be run: {err}") from None
     if proc.returncode != 0:
         raise CompileError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-4000:]}")

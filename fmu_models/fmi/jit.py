@@ -37,13 +37,20 @@ def cache_dir() -> Path:
 KEY_FORMAT = "jit-1 -O1"
 
 
+def jit_context() -> tuple[str | None, str, str]:
+    """What decides, besides the functions, what :func:`compiled` returns in this process: the compiler (``$CC``
+    or the machine's; None: the virtual machine), the cache folder and :data:`KEY_FORMAT`. A caller keeping
+    compiled functions per process keys them by this too."""
+    return os.environ.get("CC") or find_compiler(), str(cache_dir()), KEY_FORMAT
+
+
 def compiled(functions: list[ca.Function], tag: str,
              build: Callable[[], list[ca.Function]] | None = None) -> list[ca.Function]:
     """The same functions, compiled (or unchanged when no compiler is available or compiling fails).
     ``build``: the same functions in the form to generate C from (e.g. with common subexpressions eliminated,
     same names and values), called only when no library of ``functions`` is cached yet; without a compiler its
     functions are returned (the virtual machine evaluates them)."""
-    compiler = os.environ.get("CC") or find_compiler()
+    compiler = jit_context()[0]
     if compiler is None:
         log.info("no C compiler found: evaluating %s in the CasADi virtual machine", tag)
         return build() if build is not None else functions

@@ -27,6 +27,8 @@ from __future__ import annotations
 
 import functools
 import logging
+import threading
+from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -36,7 +38,7 @@ import numpy as np
 from tqdm import tqdm
 
 from fmu_models.common.model import VehicleModel, step_function, traced
-from fmu_models.fmi.jit import compiled
+from fmu_models.fmi.jit import compiled, jit_context
 from identification.estimation.identifiability import Identifiability, analyse, correlation, input_excitation
 
 log = logging.getLogger(__name__)
@@ -802,6 +804,40 @@ def filter_substeps(cutoff_hz: float, dt_s: float) -> int:
     return int(min(max(np.ceil(2.0 * np.pi * cutoff_hz * dt_s / FILTER_STEP_RAD - 1e-9), 1), SUBSTEPS_MAX))
 
 
+class _Steps:
+    """One output-error problem's plain and sensitivity steps (compiled or not) and their maps over records of
+    each length, shared by every estimator of the problem in a process (:func:`fmu_models.common.model.traced`).
+    The maps are kept for the :data:`MAPS_MAX` record lengths used last; CasADi evaluates one function from
+    several threads with a memory each."""
+
+    MAPS_MAX = 256
+
+    def __init__(self, plain: ca.Function, sens: ca.Function) -> None:
+        self.plain, self.sens = plain, sens
+        self._maps: OrderedDict[tuple[str, int], ca.Function] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def over_record(self, kind: str, n: int) -> ca.Function:
+        """The ``kind`` ("plain" or "sensitivity") step accumulated over ``n`` samples: ``(x0, u (n columns), p,
+        dt) -> (states, outputs)``, one column per step."""
+        key = (kind, n)
+        with self._lock:
+            f = self._maps.get(key)
+            if f is not None:
+                self._maps.move_to_end(key)
+                return f
+        step = self.plain if kind == "plain" else self.sens
+        acc = step.mapaccum(f"{kind}_{n}_acc", n)
+        # wrap so p and dt are single columns (mapaccum maps every non-accumulated input)
+        sym = [ca.MX.sym(step.name_in(i), step.size1_in(i), n if i == 1 else 1) for i in range(4)]
+        f = ca.Function(f"{kind}_{n}", sym, acc(*sym))
+        with self._lock:
+            self._maps[key] = f
+            while len(self._maps) > self.MAPS_MAX:
+                self._maps.popitem(last=False)
+        return f
+
+
 class OutputErrorEstimator:
     """Output-error problem for ``model``: free parameters ``free`` fitted to the outputs ``outputs``.
 
@@ -888,13 +924,14 @@ class OutputErrorEstimator:
             return traced("oem_sensitivity", model, (*problem, eliminate),
                           lambda: self._sensitivity_step(eliminate=eliminate))
 
-        if compile:  # keyed by the function before its common subexpressions are eliminated (the costly part)
-            plain, sens = compiled([plain, sensitivity(False)], f"oem_{model.name}",
-                                   build=lambda: [plain, sensitivity(True)])
+        if compile:  # the library keyed by the function before its common subexpressions are eliminated (the
+            # costly part); the loaded steps and their record maps kept per process like the functions: looking the
+            # library up serializes both functions, and every estimator of a problem would map them again
+            steps = traced("oem_compiled", model, (*problem, *jit_context()), lambda: _Steps(*compiled(
+                [plain, sensitivity(False)], f"oem_{model.name}", build=lambda: [plain, sensitivity(True)])))
         else:
-            sens = sensitivity(False)
-        self._step, self._sens = plain, sens
-        self._maps: dict[tuple[str, int], ca.Function] = {}
+            steps = traced("oem_vm", model, problem, lambda: _Steps(plain, sensitivity(False)))
+        self._steps = steps
 
     # ---------------------------------------------------------------- symbolic functions
     @property
@@ -1007,14 +1044,7 @@ class OutputErrorEstimator:
         element costs more than the compiled simulation itself.
         """
         n = u.shape[0]
-        key = (kind, n)
-        if key not in self._maps:
-            step = self._step if kind == "plain" else self._sens
-            acc = step.mapaccum(f"{kind}_{n}_acc", n)
-            # wrap so p and dt are single columns (mapaccum maps every non-accumulated input)
-            sym = [ca.MX.sym(step.name_in(i), step.size1_in(i), n if i == 1 else 1) for i in range(4)]
-            self._maps[key] = ca.Function(f"{kind}_{n}", sym, acc(*sym))
-        f = self._maps[key]
+        f = self._steps.over_record(kind, n)
         # C-order (n, rows) arrays are CasADi's column-major (rows, n) matrices
         args = [np.ascontiguousarray(xa0, dtype=float), np.ascontiguousarray(u, dtype=float),
                 np.ascontiguousarray(p, dtype=float), np.array([dt], dtype=float)]

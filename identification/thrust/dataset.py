@@ -27,7 +27,6 @@ from dataclasses import MISSING, dataclass, field
 from typing import Any, NamedTuple
 
 import numpy as np
-from scipy import signal
 
 from fmu_models.common.units import RPM_TO_RAD_S
 from fmu_models.config import bounded, range_problems
@@ -230,6 +229,9 @@ def _lowpass(x: np.ndarray, seg: np.ndarray, fs_hz: float, cutoff_hz: float) -> 
             f"lowpass_hz = {cutoff_hz} must be below the Nyquist frequency {fs_hz / 2.0:.3g} Hz "
             "of the PWM log"
         )
+    from scipy import signal  # here, not at import: scipy.signal takes 1-2 s to import, and every `uavfmu identify`
+    # parser (also `--help`) imports this module for its defaults
+
     b, a = signal.butter(LOWPASS_ORDER, cutoff_hz, fs=fs_hz)
     out = x.copy()
     for s in np.unique(seg):
