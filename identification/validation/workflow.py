@@ -271,23 +271,25 @@ def validate_mc(job: ValidationJob, uncertainty: Uncertainty, draws: int, seed: 
 
 def learn_discrepancy(job: ValidationJob, logs: Sequence[Path], params_out: Path | None = None,
                       uncertainty: Uncertainty | None = None, draws: int = 0, seed: int = 0,
-                      workers: int | None = 2) -> DiscrepancyResult:
+                      workers: int | None = 2, *, executor: Executor | None = None) -> DiscrepancyResult:
     """Replay each of ``logs`` as ``job`` (its ``log`` replaced) and learn the model's discrepancy; see
     :func:`learn_discrepancy_jobs`."""
     return learn_discrepancy_jobs([replace(job, log=Path(log)) for log in logs], params_out, uncertainty, draws,
-                                  seed, workers)
+                                  seed, workers, executor=executor)
 
 
 def learn_discrepancy_jobs(jobs: Sequence[ValidationJob], params_out: Path | None = None,
                            uncertainty: Uncertainty | None = None, draws: int = 0, seed: int = 0,
                            workers: int | None = 2, scaled: bool = True,
-                           weights: Sequence[float] = (1.0, 0.0)) -> DiscrepancyResult:
+                           weights: Sequence[float] = (1.0, 0.0), *,
+                           executor: Executor | None = None) -> DiscrepancyResult:
     """Replay each job (same FMU and options; e.g. one log each, each at its own ``--set`` mass) and learn the
     model's discrepancy (``identification.validation.discrepancy``); with ``uncertainty`` and ``draws`` (>= the
     Monte Carlo minimum) also ``draws`` parameter draws of each, on which the combined band is calibrated
     (``mc_bands.calibrate``: the ``band_factor`` that brings the learning replays' band to its level). With
     ``params_out`` (a JSON parameter file) store it there under ``discrepancy``. ``scaled``, ``weights``: as
-    ``discrepancy.learn`` and ``mc_bands.calibrate`` take them (studies of their choices). Raises like
+    ``discrepancy.learn`` and ``mc_bands.calibrate`` take them (studies of their choices). ``executor``: an open
+    one for the parameter draws, kept open (else one of ``workers`` local workers for this call). Raises like
     :func:`validate`."""
     from identification.common.parallel import Executor
     from identification.validation.discrepancy import DiscrepancyResult, learn, write_discrepancy
@@ -307,7 +309,7 @@ def learn_discrepancy_jobs(jobs: Sequence[ValidationJob], params_out: Path | Non
     disc = learn(results, names, scaled=scaled)
     if uncertainty is not None and draws:
         kept = []
-        with Executor(None, workers) as ex:
+        with nullcontext(executor) if executor is not None else Executor(None, workers) as ex:
             for job in jobs:
                 keep: dict[str, np.ndarray] = {}
                 out = validate_mc(replace(job, report_dir=None), uncertainty, draws, seed, executor=ex,

@@ -8,6 +8,7 @@ import json
 import math
 from pathlib import Path
 from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -26,10 +27,11 @@ from identification.validation.discrepancy import (
 )
 from identification.validation.mc_bands import MIXTURE_POINTS, mixture_band
 from identification.validation.output_map import SignalMap
-from tests.identification.validation.test_mc_bands import (  # noqa: F401 - wing is a fixture
+from tests.identification.validation.test_mc_bands import (  # noqa: F401 - wing, cluster: fixtures
     IDENTIFIED,
     NAMES,
     _job,
+    cluster,
     identified,
     wing,
 )
@@ -115,7 +117,7 @@ def test_a_band_far_from_its_nominal_coverage_is_exit_4_unless_something_fails()
 
 
 def test_a_learned_discrepancy_brings_a_wrong_models_bands_back_to_their_level(
-    fixed_wing_fmu: Path, wing: dict[str, Path], tmp_path: Path  # noqa: F811 - the fixture
+    fixed_wing_fmu: Path, wing: dict[str, Path], tmp_path: Path, cluster: Any  # noqa: F811 - the fixtures
 ) -> None:
     """Derivatives 30 % off with the right model's confidence: the parameter bands miss the log (status band,
     exit 4). The same wrong FMU's discrepancy learned on another flight (other seed and manoeuvres) brings the
@@ -129,8 +131,8 @@ def test_a_learned_discrepancy_brings_a_wrong_models_bands_back_to_their_level(
     job = _job(fixed_wing_fmu, wing, None)
     learned = learn_discrepancy(job.__class__(fixed_wing_fmu, other, job.options, mapping=job.mapping,
                                               start_values=dict(zip(NAMES, wrong.mean, strict=True))), [other])
-    without = validate_mc(job, wrong, 40, seed=3, workers=2)
-    with_d = validate_mc(job, wrong, 40, seed=3, workers=2, discrepancy=learned.discrepancy)
+    without = validate_mc(job, wrong, 40, seed=3, executor=cluster)
+    with_d = validate_mc(job, wrong, 40, seed=3, executor=cluster, discrepancy=learned.discrepancy)
     cov0 = {s: v["band_coverage"] for s, v in without.signals.items()}
     cov1 = {s: v["band_coverage"] for s, v in with_d.signals.items()}
     print({s: (round(cov0[s], 3), round(cov1[s], 3)) for s in cov0})
@@ -392,7 +394,7 @@ def test_the_parameter_draws_leave_the_band_where_they_do_not_follow_the_error()
 
 
 def test_learning_with_parameter_draws_stores_a_factor_that_validate_applies(
-    fixed_wing_fmu: Path, wing: dict[str, Path], tmp_path: Path  # noqa: F811 - the fixture
+    fixed_wing_fmu: Path, wing: dict[str, Path], tmp_path: Path, cluster: Any  # noqa: F811 - the fixtures
 ) -> None:
     """The discrepancy learned with the parameter draws of the learning flight stores one band factor per signal;
     validate --mc applies it (the metrics name it) and the held-out flight's bands stay near their level."""
@@ -404,11 +406,11 @@ def test_learning_with_parameter_draws_stores_a_factor_that_validate_applies(
     other = synthetic.write_csv_log(tmp_path / "other.csv", t, sig)
     job = _job(fixed_wing_fmu, wing, None)
     learn_job = job.__class__(fixed_wing_fmu, other, job.options, mapping=job.mapping)
-    learned = learn_discrepancy(learn_job, [other], uncertainty=wrong, draws=19)
+    learned = learn_discrepancy(learn_job, [other], uncertainty=wrong, draws=19, executor=cluster)
     factors = {k: s.band_factor for k, s in learned.discrepancy.signals.items()}
     assert all(f is not None and 0.05 <= f <= 20.0 for f in factors.values()), factors
     assert any("band factor" in line for line in learned.lines())
-    out = validate_mc(job, wrong, 19, seed=3, workers=2, discrepancy=learned.discrepancy)
+    out = validate_mc(job, wrong, 19, seed=3, executor=cluster, discrepancy=learned.discrepancy)
     assert out.replay.bands.info["discrepancy"]["band_factor"] == factors
     # one learning flight: nothing to leave out, so the parameter draws stay in every band (weight 1)
     assert out.replay.bands.info["discrepancy"]["parameter_weight"] == dict.fromkeys(factors, 1.0)
@@ -423,7 +425,7 @@ def test_learning_with_parameter_draws_stores_a_factor_that_validate_applies(
     roll = learned.discrepancy.signals["roll_rad"]
     alone = learned.discrepancy.model_copy(update={"signals": {
         **learned.discrepancy.signals, "roll_rad": roll.model_copy(update={"parameter_weight": 0.0})}})
-    out0 = validate_mc(job, wrong, 19, seed=3, workers=2, discrepancy=alone)
+    out0 = validate_mc(job, wrong, 19, seed=3, executor=cluster, discrepancy=alone)
     assert out0.replay.bands.info["discrepancy"]["parameter_weight"]["roll_rad"] == 0.0
     assert any("the discrepancy alone on roll_rad" in line for line in out0.lines())
     assert "on roll_rad the discrepancy alone" in validation_page(out0.replay)

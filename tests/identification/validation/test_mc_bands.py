@@ -5,6 +5,7 @@ bounded, checked input."""
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -69,19 +70,27 @@ SEED_DRAWS = 20
 
 
 @pytest.fixture(scope="module")
-def true_model_runs(fixed_wing_fmu: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[int, tuple[Any, Path]]:
-    """Seed -> (result, report folder) of the true model on its own 20 s noisy log, on one local cluster."""
+def cluster() -> Iterator[Any]:
+    """One local cluster of two workers for the module's Monte Carlo runs (each run would start its own: a
+    scheduler and two worker processes importing the replay code)."""
     from identification.common.parallel import Executor
 
-    runs = {}
     with Executor(workers=2) as ex:
-        for s in SEEDS:
-            d = tmp_path_factory.mktemp(f"mc_seed{s}")
-            t, sig = synthetic.fixed_wing_flight(seconds=20.0, rate_hz=50.0, noise=True, seed=s)
-            log = {"log": synthetic.write_csv_log(d / "wing.csv", t, sig),
-                   "mapping": synthetic.write_mapping_toml(d / "mapping.toml")}
-            runs[s] = validate_mc(_job(fixed_wing_fmu, log, d / "report"), identified(seed=s), SEED_DRAWS, seed=3,
-                                  executor=ex), d / "report"
+        yield ex
+
+
+@pytest.fixture(scope="module")
+def true_model_runs(fixed_wing_fmu: Path, tmp_path_factory: pytest.TempPathFactory,
+                    cluster: Any) -> dict[int, tuple[Any, Path]]:
+    """Seed -> (result, report folder) of the true model on its own 20 s noisy log, on one local cluster."""
+    runs = {}
+    for s in SEEDS:
+        d = tmp_path_factory.mktemp(f"mc_seed{s}")
+        t, sig = synthetic.fixed_wing_flight(seconds=20.0, rate_hz=50.0, noise=True, seed=s)
+        log = {"log": synthetic.write_csv_log(d / "wing.csv", t, sig),
+               "mapping": synthetic.write_mapping_toml(d / "mapping.toml")}
+        runs[s] = validate_mc(_job(fixed_wing_fmu, log, d / "report"), identified(seed=s), SEED_DRAWS, seed=3,
+                              executor=cluster), d / "report"
     return runs
 
 
@@ -116,10 +125,11 @@ def test_true_model_run_writes_its_bands_to_metrics_and_report(true_model_runs) 
     assert "5-95 % band coverage" in page and "Not explained" not in page
 
 
-def test_wrong_model_coverage_drops_and_the_report_says_so(fixed_wing_fmu: Path, wing, tmp_path: Path) -> None:
+def test_wrong_model_coverage_drops_and_the_report_says_so(fixed_wing_fmu: Path, wing, tmp_path: Path,
+                                                           cluster: Any) -> None:
     """Derivatives 30 % off with the right model's confidence: the replay still beats persistence on every
     signal, but its bands miss the log, and the console, metrics.json and report say so."""
-    out = validate_mc(_job(fixed_wing_fmu, wing, tmp_path), identified(scale=1.3), DRAWS, seed=3, workers=2)
+    out = validate_mc(_job(fixed_wing_fmu, wing, tmp_path), identified(scale=1.3), DRAWS, seed=3, executor=cluster)
     assert _pooled(out.signals) < 0.75
     bad = [s for s in IDENTIFIED if out.signals[s]["band_verdict"] == "not explained"]
     assert len(bad) >= len(IDENTIFIED) // 2
