@@ -21,8 +21,8 @@ and each held-out segment is scored with the discrepancy learned and calibrated 
         [--forms auto|unscaled] [--weight auto|1] [--per-set]
     # exit 1 on a miss
 
-Heavy (tens of minutes on a loaded 2-core machine): every fold builds an FMU and runs N Monte Carlo replays of
-each learning and held-out log on two local worker processes.
+Heavy (minutes; tens of minutes on a loaded 2-core machine): every fold builds an FMU and runs N Monte Carlo
+replays of each learning and held-out log, all on one local cluster of two worker processes.
 """
 
 from __future__ import annotations
@@ -172,7 +172,8 @@ def _fold(train: list[tuple[Path, float]], test: tuple[Path, float], work: Path,
     unc = read_uncertainty(params)
     learn_discrepancy_jobs([job(p, m) for p, m in train], params, unc, draws, **study)
     print(chosen(read_discrepancy(params)))
-    return validate_mc(job(*test), unc, draws, workers=2, discrepancy=read_discrepancy(params)).replay
+    return validate_mc(job(*test), unc, draws, executor=study["executor"],
+                       discrepancy=read_discrepancy(params)).replay
 
 
 def quadrotor(name: str, flights: list[tuple[Path, float]], draws: int, fmu_mass: float | None,
@@ -227,7 +228,8 @@ def fixed_wing(draws: int, parameter_spread: bool = True, learn_on: str = "held"
             learned = learned_on_fit or learn_discrepancy_jobs([job(x) for x in held if x != s], None, unc, draws,
                                                                **study)
             print(f"  segment {s[0]:g}-{s[1]:g} s\n{chosen(learned.discrepancy)}")
-            pool.add(validate_mc(job(s), unc, draws, workers=2, discrepancy=learned.discrepancy).replay)
+            pool.add(validate_mc(job(s), unc, draws, executor=study["executor"],
+                                 discrepancy=learned.discrepancy).replay)
     return pool.table(f"fixed-wing excitation log, held-out segments of identify aero (discrepancy from the "
                       f"{'other held-out' if learn_on == 'held' else 'fit'} segments"
                       + (")" if parameter_spread else "; no parameter spread)"))
@@ -252,7 +254,17 @@ def main() -> int:
     if not all(p.exists() for p in [*ERLE, *(p for p, _ in PX4), WING]):
         print(f"bench/prediction_bands.py: needs {DATA} (../shared/data beside the checkout)")
         return 2
+    from identification.common.parallel import Executor
+
     only = set(args.only.split(","))
+    with Executor(workers=2) as ex:  # one local cluster for every Monte Carlo run (the draws do not depend on it)
+        study["executor"] = ex
+        ok = _studies(only, args, study)
+    print(f"\nall targets: {'met' if ok else 'NOT met'}")
+    return 0 if ok else 1
+
+
+def _studies(only: set[str], args: argparse.Namespace, study: dict[str, Any]) -> bool:
     ok = True
     if "erle" in only:
         ok &= quadrotor("Erle", [(p, 1.14) for p in ERLE], args.draws, None, None, study, args.per_set)
@@ -263,8 +275,7 @@ def main() -> int:
             ok &= quadrotor("PX4 csv", list(PX4), args.draws, PX4_FMU_MASS_KG, omap, study, args.per_set)
     if "wing" in only:
         ok &= fixed_wing(args.draws, not args.no_parameter_spread, args.wing_learn_on, study, args.per_set)
-    print(f"\nall targets: {'met' if ok else 'NOT met'}")
-    return 0 if ok else 1
+    return ok
 
 
 if __name__ == "__main__":
