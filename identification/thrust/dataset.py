@@ -229,7 +229,7 @@ def _lowpass(x: np.ndarray, seg: np.ndarray, fs_hz: float, cutoff_hz: float) -> 
             f"lowpass_hz = {cutoff_hz} must be below the Nyquist frequency {fs_hz / 2.0:.3g} Hz "
             "of the PWM log"
         )
-    from scipy import signal  # here, not at import: scipy.signal takes 1-2 s to import, and every `uavfmu identify`
+    from scipy import signal  # here, not at import: scipy.signal is slow to import, and every `uavfmu identify`
     # parser (also `--help`) imports this module for its defaults
 
     b, a = signal.butter(LOWPASS_ORDER, cutoff_hz, fs=fs_hz)
