@@ -14,11 +14,11 @@ import aero_replica as bench
 def test_a_truth_that_diverges_is_skipped_and_the_other_draws_are_judged(monkeypatch: pytest.MonkeyPatch,
                                                                         capsys: pytest.CaptureFixture[str],
                                                                         tmp_path: Path) -> None:
-    def run_draw(seed: int, *args: object) -> tuple[bool, str, dict[str, tuple[float, float, bool, float]]]:
+    def run_draw(seed: int, *args: object) -> tuple[bool, str, dict[str, tuple[float, float, bool, float, float]]]:
         """Draws whose every interval covers with a half-width of 1.96 errors: coverage and width met."""
         if seed == 2:
             raise bench.TruthDivergesError("the truth model diverges in segment 1:2")
-        return True, f"draw {seed}", {n: ((-1.0) ** seed, 1.96, False, 1.96) for n in bench.PRIMARY}
+        return True, f"draw {seed}", {n: ((-1.0) ** seed, 1.96, False, 1.96, 1.96) for n in bench.PRIMARY}
 
     log = tmp_path / "excitation.BIN"
     log.write_bytes(b"")
