@@ -106,10 +106,40 @@ def fingerprint(value: Any) -> str | None:
 
 _T = TypeVar("_T")
 
+
+class BoundedCache:
+    """What ``make`` gives, kept per key for the ``max_items`` keys used last, under a lock (threads may share it;
+    two threads missing the same key at once both make it and the second is kept: ``make`` must be pure)."""
+
+    def __init__(self, max_items: int) -> None:
+        self.max_items = max_items
+        self._items: OrderedDict[Any, Any] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __contains__(self, key: object) -> bool:
+        return key in self._items
+
+    def get(self, key: Any, make: Callable[[], _T]) -> _T:
+        """The item kept for ``key``, else ``make()``, kept."""
+        with self._lock:
+            item = self._items.get(key)
+            if item is not None:
+                self._items.move_to_end(key)
+                return item
+        item = make()
+        with self._lock:
+            self._items[key] = item
+            while len(self._items) > self.max_items:
+                self._items.popitem(last=False)
+        return item
+
+
 #: most symbolic functions :func:`traced` keeps per process
 TRACED_MAX = 64
-_TRACED: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
-_TRACED_LOCK = threading.Lock()
+_TRACED = BoundedCache(TRACED_MAX)
 
 
 def traced(kind: str, model: VehicleModel, args: tuple[Any, ...], make: Callable[[], _T]) -> _T:
@@ -124,18 +154,7 @@ def traced(kind: str, model: VehicleModel, args: tuple[Any, ...], make: Callable
     structure = key_of() if callable(key_of) else None
     if structure is None:
         return make()
-    key = (kind, structure, args)
-    with _TRACED_LOCK:
-        f = _TRACED.get(key)
-        if f is not None:
-            _TRACED.move_to_end(key)
-            return f
-    f = make()
-    with _TRACED_LOCK:
-        _TRACED[key] = f
-        while len(_TRACED) > TRACED_MAX:
-            _TRACED.popitem(last=False)
-    return f
+    return _TRACED.get((kind, structure, args), make)
 
 
 class NumericCall:

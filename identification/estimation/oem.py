@@ -27,8 +27,6 @@ from __future__ import annotations
 
 import functools
 import logging
-import threading
-from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -37,7 +35,7 @@ import casadi as ca
 import numpy as np
 from tqdm import tqdm
 
-from fmu_models.common.model import VehicleModel, step_function, traced
+from fmu_models.common.model import BoundedCache, VehicleModel, step_function, traced
 from fmu_models.fmi.jit import compiled, jit_context
 from identification.estimation.identifiability import Identifiability, analyse, correlation, input_excitation
 
@@ -814,28 +812,19 @@ class _Steps:
 
     def __init__(self, plain: ca.Function, sens: ca.Function) -> None:
         self.plain, self.sens = plain, sens
-        self._maps: OrderedDict[tuple[str, int], ca.Function] = OrderedDict()
-        self._lock = threading.Lock()
+        self._maps = BoundedCache(self.MAPS_MAX)
 
     def over_record(self, kind: str, n: int) -> ca.Function:
         """The ``kind`` ("plain" or "sensitivity") step accumulated over ``n`` samples: ``(x0, u (n columns), p,
         dt) -> (states, outputs)``, one column per step."""
-        key = (kind, n)
-        with self._lock:
-            f = self._maps.get(key)
-            if f is not None:
-                self._maps.move_to_end(key)
-                return f
-        step = self.plain if kind == "plain" else self.sens
-        acc = step.mapaccum(f"{kind}_{n}_acc", n)
-        # wrap so p and dt are single columns (mapaccum maps every non-accumulated input)
-        sym = [ca.MX.sym(step.name_in(i), step.size1_in(i), n if i == 1 else 1) for i in range(4)]
-        f = ca.Function(f"{kind}_{n}", sym, acc(*sym))
-        with self._lock:
-            self._maps[key] = f
-            while len(self._maps) > self.MAPS_MAX:
-                self._maps.popitem(last=False)
-        return f
+        def make() -> ca.Function:
+            step = self.plain if kind == "plain" else self.sens
+            acc = step.mapaccum(f"{kind}_{n}_acc", n)
+            # wrap so p and dt are single columns (mapaccum maps every non-accumulated input)
+            sym = [ca.MX.sym(step.name_in(i), step.size1_in(i), n if i == 1 else 1) for i in range(4)]
+            return ca.Function(f"{kind}_{n}", sym, acc(*sym))
+
+        return self._maps.get((kind, n), make)
 
 
 class OutputErrorEstimator:
