@@ -105,12 +105,18 @@ class Study:
 
 
 def white_plus_ar1(rng: np.random.Generator, shape: tuple[int, ...], white_sd: object, coloured_sd: object,
-                   pole: float = POLE) -> np.ndarray:
-    """White noise of std ``white_sd`` plus a stationary AR(1) part (``pole`` per sample, along axis 0) of std
-    ``coloured_sd`` (scalars or per-column arrays); the replica's noise too."""
+                   pole: float = POLE, stationary: bool = False) -> np.ndarray:
+    """White noise of std ``white_sd`` plus an AR(1) part (``pole`` per sample, along axis 0) of long-run std
+    ``coloured_sd`` (scalars or per-column arrays). The AR(1) part starts from 0 (its std grows to ``coloured_sd``
+    over the first ~1 / (1 - pole) samples: this study's manoeuvres, whose figures in the aero readme were
+    measured so) or, ``stationary``, from a draw of its long-run distribution, as a sensor's noise is at any
+    instant of a log (the replica's, whose segment starts are read from noisy samples)."""
     white = rng.normal(0.0, 1.0, shape) * white_sd
     drive = rng.normal(0.0, 1.0, shape) * coloured_sd * np.sqrt(1 - pole**2)
-    return white + lfilter([1.0], [1.0, -pole], drive, axis=0)
+    if not stationary:
+        return white + lfilter([1.0], [1.0, -pole], drive, axis=0)
+    before = rng.normal(0.0, 1.0, (1, *shape[1:])) * coloured_sd  # the AR part one sample before the first
+    return white + lfilter([1.0], [1.0, -pole], drive, axis=0, zi=pole * before)[0]
 
 
 def _noise(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:

@@ -35,14 +35,16 @@ Each draw's header names the nuisance set ``identify aero`` chose (per-segment i
 ``identification.aero.identify._nuisance_fits``); the summary counts the draws whose interval is the small-sample
 bound (``oem.data_bound``). Studies of that bound: ``--start-state exact`` hands the tool the truth's initial state
 at every segment start (a sample there holding the original log's value, which the truth starts from; by default
-the tool interpolates between the last original sample and the first noisy replica one, as it would between
-noisy samples of a real log); ``--estimate-initial STATE,...`` fits those per-segment initial states (with the
-gyro and accelerometer biases) instead of the tool's automatic choice; ``--truth-seed N`` keeps draw N's truth
-in every draw and redraws only the noise (seeds ``--seed``, ``--seed`` + 1, ...); ``--initial-sd STATE=SD,...``
-gives some of the ``--estimate-initial`` states their logged start as a measurement of that std (a prior at the
-logged value, ``AeroOptions.initial_sd``) instead of leaving them free; ``--fixed-spread zeros`` also draws the
-scaled coefficients at 0 in Aerosonde's set (C_Y_p, C_Y_r: a factor leaves them at 0 in every draw, while the tool
-gives each, when it stays fixed, a consider std of 0.05) about 0 with that std.
+the tool interpolates between the last original sample and the first replica one, both with the replica's noise, as
+it would between noisy samples of a real log: the noise is stationary from that last sample on, its AR(1) part
+drawn from its long-run distribution there, not started at 0); ``--estimate-initial STATE,...`` fits those
+per-segment initial states (with the gyro and accelerometer biases) instead of the tool's automatic choice;
+``--truth-seed N`` keeps draw N's truth in every draw and redraws only the noise (seeds ``--seed``, ``--seed`` + 1,
+...); ``--initial-sd STATE=SD,...`` gives some of the ``--estimate-initial`` states their logged start as a
+measurement of that std (a prior at the logged value, ``AeroOptions.initial_sd``) instead of leaving them free;
+``--fixed-spread zeros`` also draws the scaled coefficients at 0 in Aerosonde's set (C_Y_p, C_Y_r: a factor leaves
+them at 0 in every draw, while the tool gives each, when it stays fixed, a consider std of 0.05) about 0 with that
+std.
 
 Run: ``.venv/bin/python bench/aero_replica.py [--draws 1] [--seed 0] [--bound ar|bootstrap] [--start-state
 logged|exact] [--estimate-initial STATES [--initial-sd STATE=SD,...]] [--truth-seed N] [--fixed-spread
@@ -86,7 +88,7 @@ from identification.logs.log_state import resample_angle
 from identification.logs.readers import read_log
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from aero_coverage import white_plus_ar1  # the same noise as the coverage study
+from aero_coverage import white_plus_ar1  # the coverage study's noise, here stationary
 from replica_verdict import coverage_figure, draw_width_figure, overall
 
 LOG = Path(__file__).resolve().parents[2] / "shared" / "data" / "fixed_wing" / "arduplane_sitl_fmu_excitation.BIN"
@@ -144,7 +146,9 @@ def replica_log(log: FlightLog, model: FixedWingModel, p_truth: np.ndarray, segm
                 exact_start: bool = False) -> FlightLog:
     """``log`` with every signal ``identify aero`` reads (the fitted ``outputs`` and :data:`STATE_OUTPUTS`)
     replaced inside ``segments`` by the model's response (``p_truth``, from the logged state, logged inputs) plus
-    noise, so that the state at any instant inside a segment (a re-initialised piece) is the truth's too.
+    noise, so that the state at any instant inside a segment (a re-initialised piece) is the truth's too; the last
+    sample at or before each segment start, which the start is read from with the first replica one, gets the same
+    (stationary) noise series, as a real log's sample there would carry it.
     ``exact_start``: a sample at each segment start holds the original log's value there (the state the truth
     starts from), so the state the tool reads at a segment start is the truth's exactly."""
     names = list(dict.fromkeys([*outputs, *STATE_OUTPUTS]))
@@ -162,9 +166,21 @@ def replica_log(log: FlightLog, model: FixedWingModel, p_truth: np.ndarray, segm
         s = log.signal(col)
         t, v = s.t_s, s.values
         sd = NOISE.get(col, STATE_NOISE.get(name, 0.01))
+        replaced: list[tuple[float, float]] = []
         for seg, (tg, y) in zip(segments, runs, strict=True):
             keep = (t <= seg.t0_s) | (t > seg.t1_s)
-            yv = y[:, i] + white_plus_ar1(rng, (len(tg),), sd, sd)
+            # one stationary noise series from the last sample at or before the start on: the start is read
+            # between that sample and the first replica one, and in a real log both carry the sensor's noise
+            # (white and coloured alike); the original log's own sample there is nearly noise-free (SITL)
+            noise = white_plus_ar1(rng, (len(tg) + 1,), sd, sd, stationary=True)
+            yv = y[:, i] + noise[1:]
+            v = v.copy()
+            left = np.flatnonzero(t <= seg.t0_s)
+            if not exact_start and len(left) and not any(a < t[left[-1]] <= b for a, b in replaced):
+                v[left[-1]] += noise[0]
+                if name == "yaw_rad":
+                    v[left[-1]] = np.angle(np.exp(1j * v[left[-1]]))
+            replaced.append((seg.t0_s, seg.t1_s))
             if name == "yaw_rad":
                 yv = np.angle(np.exp(1j * yv))
             if exact_start:
