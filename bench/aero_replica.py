@@ -164,7 +164,7 @@ def replica_log(log: FlightLog, model: FixedWingModel, p_truth: np.ndarray, segm
     for i, name in enumerate(names):
         col = OUTPUT_TO_LOG[name]
         s = log.signal(col)
-        t, v = s.t_s, s.values
+        t, v = s.t_s, s.values.copy()  # a start's left sample gets noise below: the log read stays untouched
         sd = NOISE.get(col, STATE_NOISE.get(name, 0.01))
         replaced: list[tuple[float, float]] = []
         for seg, (tg, y) in zip(segments, runs, strict=True):
@@ -174,7 +174,6 @@ def replica_log(log: FlightLog, model: FixedWingModel, p_truth: np.ndarray, segm
             # (white and coloured alike); the original log's own sample there is nearly noise-free (SITL)
             noise = white_plus_ar1(rng, (len(tg) + 1,), sd, sd, stationary=True)
             yv = y[:, i] + noise[1:]
-            v = v.copy()
             left = np.flatnonzero(t <= seg.t0_s)
             if not exact_start and len(left) and not any(a < t[left[-1]] <= b for a, b in replaced):
                 v[left[-1]] += noise[0]
