@@ -15,6 +15,23 @@ REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO.parent / "shared" / "data"
 
 
+#: where the wall-clock pacing tests (marker ``realtime``) live: ``make test`` runs every other test in parallel, then
+#: collects this folder alone for them (the Makefile's ``REALTIME_TESTS``), so one elsewhere would never run
+REALTIME_DIR = REPO / "tests" / "hil_adapter"
+
+
+def realtime_outside(items: list[tuple[str, Path, bool]], folder: Path = REALTIME_DIR) -> list[str]:
+    """Node ids of ``(node id, file, marked realtime)`` items marked ``realtime`` but not under ``folder``."""
+    return [nodeid for nodeid, path, marked in items if marked and folder not in Path(path).resolve().parents]
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    stray = realtime_outside([(i.nodeid, Path(i.path), i.get_closest_marker("realtime") is not None) for i in items])
+    if stray:
+        raise pytest.UsageError(f"tests marked realtime outside {REALTIME_DIR.relative_to(REPO)} (make test runs them "
+                                f"from there alone, and leaves them out of the parallel run): {', '.join(stray)}")
+
+
 def shared_data(*parts: str) -> Path:
     """Path into ``../shared/data``; skips the test with a reason when the file is absent."""
     path = SHARED_DATA.joinpath(*parts)
