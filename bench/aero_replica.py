@@ -44,11 +44,13 @@ per-segment initial states (with the gyro and accelerometer biases) instead of t
 measurement of that std (a prior at the logged value, ``AeroOptions.initial_sd``) instead of leaving them free;
 ``--fixed-spread zeros`` also draws the scaled coefficients at 0 in Aerosonde's set (C_Y_p, C_Y_r: a factor leaves
 them at 0 in every draw, while the tool gives each, when it stays fixed, a consider std of 0.05) about 0 with that
-std.
+std; ``--fixed-spread consider`` draws every scaled coefficient that is not a primary about Aerosonde's value with
+the std the tool's consider covariance gives it (50 % of the value, at least the family's floor), as that
+covariance assumes a fixed coefficient varies.
 
 Run: ``.venv/bin/python bench/aero_replica.py [--draws 1] [--seed 0] [--bound ar|bootstrap] [--start-state
 logged|exact] [--estimate-initial STATES [--initial-sd STATE=SD,...]] [--truth-seed N] [--fixed-spread
-factor|zeros]`` (one identify run per draw: 15-60 s on 2 cores, more when they are shared). Exit 1 when a draw
+factor|zeros|consider]`` (one identify run per draw: 15-60 s on 2 cores, more when they are shared). Exit 1 when a draw
 fails, or the draws show a primary derivative's coverage below 0.90 or its median half-width above 2 x its RMS
 error (``replica_verdict``: a point figure past its target within the Monte Carlo error of the draws is printed
 "(unresolved)", not called met); the log is read from ``../shared/data`` (exit 2 when absent).
@@ -97,8 +99,10 @@ SCALED = (*PRIMARY, "C_m_delta_e", "C_Y_delta_r", "C_Y_p", "C_Y_r", "C_Y_delta_a
           "C_n_delta_a", "C_L_q")
 
 
-#: the truth families (``--fixed-spread``): every scaled coefficient times U(0.6, 1.6); and besides, those at 0 drawn
-FIXED_SPREADS = ("factor", "zeros")
+#: the truth families (``--fixed-spread``): every scaled coefficient times U(0.6, 1.6) (factor); besides, those at 0
+#: drawn about 0 with their consider std (zeros); or every scaled one that is not a primary drawn about Aerosonde's
+#: value with its consider std, the primaries times the factors (consider)
+FIXED_SPREADS = ("factor", "zeros", "consider")
 
 
 def truth_params(model: FixedWingModel, p: np.ndarray, rng: np.random.Generator, data: list[Manoeuvre],
@@ -108,7 +112,10 @@ def truth_params(model: FixedWingModel, p: np.ndarray, rng: np.random.Generator,
     each of ``scaled`` whose Aerosonde value is 0 (C_Y_p and C_Y_r, which a factor leaves at 0 in every draw) is
     drawn about 0 with the std the tool's consider covariance gives it when it stays fixed (``priors.fixed_sd``,
     normal, clipped at 2 std, from a child stream of ``rng`` that leaves its own draws, and so the replica's noise,
-    as they are); neither acts at the trim, so the logged trim stays one."""
+    as they are); neither acts at the trim, so the logged trim stays one. "consider": each of ``scaled`` that is not
+    a primary is drawn so about its Aerosonde value, as the consider covariance takes a coefficient the tool keeps
+    fixed to vary (the factors give them a spread of 0.29 of the value against its 0.5), the primaries keep their
+    factors; none of those acts on the pitch trim."""
     from identification.aero.priors import fixed_sd
 
     if fixed_spread not in FIXED_SPREADS:
@@ -117,11 +124,11 @@ def truth_params(model: FixedWingModel, p: np.ndarray, rng: np.random.Generator,
     out = p.copy()
     for n in dict.fromkeys(scaled):
         out[ix[n]] *= rng.uniform(0.6, 1.6)
-    if fixed_spread == "zeros":  # from a child stream: the other coefficients and the noise stay the factor family's
+    if fixed_spread != "factor":  # from a child stream: the other coefficients and the noise stay the factor family's
         child = rng.spawn(1)[0]
         for n in dict.fromkeys(scaled):
-            if p[ix[n]] == 0.0:
-                out[ix[n]] = fixed_sd(n, 0.0) * float(np.clip(child.normal(), -2.0, 2.0))
+            if p[ix[n]] == 0.0 or (fixed_spread == "consider" and n not in PRIMARY):
+                out[ix[n]] = p[ix[n]] + fixed_sd(n, p[ix[n]]) * float(np.clip(child.normal(), -2.0, 2.0))
     alpha = float(np.median([np.arctan2(m.x0[st["vel_body_z_m_s"]], m.x0[st["vel_body_x_m_s"]]) for m in data]))
     elev = float(np.median([m.u[0, inp.index("elevator_rad")] for m in data]))
     out[ix["C_m_0"]] = p[ix["C_m_0"]] + sum((p[ix[a]] - out[ix[a]]) * v for a, v in
@@ -260,8 +267,9 @@ def run_draw(seed: int, bound: str = "ar", exact_start: bool = False, estimate_i
         if sd:
             x0_bounds[s] = (min(sd), max(sd))
     truth = "" if truth_seed is None else f" (draw {truth_seed}'s, noise of seed {seed})"
-    family = f"Aerosonde x U(0.6, 1.6) on {len(dict.fromkeys(SCALED))} coefficients" + (
-        "" if fixed_spread == "factor" else ", those at 0 drawn with their consider std")
+    family = f"Aerosonde x U(0.6, 1.6) on {len(dict.fromkeys(SCALED))} coefficients" + {
+        "factor": "", "zeros": ", those at 0 drawn with their consider std",
+        "consider": ", those not primary drawn about Aerosonde's with their consider std instead"}[fixed_spread]
     lines = [f"draw {seed}: truth = {family}{truth}; "
              f"freed: {freed}; failures: {result.failures or 'none'}", modes_line(model, p_truth, start),
              f"nuisance: {result.nuisance_choice}; segment starts: "
@@ -352,7 +360,8 @@ def main() -> int:
     parser.add_argument("--truth-seed", type=int, default=None, help="keep this draw's truth, redraw only the noise")
     parser.add_argument("--fixed-spread", choices=FIXED_SPREADS, default="factor",
                         help="the truths' coefficients: times U(0.6, 1.6) (factor), and those at 0 (C_Y_p, C_Y_r) "
-                             "drawn with the std the tool's consider covariance gives them (zeros)")
+                             "drawn with the std the tool's consider covariance gives them (zeros), or every one not "
+                             "primary drawn so about Aerosonde's value (consider)")
     parser.add_argument("--initial-sd", default=None, metavar="STATE=SD,...",
                         help="with --estimate-initial: those states' logged start as a measurement of this std "
                              "(a prior at the logged value), e.g. vel_body_x_m_s=0.07,vel_body_y_m_s=0.07")
