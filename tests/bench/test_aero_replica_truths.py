@@ -19,13 +19,18 @@ from identification.aero.priors import fixed_sd
 from identification.estimation.oem import Manoeuvre
 
 
-def test_zeros_are_drawn_with_their_consider_std_and_the_rest_is_the_factor_family() -> None:
+def _aerosonde() -> tuple[FixedWingModel, np.ndarray, list[Manoeuvre]]:
+    """The model, Aerosonde's parameters and one manoeuvre starting at 25 m/s (the trim re-balance reads it)."""
     model = FixedWingModel(FixedWingParams())
-    p = np.array(model.params.starts(), dtype=float)
-    ix = model.params.index
     x0 = np.zeros(len(model.states))
     x0[model.states.index["vel_body_x_m_s"]] = 25.0
-    data = [Manoeuvre(x0, np.zeros((1, len(model.inputs))), np.zeros((1, 1)), 0.02)]
+    return (model, np.array(model.params.starts(), dtype=float),
+            [Manoeuvre(x0, np.zeros((1, len(model.inputs))), np.zeros((1, 1)), 0.02)])
+
+
+def test_zeros_are_drawn_with_their_consider_std_and_the_rest_is_the_factor_family() -> None:
+    model, p, data = _aerosonde()
+    ix = model.params.index
     zeros = [n for n in dict.fromkeys(bench.SCALED) if p[ix[n]] == 0.0]
     assert set(zeros) == {"C_Y_p", "C_Y_r"}
     drawn = np.array([[bench.truth_params(model, p, np.random.default_rng(s), data, fixed_spread="zeros")[ix[n]]
@@ -45,12 +50,8 @@ def test_zeros_are_drawn_with_their_consider_std_and_the_rest_is_the_factor_fami
 
 
 def test_consider_draws_every_scaled_non_primary_with_its_consider_std_and_keeps_the_primaries_factors() -> None:
-    model = FixedWingModel(FixedWingParams())
-    p = np.array(model.params.starts(), dtype=float)
+    model, p, data = _aerosonde()
     ix = model.params.index
-    x0 = np.zeros(len(model.states))
-    x0[model.states.index["vel_body_x_m_s"]] = 25.0
-    data = [Manoeuvre(x0, np.zeros((1, len(model.inputs))), np.zeros((1, 1)), 0.02)]
     fixed = [n for n in dict.fromkeys(bench.SCALED) if n not in bench.PRIMARY]
     assert {"C_Y_p", "C_Y_r", "C_n_p", "C_L_q"} <= set(fixed)
     nominal = p[[ix[n] for n in fixed]]
