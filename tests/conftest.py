@@ -5,7 +5,8 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
-from collections.abc import Callable
+import tempfile
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -30,6 +31,25 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     if stray:
         raise pytest.UsageError(f"tests marked realtime outside {REALTIME_DIR.relative_to(REPO)} (make test runs them "
                                 f"from there alone, and leaves them out of the parallel run): {', '.join(stray)}")
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _temporary_files_under_the_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """Temporary files of the code under test and of its subprocesses (``tempfile``, ``$TMPDIR``) go under this test
+    process's pytest folder, which pytest prunes (it keeps the last three runs'): FMPy's ``simulate_fmu`` leaves its
+    FMU extraction behind when the simulation raises, as the FMU error tests make it do (about 50 folders per run
+    left in the system's temporary folder before)."""
+    folder = tmp_path_factory.mktemp("tmp")
+    before_env, before_dir = os.environ.get("TMPDIR"), tempfile.tempdir
+    os.environ["TMPDIR"], tempfile.tempdir = str(folder), str(folder)
+    try:
+        yield folder
+    finally:
+        tempfile.tempdir = before_dir
+        if before_env is None:
+            os.environ.pop("TMPDIR", None)
+        else:
+            os.environ["TMPDIR"] = before_env
 
 
 def shared_data(*parts: str) -> Path:

@@ -1,5 +1,6 @@
-"""`make test`'s two runs between them run every test: the wall-clock pacing tests (marker ``realtime``) are left
-out of the parallel run and collected from one folder afterwards, so one elsewhere must stop the collection."""
+"""The suite's layout: `make test`'s two runs between them run every test (the wall-clock pacing tests, marker
+``realtime``, are left out of the parallel run and collected from one folder afterwards, so one elsewhere must stop
+the collection), and the code under test leaves its temporary files in the run's pytest folder."""
 
 from __future__ import annotations
 
@@ -26,3 +27,12 @@ def test_the_makefile_collects_the_realtime_tests_from_the_folder_the_guard_chec
     assert (REPO / folder.group(1)).resolve() == REALTIME_DIR.resolve()
     assert re.search(r"-m realtime \$\(REALTIME_TESTS\)", make), "the realtime run does not use REALTIME_TESTS"
     assert Path(REALTIME_DIR).is_dir()
+
+
+def test_temporary_files_of_the_code_under_test_stay_in_the_run_folder(_temporary_files_under_the_run: Path) -> None:
+    import os
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp())
+    assert _temporary_files_under_the_run in folder.parents
+    assert os.environ["TMPDIR"] == str(_temporary_files_under_the_run)
