@@ -24,6 +24,7 @@ import argparse
 import dataclasses
 import json
 import math
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -75,19 +76,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=1, help="sensor-noise seed of the recorded logs")
 
 
+def simulate(fmu: Path, **kwargs: Any) -> np.ndarray:
+    """``fmpy.simulate_fmu(fmu, **kwargs)`` on ``fmu`` extracted into a folder that is removed afterwards, also when
+    the simulation raises (FMPy's own extraction is left in the temporary folder then)."""
+    from fmpy import extract, simulate_fmu
+
+    with tempfile.TemporaryDirectory(prefix="uavfmu-demo-") as folder:
+        return simulate_fmu(extract(str(fmu), folder), **kwargs)
+
+
 def hover_check(fmu: Path) -> dict[str, float]:
     """Hover at the published map's hover PWM from 10 m for 10 s; return the height excursion."""
-    from fmpy import simulate_fmu
     from scipy.optimize import brentq
 
     from fmu_models.quadrotor.anfis import published_map
 
     amap = published_map()
     in_band = dict.fromkeys(MOTOR_PWM_INPUTS, 1520.0)
-    g = simulate_fmu(str(fmu), stop_time=0.01, start_values={"init_pos_down_m": -10.0, **in_band},
+    g = simulate(fmu, stop_time=0.01, start_values={"init_pos_down_m": -10.0, **in_band},
                      output=["gravity_m_s2"])["gravity_m_s2"][0]
     pwm = brentq(lambda x: amap.evaluate([np.array([x])])[0] - MASS_KG * g, 6000.0, 6217.3) / N_MOTORS
-    res = simulate_fmu(str(fmu), stop_time=10.0, output_interval=0.01,
+    res = simulate(fmu, stop_time=10.0, output_interval=0.01,
                        start_values={"init_pos_down_m": -10.0, **dict.fromkeys(MOTOR_PWM_INPUTS, pwm)},
                        output=["altitude_m"])
     return {"hover PWM [us]": pwm, "max |altitude - 10 m| [mm]": 1e3 * float(np.max(np.abs(res["altitude_m"] - 10)))}
@@ -95,12 +104,10 @@ def hover_check(fmu: Path) -> dict[str, float]:
 
 def trim_check(fmu: Path) -> dict[str, float]:
     """Trim at 25 m/s (uavbook method) and fly 20 s from it through FMPy."""
-    from fmpy import simulate_fmu
-
     from identification.flights.scenarios import fixed_wing_start
 
     start, inputs, pitch = fixed_wing_start()
-    res = simulate_fmu(str(fmu), stop_time=20.0, output_interval=0.01, start_values=start,
+    res = simulate(fmu, stop_time=20.0, output_interval=0.01, start_values=start,
                        output=["airspeed_m_s", "altitude_m"])
     return {"trim pitch [deg]": math.degrees(pitch), "trim elevator [deg]": math.degrees(inputs["elevator_rad"]),
             "trim throttle [-]": inputs["throttle"],

@@ -66,3 +66,20 @@ def test_demo_real_without_shared_data_says_what_is_missing_before_building(tmp_
     assert all("nowhere" in m and m.endswith(".BIN") for m in res.missing)
     assert "not found" in capsys.readouterr().out
     assert not (tmp_path / "out").exists()  # nothing was built
+
+
+def test_the_demo_checks_leave_no_fmu_extraction_behind_even_when_the_simulation_raises(quadrotor_fmu: Path) -> None:
+    import tempfile
+
+    from uavfmu.demo import simulate
+
+    before = set(Path(tempfile.gettempdir()).iterdir())  # this test process's own temporary folder
+
+    def left() -> set[Path]:
+        return set(Path(tempfile.gettempdir()).iterdir()) - before
+
+    res = simulate(quadrotor_fmu, stop_time=0.02, output=["altitude_m"])
+    assert len(res) >= 2 and not left()
+    with pytest.raises(Exception, match="no_such_input"):  # FMPy names the unknown start value
+        simulate(quadrotor_fmu, stop_time=0.02, start_values={"no_such_input": 1.0})
+    assert not left()
