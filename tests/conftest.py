@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
+import shutil
 import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -34,12 +35,13 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 
 @pytest.fixture(scope="session", autouse=True)
-def _temporary_files_under_the_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
-    """Temporary files of the code under test and of its subprocesses (``tempfile``, ``$TMPDIR``) go under this test
-    process's pytest folder, which pytest prunes (it keeps the last three runs'): FMPy's ``simulate_fmu`` leaves its
-    FMU extraction behind when the simulation raises, as the FMU error tests make it do (about 50 folders per run
-    left in the system's temporary folder before)."""
-    folder = tmp_path_factory.mktemp("tmp")
+def _temporary_files_under_the_run() -> Iterator[Path]:
+    """Temporary files of the code under test and of its subprocesses (``tempfile``, ``$TMPDIR``) go into one folder
+    per test process, removed at its end: FMPy's ``simulate_fmu`` leaves its FMU extraction behind when the simulation
+    raises, as the FMU error tests make it do (about 50 folders per run left in the system's temporary folder
+    before). A short path beside the system's, not under pytest's folder: multiprocessing puts its sockets there,
+    and a socket path is limited to 104-108 bytes."""
+    folder = Path(tempfile.mkdtemp(prefix="uavfmu-test-"))
     before_env, before_dir = os.environ.get("TMPDIR"), tempfile.tempdir
     os.environ["TMPDIR"], tempfile.tempdir = str(folder), str(folder)
     try:
@@ -50,6 +52,7 @@ def _temporary_files_under_the_run(tmp_path_factory: pytest.TempPathFactory) -> 
             os.environ.pop("TMPDIR", None)
         else:
             os.environ["TMPDIR"] = before_env
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def shared_data(*parts: str) -> Path:

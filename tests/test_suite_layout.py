@@ -1,6 +1,7 @@
 """The suite's layout: `make test`'s two runs between them run every test (the wall-clock pacing tests, marker
 ``realtime``, are left out of the parallel run and collected from one folder afterwards, so one elsewhere must stop
-the collection), and the code under test leaves its temporary files in the run's pytest folder."""
+the collection), and the code under test leaves its temporary files in a folder of the test process, removed at
+its end."""
 
 from __future__ import annotations
 
@@ -29,7 +30,8 @@ def test_the_makefile_collects_the_realtime_tests_from_the_folder_the_guard_chec
     assert Path(REALTIME_DIR).is_dir()
 
 
-def test_temporary_files_of_the_code_under_test_stay_in_the_run_folder(_temporary_files_under_the_run: Path) -> None:
+def test_temporary_files_of_the_code_under_test_stay_in_the_test_process_folder(
+        _temporary_files_under_the_run: Path) -> None:
     import os
     import tempfile
 
