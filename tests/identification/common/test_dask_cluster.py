@@ -108,25 +108,39 @@ def test_real_cluster_gives_the_local_metrics_bit_for_bit(fixed_wing_fmu: Path, 
 def test_worker_killed_mid_batch_costs_one_retry(fixed_wing_fmu: Path, batch, tmp_path: Path) -> None:
     """SIGKILL to the worker process running a task after 8 results: every pair still gets its result, only the
     tasks the killed worker held are retried (on the other worker or the restarted one: one task, as each worker
-    runs one at a time), each once, and a retried one matches an undisturbed run."""
+    runs one at a time), each once, and a retried one matches an undisturbed run. A kill that lands just after its
+    task's result left the worker (the scheduler still lists the task for a moment) costs no retry, rightly: such a
+    run is repeated, at most three times (it happened in about 1 of 14 runs)."""
     mapping, logs = batch
-    jobs = _jobs(fixed_wing_fmu, mapping, logs[:16], tmp_path / "killed")
+    retried: list = []
+    for attempt in range(3):
+        root = tmp_path / f"killed{attempt}"
+        jobs = _jobs(fixed_wing_fmu, mapping, logs[:16], root)
+        results, killed = _batch_with_a_worker_killed(jobs)
+        assert killed, "no worker was busy to kill"
+        assert all(r.status != "error" and (root / f"{k:03d}" / "metrics.json").is_file()
+                   for k, r in enumerate(results))
+        retried = [r for r in results if r.retried]
+        assert len(retried) <= killed[1] and all("died" in r.retried for r in retried), (killed, retried)
+        if retried:
+            break
+    assert retried, "in three runs no kill landed while its task was still running"
+    again = validate_batch([jobs[logs.index(Path(retried[0].log))]], workers=1)
+    assert again[0].signals == retried[0].signals
+
+
+def _batch_with_a_worker_killed(jobs: list[ValidationJob]) -> tuple[list, list[int]]:
+    """The batch's results on two local workers, one of them killed once 8 results are in; and [its pid, how many
+    tasks it held] (empty when none was busy)."""
     with Executor(workers=2) as ex:
         pids = ex.client.run(os.getpid)
-        killed: list[int] = []  # the killed worker's pid, then how many tasks it held
+        killed: list[int] = []
 
         def kill_busy_worker(done: int, total: int) -> None:
             if done == 8 and not killed:
                 threading.Thread(target=_kill_one, args=(ex, pids, killed), daemon=True).start()
 
-        results = validate_batch(jobs, progress=kill_busy_worker, executor=ex)
-    assert killed, "no worker was busy to kill"
-    assert all(r.status != "error" and (tmp_path / "killed" / f"{k:03d}" / "metrics.json").is_file()
-               for k, r in enumerate(results))
-    retried = [r for r in results if r.retried]
-    assert 1 <= len(retried) <= killed[1] and all("died" in r.retried for r in retried), (killed, retried)
-    again = validate_batch([jobs[logs.index(Path(retried[0].log))]], workers=1)
-    assert again[0].signals == retried[0].signals
+        return validate_batch(jobs, progress=kill_busy_worker, executor=ex), killed
 
 
 def _kill_one(ex: Executor, pids: dict[str, int], killed: list[int]) -> None:
