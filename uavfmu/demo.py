@@ -24,7 +24,6 @@ import argparse
 import dataclasses
 import json
 import math
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -76,13 +75,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=1, help="sensor-noise seed of the recorded logs")
 
 
-def simulate(fmu: Path, **kwargs: Any) -> np.ndarray:
-    """``fmpy.simulate_fmu(fmu, **kwargs)`` on ``fmu`` extracted into a folder that is removed afterwards, also when
-    the simulation raises (FMPy's own extraction is left in the temporary folder then)."""
-    from fmpy import extract, simulate_fmu
+def simulate(fmu: Path, stop_time_s: float, outputs: list[str], start_values: dict[str, float]) -> np.ndarray:
+    """``fmu`` from time 0 to ``stop_time_s`` [s] in 10 ms steps with its inputs held at ``start_values``
+    (``FmuHost``: its extraction is removed afterwards, also when the simulation raises)."""
+    from fmu_models.fmi.host import FmuHost
 
-    with tempfile.TemporaryDirectory(prefix="uavfmu-demo-") as folder:
-        return simulate_fmu(extract(str(fmu), folder), **kwargs)
+    with FmuHost(fmu) as host:
+        return host.simulate(np.arange(round(stop_time_s / 0.01) + 1) * 0.01, {}, outputs, start_values)
 
 
 def hover_check(fmu: Path) -> dict[str, float]:
@@ -93,12 +92,9 @@ def hover_check(fmu: Path) -> dict[str, float]:
 
     amap = published_map()
     in_band = dict.fromkeys(MOTOR_PWM_INPUTS, 1520.0)
-    g = simulate(fmu, stop_time=0.01, start_values={"init_pos_down_m": -10.0, **in_band},
-                     output=["gravity_m_s2"])["gravity_m_s2"][0]
+    g = simulate(fmu, 0.01, ["gravity_m_s2"], {"init_pos_down_m": -10.0, **in_band})["gravity_m_s2"][0]
     pwm = brentq(lambda x: amap.evaluate([np.array([x])])[0] - MASS_KG * g, 6000.0, 6217.3) / N_MOTORS
-    res = simulate(fmu, stop_time=10.0, output_interval=0.01,
-                       start_values={"init_pos_down_m": -10.0, **dict.fromkeys(MOTOR_PWM_INPUTS, pwm)},
-                       output=["altitude_m"])
+    res = simulate(fmu, 10.0, ["altitude_m"], {"init_pos_down_m": -10.0, **dict.fromkeys(MOTOR_PWM_INPUTS, pwm)})
     return {"hover PWM [us]": pwm, "max |altitude - 10 m| [mm]": 1e3 * float(np.max(np.abs(res["altitude_m"] - 10)))}
 
 
@@ -107,8 +103,7 @@ def trim_check(fmu: Path) -> dict[str, float]:
     from identification.flights.scenarios import fixed_wing_start
 
     start, inputs, pitch = fixed_wing_start()
-    res = simulate(fmu, stop_time=20.0, output_interval=0.01, start_values=start,
-                       output=["airspeed_m_s", "altitude_m"])
+    res = simulate(fmu, 20.0, ["airspeed_m_s", "altitude_m"], start)
     return {"trim pitch [deg]": math.degrees(pitch), "trim elevator [deg]": math.degrees(inputs["elevator_rad"]),
             "trim throttle [-]": inputs["throttle"],
             "max |Va - 25| over 20 s [m/s]": float(np.max(np.abs(res["airspeed_m_s"] - 25)))}

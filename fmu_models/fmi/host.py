@@ -154,9 +154,14 @@ class FmuHost:
                  start_values: Mapping[str, float] | None = None) -> np.ndarray:
         """``fmpy.simulate_fmu`` over the uniform grid ``t_s`` (first sample is time 0 for the FMU).
 
-        ``inputs`` (by FMU input name, sampled at ``t_s``) go in as FMPy's structured input array; the
-        result has a row per sample of ``t_s``. Raises ``FmuRunError`` with the FMU's messages on failure.
+        ``inputs`` (by FMU input name, sampled at ``t_s``) go in as FMPy's structured input array (none: the
+        inputs keep their start values, without FMPy's warning per input); the result has a row per sample of
+        ``t_s``. Raises ``FmuRunError`` with the FMU's messages on failure, and naming any input, output or start
+        value the FMU has no variable for (FMPy, not validating, would skip such a start value without a word).
         """
+        unknown = [n for n in (*inputs, *outputs, *(start_values or {})) if n not in self.variables]
+        if unknown:
+            raise FmuRunError(f"{self.path.name}: no variable {', '.join(map(repr, dict.fromkeys(unknown)))}")
         dt = float(t_s[1] - t_s[0])
         rows = np.zeros(len(t_s), dtype=[("time", np.float64)] + [(n, np.float64) for n in inputs])
         rows["time"] = t_s - t_s[0]
@@ -166,7 +171,8 @@ class FmuHost:
         self.messages.clear()
         try:
             res: Any = simulate_fmu(self.unzip, model_description=self.md, fmu_instance=self._live("simulate"),
-                                    start_values=dict(start_values or {}), input=rows, output=list(outputs),
+                                    start_values=dict(start_values or {}), input=rows if inputs else None,
+                                    output=list(outputs),
                                     step_size=dt, output_interval=dt, stop_time=float(rows["time"][-1]),
                                     validate=False)
         except Exception as err:  # FMPy raises plain Exception (FMICallException) for fmi2Error/fmi2Fatal

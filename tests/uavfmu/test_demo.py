@@ -71,6 +71,7 @@ def test_demo_real_without_shared_data_says_what_is_missing_before_building(tmp_
 def test_the_demo_checks_leave_no_fmu_extraction_behind_even_when_the_simulation_raises(quadrotor_fmu: Path) -> None:
     import tempfile
 
+    from fmu_models.fmi.host import FmuRunError
     from uavfmu.demo import simulate
 
     before = set(Path(tempfile.gettempdir()).iterdir())  # this test process's own temporary folder
@@ -78,8 +79,8 @@ def test_the_demo_checks_leave_no_fmu_extraction_behind_even_when_the_simulation
     def left() -> set[Path]:
         return set(Path(tempfile.gettempdir()).iterdir()) - before
 
-    res = simulate(quadrotor_fmu, stop_time=0.02, output=["altitude_m"])
-    assert len(res) >= 2 and not left()
-    with pytest.raises(Exception, match="no_such_input"):  # FMPy names the unknown start value
-        simulate(quadrotor_fmu, stop_time=0.02, start_values={"no_such_input": 1.0})
+    res = simulate(quadrotor_fmu, 0.02, ["altitude_m"], {})
+    assert len(res) == 3 and not left()
+    with pytest.raises(FmuRunError, match="no_such_input"):  # FMPy names the unknown start value
+        simulate(quadrotor_fmu, 0.02, ["altitude_m"], {"no_such_input": 1.0})
     assert not left()

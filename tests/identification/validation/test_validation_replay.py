@@ -91,6 +91,21 @@ def test_fmu_errors_become_messages(tmp_path: Path) -> None:
         FmuHost(tmp_path / "absent.fmu")
 
 
+def test_a_simulation_names_a_start_value_input_or_output_the_fmu_does_not_have(quadrotor_fmu: Path) -> None:
+    """FMPy, not validating, skips an unknown start value without a word: the host refuses it by name, and the
+    same instance goes on."""
+    t = np.arange(3) * 0.01
+    with FmuHost(quadrotor_fmu) as host:
+        with pytest.raises(FmuRunError, match="'init_pos_dwn_m'"):
+            host.simulate(t, {}, ["altitude_m"], {"init_pos_dwn_m": -10.0})
+        with pytest.raises(FmuRunError, match="'pwm_9_us'"):
+            host.simulate(t, {"pwm_9_us": np.full(3, 1500.0)}, ["altitude_m"])
+        with pytest.raises(FmuRunError, match="'altitude'"):
+            host.simulate(t, {}, ["altitude"])
+        res = host.simulate(t, {}, ["altitude_m"], {"init_pos_down_m": -10.0})
+        np.testing.assert_allclose(res["altitude_m"][0], 10.0)
+
+
 def test_fmu_error_mid_run_is_reported(quadrotor_fmu: Path, quad_log: Path) -> None:
     """A log whose motor PWM leaves the FMU's input range makes the FMU return fmi2Error: a message naming the
     input, and the host stays usable."""
