@@ -50,18 +50,24 @@ covariance assumes a fixed coefficient varies.
 
 Run: ``.venv/bin/python bench/aero_replica.py [--draws 1] [--seed 0] [--bound ar|bootstrap] [--start-state
 logged|exact] [--estimate-initial STATES [--initial-sd STATE=SD,...]] [--truth-seed N] [--fixed-spread
-factor|zeros|consider]`` (one identify run per draw: 15-60 s on 2 cores, more when they are shared). Exit 1 when a draw
-fails, or the draws show a primary derivative's coverage below 0.90 or its median half-width above 2 x its RMS
-error (``replica_verdict``: a point figure past its target within the Monte Carlo error of the draws is printed
-"(unresolved)", not called met); the log is read from ``../shared/data`` (exit 2 when absent).
+factor|zeros|consider] [--save FILE]`` (one identify run per draw: 15-60 s on 2 cores, more when they are shared).
+Exit 1 when a draw fails, or the draws show a primary derivative's coverage below 0.90 or its median half-width above
+2 x its RMS error (``replica_verdict``: a point figure past its target within the Monte Carlo error of the draws is
+printed "(unresolved)", not called met); the log is read from ``../shared/data`` (exit 2 when absent). ``--save FILE``
+writes each draw's relative error and half-widths (JSON, after every draw); ``--pool FILE...`` runs no draw and
+judges the draws of several saved runs together, the same way: runs of other seeds with the same settings (truth
+family, bound, segment starts, nuisance), so that figures 20 draws leave unresolved can be resolved by more draws
+run in parallel (a file of another bench, other settings or a draw seed twice is refused by name).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -345,7 +351,81 @@ def summary(rel: list[dict[str, tuple[float, float, bool, float, float]]]) -> tu
     return lines, overall(figures)
 
 
-def main() -> int:
+def _settings(args: argparse.Namespace, states: list[str] | None, initial_sd: dict[str, float]) -> dict[str, Any]:
+    """What a run's draws have in common (the draws of runs pooled must agree on every one of these)."""
+    return {"fixed_spread": args.fixed_spread, "bound": args.bound, "start_state": args.start_state,
+            "estimate_initial": states, "initial_sd": initial_sd, "truth_seed": args.truth_seed}
+
+
+def _save(path: Path, settings: dict[str, Any], draws: list[dict[str, Any]], skipped: list[int]) -> None:
+    """Write the run so far (after every draw: a run stopped early keeps its draws) for ``--pool``."""
+    path.write_text(json.dumps({"bench": "aero_replica", "settings": settings, "draws": draws,
+                                "skipped": skipped}, indent=1))
+
+
+def _pooled(paths: Sequence[Path]) -> tuple[dict[str, Any], list[dict[str, Any]], list[int]]:
+    """The settings, draws and skipped draw seeds of ``--save`` files; ``ValueError`` naming the file and field
+    that does not fit (another bench's file, settings that differ from the first file's, a draw seed twice)."""
+    settings: dict[str, Any] | None = None
+    draws: list[dict[str, Any]] = []
+    skipped: list[int] = []
+    seen: dict[int, Path] = {}
+    for path in paths:
+        try:
+            got = json.loads(path.read_text())
+            if got.get("bench") != "aero_replica":
+                raise ValueError(f"field 'bench' is {got.get('bench')!r}, not 'aero_replica'")
+            mine, rows = got["settings"], got["draws"]
+            for row in rows:
+                seed = int(row["seed"])
+                row["passed"] = bool(row["passed"])
+                row["rel"] = {n: tuple(float(x) if k != 2 else bool(x) for k, x in enumerate(row["rel"][n]))
+                              for n in PRIMARY}
+                if seed in seen:
+                    raise ValueError(f"draw {seed} is in {seen[seed]} as well: a draw pooled twice")
+                seen[seed] = path
+            skipped += [int(x) for x in got["skipped"]]
+        except (OSError, KeyError, TypeError, AttributeError, json.JSONDecodeError) as err:
+            raise ValueError(f"{path}: not a --save file of this bench ({type(err).__name__}: {err})") from None
+        except ValueError as err:
+            raise ValueError(f"{path}: {err}") from None
+        if settings is None:
+            settings = mine
+        elif mine != settings:
+            diff = [k for k in sorted(set(settings) | set(mine)) if settings.get(k) != mine.get(k)]
+            raise ValueError(f"{path}: settings {', '.join(f'{k}={mine.get(k)!r}' for k in diff)} differ from "
+                             f"{paths[0]}'s ({', '.join(f'{k}={settings.get(k)!r}' for k in diff)}): the draws of "
+                             "unlike runs are not one distribution")
+        draws += rows
+    return settings or {}, draws, skipped
+
+
+def _verdict(settings: dict[str, Any], rel: list[dict[str, tuple[float, float, bool, float, float]]],
+             passed: int, skipped: list[int], source: str) -> int:
+    """Print the figures over the draws and the verdict; the exit status (1 on a failed draw or a shown miss)."""
+    if not rel:
+        print(f"every drawn truth diverges (draws {', '.join(map(str, skipped))}): nothing judged")
+        return 1
+    lines, verdict = summary(rel)
+    gone = f" ({len(skipped)} skipped: the truth diverges)" if skipped else ""
+    states = settings["estimate_initial"]
+    print(f"over {len(rel)} draws{gone}{source} (truths {settings['fixed_spread']}, bound {settings['bound']!r}, "
+          f"segment starts {settings['start_state']}, nuisance "
+          f"{'auto' if states is None else 'initial ' + ', '.join(states) + ' and biases'}; targets: coverage >= "
+          f"{MIN_COVERAGE:.2f}, median half-width <= {MAX_WIDTH:g} x the RMS error; [bound]: the one-sided 95 % "
+          "Monte Carlo bound towards the target):")
+    print("\n".join(lines))
+    widths = {"met": "met", "miss": "MISSED (the draws show it)",
+              "unresolved": f"no miss shown; the figures marked (unresolved) are past their targets by less than "
+                            f"the Monte Carlo error of {len(rel)} draws"}[verdict]
+    failed = passed < len(rel) or verdict == "miss"
+    print(f"{passed} of {len(rel)} draws: every primary derivative within 10 %, no failure; per derivative "
+          f"coverage and width: {widths} -> "
+          f"{'FAIL' if failed else ('PASS' if verdict == 'met' else 'NO MISS SHOWN (unresolved, not a pass)')}")
+    return 1 if failed else 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--draws", type=int, default=1)
     parser.add_argument("--seed", type=int, default=0)
@@ -365,7 +445,19 @@ def main() -> int:
     parser.add_argument("--initial-sd", default=None, metavar="STATE=SD,...",
                         help="with --estimate-initial: those states' logged start as a measurement of this std "
                              "(a prior at the logged value), e.g. vel_body_x_m_s=0.07,vel_body_y_m_s=0.07")
-    args = parser.parse_args()
+    parser.add_argument("--save", type=Path, default=None,
+                        help="write every draw's errors and half-widths here (JSON, after each draw), for --pool")
+    parser.add_argument("--pool", type=Path, nargs="+", default=None,
+                        help="no draws: the figures and verdict over the draws of these --save files together (runs "
+                             "of other seeds with the same settings)")
+    args = parser.parse_args(argv)
+    if args.pool:
+        try:
+            settings, rows, skipped = _pooled(args.pool)
+        except ValueError as err:
+            parser.error(f"--pool {err}")
+        return _verdict(settings, [r["rel"] for r in rows], sum(r["passed"] for r in rows), skipped,
+                        f" of {len(args.pool)} runs pooled")
     if not 1 <= args.draws <= 50:
         parser.error("--draws must be in 1..50")
     states = None if args.estimate_initial is None else [x for x in args.estimate_initial.split(",") if x]
@@ -385,7 +477,13 @@ def main() -> int:
     if not LOG.exists():
         print(f"{LOG} is absent; nothing to replicate")
         return 2
-    passed, rel, skipped = 0, [], []
+    settings = _settings(args, states, initial_sd)
+    passed, rel, skipped, saved = 0, [], [], []
+    if args.save is not None:  # a path that cannot be written is named now, not after the first draw's minutes
+        try:
+            _save(args.save, settings, saved, skipped)
+        except OSError as err:
+            parser.error(f"--save {args.save}: cannot be written ({err.strerror})")
     for k in range(args.draws):
         try:
             ok, table, r = run_draw(args.seed + k, args.bound, args.start_state == "exact", states, args.truth_seed,
@@ -393,29 +491,16 @@ def main() -> int:
         except TruthDivergesError as err:
             print(f"draw {args.seed + k}: skipped, {err} (no replica to identify)\n", flush=True)
             skipped.append(args.seed + k)
+            if args.save is not None:
+                _save(args.save, settings, saved, skipped)
             continue
         print(table + "\n", flush=True)
         passed += ok
         rel.append(r)
-    if not rel:
-        print(f"every drawn truth diverges (draws {', '.join(map(str, skipped))}): nothing judged")
-        return 1
-    lines, verdict = summary(rel)
-    gone = f" ({len(skipped)} skipped: the truth diverges)" if skipped else ""
-    print(f"over {len(rel)} draws{gone} (truths {args.fixed_spread}, bound {args.bound!r}, segment starts "
-          f"{args.start_state}, nuisance "
-          f"{'auto' if states is None else 'initial ' + ', '.join(states) + ' and biases'}; targets: coverage >= "
-          f"{MIN_COVERAGE:.2f}, median half-width <= {MAX_WIDTH:g} x the RMS error; [bound]: the one-sided 95 % "
-          "Monte Carlo bound towards the target):")
-    print("\n".join(lines))
-    widths = {"met": "met", "miss": "MISSED (the draws show it)",
-              "unresolved": f"no miss shown; the figures marked (unresolved) are past their targets by less than "
-                            f"the Monte Carlo error of {len(rel)} draws"}[verdict]
-    failed = passed < len(rel) or verdict == "miss"
-    print(f"{passed} of {len(rel)} draws: every primary derivative within 10 %, no failure; per derivative "
-          f"coverage and width: {widths} -> "
-          f"{'FAIL' if failed else ('PASS' if verdict == 'met' else 'NO MISS SHOWN (unresolved, not a pass)')}")
-    return 1 if failed else 0
+        saved.append({"seed": args.seed + k, "passed": bool(ok), "rel": {n: list(v) for n, v in r.items()}})
+        if args.save is not None:
+            _save(args.save, settings, saved, skipped)
+    return _verdict(settings, rel, passed, skipped, "")
 
 if __name__ == "__main__":
     raise SystemExit(main())
