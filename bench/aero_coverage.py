@@ -107,10 +107,10 @@ class Study:
 def white_plus_ar1(rng: np.random.Generator, shape: tuple[int, ...], white_sd: object, coloured_sd: object,
                    pole: float = POLE, stationary: bool = False) -> np.ndarray:
     """White noise of std ``white_sd`` plus an AR(1) part (``pole`` per sample, along axis 0) of long-run std
-    ``coloured_sd`` (scalars or per-column arrays). The AR(1) part starts from 0 (its std grows to ``coloured_sd``
-    over the first ~1 / (1 - pole) samples: this study's manoeuvres, whose figures in the aero readme were
-    measured so) or, ``stationary``, from a draw of its long-run distribution, as a sensor's noise is at any
-    instant of a log (the replica's, whose segment starts are read from noisy samples)."""
+    ``coloured_sd`` (scalars or per-column arrays). The AR(1) part starts, ``stationary``, from a draw of its
+    long-run distribution, as a sensor's noise is at any instant of a log (this study's manoeuvres since
+    2026-11-30, and the replica's), else from 0 (its std grows to ``coloured_sd`` over the first ~1 / (1 - pole)
+    samples: this study's figures in the aero readme before 2026-11-30 were measured so)."""
     white = rng.normal(0.0, 1.0, shape) * white_sd
     drive = rng.normal(0.0, 1.0, shape) * coloured_sd * np.sqrt(1 - pole**2)
     if not stationary:
@@ -120,7 +120,7 @@ def white_plus_ar1(rng: np.random.Generator, shape: tuple[int, ...], white_sd: o
 
 
 def _noise(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
-    return white_plus_ar1(rng, shape, WHITE, COLOURED)
+    return white_plus_ar1(rng, shape, WHITE, COLOURED, stationary=True)
 
 
 def plant_params(model: FixedWingModel, p: np.ndarray) -> np.ndarray:

@@ -31,9 +31,11 @@ POLE = 0.9
 
 
 def white_plus_ar1(rng: np.random.Generator, n: int, pole: float = POLE) -> np.ndarray:
-    """Unit white noise plus a unit-variance AR(1) part: long-run variance 1 + (1 + pole) / (1 - pole)."""
+    """Unit white noise plus a unit-variance AR(1) part, stationary from the first sample (its state one sample
+    before drawn from its long-run distribution, as a sensor's noise is at any instant of a log): long-run
+    variance 1 + (1 + pole) / (1 - pole), the autocovariance the exact variances below sum."""
     drive = rng.normal(size=n) * np.sqrt(1.0 - pole**2)
-    return rng.normal(size=n) + lfilter([1.0], [1.0, -pole], drive)
+    return rng.normal(size=n) + lfilter([1.0], [1.0, -pole], drive, zi=[pole * rng.normal()])[0]
 
 
 def test_burg_recovers_an_ar2_model() -> None:
@@ -50,7 +52,8 @@ def test_burg_recovers_an_ar2_model() -> None:
 
 def test_ar_model_keeps_the_long_run_variance_that_the_bartlett_taper_loses() -> None:
     """Eight records of 400 samples of white + AR(1) noise (pole 0.9): the variance of their mean. The Bartlett-
-    tapered estimate keeps about 3/4 of it, the AR-prewhitened one at least 0.88 (Burg, order by AIC)."""
+    tapered estimate keeps about 0.72 of it, the AR-prewhitened one (Burg, order by AIC) 0.98 (measured over these
+    40 x 8 records; 0.91 with the AR(1) part started at 0 in every record, a noise that is not stationary)."""
     rng = np.random.default_rng(1)
     n, lrv = 400, 1.0 + (1.0 + POLE) / (1.0 - POLE)
     # the exact variance of a record's mean x sqrt(n): sum over lags of the autocovariance x (1 - |k|/n)
@@ -65,7 +68,7 @@ def test_ar_model_keeps_the_long_run_variance_that_the_bartlett_taper_loses() ->
         bart.append(np.mean([coloured_covariance(G, r)[0, 0] for r in rs]))
         ar.append(np.mean([coloured_covariance_ar(G, r, polys)[0, 0] for r in rs]))
     assert np.mean(bart) / exact < 0.8
-    assert 0.88 < np.mean(ar) / exact < 1.1
+    assert 0.93 < np.mean(ar) / exact < 1.07
     # AR residual models of the right order give the same middle term as the taper on white residuals
     w = rng.normal(size=(n, 2))
     Gw = rng.normal(size=(n, 2, 3))
