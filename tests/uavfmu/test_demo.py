@@ -81,6 +81,6 @@ def test_the_demo_checks_leave_no_fmu_extraction_behind_even_when_the_simulation
 
     res = simulate(quadrotor_fmu, 0.02, ["altitude_m"], {})
     assert len(res) == 3 and not left()
-    with pytest.raises(FmuRunError, match="no_such_input"):  # FMPy names the unknown start value
+    with pytest.raises(FmuRunError, match="no_such_input"):  # the host names the unknown start value
         simulate(quadrotor_fmu, 0.02, ["altitude_m"], {"no_such_input": 1.0})
     assert not left()
