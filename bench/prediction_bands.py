@@ -18,7 +18,7 @@ and each held-out segment is scored with the discrepancy learned and calibrated 
 (``--wing-learn-on fit``: on the fit segments), same targets.
 
     .venv/bin/python bench/prediction_bands.py [--draws N] [--only erle,px4,wing] [--no-parameter-spread]
-        [--forms auto|unscaled] [--weight auto|1] [--per-set]
+        [--forms auto|unscaled] [--weight auto|1] [--per-set] [--start-velocity force|logged]
     # exit 1 on a miss
 
 Heavy (minutes; tens of minutes on a loaded 2-core machine): every fold builds an FMU and runs N Monte Carlo
@@ -187,11 +187,12 @@ def quadrotor(name: str, flights: list[tuple[Path, float]], draws: int, fmu_mass
 
 
 def fixed_wing(draws: int, parameter_spread: bool = True, learn_on: str = "held",
-               study: dict[str, Any] | None = None, per_set: bool = False) -> bool:
+               study: dict[str, Any] | None = None, per_set: bool = False, start_velocity: str = "force") -> bool:
     """``identify aero`` on the excitation log (its timeline's fit and held-out segments), the FMU built from the
     estimate, the bands scored on each held-out segment with the discrepancy learned on the other held-out segments
     (``learn_on`` "held": where the truth is known and the parameters were not fitted; leave-one-segment-out so no
-    segment is scored by what it taught) or on the fit segments ("fit")."""
+    segment is scored by what it taught) or on the fit segments ("fit"). ``start_velocity``: the replay windows'
+    start body velocity (``ValidationOptions.start_velocity``)."""
     from build_fmus import build
     from fmu_models.common.params import Uncertainty, read_uncertainty
     from fmu_models.fixed_wing.params import FixedWingParams
@@ -199,6 +200,7 @@ def fixed_wing(draws: int, parameter_spread: bool = True, learn_on: str = "held"
     from identification.aero.identify import AeroOptions, AeroSource, identify_aero, write_results
     from identification.aero.model import parse_segments
     from identification.logs.readers import read_log
+    from identification.validation.replay import options
     from identification.validation.workflow import ValidationJob, learn_discrepancy_jobs, validate_mc
 
     log = read_log(WING)
@@ -215,7 +217,8 @@ def fixed_wing(draws: int, parameter_spread: bool = True, learn_on: str = "held"
         (fmu,) = build(params, Path(tmp) / "fmu", ["fixed_wing"])
 
         def job(span: tuple[float, float]) -> ValidationJob:
-            return ValidationJob(fmu, WING, t_range_s=span, embedded_params=False)
+            return ValidationJob(fmu, WING, options(start_velocity=start_velocity), t_range_s=span,
+                                 embedded_params=False)
 
         unc = read_uncertainty(params)
         if not parameter_spread:  # a study: the discrepancy alone, the parameters at their estimate
@@ -249,6 +252,9 @@ def main() -> int:
     ap.add_argument("--weight", choices=("auto", "1"), default="auto",
                     help="a study: the parameter weight chosen on learning replays left out (auto), or always 1")
     ap.add_argument("--per-set", action="store_true", help="also each held-out set's own figures per signal")
+    ap.add_argument("--start-velocity", choices=("force", "logged"), default="force",
+                    help="fixed wing: the replay windows' start body velocity from the specific force (default) or "
+                         "the GPS as logged (validate --start-velocity)")
     args = ap.parse_args()
     study = {"scaled": args.forms == "auto", "weights": (1.0, 0.0) if args.weight == "auto" else (1.0,)}
     if not all(p.exists() for p in [*ERLE, *(p for p, _ in PX4), WING]):
@@ -274,7 +280,8 @@ def _studies(only: set[str], args: argparse.Namespace, study: dict[str, Any]) ->
             omap.write_text(px4_map_toml())
             ok &= quadrotor("PX4 csv", list(PX4), args.draws, PX4_FMU_MASS_KG, omap, study, args.per_set)
     if "wing" in only:
-        ok &= fixed_wing(args.draws, not args.no_parameter_spread, args.wing_learn_on, study, args.per_set)
+        ok &= fixed_wing(args.draws, not args.no_parameter_spread, args.wing_learn_on, study, args.per_set,
+                         args.start_velocity)
     return ok
 
 

@@ -373,6 +373,8 @@ class Discrepancy(Schema):
     signals: dict[str, SignalDiscrepancy] = Field(min_length=1, max_length=MAX_DISCREPANCY_SIGNALS)
     window_s: float = Field(ge=0.0, le=86400.0, allow_inf_nan=False)
     rate_hz: float = Field(gt=0.0, le=2000.0, allow_inf_nan=False)
+    #: the learning replays' fixed-wing window start velocity (``validate --start-velocity``; None: not recorded)
+    start_velocity: Literal["force", "logged"] | None = None
     logs: list[Annotated[str, Field(max_length=1000)]] = Field(default_factory=list, max_length=1000)
     note: str = Field("", max_length=2000)  #: how the numbers were made; not read
 

@@ -332,6 +332,7 @@ def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "",
     if not signals:
         raise ValidationInputError(f"discrepancy: fewer than {MIN_BIN_SAMPLES} scored samples in every signal")
     return Discrepancy(levels=list(LEVELS), signals=signals, window_s=window_s, rate_hz=rate_hz,
+                       start_velocity=first.options.get("start_velocity"),
                        logs=[str(x) for x in logs], note=note or (
                            "empirical quantiles of logged - FMU (with both signs where symmetric) per horizon bin, "
                            "where scale_floor is given "

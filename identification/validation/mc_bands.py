@@ -289,7 +289,8 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
 
     check_draws(draws, len(res.t_s) + 1, len(res.maps), res.options["max_memory_mb"])
     params = {**{k: float(v) for k, v in res.fmu["parameters"].items()}, **dict(job.start_values)}
-    state_std, out_std = _state_noise(log), output_noise(log, res.maps, units, params)
+    # a start velocity read from the specific force (``start_fit``) has the accelerometer's noise, not the GPS's
+    state_std, out_std = {**_state_noise(log), **res.start_std}, output_noise(log, res.maps, units, params)
     learned = [m.fmu for m in res.maps if discrepancy is not None and m.fmu in discrepancy.signals]
     out_std = {k: (0.0 if k in learned else v) for k, v in out_std.items()}
     chunk = max(1, math.ceil(draws / (2 * executor.threads())))  # each chunk reads the log and sets up once
@@ -336,6 +337,9 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
                             "same_windows": discrepancy is None or (
                                 discrepancy.window_s == res.options.get("window_s")
                                 and discrepancy.rate_hz == res.options.get("rate_hz")),
+                            "start_velocity": discrepancy.start_velocity if discrepancy else None,
+                            "same_starts": discrepancy is None or discrepancy.start_velocity is None
+                            or discrepancy.start_velocity == res.options.get("start_velocity"),
                             "parts": ("parameters (times parameter_weight) + restart-state noise, convolved with "
                                       "the learned discrepancy (carries the sensor noise)") if learned
                             else "parameters + restart-state noise + sensor noise"}}

@@ -20,7 +20,7 @@ import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -51,6 +51,7 @@ from identification.logs.log_state import (
     mapped_inputs,
     unwrapped_angle,
 )
+from identification.validation import start_fit
 from identification.validation.input_check import BATTERY_INPUT, check_inputs
 from identification.validation.output_map import SignalMap
 
@@ -94,6 +95,9 @@ class ValidationOptions(Schema):
     #: only windows wholly inside one of these (t0, t1) spans [s from the log start] are scored (empty: all);
     #: e.g. the held-out segments of an identification
     segments_s: list[tuple[Seconds, Seconds]] = Field(default_factory=list, max_length=MAX_SEGMENTS)
+    #: a fixed wing's window start body velocity v, w: the one matching the logged specific force y, z at the
+    #: restart ("force", ``identification.validation.start_fit``) or the GPS velocity's as logged ("logged")
+    start_velocity: Literal["force", "logged"] = "force"
 
     @model_validator(mode="after")
     def _segments_ordered(self) -> ValidationOptions:
@@ -164,6 +168,8 @@ class ReplayResult:
     battery: dict[str, Any] | None = None
     #: logged inputs outside what the FMU was built for (``identification.validation.input_check.InputFinding``)
     input_checks: list[Any] = field(default_factory=list)
+    #: restart-state noise std of the start values read from the specific force (``start_fit.StartFit.start_std``)
+    start_std: dict[str, float] = field(default_factory=dict)
 
     @property
     def failed(self) -> list[str]:
@@ -468,6 +474,8 @@ class ReplaySetup:
     battery: dict[str, Any] | None = None
     #: logged inputs outside what the FMU was built for (``identification.validation.input_check``)
     input_checks: list[Any] = field(default_factory=list)
+    #: the fixed wing's start velocities read from the specific force (``start_fit.StartFit``), when they were
+    start_fit: Any = None
 
 
 def replay_setup(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalMap], opts: ValidationOptions,
@@ -523,6 +531,13 @@ def replay_setup(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[S
     starts = [{**s, **overrides} for s in initial_values_at(log, t[edges[:-1]],
                                                             forward_from_airspeed=vehicle == "fixed_wing")]
     extra = [a for a in ACCEL if a in host.variables and log.has(a)]
+    fitted = None
+    if (opts.start_velocity == "force" and start_fit.applies(host, log, vehicle)
+            and not any(n in overrides for n in start_fit.UNKNOWNS)):  # a start velocity given by --set stays
+        fitted = start_fit.force_consistent_starts(host, log, t, inputs, edges, included, starts, extra)
+        starts = fitted.starts
+        if fitted.note():
+            notes.append(str(fitted.note()))
     scored = np.repeat(np.asarray(included), np.diff(edges))
     scored = np.append(scored, scored[-1])
     if on_ground is not None:
@@ -532,7 +547,7 @@ def replay_setup(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[S
     logged_v = log.signal(LOGGED).resample(t) if log.has(LOGGED) else None
     findings = check_inputs(vehicle, inputs, _servo_pwm(vehicle, log, mapping, t), params, logged_v, fed, scored)
     return ReplaySetup(vehicle, t, inputs, measured, edges, included, ground, gaps, on_ground, starts, extra, params,
-                       notes, opts, source, findings)
+                       notes, opts, source, findings, fitted)
 
 
 #: motor commands logged more than this many times faster than the replay grid are named in a note
@@ -597,11 +612,13 @@ def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalM
            mapping: PwmMapping | None = None, t_range: tuple[float, float] | None = None,
            progress: Callable[[int, int], None] | None = None, *, include_ground: bool = False,
            horizons_s: Sequence[float] = DEFAULT_HORIZONS_S, max_memory_mb: float = 2048.0,
-           battery: Any = None, segments_s: Sequence[tuple[float, float]] = ()) -> ReplayResult:
+           battery: Any = None, segments_s: Sequence[tuple[float, float]] = (),
+           start_velocity: str = "force") -> ReplayResult:
     """Replay ``log`` through the FMU of ``host`` on a ``rate_hz`` grid and score the signals of ``maps``
-    (``battery``: see :func:`replay_setup`; ``segments_s``: see :class:`ValidationOptions`)."""
+    (``battery``: see :func:`replay_setup`; ``segments_s``, ``start_velocity``: see :class:`ValidationOptions`)."""
     opts = options(rate_hz=rate_hz, window_s=window_s or 0.0, include_ground=include_ground,
-                   horizons_s=list(horizons_s), max_memory_mb=max_memory_mb, segments_s=list(segments_s))
+                   horizons_s=list(horizons_s), max_memory_mb=max_memory_mb, segments_s=list(segments_s),
+                   start_velocity=start_velocity)
     overrides = dict(start_values or {})
     s = replay_setup(host, log, log_path, maps, opts, overrides, mapping, t_range, battery)
     t, edges, measured = s.t, s.edges, s.measured
@@ -610,10 +627,13 @@ def replay(host: FmuHost, log: FlightLog, log_path: Path, maps: Sequence[SignalM
                        {k: v[1:] for k, v in model.items()}, {k: v[1:] for k, v in measured.items()},
                        [(float(t[a]), float(t[b])) for a, b in itertools.pairwise(edges)],
                        [], {}, tuple(maps), overrides, included=list(s.included), ground=s.ground, gaps=s.gaps,
-                       options=opts.model_dump(), battery=s.battery, input_checks=list(s.input_checks))
+                       options=opts.model_dump(), battery=s.battery, input_checks=list(s.input_checks),
+                       start_std=dict(s.start_fit.start_std) if s.start_fit is not None else {})
     res.log["warnings"] += s.notes
     score(res, np.asarray(edges), {m.fmu: measured[m.fmu][edges[:-1]] for m in maps})
     res.horizons = _horizons(maps, measured, model, edges, s.included, opts)
+    if s.start_fit is not None:  # the force model at the logged start (at the fitted one y, z match by construction)
+        first = np.where(np.isnan(s.start_fit.logged_first), first, s.start_fit.logged_first)
     res.one_step = _one_step(log, t[edges[:-1]], first, s.extra)
     return res
 

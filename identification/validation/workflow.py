@@ -21,7 +21,7 @@ from collections.abc import Callable, Mapping, Sequence
 from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import Field
 
@@ -68,6 +68,7 @@ class JobEntry(Schema):
     rate_hz: float | None = Field(None, gt=0, le=2000, allow_inf_nan=False)
     horizons_s: list[Horizon] | None = Field(None, max_length=32)
     include_ground: bool | None = None
+    start_velocity: Literal["force", "logged"] | None = None
     max_memory_mb: PositiveFiniteFloat | None = None
     max_theil: PositiveFiniteFloat | None = None
 
@@ -136,7 +137,8 @@ def validate(job: ValidationJob, progress: Callable[[int, int], None] | None = N
         res = replay(host, log, job.log, maps, rate_hz=o.rate_hz, window_s=o.window_s or None,
                      start_values=dict(job.start_values), mapping=mapping, progress=progress,
                      include_ground=o.include_ground, horizons_s=o.horizons_s, max_memory_mb=o.max_memory_mb,
-                     battery=battery, t_range=job.t_range_s, segments_s=o.segments_s)
+                     battery=battery, t_range=job.t_range_s, segments_s=o.segments_s,
+                     start_velocity=o.start_velocity)
     out = result_of(res, job)
     if job.report_dir is not None:
         write_report(res, out, Path(job.report_dir))
@@ -451,7 +453,7 @@ def load_manifest(path: Path, base_options: Mapping[str, Any] | None = None,
     return jobs
 
 
-_OPTION_KEYS = ("window_s", "rate_hz", "horizons_s", "include_ground", "max_memory_mb")
+_OPTION_KEYS = ("window_s", "rate_hz", "horizons_s", "include_ground", "start_velocity", "max_memory_mb")
 
 
 def _as_list(v: str | list[str]) -> list[str]:
@@ -537,6 +539,9 @@ def _band_lines(r: ValidationResult) -> list[str]:
     if disc.get("signals") and not disc.get("same_windows", True):
         out.append(f"  note: the discrepancy was learned with {disc['window_s']:g} s windows at another window length "
                    "or rate than this replay: its horizons do not match (learn it with the same --window-s, --rate-hz)")
+    if disc.get("signals") and not disc.get("same_starts", True):
+        out.append(f"  note: the discrepancy was learned from replays started with --start-velocity "
+                   f"{disc['start_velocity']}, this replay uses another: its early-horizon errors do not match")
     out += [f"  NOT EXPLAINED {s}: {v['band_reason']}" for s, v in bad.items()]
     if wide:
         out.append(f"  wide bands (uncertainty overstated, or a noise-free log signal): {', '.join(wide)}")

@@ -34,6 +34,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--window-s", type=float, help="replay windows [s] (default 2; use validate's)")
     parser.add_argument("--rate-hz", type=float, help="replay sample rate [Hz] (default 50)")
     parser.add_argument("--include-ground", action="store_true", default=None, help="also ground windows")
+    parser.add_argument("--start-velocity", choices=("force", "logged"), default=None,
+                        help="fixed wing: window start velocity from the specific force (default) or the GPS (as "
+                             "validate)")
     parser.add_argument("--mc", type=int, default=None, metavar="N",
                         help="Monte Carlo draws of the parameters per log to calibrate the combined band on (default "
                         "19 when --params holds an 'uncertainty', 0: none; then validate --mc counts the parameter "
@@ -49,7 +52,8 @@ def run(args: argparse.Namespace) -> int:
     from identification.validation.workflow import ValidationJob, learn_discrepancy
 
     try:
-        values = {"window_s": args.window_s, "rate_hz": args.rate_hz, "include_ground": args.include_ground}
+        values = {"window_s": args.window_s, "rate_hz": args.rate_hz, "include_ground": args.include_ground,
+                  "start_velocity": args.start_velocity}
         opts = check_options(**{k: v for k, v in values.items() if v is not None})
         job = ValidationJob(args.fmu, args.logs[0], opts, args.map, args.mapping, args.channel_map,
                             params_file=args.params)

@@ -60,6 +60,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                                        "(default 0.1,0.5,1,2)")
     parser.add_argument("--include-ground", action="store_true", default=None,
                         help="also score windows where the vehicle is on the ground")
+    parser.add_argument("--start-velocity", choices=("force", "logged"), default=None,
+                        help="fixed wing: each window's start body velocity v, w matching the logged specific force "
+                             "at the restart (force, default) or the GPS velocity's as logged")
     parser.add_argument("--max-memory-mb", type=float, help="stop before a replay needs more memory (default 2048)")
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="override a parameter")
     parser.add_argument("--max-theil", type=float, help="pass threshold on Theil's U for every signal")
@@ -108,7 +111,8 @@ def _option_values(args: argparse.Namespace) -> dict[str, object]:
         except ValueError:
             raise ValueError(f"--horizons-s {args.horizons_s!r}: expected numbers separated by commas") from None
     return {"window_s": args.window_s, "rate_hz": args.rate_hz, "horizons_s": horizons,
-            "include_ground": args.include_ground, "max_memory_mb": args.max_memory_mb,
+            "include_ground": args.include_ground, "start_velocity": args.start_velocity,
+            "max_memory_mb": args.max_memory_mb,
             "segments_s": _segments(args)}
 
 

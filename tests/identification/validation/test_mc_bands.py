@@ -19,6 +19,7 @@ from identification.flights import synthetic
 from identification.validation.mc_bands import (
     MAX_COVERAGE,
     MIN_COVERAGE,
+    Bands,
     McTask,
     band_ranks,
     mc_task,
@@ -150,6 +151,17 @@ def test_draws_do_not_depend_on_how_they_are_split(fixed_wing_fmu: Path, wing) -
         np.testing.assert_array_equal(whole[key], np.concatenate([h[key] for h in halves]))
     assert not whole["failed"]
     assert not np.array_equal(whole["y:roll_rad"][0], whole["y:roll_rad"][1])  # the draws differ
+
+
+def test_a_band_covering_too_much_or_too_little_is_named_so() -> None:
+    """Coverage above ``MAX_COVERAGE`` is a band wider than its level (the stated uncertainty overstated), below
+    ``MIN_COVERAGE`` one the model does not explain; between, consistent."""
+    eps = 1e-6
+    bands = Bands({}, {}, {"a": MAX_COVERAGE + eps, "b": MIN_COVERAGE - eps, "c": 0.9, "d": float("nan")})
+    assert bands.verdict("a")[0] == "wide" and "overstated" in bands.verdict("a")[1]
+    assert bands.verdict("b")[0] == "not explained"
+    assert bands.verdict("c")[0] == "consistent" and bands.verdict("d")[0] == "n/a"
+    assert Bands({}, {}, {"a": MAX_COVERAGE}).verdict("a")[0] == "consistent"
 
 
 def test_band_ranks_give_a_ninety_percent_prediction_interval() -> None:
