@@ -219,6 +219,9 @@ def _one_step_section(res: ReplayResult) -> str:
 def _log_notes(res: ReplayResult) -> list[str]:
     notes = [f"{sum(res.included)} of {len(res.windows)} replay windows scored, each re-initialised from the logged "
              "state (the first sample of each window is the initial condition and is not scored)."]
+    if res.start_std:
+        notes.append("Fixed wing: each window's start body velocity v, w is the one whose specific force matches the "
+                     "logged one at the restart (--start-velocity logged: the GPS velocity's).")
     if res.excluded or res.ground:
         why = ", ".join(f"{k}: {v}" for k, v in {**res.ground, **res.gaps}.items())
         notes.append(f"{res.excluded} windows excluded ({why}); the vehicle on the ground is left out by default "

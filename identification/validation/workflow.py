@@ -496,6 +496,8 @@ def summary_lines(r: ValidationResult) -> list[str]:
     why = ", ".join(f"{k}: {n}" for k, n in {**r.ground, **r.gaps}.items())
     out.append(f"  {scored} of {r.windows} replay windows scored"
                + (f"; {r.excluded} excluded ({why})" if r.excluded else ""))
+    if r.replay is not None and r.replay.start_std:
+        out.append(f"  {START_WORDS}")
     if r.ground and not r.excluded:
         out.append(f"  left out with the vehicle on the ground: {why}")
     if r.ground:
@@ -520,6 +522,11 @@ def summary_lines(r: ValidationResult) -> list[str]:
     for name, v in r.one_step.items():
         out.append(f"  one-step force check {name}: RMSE {_fmt(v['rmse'], '.3g')} m/s2, {v['reason']}")
     return out
+
+
+#: how a fixed wing's window starts were made, where their velocity was read from the specific force
+START_WORDS = ("window starts: the body velocity v, w whose specific force matches the log's at the restart "
+               "(--start-velocity logged: the GPS's)")
 
 
 def _band_lines(r: ValidationResult) -> list[str]:

@@ -91,6 +91,14 @@ def test_replay_error_falls_and_the_one_step_check_stays_on_the_logged_start(fix
         assert res["force"].one_step[name].fit.rmse == pytest.approx(score.fit.rmse, rel=1e-9)
     assert res["logged"].one_step["accel_body_y_m_s2"].fit.rmse > 0.05  # the GPS error shows there
     assert res["force"].options["start_velocity"] == "force"
+    from identification.validation.report import validation_page
+    from identification.validation.workflow import START_WORDS, result_of
+
+    for sv, shown in (("force", True), ("logged", False)):
+        job = ValidationJob(fixed_wing_fmu, flights["off"], options(start_velocity=sv), mapping=flights["mapping"])
+        lines = result_of(res[sv], job).lines()
+        assert any(START_WORDS in line for line in lines) is shown
+        assert ("whose specific force matches" in validation_page(res[sv])) is shown
 
 
 def test_a_force_no_plausible_start_makes_keeps_the_logged_velocity_and_says_so(fixed_wing_fmu: Path,
