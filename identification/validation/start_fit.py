@@ -54,9 +54,9 @@ START_FORCE_TOL_M_S2 = 1e-4
 
 @dataclass
 class StartFit:
-    """What :func:`force_consistent_starts` did: the starts (fitted where it could), the FMU's ``extra`` outputs at
-    each logged start (the one-step check's, NaN for windows not fitted), how many starts were fitted and why the
-    others kept the logged velocity, and the restart-state noise std of the fitted unknowns [m/s]."""
+    """What :func:`force_consistent_starts` did: the starts (fitted where it could); the FMU's ``extra`` outputs at
+    each logged start (the one-step check's; NaN for windows not scored or where the FMU failed there); how many
+    starts were fitted and why the others kept the logged velocity; the fitted unknowns' restart noise std [m/s]."""
 
     starts: list[dict[str, float]]
     logged_first: np.ndarray
@@ -68,7 +68,7 @@ class StartFit:
         """A line for the replay's notes when a start kept the logged velocity, else None."""
         if not self.kept:
             return None
-        why = "; ".join(f"{n}: {k}" for k, n in self.kept.items())
+        why = "; ".join(f"{reason}: {count}" for reason, count in self.kept.items())
         return (f"start velocity: {sum(self.kept.values())} of {sum(self.kept.values()) + self.fitted} window "
                 f"starts kept the GPS's body velocity instead of the one matching the logged specific force ({why})")
 
