@@ -7,7 +7,8 @@ parameter draws (``identification.validation.workflow.learn_discrepancy_jobs``),
 replayed with Monte Carlo bands (parameters + discrepancy, ``validate_mc``). Every flight is replayed at its own
 mass (the one ``identify thrust`` is given). Pooled over the folds, per signal: the share of the held-out logged
 samples inside the nominal 90 % band (target 80-95 % for every gated signal) and the band's mean width over the
-replay's RMSE (target <= 3), beside the oracle's: the width over RMSE of a band made of the held-out residuals'
+replay's RMSE (target <= 3), beside the RMSE of persistence (the logged value at each window start held, the
+replay's baseline, on the same samples) and the oracle's: the width over RMSE of a band made of the held-out residuals'
 own 5-95 % quantiles per horizon bin (what a calibrated band of this form can at best reach; not a target).
 Per fold it prints the form each signal's band took (scale basis, sign, parameter weight, band factor), and with
 ``--per-set`` each held-out set's own coverage, width and RMSE per signal (where a pooled figure comes from).
@@ -73,6 +74,8 @@ class Pool:
     n: dict[str, int] = field(default_factory=dict)
     width: dict[str, float] = field(default_factory=dict)
     sse: dict[str, float] = field(default_factory=dict)
+    #: squared errors of persistence (the logged value at the window start held) on the same samples: the baseline
+    sse_persistence: dict[str, float] = field(default_factory=dict)
     gated: dict[str, bool] = field(default_factory=dict)
     #: per signal: (residual, horizon [s]) arrays of every held-out set, for the oracle width
     kept: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)
@@ -85,11 +88,12 @@ class Pool:
 
         if self.per_set:
             print(f"    {'this set':<18} {'samples':>8} {'coverage':>9} {'mean width':>11} {'RMSE':>9} "
-                  f"{'width/RMSE':>10}")
+                  f"{'width/RMSE':>10} {'pers. RMSE':>10}")
         for m in res.maps:  # type: ignore[attr-defined]
             y, mod = res.measured[m.fmu], res.model[m.fmu]  # type: ignore[attr-defined]
             lo, hi = res.bands.lo[m.fmu], res.bands.hi[m.fmu]  # type: ignore[attr-defined]
-            ok = np.isfinite(y) & np.isfinite(mod) & np.isfinite(lo) & np.isfinite(hi)
+            pers = res.persistence[m.fmu]  # type: ignore[attr-defined]
+            ok = np.isfinite(y) & np.isfinite(mod) & np.isfinite(lo) & np.isfinite(hi) & np.isfinite(pers)
             k = m.fmu
             self.inside[k] = self.inside.get(k, 0) + int(inside_band(y[ok], lo[ok], hi[ok], m.wrap).sum())
             self.n[k] = self.n.get(k, 0) + int(ok.sum())
@@ -99,12 +103,16 @@ class Pool:
             if m.wrap:
                 e = (e + math.pi) % (2 * math.pi) - math.pi
             self.sse[k] = self.sse.get(k, 0.0) + float((e * e).sum())
+            ep = y[ok] - pers[ok]
+            if m.wrap:
+                ep = (ep + math.pi) % (2 * math.pi) - math.pi
+            self.sse_persistence[k] = self.sse_persistence.get(k, 0.0) + float((ep * ep).sum())
             if self.per_set and e.size:
                 cov = float(inside_band(y[ok], lo[ok], hi[ok], m.wrap).mean())
                 w, rmse = float(np.minimum(width, 2 * math.pi if m.wrap else np.inf).mean()), math.sqrt(float(
                     np.mean(e * e)))
                 print(f"    {k:<18} {e.size:>8} {cov:>9.1%} {w:>11.4g} {rmse:>9.4g} "
-                      f"{w / rmse if rmse > 0 else math.inf:>10.2f}")
+                      f"{w / rmse if rmse > 0 else math.inf:>10.2f} {math.sqrt(float(np.mean(ep * ep))):>10.4g}")
             self.gated[k] = m.gate
             self.kept.setdefault(k, []).append((e, horizons_s(res)[ok]))  # type: ignore[arg-type]
 
@@ -123,7 +131,7 @@ class Pool:
     def table(self, title: str) -> bool:
         print(f"\n{title}: nominal 90 % bands, pooled over the held-out sets")
         print(f"  {'signal':<18} {'samples':>8} {'coverage':>9} {'mean width':>11} {'RMSE':>9} {'width/RMSE':>10}"
-              f" {'oracle':>7}  target")
+              f" {'oracle':>7} {'pers. RMSE':>10}  target")
         ok = True
         for k in self.n:
             n = max(self.n[k], 1)
@@ -134,7 +142,7 @@ class Pool:
                 ok &= met
             verdict = ("met" if met else "MISSED") if self.gated[k] else "not gated"
             print(f"  {k:<18} {self.n[k]:>8} {cov:>9.1%} {width:>11.4g} {rmse:>9.4g} {ratio:>10.2f} "
-                  f"{self.oracle(k):>7.2f}  {verdict}")
+                  f"{self.oracle(k):>7.2f} {math.sqrt(self.sse_persistence[k] / n):>10.4g}  {verdict}")
         return ok
 
 
