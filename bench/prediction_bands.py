@@ -16,7 +16,7 @@ Per fold it prints the form each signal's band took (scale basis, sign, paramete
 The shared fixed-wing excitation log has no second flight: ``identify aero`` on it (the timeline's fit and
 held-out segments, every default) writes the estimate and its covariance, the fixed-wing FMU is built from it,
 and each held-out segment is scored with the discrepancy learned and calibrated on the other held-out segments
-(``--wing-learn-on fit``: on the fit segments), same targets.
+(``--wing-learn-on fit``: on the fit segments; ``all``: on both), same targets.
 
     .venv/bin/python bench/prediction_bands.py [--draws N] [--only erle,px4,wing] [--no-parameter-spread]
         [--forms auto|unscaled] [--weight auto|1] [--per-set] [--start-velocity force|logged]
@@ -48,6 +48,9 @@ PX4 = ((DATA / "quadrotor_px4_csv" / "drone1-8", 1.32), (DATA / "quadrotor_px4_c
 PX4_FMU_MASS_KG = 1.2
 WING = DATA / "fixed_wing" / "arduplane_sitl_fmu_excitation.BIN"
 WING_TIMELINE = DATA / "fixed_wing" / "arduplane_sitl_fmu_excitation.timeline.json"
+#: ``--wing-learn-on``: which segments a held-out segment's discrepancy is learned on
+LEARN_ON = {"held": "other held-out segments", "fit": "fit segments",
+            "all": "other held-out and fit segments"}
 COVERAGE = (0.80, 0.95)  #: pooled share of held-out samples inside the nominal 90 % band
 MAX_WIDTH_OVER_RMSE = 3.0
 
@@ -199,7 +202,8 @@ def fixed_wing(draws: int, parameter_spread: bool = True, learn_on: str = "held"
     """``identify aero`` on the excitation log (its timeline's fit and held-out segments), the FMU built from the
     estimate, the bands scored on each held-out segment with the discrepancy learned on the other held-out segments
     (``learn_on`` "held": where the truth is known and the parameters were not fitted; leave-one-segment-out so no
-    segment is scored by what it taught) or on the fit segments ("fit"). ``start_velocity``: the replay windows'
+    segment is scored by what it taught), on the fit segments ("fit") or on both ("all": every kind of manoeuvre, the
+    fit segments' residuals in-sample). ``start_velocity``: the replay windows'
     start body velocity (``ValidationOptions.start_velocity``)."""
     from build_fmus import build
     from fmu_models.common.params import Uncertainty, read_uncertainty
@@ -221,7 +225,7 @@ def fixed_wing(draws: int, parameter_spread: bool = True, learn_on: str = "held"
         fit = [(g.t0_s, g.t1_s) for g in parse_segments(",".join(metrics["fit_segments"]))]
         held = [(g.t0_s, g.t1_s) for g in parse_segments(",".join(metrics["validation_segments"]))]
         print(f"  identify aero: {len(fit)} fit and {len(held)} held-out segments; discrepancy learned on the "
-              + ("other held-out segments" if learn_on == "held" else "fit segments"))
+              + LEARN_ON[learn_on])
         (fmu,) = build(params, Path(tmp) / "fmu", ["fixed_wing"])
 
         def job(span: tuple[float, float]) -> ValidationJob:
@@ -236,13 +240,13 @@ def fixed_wing(draws: int, parameter_spread: bool = True, learn_on: str = "held"
         learned_on_fit = (learn_discrepancy_jobs([job(x) for x in fit], None, unc, draws, **study)
                           if learn_on == "fit" else None)
         for s in held:
-            learned = learned_on_fit or learn_discrepancy_jobs([job(x) for x in held if x != s], None, unc, draws,
-                                                               **study)
+            others = [x for x in held if x != s] + (fit if learn_on == "all" else [])
+            learned = learned_on_fit or learn_discrepancy_jobs([job(x) for x in others], None, unc, draws, **study)
             print(f"  segment {s[0]:g}-{s[1]:g} s\n{chosen(learned.discrepancy)}")
             pool.add(validate_mc(job(s), unc, draws, executor=study["executor"],
                                  discrepancy=learned.discrepancy).replay)
     return pool.table(f"fixed-wing excitation log, held-out segments of identify aero (discrepancy from the "
-                      f"{'other held-out' if learn_on == 'held' else 'fit'} segments"
+                      f"{LEARN_ON[learn_on]}"
                       + (")" if parameter_spread else "; no parameter spread)"))
 
 
@@ -253,8 +257,9 @@ def main() -> int:
     ap.add_argument("--only", default="erle,px4,wing", help="which studies (comma separated)")
     ap.add_argument("--no-parameter-spread", action="store_true",
                     help="fixed wing: the parameters at their estimate (a zero covariance), the discrepancy alone")
-    ap.add_argument("--wing-learn-on", choices=("held", "fit"), default="held",
-                    help="fixed wing: learn the discrepancy on the other held-out segments (default) or the fit ones")
+    ap.add_argument("--wing-learn-on", choices=("held", "fit", "all"), default="held",
+                    help="fixed wing: learn the discrepancy on the other held-out segments (default), the fit ones, "
+                         "or both (all)")
     ap.add_argument("--forms", choices=("auto", "unscaled"), default="auto",
                     help="a study: the band forms chosen on learning replays left out (auto), or unscaled only")
     ap.add_argument("--weight", choices=("auto", "1"), default="auto",

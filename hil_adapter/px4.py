@@ -26,7 +26,7 @@ from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from fmu_models.common.atmosphere import G0_M_S2
+from fmu_models.common.atmosphere import G0_M_S2, eas_to_tas
 from fmu_models.quadrotor.constants import N_MOTORS
 from hil_adapter.core import BUSY_POLL_S, Pacer, Plant, Recorder, SimClockPacer, SocketSpinner, Stats, Watchdog
 from hil_adapter.mavlink_fast import FastMavlink
@@ -116,8 +116,13 @@ class HilMessages:
         landing can exceed 32 g)."""
         mg = MG_PER_M_S2
         qw, qx, qy, qz, p, q, r, lat, lon, height, vn, ve, vd, ax, ay, az = _STATE_OUTPUTS(s)
-        air = round(s.get("airspeed_m_s", 0.0) * 100)
+        tas = s.get("airspeed_m_s", 0.0)
+        air = round(tas * 100)
         air = air if 0 <= air <= 65535 else min(max(air, 0), 65535)
+        # indicated airspeed: the equivalent one at these speeds (the pitot reads rho, not rho_0: ArduPilot's and
+        # PX4's airspeed sensors report it), the true one divided by EAS2TAS at the height [m AMSL]
+        ind = round(air / eas_to_tas(float(height))) if -1e4 < height < 1e5 else air
+        ind = ind if 0 <= ind <= 65535 else min(max(ind, 0), 65535)
         small = [round(vn * 100), round(ve * 100), round(vd * 100), round(ax * mg), round(ay * mg), round(az * mg)]
         for k, v in enumerate(small):  # in range is the common case: one chained test each
             if not -32768 <= v <= 32767:
@@ -125,7 +130,7 @@ class HilMessages:
         vx, vy, vz, xacc, yacc, zacc = small
         return self.codec.pack_wire(  # wire order = declared order, the quaternion expanded
             mavlink2.MAVLink_hil_state_quaternion_message, t_us, qw, qx, qy, qz, p, q, r, round(lat * 1e7),
-            round(lon * 1e7), round(height * 1e3), vx, vy, vz, air, air, xacc, yacc, zacc)
+            round(lon * 1e7), round(height * 1e3), vx, vy, vz, ind, air, xacc, yacc, zacc)
 
     def heartbeat(self) -> bytes:
         return self.codec.pack(mavlink2.MAVLink_heartbeat_message, self.mav_type, mavlink2.MAV_AUTOPILOT_INVALID,

@@ -67,6 +67,13 @@ TRIM_OFFSETS = ("C_m_0",)
 #: fitted outputs that see the pitch axis: without one, the pitch derivatives rest on their priors and the trim
 #: offset is left fixed (one more parameter that only its prior would determine)
 PITCH_OUTPUTS = ("pitch_rad", "rate_body_y_rad_s", "accel_body_x_m_s2", "accel_body_z_m_s2", "airspeed_m_s")
+#: zero-order force coefficients and the specific force each offsets. A per-segment bias of that accelerometer
+#: axis is confounded with the coefficient: an offset common to every segment fits either way, so the estimate
+#: drifts along that ridge. ``nuisance="auto"`` drops the bias when ``free="auto"`` frees the coefficient. On the
+#: shared excitation log, keeping the bias put C_Y_0 at 0.0028 against a common accel-y bias of -0.04 m/s^2; a
+#: held-out replay, which has no bias, then read the lateral specific force 0.04 m/s^2 off
+#: (identification/aero/readme.md, "Zero-order coefficients and accelerometer biases")
+ZERO_FORCE_AXES = {"C_Y_0": "accel_body_y_m_s2", "C_L_0": "accel_body_z_m_s2", "C_D_p": "accel_body_x_m_s2"}
 #: held-out outputs scored against persistence with a block-bootstrap interval over blocks of this length [s]
 SKILL_BLOCK_S = 2.0
 #: per-segment nuisance candidates of ``nuisance="auto"``
@@ -796,12 +803,21 @@ def _free_fixed(result: AeroResult, model: FixedWingModel, p: np.ndarray, opt: A
     free = result.free + chosen
     p2 = p.copy()
     p2[result.fit.oe.i_free] = est.values[:n]
-    oe = _estimator(model, p2, free, opt, result.fit.oe.states_est, result.fit.oe.biases)
+    biases = list(result.fit.oe.biases)
+    dropped = [b for b in biases if opt.nuisance == "auto" and any(ZERO_FORCE_AXES.get(c) == b for c in free)]
+    biases = [b for b in biases if b not in dropped]
+    oe = _estimator(model, p2, free, opt, result.fit.oe.states_est, biases)
     new = _fit(oe, result.fit.data, opt, weight, result.fit.delay_s, warm=True)
     result.fit, result.free = new, free
     result.start.update({c: float(p[model.params.index[c]]) for c in chosen})
     result.notes.append(f"free=auto freed {', '.join(chosen)}: held fixed, each shifted a free derivative by more "
                         f"than {FREE_IMPACT:g} std of its data bound and the data inform it")
+    if dropped:
+        what = ", ".join(f"{b} ({', '.join(c for c in free if ZERO_FORCE_AXES.get(c) == b)})" for b in dropped)
+        result.nuisance_choice += f"; per-segment biases of {what} dropped when freed"
+        result.notes.append(f"free=auto dropped the per-segment biases of {what}: a common offset of that specific "
+                            "force in every segment is the zero-order coefficient's as much as the sensor's, and a "
+                            "replay without biases (validate, the FMU) needs the coefficient to carry it")
     _consider(result, model, p, opt, weight)
     return True
 

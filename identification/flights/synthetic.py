@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from fmu_models.common.atmosphere import eas_to_tas
 from fmu_models.common.simulate import Simulator
 from fmu_models.common.units import RAD_TO_DEG
 from fmu_models.fixed_wing.model import FixedWingModel
@@ -232,7 +233,8 @@ def write_log(path: str | Path, rec: Recording, noise: bool = False, seed: int =
         ("CTUN" if vehicle == "quadrotor" else "BARO"): {"Alt": sig["altitude_m"]},
     }
     if vehicle == "fixed_wing":
-        columns["ARSP"] = {"I": 0, "Airspeed": sig["airspeed_m_s"], "U": 1, "H": 1}
+        # the autopilot logs the equivalent airspeed at the AMSL altitude it knows (here GPS.Alt), as SITL makes it
+        columns["ARSP"] = {"I": 0, "Airspeed": sig["airspeed_m_s"] / eas_to_tas(sig["altitude_m"]), "U": 1, "H": 1}
     streams: dict[str, Any] = {}
     for name, cols in columns.items():
         k = {**LOG_DECIMATION, **(decimation or {})}[name]

@@ -193,3 +193,24 @@ def test_actuator_fast_path_checks_all_three_message_id_bytes() -> None:
         assert len(other) > HEADER_LEN + 2 and fast.actuator_controls(bytes(other)) is None, at
     for short in (b"", b"\xfd", frame[:HEADER_LEN + 1]):
         assert fast.actuator_controls(short) is None
+
+
+def test_ground_truth_indicated_airspeed_is_the_equivalent_one() -> None:
+    """HIL_STATE_QUATERNION: ``true_airspeed`` the FMU's, ``ind_airspeed`` what a pitot reads (the equivalent
+    airspeed, 3.2 % lower at 651 m AMSL); no airspeed output: both 0."""
+    from fmu_models.common.atmosphere import eas_to_tas
+
+    state = {"quat_w": 1.0, "quat_x": 0.0, "quat_y": 0.0, "quat_z": 0.0, "rate_body_x_rad_s": 0.0,
+             "rate_body_y_rad_s": 0.0, "rate_body_z_rad_s": 0.0, "lat_deg": -35.0, "lon_deg": 149.0, "height_m": 651.0,
+             "vel_north_m_s": 27.0, "vel_east_m_s": 0.0, "vel_down_m_s": 0.0, "accel_body_x_m_s2": 0.0,
+             "accel_body_y_m_s2": 0.0, "accel_body_z_m_s2": -9.80665}
+
+    def parsed(s: dict[str, float]) -> object:
+        return mavlink2.MAVLink(None, 255, 0).parse_buffer(HilMessages(mavlink2.MAVLink(None, 1, 51), "fixed_wing")
+                                                           .state(0, s))[0]
+
+    msg = parsed({**state, "airspeed_m_s": 27.0})
+    assert msg.true_airspeed == 2700
+    assert msg.ind_airspeed == round(2700 / eas_to_tas(651.0)) == 2616
+    msg = parsed(state)
+    assert (msg.ind_airspeed, msg.true_airspeed) == (0, 0)

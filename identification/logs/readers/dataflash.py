@@ -14,7 +14,15 @@ import numpy as np
 
 from fmu_models.common.units import DEG_TO_RAD, DEGE7_TO_DEG, LOG_UNITS
 from fmu_models.quadrotor.constants import N_MOTORS
-from identification.logs.flightlog import DataQuality, FlightLog, LogError, Signal, add_battery, sanitize_log
+from identification.logs.flightlog import (
+    DataQuality,
+    FlightLog,
+    LogError,
+    Signal,
+    add_battery,
+    sanitize_log,
+    true_airspeed,
+)
 
 #: ArduPilot SERVOn_FUNCTION values
 MOTOR_FUNCTIONS = {33: 1, 34: 2, 35: 3, 36: 4, 37: 5, 38: 6, 39: 7, 40: 8}
@@ -320,7 +328,9 @@ def read_dataflash(path: Path, channel_map: dict[str, int] | None = None) -> Fli
     _derived_signals(signals)
     vehicle = _mapped_outputs(signals, params, channel_map)
     _armed(signals)
-    return sanitize_log(FlightLog(str(path), "dataflash", signals, params, vehicle, warnings), quality)
+    log = sanitize_log(FlightLog(str(path), "dataflash", signals, params, vehicle, warnings), quality)
+    true_airspeed(log, "ARSP.Airspeed")
+    return log
 
 
 def _first_instance_timed(columns: Columns, path: Path) -> dict[str, tuple[np.ndarray, dict[str, np.ndarray]]]:
