@@ -228,6 +228,13 @@ class FlightLog:
 AMSL_ALTITUDES = ("BARO.AltAMSL", "height_m")
 
 
+def _measured(values: np.ndarray) -> bool:
+    """Whether an altitude column holds a measurement: some finite value, not all exactly 0 (a field a firmware
+    declares but does not fill)."""
+    ok = np.isfinite(values)
+    return bool(ok.any() and np.any(values[ok] != 0.0))
+
+
 def true_airspeed(log: FlightLog, logged_as: str) -> None:
     """Make ``airspeed_m_s`` of ``log`` the true airspeed the FMUs output, from the equivalent airspeed the
     autopilot logged (``logged_as``, e.g. ``ARSP.Airspeed``): times ``fmu_models.common.atmosphere.eas_to_tas`` at
@@ -239,7 +246,7 @@ def true_airspeed(log: FlightLog, logged_as: str) -> None:
     s = log.signals.get("airspeed_m_s")
     if s is None or not len(s.t_s):
         return
-    alt = next((n for n in AMSL_ALTITUDES if n in log.signals and np.isfinite(log.signals[n].values).any()), None)
+    alt = next((n for n in AMSL_ALTITUDES if n in log.signals and _measured(log.signals[n].values)), None)
     if alt is None:
         log.warnings.append(
             f"{log.source}: airspeed_m_s is the equivalent airspeed the autopilot logged ({logged_as}); no altitude "

@@ -14,15 +14,8 @@ import numpy as np
 
 from fmu_models.common.units import DEG_TO_RAD, DEGE7_TO_DEG, LOG_UNITS
 from fmu_models.quadrotor.constants import N_MOTORS
-from identification.logs.flightlog import (
-    DataQuality,
-    FlightLog,
-    LogError,
-    Signal,
-    add_battery,
-    sanitize_log,
-    true_airspeed,
-)
+from identification.logs import flightlog
+from identification.logs.flightlog import DataQuality, FlightLog, LogError, Signal, add_battery, sanitize_log
 
 #: ArduPilot SERVOn_FUNCTION values
 MOTOR_FUNCTIONS = {33: 1, 34: 2, 35: 3, 36: 4, 37: 5, 38: 6, 39: 7, 40: 8}
@@ -329,7 +322,7 @@ def read_dataflash(path: Path, channel_map: dict[str, int] | None = None) -> Fli
     vehicle = _mapped_outputs(signals, params, channel_map)
     _armed(signals)
     log = sanitize_log(FlightLog(str(path), "dataflash", signals, params, vehicle, warnings), quality)
-    true_airspeed(log, "ARSP.Airspeed")
+    flightlog.true_airspeed(log, "ARSP.Airspeed")
     return log
 
 

@@ -11,15 +11,8 @@ import numpy as np
 from pymavlink import mavutil
 
 from fmu_models.common.units import DEGE7_TO_DEG, G0_M_S2
-from identification.logs.flightlog import (
-    DataQuality,
-    FlightLog,
-    LogError,
-    Signal,
-    add_battery,
-    sanitize_log,
-    true_airspeed,
-)
+from identification.logs import flightlog
+from identification.logs.flightlog import DataQuality, FlightLog, LogError, Signal, add_battery, sanitize_log
 
 MAV_MODE_FLAG_SAFETY_ARMED = 128
 UINT16_MAX = 65535
@@ -136,5 +129,5 @@ def read_tlog(path: Path) -> FlightLog:
         armed = (s.values.astype(int) & MAV_MODE_FLAG_SAFETY_ARMED) > 0
         signals["armed"] = Signal("armed", s.t_s, armed.astype(float), "1", "from HEARTBEAT.base_mode")
     log = sanitize_log(FlightLog(str(path), "tlog", signals, params, None, warnings), quality)
-    true_airspeed(log, "VFR_HUD.airspeed")  # MAVLink: calibrated or indicated airspeed; ArduPilot sends its EAS
+    flightlog.true_airspeed(log, "VFR_HUD.airspeed")  # MAVLink: calibrated or indicated; ArduPilot: its EAS
     return log

@@ -43,8 +43,10 @@ def test_dataflash_airspeed_becomes_true_at_the_gps_altitude(tmp_path: Path) -> 
     assert "height_m" in log.signal("airspeed_m_s").description
 
 
-def test_without_an_amsl_altitude_the_airspeed_stays_as_logged_and_says_so(tmp_path: Path) -> None:
-    log = read_log(_wing_log(tmp_path, 0.0, gps=False))
+@pytest.mark.parametrize("gps", [False, True])
+def test_without_an_amsl_altitude_the_airspeed_stays_as_logged_and_says_so(tmp_path: Path, gps: bool) -> None:
+    """No altitude above mean sea level logged, or one that is all zeros (a field not filled): kept, named."""
+    log = read_log(_wing_log(tmp_path, 0.0, gps=gps))
     np.testing.assert_allclose(log.signal("airspeed_m_s").values, 24.0 + 0.01 * np.arange(50), rtol=1e-6)
     assert not log.has("airspeed_eas_m_s")
     assert any("equivalent airspeed" in w and "ARSP.Airspeed" in w and "kept as logged" in w for w in log.warnings)
