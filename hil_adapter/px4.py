@@ -121,7 +121,7 @@ class HilMessages:
         air = air if 0 <= air <= 65535 else min(max(air, 0), 65535)
         # indicated airspeed: the equivalent one at these speeds (the pitot reads rho, not rho_0: ArduPilot's and
         # PX4's airspeed sensors report it), the true one divided by EAS2TAS at the height [m AMSL]
-        ind = round(air / eas_to_tas(float(height))) if -1e4 < height < 1e5 else air
+        ind = round(air / eas_to_tas(float(height))) if air and -1e4 < height < 1e5 else air
         ind = ind if 0 <= ind <= 65535 else min(max(ind, 0), 65535)
         small = [round(vn * 100), round(ve * 100), round(vd * 100), round(ax * mg), round(ay * mg), round(az * mg)]
         for k, v in enumerate(small):  # in range is the common case: one chained test each
