@@ -23,8 +23,10 @@ def result() -> AeroResult:
     from identification.logs.readers import read_log
 
     log = read_log(shared_data("fixed_wing", "arduplane_sitl_fmu_excitation.BIN"))
+    # no delay scan and one continuation schedule (the restarts have their own tests; on this log every restart
+    # reaches the first schedule's criterion, identification/aero/readme.md): the suite's time, not the result
     return identify_aero(log, PwmMapping.from_ardupilot(log.params), FixedWingParams(),
-                         AeroOptions(max_delay_s=0.0))
+                         AeroOptions(max_delay_s=0.0, restart_horizons_s=()))
 
 
 def test_timeline_blocks_become_fit_and_held_out_segments() -> None:

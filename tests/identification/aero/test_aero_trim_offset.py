@@ -28,9 +28,10 @@ def test_free_auto_fits_the_trim_offset_so_the_pitch_derivatives_are_not_tied(tm
     truth = FixedWingParams(C_m_alpha=1.3 * a.C_m_alpha, C_m_delta_e=0.8 * a.C_m_delta_e, C_m_0=a.C_m_0 + 0.04)
     t, sig = synthetic.fixed_wing_flight(truth, seconds=40.0)  # noise-free, trimmed with the truth's C_m_0
     log = read_log(synthetic.write_csv_log(tmp_path / "flight.csv", t, sig))
-    # consider=False: no auto-freeing round after the first fit, so only the starting free set decides
+    # consider=False: no auto-freeing round after the first fit, so only the starting free set decides; one
+    # continuation schedule (restarts have their own tests): the suite's time
     opt = AeroOptions(segments=[aero.Segment(0.5, 19.5), aero.Segment(20.5, 39.5)], nuisance="none",
-                      max_delay_s=0.0, consider=False)
+                      max_delay_s=0.0, consider=False, restart_horizons_s=())
     new = identify_aero(log, MAPPING, FixedWingParams(), opt)  # starts from Aerosonde's values
     assert "C_m_0" in new.free and not new.failures
     got = new.fit.estimate.derivatives()
