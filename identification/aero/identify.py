@@ -70,8 +70,8 @@ PITCH_OUTPUTS = ("pitch_rad", "rate_body_y_rad_s", "accel_body_x_m_s2", "accel_b
 #: zero-order force coefficients and the specific force each offsets. A per-segment bias of that accelerometer
 #: axis is confounded with the coefficient: an offset common to every segment fits either way, so the estimate
 #: drifts along that ridge. ``nuisance="auto"`` drops the bias when ``free="auto"`` frees the coefficient. On the
-#: shared excitation log, keeping the bias put C_Y_0 at 0.0028 against a common accel-y bias of -0.04 m/s^2; a
-#: held-out replay, which has no bias, then read the lateral specific force 0.04 m/s^2 off
+#: shared excitation log, keeping the bias put C_Y_0 at 0.0028 against a common accel-y bias of -0.04 m/s^2 (a
+#: study, not kept); a held-out replay, which has no bias, then read the lateral specific force 0.04 m/s^2 off
 #: (identification/aero/readme.md, "Zero-order coefficients and accelerometer biases")
 ZERO_FORCE_AXES = {"C_Y_0": "accel_body_y_m_s2", "C_L_0": "accel_body_z_m_s2", "C_D_p": "accel_body_x_m_s2"}
 #: held-out outputs scored against persistence with a block-bootstrap interval over blocks of this length [s]
