@@ -18,6 +18,8 @@ MUT_STAMP := $(VENV)/.installed-mutation
 # Dask worker and subprocess would compile what it imports again; pytest also caches its assertion-rewritten test
 # modules only where bytecode may be written.
 unexport PYTHONDONTWRITEBYTECODE
+# a comma inside $(call ...) would split its argument: extras lists name it
+comma := ,
 INSTALL = { $(PY) -m pip install --quiet uv && $(PY) -m uv pip install --quiet --python $(PY) $(1); } \
 	|| { $(PY) -m pip install --quiet --upgrade pip && $(PY) -m pip install --quiet $(1); }
 
@@ -38,11 +40,11 @@ libtbb:
 	fi
 
 $(BENCH_STAMP): $(STAMP)
-	$(call INSTALL,-e ".[test,bench]")
+	$(call INSTALL,-e ".[test$(comma)bench]")
 	touch $(BENCH_STAMP)
 
 $(MUT_STAMP): $(STAMP)
-	$(call INSTALL,-e ".[test,mutation]")
+	$(call INSTALL,-e ".[test$(comma)mutation]")
 	touch $(MUT_STAMP)
 
 # the demo builds this machine's platform only; `make fmus` builds linux64, win64 and darwin64 in parallel
