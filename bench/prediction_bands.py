@@ -16,9 +16,12 @@ Per fold it prints the form each signal's band took (scale basis, sign, paramete
 The shared fixed-wing excitation log has no second flight: ``identify aero`` on it (the timeline's fit and
 held-out segments, every default) writes the estimate and its covariance, the fixed-wing FMU is built from it,
 and each held-out segment is scored with the discrepancy learned and calibrated on the other held-out segments
-(``--wing-learn-on fit``: on the fit segments; ``all``: on both), same targets.
+(``--wing-learn-on fit``: on the fit segments; ``all``: on both), same targets. ``wing-each``: every segment of the
+log, fit and held-out, left out in turn (``identify aero`` on the others, the segment replayed with that estimate;
+``identification.validation.cross_fit``, what ``identify aero --discrepancy`` stores) and scored with the
+discrepancy learned and calibrated on the other segments' out-of-sample replays: ten identifications.
 
-    .venv/bin/python bench/prediction_bands.py [--draws N] [--only erle,px4,wing] [--no-parameter-spread]
+    .venv/bin/python bench/prediction_bands.py [--draws N] [--only erle,px4,wing,wing-each] [--no-parameter-spread]
         [--forms auto|unscaled] [--weight auto|1] [--per-set] [--start-velocity force|logged]
     # exit 1 on a miss
 
@@ -250,11 +253,54 @@ def fixed_wing(draws: int, parameter_spread: bool = True, learn_on: str = "held"
                       + (")" if parameter_spread else "; no parameter spread)"))
 
 
+def fixed_wing_each(draws: int, study: dict[str, Any], per_set: bool = False, start_velocity: str = "force") -> bool:
+    """Leave-one-segment-out over every segment of the excitation log's timeline, fit and held-out alike
+    (``identification.validation.cross_fit``, what ``identify aero --discrepancy`` stores): per segment,
+    ``identify aero`` on the others (every default) and the segment replayed with that estimate (its out-of-sample
+    replay, with ``draws`` parameter draws from that fold's covariance). Each segment is then scored with the
+    discrepancy learned and calibrated on the other segments' out-of-sample replays: three repetitions of each
+    axis, every kind of manoeuvre, among the learning replays, which the timeline's three held-out segments (one
+    per axis) cannot give."""
+    from fmu_models.fixed_wing.params import FixedWingParams
+    from fmu_models.fmi.fmus import BuildOptions, build_fmus
+    from fmu_models.fmi.zigcc import host_platform
+    from fmu_models.signals.pwm_mapping import PwmMapping
+    from identification.aero.identify import AeroOptions, AeroSource, identify_aero
+    from identification.logs.readers import read_log
+    from identification.validation.cross_fit import learn_folds, segment_folds
+    from identification.validation.replay import options
+    from identification.validation.workflow import validate_mc
+
+    log = read_log(WING)
+    opt = AeroOptions(free="auto", progress=False)
+    whole = identify_aero([AeroSource(log, PwmMapping.from_ardupilot(log.params), None, None, None)], None,
+                          FixedWingParams(), opt)
+    segments = sorted([*whole.fit_segments, *whole.validation_segments], key=lambda g: g.t0_s)
+    print(f"  identify aero: {len(segments)} segments, each left out in turn; discrepancy learned on the others' "
+          "out-of-sample replays")
+    ex = study["executor"]
+    with tempfile.TemporaryDirectory() as tmp:
+        here = BuildOptions(kinds=("cs",), platforms=(host_platform().fmi_name,))
+        (fmu,) = build_fmus(None, Path(tmp), ["fixed_wing"], "native", here).fmus
+        folds, skipped = segment_folds(WING, segments, fmu, opt, FixedWingParams(), options(
+            start_velocity=start_velocity), draws, executor=ex, progress=lambda m: print(f"    {m}"))
+        for line in skipped:
+            print(f"    skipped: {line}")
+        pool = Pool(per_set=per_set)
+        for i, f in enumerate(folds):
+            disc = learn_folds(folds, exclude=i, scaled=study["scaled"], weights=study["weights"])
+            print(f"  segment {f.segment.t0_s:g}-{f.segment.t1_s:g} s"
+                  + (f" (its fold recorded: {'; '.join(f.failures)})" if f.failures else "") + f"\n{chosen(disc)}")
+            pool.add(validate_mc(f.job, f.uncertainty, draws, executor=ex, discrepancy=disc).replay)
+    return pool.table("fixed-wing excitation log, every segment left out in turn (identify aero and the "
+                      "discrepancy on the others)") and not skipped
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=19, help="Monte Carlo draws per replay (19: the fewest a 5-95 %% "
                     "band allows)")
-    ap.add_argument("--only", default="erle,px4,wing", help="which studies (comma separated)")
+    ap.add_argument("--only", default="erle,px4,wing,wing-each", help="which studies (comma separated)")
     ap.add_argument("--no-parameter-spread", action="store_true",
                     help="fixed wing: the parameters at their estimate (a zero covariance), the discrepancy alone")
     ap.add_argument("--wing-learn-on", choices=("held", "fit", "all"), default="held",
@@ -295,6 +341,8 @@ def _studies(only: set[str], args: argparse.Namespace, study: dict[str, Any]) ->
     if "wing" in only:
         ok &= fixed_wing(args.draws, not args.no_parameter_spread, args.wing_learn_on, study, args.per_set,
                          args.start_velocity)
+    if "wing-each" in only:
+        ok &= fixed_wing_each(args.draws, study, args.per_set, args.start_velocity)
     return ok
 
 

@@ -158,8 +158,9 @@ def file_keys(cls: type, extra: ExtraFields | None = None, sections: tuple[str, 
     return frozenset({f.name for f in numeric_fields(cls)} | set(extra or {}) | set(sections) | set(retired or {}))
 
 
-#: top-level keys of a parameter file that belong to no vehicle's parameters (read by ``validate --mc``)
-FILE_LEVEL_KEYS = ("uncertainty",)
+#: top-level keys of a parameter file that belong to no vehicle's parameters (read by ``validate --mc``: the
+#: identified parameters' covariance and the model's discrepancy)
+FILE_LEVEL_KEYS = ("uncertainty", "discrepancy")
 #: the vehicles (one model and one FMU each) and the section key of each in a parameter file
 VEHICLES = ("quadrotor", "fixed_wing")
 

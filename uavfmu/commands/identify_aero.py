@@ -2,7 +2,7 @@
 
 ``uavfmu identify aero LOG [LOG ...] [--init params.json] [--free auto|C_ell_p,...] --out identified.json
 [--timeline FILE] [--segments t0:t1,...] [--validate-segments t0:t1,...] [--prior name=value:sd,...]
-[--priors geometry|none] [--plots DIR]``
+[--priors geometry|none] [--plots DIR] [--discrepancy [--discrepancy-mc N]]``
 
 Inputs are the log's servo PWM through the HIL adapter's PWM mapping (``--mapping FILE.toml``, else the
 log's ArduPilot ``SERVOn_*`` parameters; pull = nose up and right rudder = nose right map to the FMU's uavbook
@@ -25,7 +25,11 @@ command after the surfaces moved; 0 by default) up to ``--max-delay``. The conso
 chain with the values read from it; ``--sensor-filters`` models its gyro and accelerometer low-pass
 (``INS_GYRO_FILTER``/``INS_ACCEL_FILTER``, PX4 ``IMU_GYRO_CUTOFF``/``IMU_ACCEL_CUTOFF``) on the model's rate
 and specific-force outputs, ``--loop-ticks`` steps the fit on the autopilot's loop ticks with each loop's servo
-command. The work is
+command. ``--discrepancy`` (one log) then learns the model's discrepancy for ``validate --mc``'s prediction
+bands where the truth is known and stores it in OUT beside ``uncertainty``: each segment, fit and held-out, is left
+out in turn, identified on the others with the same options and replayed with that estimate; the quantiles are
+learned on these out-of-sample replays and calibrated on ``--discrepancy-mc`` parameter draws of each
+(``identification.validation.cross_fit``; one identification per segment). The work is
 ``identification.aero.identify``; this module parses and prints.
 
 Exit status: 0 done, 2 bad input (unreadable log, a log damaged beyond ``--max-damage`` without ``--force``,
@@ -33,8 +37,8 @@ unknown parameter or output, bad segment or mapping),
 3 the estimation failed (diverging start, no descent), 4 done but a rival (persistence, segment mean)
 beats the model on a held-out output (its RMSE lower by more than 0.1 %; the rule of
 ``identification.common.metrics.SkillInterval``, as for ``identify thrust``), 5 estimates written but a late step
-(scoring, plots) failed. A tie (no loss, but a skill interval that reaches zero) is printed as a tie and is
-not a failure.
+(scoring, plots, ``--discrepancy``) failed. A tie (no loss, but a skill interval that reaches zero) is printed as a
+tie and is not a failure.
 """
 
 from __future__ import annotations
@@ -136,6 +140,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="use a log whose damaged or lost share exceeds --max-damage (the damage is still reported)")
     p.add_argument("--max-damage", type=_bounded(0.0, 1.0), default=DEFAULT_MAX_DAMAGE,
                    help="largest damaged or lost share of the log accepted, 0..1 (0.05)")
+    p.add_argument("--discrepancy", action="store_true",
+                   help="then learn the model's discrepancy for validate --mc's bands and store it in OUT: each "
+                        "segment left out in turn, identified on the others and replayed with that estimate (one "
+                        "identification per segment; one log)")
+    p.add_argument("--discrepancy-mc", type=_bounded(0, 1e9, int), default=19, metavar="N",
+                   help="with --discrepancy: parameter draws per segment to calibrate the band on (0 none, else "
+                        "validate --mc's range; default 19)")
 
 
 def _error(message: str) -> int:
@@ -188,6 +199,14 @@ def _options(args: argparse.Namespace):  # type: ignore[no-untyped-def]
             raise ValueError(f"--restarts: {args.restarts!r} is not seconds,... ('none' for one schedule)") from None
     given = bool(args.estimate_initial or args.biases)
     free = "auto" if args.free.strip() == "auto" else list(comma_list(args.free))
+    if len(args.log) > 1 and args.discrepancy:
+        raise ValueError(f"--discrepancy leaves the segments of one log out in turn; got {len(args.log)} logs")
+    if args.discrepancy and args.discrepancy_mc:
+        from identification.validation.mc_bands import MAX_DRAWS, MIN_DRAWS
+
+        if not MIN_DRAWS <= args.discrepancy_mc <= MAX_DRAWS:
+            raise ValueError(f"--discrepancy-mc {args.discrepancy_mc}: 0 (none) or {MIN_DRAWS}..{MAX_DRAWS} draws "
+                             f"(a 5-95 % band needs {MIN_DRAWS})")
     if len(args.log) > 1 and (args.segments or args.validate_segments or args.timeline):
         raise ValueError("--segments, --validate-segments and --timeline take one log; with several logs "
                          "put LOG.timeline.json beside each log")
@@ -247,7 +266,32 @@ def run(args: argparse.Namespace) -> int:
     write_results(result, args.out, metrics, ", ".join(map(str, args.log)), args.rate, args.plots)
     print(result.summary())
     print(f"parameters: {args.out}\nmetrics: {metrics}")
+    if args.discrepancy and _discrepancy(args, result, opt, init) != EXIT_OK:
+        return EXIT_LATE_FAILURE
     return exit_status(result)
+
+
+def _discrepancy(args: argparse.Namespace, result: AeroResult, opt, init) -> int:  # type: ignore[no-untyped-def]
+    """``--discrepancy``: the cross-fitted discrepancy stored in ``--out``; the estimate is already written, so a
+    failure here is a late one."""
+    import tempfile
+
+    from fmu_models.fmi.host import FmuRunError
+    from identification.validation.cross_fit import cross_fitted_discrepancy
+
+    segments = sorted([*result.fit_segments, *result.validation_segments], key=lambda g: g.t0_s)
+    print(f"discrepancy: each of the {len(segments)} segments left out in turn ...")
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            out = cross_fitted_discrepancy(args.log[0], segments, opt, init, Path(tmp), params_out=args.out,
+                                           draws=args.discrepancy_mc, mapping_file=args.mapping,
+                                           channel_map=args.channel_map,
+                                           progress=None if args.quiet else lambda m: print(f"  {m}"))
+    except (FmuRunError, OSError, ValueError, KeyError) as err:  # ValidationInputError, ConfigError are ValueErrors
+        print(f"uavfmu identify aero: --discrepancy failed (the estimate is written): {err}", file=sys.stderr)
+        return EXIT_LATE_FAILURE
+    print("\n".join(out.lines()))
+    return EXIT_OK
 
 
 def exit_status(result: AeroResult) -> int:

@@ -51,6 +51,9 @@ def test_flat_files_of_either_vehicle_go_to_the_vehicle_their_keys_tell() -> Non
     assert split_params(wing) == {"fixed_wing": wing}
     # comments and the identified covariance belong to the file, not to a vehicle
     assert split_params({"_note": "x", "uncertainty": {}, **FLAT_QUAD}) == {"quadrotor": FLAT_QUAD}
+    # and so does the model's discrepancy (uavfmu discrepancy, identify aero --discrepancy), flat or sectioned
+    assert split_params({"discrepancy": {}, "uncertainty": {}, **FLAT_QUAD}) == {"quadrotor": FLAT_QUAD}
+    assert split_params({"fixed_wing": wing, "uncertainty": {}, "discrepancy": {}}) == {"fixed_wing": wing}
     bare_map = {"type": "anfis", "inputs": ["pwm_sum_us"]}
     assert split_params(bare_map) == {"quadrotor": {"thrust_map": bare_map}}
 
@@ -120,8 +123,8 @@ def test_commands_that_read_one_vehicle_load_its_parameters_as_the_build_does(tm
     a file that does not tell its vehicle, or holds another vehicle's parameters, is refused naming the keys."""
     quad = load_vehicle_params(_file(tmp_path, FLAT_QUAD, "quad.json"), "quadrotor")
     assert isinstance(quad, QuadrotorParams) and quad.tau_motor_s == 0.035 and quad.Jx_kg_m2 == 0.0123
-    wing = load_vehicle_params(_file(tmp_path, {"fixed_wing": {"C_ell_p": -0.4}, "uncertainty": {}}, "w.json"),
-                               "fixed_wing")
+    wing = load_vehicle_params(_file(tmp_path, {"fixed_wing": {"C_ell_p": -0.4}, "uncertainty": {},
+                                                "discrepancy": {}}, "w.json"), "fixed_wing")
     assert isinstance(wing, FixedWingParams) and wing.C_ell_p == -0.4
     with pytest.raises(ParameterError, match="quadrotor only"):
         load_vehicle_params(_file(tmp_path, FLAT_QUAD, "quad.json"), "fixed_wing")
