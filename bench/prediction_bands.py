@@ -262,12 +262,10 @@ def fixed_wing_each(draws: int, study: dict[str, Any], per_set: bool = False, st
     axis, every kind of manoeuvre, among the learning replays, which the timeline's three held-out segments (one
     per axis) cannot give."""
     from fmu_models.fixed_wing.params import FixedWingParams
-    from fmu_models.fmi.fmus import BuildOptions, build_fmus
-    from fmu_models.fmi.zigcc import host_platform
     from fmu_models.signals.pwm_mapping import PwmMapping
     from identification.aero.identify import AeroOptions, AeroSource, identify_aero
     from identification.logs.readers import read_log
-    from identification.validation.cross_fit import learn_folds, segment_folds
+    from identification.validation.cross_fit import learn_folds, replay_fmu, segment_folds
     from identification.validation.replay import options
     from identification.validation.workflow import validate_mc
 
@@ -280,9 +278,7 @@ def fixed_wing_each(draws: int, study: dict[str, Any], per_set: bool = False, st
           "out-of-sample replays")
     ex = study["executor"]
     with tempfile.TemporaryDirectory() as tmp:
-        here = BuildOptions(kinds=("cs",), platforms=(host_platform().fmi_name,))
-        (fmu,) = build_fmus(None, Path(tmp), ["fixed_wing"], "native", here).fmus
-        folds, skipped = segment_folds(WING, segments, fmu, opt, FixedWingParams(), options(
+        folds, skipped = segment_folds(WING, segments, replay_fmu(Path(tmp)), opt, FixedWingParams(), options(
             start_velocity=start_velocity), draws, executor=ex, progress=lambda m: print(f"    {m}"))
         for line in skipped:
             print(f"    skipped: {line}")

@@ -62,6 +62,9 @@ class CrossFitResult:
     written: Path | None = None
 
     def lines(self) -> list[str]:
+        """The folds, then each signal's learned discrepancy as ``uavfmu discrepancy`` prints it."""
+        from identification.validation.discrepancy import DiscrepancyResult
+
         out = [f"discrepancy from {len(self.folds)} out-of-sample segment replays (each segment's identification "
                "left it out):"]
         for f in self.folds:
@@ -69,14 +72,9 @@ class CrossFitResult:
             out.append(f"  {f.segment.t0_s:g}-{f.segment.t1_s:g} s: {len(res.windows) - res.excluded} windows"
                        + (f"; the fold's identification recorded: {'; '.join(f.failures)}" if f.failures else ""))
         out += [f"  skipped: {s}" for s in self.skipped]
-        for name, s in self.discrepancy.signals.items():
-            scale = s.scale_by if s.scale_floor is not None else "unscaled"
-            out.append(f"  {name}: {scale}{'' if s.symmetric else ', signed'}"
-                       + (f", band factor {s.band_factor:.2f}, parameter weight {s.parameter_weight:g}"
-                          if s.band_factor is not None and s.parameter_weight is not None else ""))
-        if self.written is not None:
-            out.append(f"written to {self.written} (key 'discrepancy')")
-        return out
+        replays = tuple({"log": f.name, "windows_scored": len(f.replay.windows) - f.replay.excluded}
+                        for f in self.folds)
+        return out + DiscrepancyResult(self.discrepancy, replays, self.written).lines()
 
 
 def fold_start_values(identified: dict[str, Any], uncertainty: Uncertainty) -> dict[str, float]:
@@ -163,6 +161,17 @@ def learn_folds(folds: Sequence[Fold], exclude: int | None = None, scaled: bool 
     return disc
 
 
+def replay_fmu(work_dir: Path) -> Path:
+    """The fixed-wing FMU the folds replay through, built into ``work_dir``: the built-in defaults (every parameter
+    is set per fold), co-simulation only, for this machine's platform only (the replays run here)."""
+    from fmu_models.fmi.fmus import BuildOptions, build_fmus
+    from fmu_models.fmi.zigcc import host_platform
+
+    here = BuildOptions(kinds=("cs",), platforms=(host_platform().fmi_name,))
+    (fmu,) = build_fmus(None, Path(work_dir), ["fixed_wing"], "native", here).fmus
+    return fmu
+
+
 def cross_fitted_discrepancy(log_path: Path, segments: Sequence[Any], opt: Any, init: Any, work_dir: Path,
                              params_out: Path | None = None, replay_options: ValidationOptions | None = None,
                              draws: int = 19, seed: int = 0, *, mapping_file: Path | None = None,
@@ -170,21 +179,18 @@ def cross_fitted_discrepancy(log_path: Path, segments: Sequence[Any], opt: Any, 
                              progress: Callable[[str], None] | None = None) -> CrossFitResult:
     """The discrepancy of ``identify aero`` on one log, learned on every segment's out-of-sample replay
     (:func:`segment_folds`, :func:`learn_folds`) and, with ``params_out`` (the JSON parameter file ``identify
-    aero`` wrote), stored there under ``discrepancy`` beside ``uncertainty``; ``validate --mc`` then uses it. A
-    fixed-wing FMU with the built-in defaults is built into ``work_dir`` for the replays (every parameter is set
-    per fold). ``draws``: Monte Carlo draws per segment to calibrate the combined band on (0: none)."""
+    aero`` wrote), stored there under ``discrepancy`` beside ``uncertainty``; ``validate --mc`` then uses it. The
+    replays run through :func:`replay_fmu`, built into ``work_dir``. ``draws``: Monte Carlo draws per segment to
+    calibrate the combined band on (0: none)."""
     from contextlib import nullcontext
 
-    from fmu_models.fmi.fmus import BuildOptions, build_fmus
-    from fmu_models.fmi.zigcc import host_platform
     from identification.common.parallel import Executor
     from identification.validation.discrepancy import write_discrepancy
     from identification.validation.mc_bands import check_draws
 
     if draws:
         check_draws(draws, 3, 1, (replay_options or ValidationOptions()).max_memory_mb)  # before anything runs
-    here = BuildOptions(kinds=("cs",), platforms=(host_platform().fmi_name,))  # the replays run here, in CS
-    (fmu,) = build_fmus(None, Path(work_dir), ["fixed_wing"], "native", here).fmus
+    fmu = replay_fmu(Path(work_dir))
     with Executor(None, workers) if draws else nullcontext() as ex:
         folds, skipped = segment_folds(log_path, segments, fmu, opt, init, replay_options, draws, seed,
                                        mapping_file=mapping_file, channel_map=channel_map, executor=ex,

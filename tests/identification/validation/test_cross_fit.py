@@ -102,6 +102,7 @@ def test_identify_aero_stores_the_cross_fitted_discrepancy(flight, capsys) -> No
     printed = capsys.readouterr()
     assert rc == command.EXIT_OK, printed.err
     assert "discrepancy from 3 out-of-sample segment replays" in printed.out
+    assert all(f"  {name:<18} 5-95 % of" in printed.out for name in OUTPUTS)  # each signal, as uavfmu discrepancy
     doc = json.loads(out.read_text())
     assert doc["uncertainty"]["names"] == FREE  # the estimate written first is kept
     disc = read_discrepancy(out)
