@@ -158,11 +158,14 @@ def _band_note(res: ReplayResult) -> str:
     text = (f"Bands: {info['draws_run']} of {info['draws']} Monte Carlo replays (seed {info['seed']}) with "
             f"{', '.join(info['parameters'])} drawn from the identified covariance, each window's restart state "
             f"with the sensor noise estimated from the log, {parts}. Nominal level 90 % (the 5-95 % band); "
-            "coverage is the share of logged samples inside it, below 80 % or above 98 % a finding.")
+            "coverage is the share of logged samples inside it, below 80 % or above 98 % a finding when the "
+            "replay's windows show it (the coverage's one-sided 95 % bound past the threshold too), else unresolved.")
     out = f"<p>{html.escape(text)}</p>"
     if bad:
         out += "".join(f"<p class='fail'>Not explained by the model and its uncertainty: {html.escape(b)}</p>"
                        for b in bad)
+    out += "".join(f"<p>Unresolved: {html.escape(m.fmu)}: {html.escape(res.bands.verdict(m.fmu)[1])}</p>"
+                   for m in res.maps if res.bands.verdict(m.fmu)[0] == "unresolved")
     if info["failed"]:
         out += f"<p class='fail'>{len(info['failed'])} draws failed: {html.escape('; '.join(info['failed'][:5]))}</p>"
     return out

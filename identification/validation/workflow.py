@@ -155,8 +155,9 @@ def result_of(res: ReplayResult, job: ValidationJob) -> ValidationResult:
                           "windows": res.window_counts(m.fmu)}
         if res.bands is not None:
             verdict, why = res.bands.verdict(m.fmu)
+            b = res.bands.bounds.get(m.fmu)
             signals[m.fmu] |= {"band_coverage": res.bands.coverage[m.fmu], "band_verdict": verdict,
-                               "band_reason": why}
+                               "band_reason": why, **({"band_coverage_bounds": b.as_dict()} if b else {})}
     warnings = list(dict.fromkeys([*res.log["warnings"], *res.log.get("quality_lines", [])]))  # once each
     return ValidationResult(str(job.fmu), str(job.log), res.status, "", signals,
                             res.failed, len(res.windows), res.excluded, dict(res.ground), dict(res.gaps), warnings,
@@ -533,10 +534,12 @@ def _band_lines(r: ValidationResult) -> list[str]:
     """What the Monte Carlo bands say: signals the model and its stated uncertainty do not explain."""
     bad = {s: v for s, v in r.signals.items() if v.get("band_verdict") == "not explained"}
     wide = [s for s, v in r.signals.items() if v.get("band_verdict") == "wide"]
+    unresolved = {s: v for s, v in r.signals.items() if v.get("band_verdict") == "unresolved"}
     out = ["  band cover: share of logged samples inside the 5-95 % Monte Carlo band (nominal 90 %: parameters drawn "
            "from the identified covariance, restart states from the log, convolved with the learned model discrepancy "
            "where the parameter file has one, else plus sensor noise); a gated signal below 80 % or above 98 % is a "
-           "finding (status band, exit 4)"]
+           "finding (status band, exit 4) when the replay's windows show it (the coverage's one-sided 95 % bound is "
+           "past the threshold too), else unresolved"]
     disc = (r.replay.bands.info.get("discrepancy") if r.replay is not None and r.replay.bands is not None
             else None) or {}
     alone = [k for k, w in (disc.get("parameter_weight") or {}).items() if w == 0.0]
@@ -552,6 +555,7 @@ def _band_lines(r: ValidationResult) -> list[str]:
     out += [f"  NOT EXPLAINED {s}: {v['band_reason']}" for s, v in bad.items()]
     if wide:
         out.append(f"  wide bands (uncertainty overstated, or a noise-free log signal): {', '.join(wide)}")
+    out += [f"  UNRESOLVED {s}: {v['band_reason']}" for s, v in unresolved.items()]
     return out
 
 

@@ -30,7 +30,8 @@ holds the input at its start value instead.
 Exit status: 0 every gated signal of every run passes, 1 a signal fails (or a batch run errors), 2 bad input,
 3 nothing fails but a signal ties with persistence (its skill interval reaches zero) or nothing was scored,
 4 (with ``--mc``) nothing fails but a gated signal's 90 % band covers less than 80 % or more than 98 % of its
-logged samples (``identification.validation.mc_bands``: the band does not say how far the replay can be trusted).
+logged samples and the replay's windows show it (``identification.validation.mc_bands``: the band does not say how
+far the replay can be trusted).
 """
 
 from __future__ import annotations

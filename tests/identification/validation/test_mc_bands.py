@@ -20,8 +20,11 @@ from identification.validation.mc_bands import (
     MAX_COVERAGE,
     MIN_COVERAGE,
     Bands,
+    CoverageBounds,
     McTask,
+    band_position,
     band_ranks,
+    coverage_bounds,
     mc_task,
     noise_std,
     prediction_band,
@@ -115,6 +118,11 @@ def test_true_model_run_writes_its_bands_to_metrics_and_report(true_model_runs) 
     out, report = true_model_runs[SEEDS[0]]
     metrics = json.loads((report / "metrics.json").read_text())
     assert metrics["signals"]["roll_rad"]["band_coverage"] == out.signals["roll_rad"]["band_coverage"]
+    # the coverage's bounds from the replay's windows, which decide whether a coverage past 80 or 98 % is a finding
+    b = metrics["signals"]["roll_rad"]["band_coverage_bounds"]
+    assert 2 <= b["windows"] <= out.windows - out.excluded
+    assert b["lower"] <= out.signals["roll_rad"]["band_coverage"] <= b["upper"]
+    assert b["windows"] <= b["effective_samples"] <= len(out.replay.t_s)
     assert "skill_persistence" in metrics["signals"]["roll_rad"]
     mc = metrics["monte_carlo"]
     assert mc["draws"] == mc["draws_run"] == SEED_DRAWS and mc["parameters"] == NAMES and not mc["failed"]
@@ -162,6 +170,88 @@ def test_a_band_covering_too_much_or_too_little_is_named_so() -> None:
     assert bands.verdict("b")[0] == "not explained"
     assert bands.verdict("c")[0] == "consistent" and bands.verdict("d")[0] == "n/a"
     assert Bands({}, {}, {"a": MAX_COVERAGE}).verdict("a")[0] == "consistent"
+
+
+def test_a_coverage_past_its_threshold_is_a_finding_only_when_the_windows_show_it() -> None:
+    """With the coverage's bounds from the replay's windows: past the threshold and its bound past it too, a
+    finding; past it with a bound that is not, ``unresolved`` (named with the windows and the bound); the console
+    lists it, and it does not make the run's status ``band``."""
+    shown, unsure = CoverageBounds(0.30, 0.70, 40.0, 20), CoverageBounds(0.45, 0.97, 5.0, 6)
+    bands = Bands({}, {}, {"a": 0.6, "b": 0.77, "c": 0.99, "d": 0.99, "e": 0.9},
+                  bounds={"a": shown, "b": unsure, "c": CoverageBounds(0.985, 1.0, 900.0, 150),
+                          "d": CoverageBounds(0.7, 1.0, 4.0, 6), "e": unsure})
+    assert bands.verdict("a")[0] == "not explained" and "20 windows" in bands.verdict("a")[1]
+    verdict, why = bands.verdict("b")
+    assert verdict == "unresolved" and "6 windows" in why and "97%" in why and "cannot show it" in why
+    assert bands.verdict("c")[0] == "wide" and bands.verdict("d")[0] == "unresolved"
+    assert bands.verdict("e")[0] == "consistent"
+
+
+def test_an_unresolved_band_is_printed_with_its_reason_and_is_not_a_finding() -> None:
+    from identification.validation.workflow import BAND_MISSES, ValidationResult, _band_lines
+
+    why = Bands({}, {}, {"a": 0.77}, bounds={"a": CoverageBounds(0.45, 0.97, 5.0, 6)}).verdict("a")
+    r = ValidationResult("x.fmu", "y.csv", "pass", signals={"roll_rad": {
+        "gated": True, "band_coverage": 0.77, "band_verdict": why[0], "band_reason": why[1]}})
+    lines = _band_lines(r)
+    assert any(line.startswith("  UNRESOLVED roll_rad: ") and "6 windows" in line for line in lines)
+    assert not any("NOT EXPLAINED" in line for line in lines) and "unresolved" not in BAND_MISSES
+
+
+def _ar_windows(rng: np.random.Generator, reps: int, windows: int, phi: float) -> np.ndarray:
+    """Standard normal residuals, AR(1) with correlation ``phi`` from one sample to the next within each of
+    ``windows`` windows of 50 samples (independent between windows): reps x windows x 50."""
+    z = np.empty((reps, windows, 50))
+    z[..., 0] = rng.standard_normal((reps, windows))
+    kick = rng.standard_normal(z.shape) * np.sqrt(1.0 - phi**2)
+    for j in range(1, 50):
+        z[..., j] = phi * z[..., j - 1] + kick[..., j]
+    return z
+
+
+def _findings(z: np.ndarray, half: float) -> tuple[float, float, float]:
+    """Share of replays whose band |z| < ``half`` is shown below ``MIN_COVERAGE``, shown above ``MAX_COVERAGE``,
+    or past either by its point figure alone."""
+    low = wide = point = 0
+    win = np.repeat(np.arange(z.shape[1]), z.shape[2])
+    for rep in z:
+        inside = (np.abs(rep) < half).ravel()
+        position = band_position(rep.ravel(), np.full(rep.size, -half), np.full(rep.size, half))
+        c, b = float(inside.mean()), coverage_bounds(inside, win, position)
+        low += c < MIN_COVERAGE and b.upper < MIN_COVERAGE
+        wide += c > MAX_COVERAGE and b.lower > MAX_COVERAGE
+        point += not MIN_COVERAGE <= c <= MAX_COVERAGE
+    return low / len(z), wide / len(z), point / len(z)
+
+
+def test_window_bounds_rarely_call_a_right_band_a_finding_and_show_a_wrong_one() -> None:
+    """Simulated replays whose residuals drift within each window (AR(1), 0.98 from sample to sample): a right
+    90 % band (|z| < 1.645) over 6 windows is past 80 % or 98 % by its point figure in about a fifth of the
+    replays, but shown so in few; a band covering 60 % (|z| < 0.84) is shown below 80 % in most 20-window
+    replays (0.9 from sample to sample); one covering 99.7 % (|z| < 3) is shown wide over 60 windows of less
+    correlated samples."""
+    rng = np.random.default_rng(1)
+    low, wide, point = _findings(_ar_windows(rng, 300, 6, 0.98), 1.645)
+    assert point > 0.15 and low + wide <= 0.05, (low, wide, point)
+    low, _, _ = _findings(_ar_windows(rng, 300, 20, 0.9), 0.84)
+    assert low >= 0.95, low
+    _, wide, _ = _findings(_ar_windows(rng, 300, 60, 0.5), 3.0)
+    assert wide >= 0.90, wide
+    # a band on the threshold (covering 98 %) is called wide no more often than the bound's 5 %
+    _, wide, point = _findings(_ar_windows(rng, 300, 20, 0.9), 2.326)
+    assert point > 0.3 and wide <= 0.05, (wide, point)
+    # one sample outside of 600: the indicator alone would count every sample as independent (a finding), the
+    # position's correlation keeps the windows' weight
+    z = _ar_windows(rng, 1, 12, 0.95)[0]
+    z = z * (0.99 / np.abs(z).max())
+    z[3, 10] = 1.2
+    inside = (np.abs(z) < 1.0).ravel()
+    win = np.repeat(np.arange(12), 50)
+    assert coverage_bounds(inside, win).lower > MAX_COVERAGE  # the indicator's correlation: about 0
+    b = coverage_bounds(inside, win, band_position(z.ravel(), np.full(600, -1.0), np.full(600, 1.0)))
+    assert b.lower < MAX_COVERAGE and b.effective < 100, b
+    one = coverage_bounds(np.zeros(50, bool), np.zeros(50, int))  # one window: it counts as one trial
+    assert one.effective == pytest.approx(1.0) and one.windows == 1 and one.upper == pytest.approx(0.95)
 
 
 def test_band_ranks_give_a_ninety_percent_prediction_interval() -> None:
