@@ -286,6 +286,9 @@ class Bands:
 
     @staticmethod
     def _unresolved(nominal: str, past: str, b: CoverageBounds, end: str, bound: float) -> str:
+        if b.windows == 1:
+            return (f"{nominal}, {past}, but from one replay window (one run from one start, its residual one "
+                    "drift) a band's level cannot be shown; replay the log in windows (--window-s) to tell")
         return (f"{nominal}, {past}, but its {b.windows} windows (about {b.effective:.0f} independent samples) "
                 f"cannot show it: the {VERDICT_LEVEL:.0%} {end} bound is {bound:.0%}; a longer log, or more "
                 "windows, would tell")

@@ -185,6 +185,8 @@ def test_a_coverage_past_its_threshold_is_a_finding_only_when_the_windows_show_i
     assert verdict == "unresolved" and "6 windows" in why and "97%" in why and "cannot show it" in why
     assert bands.verdict("c")[0] == "wide" and bands.verdict("d")[0] == "unresolved"
     assert bands.verdict("e")[0] == "consistent"
+    one = Bands({}, {}, {"a": 0.2}, bounds={"a": CoverageBounds(0.0, 0.95, 1.0, 1)}).verdict("a")
+    assert one[0] == "unresolved" and "one replay window" in one[1] and "--window-s" in one[1]
 
 
 def test_an_unresolved_band_is_printed_with_its_reason_and_is_not_a_finding() -> None:
