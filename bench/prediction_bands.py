@@ -10,6 +10,9 @@ samples inside the nominal 90 % band (target 80-95 % for every gated signal) and
 replay's RMSE (target <= 3), beside the RMSE of persistence (the logged value at each window start held, the
 replay's baseline, on the same samples) and the oracle's: the width over RMSE of a band made of the held-out residuals'
 own 5-95 % quantiles per horizon bin (what a calibrated band of this form can at best reach; not a target).
+Beside each pooled coverage, its one-sided 95 % bounds over the replay windows of every held-out set
+(``mc_bands.coverage_bounds``, what ``validate --mc`` decides a finding with): where the target's end lies inside
+them, the windows cannot tell the coverage from the target (the target is still judged on the point figure).
 Per fold it prints the form each signal's band took (scale basis, sign, parameter weight, band factor), and with
 ``--per-set`` each held-out set's own coverage, width and RMSE per signal (where a pooled figure comes from).
 
@@ -85,12 +88,14 @@ class Pool:
     gated: dict[str, bool] = field(default_factory=dict)
     #: per signal: (residual, horizon [s]) arrays of every held-out set, for the oracle width
     kept: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)
+    #: per signal: (inside, window id, position in the band) arrays of every held-out set, for the coverage's bounds
+    windows: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = field(default_factory=dict)
     #: print each held-out set's own figures as it is added
     per_set: bool = False
 
     def add(self, res: object) -> None:
-        from identification.validation.discrepancy import horizons_s
-        from identification.validation.mc_bands import inside_band
+        from identification.validation.discrepancy import horizons_s, window_index
+        from identification.validation.mc_bands import band_position, inside_band
 
         if self.per_set:
             print(f"    {'this set':<18} {'samples':>8} {'coverage':>9} {'mean width':>11} {'RMSE':>9} "
@@ -121,6 +126,10 @@ class Pool:
                       f"{w / rmse if rmse > 0 else math.inf:>10.2f} {math.sqrt(float(np.mean(ep * ep))):>10.4g}")
             self.gated[k] = m.gate
             self.kept.setdefault(k, []).append((e, horizons_s(res)[ok]))  # type: ignore[arg-type]
+            sets = self.windows.setdefault(k, [])
+            sets.append((inside_band(y[ok], lo[ok], hi[ok], m.wrap),
+                         window_index(res)[ok] + 1_000_000 * len(sets),  # type: ignore[arg-type]
+                         band_position(y[ok], lo[ok], hi[ok], m.wrap)))
 
     def oracle(self, k: str) -> float:
         """Mean width over RMSE of the band an oracle draws: the held-out residuals' own 5-95 % quantiles per
@@ -134,10 +143,20 @@ class Pool:
                     for a, b in itertools.pairwise(edges) for sel in [(h >= a) & (h < b)] if sel.any())
         return width / e.size / math.sqrt(float(np.mean(e * e)))
 
+    def bounds(self, k: str) -> str:
+        """The pooled coverage's one-sided 95 % bounds over the held-out sets' windows, as ``[lower, upper]``."""
+        from identification.validation.mc_bands import coverage_bounds
+
+        parts = self.windows.get(k) or []
+        if not parts:
+            return "-"
+        b = coverage_bounds(*(np.concatenate(x) for x in zip(*parts, strict=True)))
+        return f"[{b.lower:.0%}, {b.upper:.0%}]"
+
     def table(self, title: str) -> bool:
         print(f"\n{title}: nominal 90 % bands, pooled over the held-out sets")
-        print(f"  {'signal':<18} {'samples':>8} {'coverage':>9} {'mean width':>11} {'RMSE':>9} {'width/RMSE':>10}"
-              f" {'oracle':>7} {'pers. RMSE':>10}  target")
+        print(f"  {'signal':<18} {'samples':>8} {'coverage':>9} {'95 % bounds':>12} {'mean width':>11} {'RMSE':>9} "
+              f"{'width/RMSE':>10} {'oracle':>7} {'pers. RMSE':>10}  target")
         ok = True
         for k in self.n:
             n = max(self.n[k], 1)
@@ -147,8 +166,8 @@ class Pool:
             if self.gated[k]:
                 ok &= met
             verdict = ("met" if met else "MISSED") if self.gated[k] else "not gated"
-            print(f"  {k:<18} {self.n[k]:>8} {cov:>9.1%} {width:>11.4g} {rmse:>9.4g} {ratio:>10.2f} "
-                  f"{self.oracle(k):>7.2f} {math.sqrt(self.sse_persistence[k] / n):>10.4g}  {verdict}")
+            print(f"  {k:<18} {self.n[k]:>8} {cov:>9.1%} {self.bounds(k):>12} {width:>11.4g} {rmse:>9.4g} "
+                  f"{ratio:>10.2f} {self.oracle(k):>7.2f} {math.sqrt(self.sse_persistence[k] / n):>10.4g}  {verdict}")
         return ok
 
 
