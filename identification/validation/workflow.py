@@ -533,7 +533,7 @@ START_WORDS = ("window starts: the body velocity v, w whose specific force match
 def _band_lines(r: ValidationResult) -> list[str]:
     """What the Monte Carlo bands say: signals the model and its stated uncertainty do not explain."""
     bad = {s: v for s, v in r.signals.items() if v.get("band_verdict") == "not explained"}
-    wide = [s for s, v in r.signals.items() if v.get("band_verdict") == "wide"]
+    wide = {s: v for s, v in r.signals.items() if v.get("band_verdict") == "wide"}
     unresolved = {s: v for s, v in r.signals.items() if v.get("band_verdict") == "unresolved"}
     out = ["  band cover: share of logged samples inside the 5-95 % Monte Carlo band (nominal 90 %: parameters drawn "
            "from the identified covariance, restart states from the log, convolved with the learned model discrepancy "
@@ -553,8 +553,7 @@ def _band_lines(r: ValidationResult) -> list[str]:
         out.append(f"  note: the discrepancy was learned from replays started with --start-velocity "
                    f"{disc['start_velocity']}, this replay uses another: its early-horizon errors do not match")
     out += [f"  NOT EXPLAINED {s}: {v['band_reason']}" for s, v in bad.items()]
-    if wide:
-        out.append(f"  wide bands (uncertainty overstated, or a noise-free log signal): {', '.join(wide)}")
+    out += [f"  WIDE {s}: {v['band_reason']} (or the log's signal carries no noise)" for s, v in wide.items()]
     out += [f"  UNRESOLVED {s}: {v['band_reason']}" for s, v in unresolved.items()]
     return out
 

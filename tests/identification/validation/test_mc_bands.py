@@ -198,6 +198,12 @@ def test_an_unresolved_band_is_printed_with_its_reason_and_is_not_a_finding() ->
     lines = _band_lines(r)
     assert any(line.startswith("  UNRESOLVED roll_rad: ") and "6 windows" in line for line in lines)
     assert not any("NOT EXPLAINED" in line for line in lines) and "unresolved" not in BAND_MISSES
+    # a band the windows show too wide is listed with its reason, the bound included
+    why = Bands({}, {}, {"a": 1.0}, bounds={"a": CoverageBounds(0.994, 1.0, 500.0, 5)}).verdict("a")
+    r.signals["accel_body_y_m_s2"] = {"gated": True, "band_coverage": 1.0, "band_verdict": why[0],
+                                      "band_reason": why[1]}
+    line = next(x for x in _band_lines(r) if x.startswith("  WIDE accel_body_y_m_s2: "))
+    assert "lower bound 99%" in line and "500 independent samples" in line, line
 
 
 def _ar_windows(rng: np.random.Generator, reps: int, windows: int, phi: float) -> np.ndarray:
