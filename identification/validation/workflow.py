@@ -17,6 +17,7 @@ Batch manifest (TOML; paths relative to it; ``fmu`` and ``log`` may be lists: ev
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
@@ -506,12 +507,12 @@ def summary_lines(r: ValidationResult) -> list[str]:
     out += [f"  log warning: {w}" for w in r.warnings]
     bands = any("band_coverage" in v for v in r.signals.values())
     out.append(f"  {'signal':<18} {'verdict':<7} {'skill/pers':>10} {'skill/mean':>10} {'RMSE':>9} {'Theil U':>7} "
-               f"{'R^2':>7}{' band cover' if bands else ''} {'windows pass/FAIL/n/a':>21}  reason")
+               f"{'R^2':>7}{_BAND_HEAD if bands else ''} {'windows pass/FAIL/n/a':>21}  reason")
     # per-window verdicts are point verdicts (one window has no interval); the pooled verdict has the margin
     for s, v in r.signals.items():
         w = v["windows"]
         tag = v["verdict"] + ("" if v["gated"] or v["verdict"] != "FAIL" else "*")
-        cover = f" {_fmt(100 * v['band_coverage'], '9.0f')} %" if bands else ""
+        cover = f" {_fmt(100 * v['band_coverage'], '9.0f')} % {_bounds_text(v):>12}" if bands else ""
         out.append(f"  {s:<18} {tag:<7} {_fmt(v['skill_persistence'], '+10.2f')} {_fmt(v['skill_mean'], '+10.2f')} "
                    f"{_fmt(v['rmse'], '9.3g')} {_fmt(v['theil_u'], '7.3f')} {_fmt(v['r2'], '7.2f')}{cover} "
                    f"{w['pass']:>9}/{w['FAIL']}/{w['n/a']:<6}  {v['reason']}")
@@ -523,6 +524,18 @@ def summary_lines(r: ValidationResult) -> list[str]:
     for name, v in r.one_step.items():
         out.append(f"  one-step force check {name}: RMSE {_fmt(v['rmse'], '.3g')} m/s2, {v['reason']}")
     return out
+
+
+#: the band columns' header, as wide as their values (:func:`_bounds_text`)
+_BAND_HEAD = f"{'band cover':>12}{'95 % bounds':>13}"
+
+
+def _bounds_text(v: dict[str, Any]) -> str:
+    """A signal's band coverage bounds from the replay's windows as ``[lo, hi] %`` (``-`` without them)."""
+    b = v.get("band_coverage_bounds")
+    if not b or not math.isfinite(b["lower"]):
+        return "-"
+    return f"[{100 * b['lower']:.0f}, {100 * b['upper']:.0f}] %"
 
 
 #: how a fixed wing's window starts were made, where their velocity was read from the specific force

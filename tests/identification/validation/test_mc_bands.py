@@ -330,6 +330,9 @@ def test_cli_mc_prints_coverage_beside_skill(fixed_wing_fmu: Path, wing, tmp_pat
     assert metrics["status"] == ("fail" if metrics["failed"] else "band")
     assert "band cover" in out and "NOT EXPLAINED" in out
     assert metrics["monte_carlo"]["draws"] == 19
+    b = metrics["signals"]["roll_rad"]["band_coverage_bounds"]  # beside the coverage, its bounds from the windows
+    row = next(line for line in out.splitlines() if line.startswith("  roll_rad "))
+    assert f"[{100 * b['lower']:.0f}, {100 * b['upper']:.0f}] %" in row, row
 
 
 def test_mc_batch_runs_every_job_on_one_cluster_and_lists_a_bad_one(fixed_wing_fmu: Path, wing,
