@@ -124,15 +124,17 @@ def _verdict_table(res: ReplayResult) -> str:
         s, w = res.scores[m.fmu], res.window_counts(m.fmu)
         band = []
         if res.bands is not None:
-            bv = res.bands.verdict(m.fmu)[0]
+            bv, b = res.bands.verdict(m.fmu)[0], res.bands.bounds.get(m.fmu)
+            bounds = f" [{100 * b.lower:.0f}, {100 * b.upper:.0f}] %" if b is not None and b.windows else ""
             band = [f"<span class='{'fail' if bv == 'not explained' else ''}'>"
-                    f"{_fmt(100 * res.bands.coverage[m.fmu], '.0f')} % ({html.escape(bv)})</span>"]
+                    f"{_fmt(100 * res.bands.coverage[m.fmu], '.0f')} %{bounds} ({html.escape(bv)})</span>"]
         margin = "" if s.interval is None else f" ({_fmt(s.interval.lo, '+.2f')}..{_fmt(s.interval.hi, '+.2f')})"
         rows.append([m.fmu, _verdict_cell(s.verdict, m.gate), _fmt(s.skill_persistence, "+.2f") + margin,
                      _fmt(s.skill_mean, "+.2f"), *band, f"{w['pass']} / {w['FAIL']} / {w['n/a']}",
                      html.escape(s.reason)])
     return _table(["signal", "verdict", "skill vs persistence (90 % interval)", "skill vs window mean",
-                   *(["5-95 % band coverage"] if res.bands is not None else []), "windows pass / FAIL / n/a",
+                   *(["5-95 % band coverage [95 % bounds from the windows]"] if res.bands is not None else []),
+                   "windows pass / FAIL / n/a",
                    "reason"], rows, raw=True) + _band_note(res)
 
 

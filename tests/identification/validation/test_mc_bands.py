@@ -132,6 +132,7 @@ def test_true_model_run_writes_its_bands_to_metrics_and_report(true_model_runs) 
     assert all(out.signals[k]["band_verdict"] != "not explained" for k in IDENTIFIED)
     page = (report / "report.html").read_text()
     assert "5-95 % band coverage" in page and "Not explained" not in page
+    assert f"[{100 * b['lower']:.0f}, {100 * b['upper']:.0f}] %" in page  # the roll's bounds, in its row
 
 
 def test_wrong_model_coverage_drops_and_the_report_says_so(fixed_wing_fmu: Path, wing, tmp_path: Path,
