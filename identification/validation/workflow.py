@@ -533,7 +533,7 @@ _BAND_HEAD = f"{'band cover':>12}{'95 % bounds':>13}"
 def _bounds_text(v: dict[str, Any]) -> str:
     """A signal's band coverage bounds from the replay's windows as ``[lo, hi] %`` (``-`` without them)."""
     b = v.get("band_coverage_bounds")
-    if not b or not math.isfinite(b["lower"]):
+    if not b or not isinstance(b.get("lower"), float) or not math.isfinite(b["lower"]):  # None once through JSON
         return "-"
     return f"[{100 * b['lower']:.0f}, {100 * b['upper']:.0f}] %"
 
