@@ -22,9 +22,7 @@ from identification.validation.mc_bands import (
     Bands,
     CoverageBounds,
     McTask,
-    band_position,
     band_ranks,
-    coverage_bounds,
     mc_task,
     noise_std,
     prediction_band,
@@ -205,62 +203,6 @@ def test_an_unresolved_band_is_printed_with_its_reason_and_is_not_a_finding() ->
                                       "band_reason": why[1]}
     line = next(x for x in _band_lines(r) if x.startswith("  WIDE accel_body_y_m_s2: "))
     assert "lower bound 99%" in line and "500 independent samples" in line, line
-
-
-def _ar_windows(rng: np.random.Generator, reps: int, windows: int, phi: float) -> np.ndarray:
-    """Standard normal residuals, AR(1) with correlation ``phi`` from one sample to the next within each of
-    ``windows`` windows of 50 samples (independent between windows): reps x windows x 50."""
-    z = np.empty((reps, windows, 50))
-    z[..., 0] = rng.standard_normal((reps, windows))
-    kick = rng.standard_normal(z.shape) * np.sqrt(1.0 - phi**2)
-    for j in range(1, 50):
-        z[..., j] = phi * z[..., j - 1] + kick[..., j]
-    return z
-
-
-def _findings(z: np.ndarray, half: float) -> tuple[float, float, float]:
-    """Share of replays whose band |z| < ``half`` is shown below ``MIN_COVERAGE``, shown above ``MAX_COVERAGE``,
-    or past either by its point figure alone."""
-    low = wide = point = 0
-    win = np.repeat(np.arange(z.shape[1]), z.shape[2])
-    for rep in z:
-        inside = (np.abs(rep) < half).ravel()
-        position = band_position(rep.ravel(), np.full(rep.size, -half), np.full(rep.size, half))
-        c, b = float(inside.mean()), coverage_bounds(inside, win, position)
-        low += c < MIN_COVERAGE and b.upper < MIN_COVERAGE
-        wide += c > MAX_COVERAGE and b.lower > MAX_COVERAGE
-        point += not MIN_COVERAGE <= c <= MAX_COVERAGE
-    return low / len(z), wide / len(z), point / len(z)
-
-
-def test_window_bounds_rarely_call_a_right_band_a_finding_and_show_a_wrong_one() -> None:
-    """Simulated replays whose residuals drift within each window (AR(1), 0.98 from sample to sample): a right
-    90 % band (|z| < 1.645) over 6 windows is past 80 % or 98 % by its point figure in about a fifth of the
-    replays, but shown so in few; a band covering 60 % (|z| < 0.84) is shown below 80 % in most 20-window
-    replays (0.9 from sample to sample); one covering 99.7 % (|z| < 3) is shown wide over 60 windows of less
-    correlated samples."""
-    rng = np.random.default_rng(1)
-    low, wide, point = _findings(_ar_windows(rng, 300, 6, 0.98), 1.645)
-    assert point > 0.15 and low + wide <= 0.05, (low, wide, point)
-    low, _, _ = _findings(_ar_windows(rng, 300, 20, 0.9), 0.84)
-    assert low >= 0.95, low
-    _, wide, _ = _findings(_ar_windows(rng, 300, 60, 0.5), 3.0)
-    assert wide >= 0.90, wide
-    # a band on the threshold (covering 98 %) is called wide no more often than the bound's 5 %
-    _, wide, point = _findings(_ar_windows(rng, 300, 20, 0.9), 2.326)
-    assert point > 0.3 and wide <= 0.05, (wide, point)
-    # one sample outside of 600: the indicator alone would count every sample as independent (a finding), the
-    # position's correlation keeps the windows' weight
-    z = _ar_windows(rng, 1, 12, 0.95)[0]
-    z = z * (0.99 / np.abs(z).max())
-    z[3, 10] = 1.2
-    inside = (np.abs(z) < 1.0).ravel()
-    win = np.repeat(np.arange(12), 50)
-    assert coverage_bounds(inside, win).lower > MAX_COVERAGE  # the indicator's correlation: about 0
-    b = coverage_bounds(inside, win, band_position(z.ravel(), np.full(600, -1.0), np.full(600, 1.0)))
-    assert b.lower < MAX_COVERAGE and b.effective < 100, b
-    one = coverage_bounds(np.zeros(50, bool), np.zeros(50, int))  # one window: it counts as one trial
-    assert one.effective == pytest.approx(1.0) and one.windows == 1 and one.upper == pytest.approx(0.95)
 
 
 def test_band_ranks_give_a_ninety_percent_prediction_interval() -> None:
