@@ -126,7 +126,8 @@ def segment_folds(log_path: Path, segments: Sequence[Any], fmu: Path, opt: Any, 
                             embedded_params=False, t_range_s=(seg.t0_s, seg.t1_s))
         mean = dict(zip(unc.names, unc.mean, strict=True))
         res = validate(replace(job, start_values={**mean, **job.start_values})).replay
-        assert res is not None
+        if res is None:  # validate keeps the replay in this process; a result without it has nothing to learn from
+            raise ValidationInputError(f"{log_path}: the replay of {seg.t0_s:g}-{seg.t1_s:g} s returned no arrays")
         folds.append(Fold(seg, job, unc, res, failures=tuple(r.failures)))
         if progress is not None:
             progress(f"fold {i + 1}/{len(segments)}: {seg.t0_s:g}-{seg.t1_s:g} s left out")
