@@ -261,7 +261,7 @@ def identify_dynamics(merged: dict[str, Any], work: Path, flight: Any = None) ->
     truth_of = dataclasses.asdict(truth)
     return {"exit_code": res.exit_code, "estimates": res.estimates(), "held_out": res.held_out,
             "truth": {n: truth_of[n] for n in res.free}, "written": res.exit_code == q.EXIT_OK,
-            "thrust_band": res.thrust_band}
+            "thrust_band": res.thrust_band, "thrust_slope": res.thrust_slope}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -346,9 +346,12 @@ def run_demo(args: DemoOptions) -> DemoResult:
                   f"({'covered' if covers else 'MISSED'})   {e['determined_by'].split(' (')[0]}")
         if d.get("thrust_band"):
             print("\n".join("  " + line for line in d["thrust_band"]["text"].splitlines()))
+        if d.get("thrust_slope"):
+            print("  " + d["thrust_slope"]["text"])
         if missed:
             print(f"  the 95 % intervals of {', '.join(missed)} miss the truth the demo flew: they carry the data's "
-                  "noise, not the error of the thrust map held fixed. That map is a smooth one fitted by identify "
+                  "noise and the slope error this flight shows (thrust slope check), not the rest of the error of "
+                  "the thrust map held fixed. That map is a smooth one fitted by identify "
                   "thrust on the altitude flight, where the four motors share one PWM (with the vertical drag taken "
                   "out of -m a_z, above); the demo flies the published map, trained on 1450-1554 us per motor and "
                   "kinked at both edges, with hover 23 us under the upper kink. Through that map the same flight "

@@ -84,6 +84,14 @@ TAU_START_S = 0.02
 #: share of the fit windows' motor samples (above idle) outside the thrust map's trained band above which the result
 #: warns that the inertia and the motor lag inherit the error of the map's extrapolated slope
 BAND_WARN_SHARE = 0.01
+#: the inertias whose estimate scales one for one with the thrust map's slope: their moment is ``l dT/dPWM`` at the
+#: motors' commands, and the body rates fix only that moment over the inertia (a map whose slope is s times too
+#: low gives these inertias s times too low: ``bench/quadrotor_demo_map.py``)
+SLOPE_PARAMS = ("Jx_kg_m2", "Jy_kg_m2")
+#: distance of the flight's thrust scale from 1, in its standard errors, past which the flight shows the map's slope
+#: off (a right map's scale is past it in 0.27 % of flights, the scale being normal): then the intervals of
+#: :data:`SLOPE_PARAMS` carry the slope's error
+SLOPE_SHOWN_Z = 3.0
 #: exit status of ``uavfmu identify quadrotor`` (documented in the CLI module)
 EXIT_OK, EXIT_BAD_INPUT, EXIT_FAILED, EXIT_LOSES, EXIT_LATE_FAILURE, EXIT_NOT_IDENTIFIABLE = 0, 2, 3, 4, 5, 6
 
@@ -152,6 +160,8 @@ class QuadrotorIdResult:
     notes: list[str] = field(default_factory=list)
     thrust_band: dict[str, Any] = field(default_factory=dict)  #: :func:`thrust_band_coverage` of the fit windows
     failures: list[str] = field(default_factory=list)
+    #: :func:`thrust_slope_check` on the fit windows with the estimates (empty without velocity or a fit)
+    thrust_slope: dict[str, Any] = field(default_factory=dict)
 
     @property
     def losing_outputs(self) -> list[str]:
@@ -173,11 +183,16 @@ class QuadrotorIdResult:
         est = self.estimate
         if est is not None:
             std, dom = est.std, est.dominance()
+            slope = self.thrust_slope if self.thrust_slope.get("shown") else {}
             for i, n in enumerate(est.names[:est.n_global]):
-                v = float(est.values[i])
-                out[n] = {"value": v, "std": float(std[i]), "ci95": [v - 1.96 * float(std[i]),
-                                                                     v + 1.96 * float(std[i])],
-                          "determined_by": _determined(n, dom[i])}
+                v, sd = float(est.values[i]), float(std[i])
+                out[n] = {"value": v, "std": sd, "determined_by": _determined(n, dom[i])}
+                if slope and n in SLOPE_PARAMS:  # the map's slope error, which the data's bound does not carry
+                    share = abs(v) * slope["relative_sd"]
+                    out[n].update(std=math.hypot(sd, share), std_data=sd, std_thrust_slope=share)
+                    out[n]["determined_by"] += (f" + the thrust map's slope (off by {slope['scale'] - 1:+.1%} on "
+                                                "this flight's vertical specific force)")
+                out[n]["ci95"] = [v - 1.96 * out[n]["std"], v + 1.96 * out[n]["std"]]
         for n, d in self.drag.items():
             out[n] = {**d, "ci95": [d["value"] - 1.96 * d["std"], d["value"] + 1.96 * d["std"]],
                       "determined_by": "data (equation error on velocity and specific force)"}
@@ -208,7 +223,8 @@ class QuadrotorIdResult:
             "held_out_segments": [str(s) for s in self.held_out_segments],
             "held_out_vs_persistence": self.held_out, "losing_outputs": self.losing_outputs,
             "estimate": self.estimate.as_dict() if self.estimate is not None else None,
-            "thrust_map_band": self.thrust_band, "notes": self.notes, "failures": self.failures,
+            "thrust_map_band": self.thrust_band, "thrust_slope": self.thrust_slope, "notes": self.notes,
+            "failures": self.failures,
             "exit_code": self.exit_code,
         }
 
@@ -217,6 +233,8 @@ class QuadrotorIdResult:
                  f"{len(self.held_out_segments)} held-out windows", f"inertia prior: {self.prior.source}"]
         if self.thrust_band:
             lines.append(self.thrust_band["text"])
+        if self.thrust_slope:
+            lines.append(self.thrust_slope["text"])
         lines.append(f"{'parameter':<16} {'estimate':>11} {'95 % interval':>25}  determined by")
         for n, e in self.estimates().items():
             lo, hi = e["ci95"]
@@ -297,11 +315,48 @@ def thrust_band_coverage(logs: Sequence[FlightLog], windows: Sequence[tuple[int,
         warning = (f"the thrust map was fitted on a narrower PWM range ({lo_us:.0f}-{hi_us:.0f} us per motor) than "
                    f"the motors use in the fit windows ({p_lo:.0f}-{p_hi:.0f} us, {100 * share:.1f} % of the samples "
                    "outside): there the map is extrapolated, and Jx, Jy (through the arm's moment effectiveness "
-                   "l dT/dPWM) and the motor lag inherit the error of its slope, which their intervals do not carry; "
-                   "identify the map on a flight whose per-motor commands span this range")
+                   "l dT/dPWM) and the motor lag inherit the error of its slope (their intervals carry it only where "
+                   "this flight's vertical specific force shows it: the thrust slope check); identify the map on a "
+                   "flight whose per-motor commands span this range")
         text += "\nwarning: " + warning
     return {"band_pwm_us": [lo_us, hi_us], "flown_pwm_us": [p_lo, p_hi], "share_outside": share,
             "share_below": below, "share_above": above, "warning": warning, "text": text}
+
+
+def thrust_slope_check(logs: Sequence[FlightLog], windows: Sequence[tuple[int, qseg.Segment]],
+                       params: QuadrotorParams, rate_hz: float) -> dict[str, Any]:
+    """Whether the flight's vertical specific force shows the thrust map's slope off, where the inertias are
+    identified. The scale ``s`` of the model's total thrust (``params``: the map and the fitted motor lag) in the
+    drag regression with that thrust as its only thrust regressor (:func:`drag_equation_error`, one constant per
+    log: only the thrust's changes count, so ``s`` is the map's slope over the flown commands, 1 when the map is
+    right) and its 1-sigma (Newey-West); ``z = (s - 1) / sd``; ``shown`` when ``|z|`` exceeds
+    :data:`SLOPE_SHOWN_Z`. Then ``relative_sd = sqrt((s - 1)^2 + sd^2)`` is the relative error the inertias of
+    :data:`SLOPE_PARAMS` inherit, which :meth:`QuadrotorIdResult.estimates` adds to their data bound: a map off in
+    shape (not only in scale) also moves the drag in this regression, so ``s - 1`` is the size of the slope's
+    error, not a correction to apply (the estimates are left as fitted). Not shown, nothing is added: the data
+    bound stands, as the replica with the truth's map requires. Raises ``QuadrotorInputError`` when the windows
+    have too few samples."""
+    got = drag_equation_error(logs, windows, params, thrust_of=MotorThrust(params).total,
+                              rate_hz=rate_hz)["kd_z_N_s_m"]
+    s, sd = got["thrust_scale"], got["thrust_scale_std"]
+    z = (s - 1.0) / sd if sd > 0.0 else (0.0 if s == 1.0 else math.copysign(math.inf, s - 1.0))
+    shown = bool(abs(z) > SLOPE_SHOWN_Z)
+    out: dict[str, Any] = {"scale": s, "std": sd, "z": float(z), "shown_at_z": SLOPE_SHOWN_Z, "shown": shown}
+    names = ", ".join(SLOPE_PARAMS)
+    if shown:
+        out["relative_sd"] = math.hypot(s - 1.0, sd)
+        out["text"] = (f"thrust slope check: the map's thrust changes take a scale of {s:.3f} +- {sd:.3f} (1-sigma) "
+                       f"in this flight's vertical specific force, {abs(z):.1f} std from 1 (shown past "
+                       f"{SLOPE_SHOWN_Z:g}): the map's slope is off where the inertias are identified, and {names} "
+                       f"(moment l dT/dPWM over the inertia) inherit it: their intervals carry a relative "
+                       f"{out['relative_sd']:.3f} (1-sigma) beside the data's bound; the replay covariance in the "
+                       "parameter file keeps the data's, since the rates rest on l dT/dPWM over the inertia, which "
+                       "the fit fixes")
+    else:
+        out["text"] = (f"thrust slope check: the map's thrust changes take a scale of {s:.3f} +- {sd:.3f} (1-sigma) "
+                       f"in this flight's vertical specific force, {abs(z):.1f} std from 1: no slope error shown "
+                       f"(past {SLOPE_SHOWN_Z:g}); {names} carry the data's bound")
+    return out
 
 
 def _determined(name: str, dominance: str) -> str:
@@ -541,8 +596,14 @@ def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorPar
                      f"to {1e3 * step:.3g} ms (step_internal_s, was {1e3 * params.step_internal_s:.3g} ms) so that "
                      "it follows the motors (RK4 diverges on a lag under 0.36 of its step)")
         params = dataclasses.replace(params, step_internal_s=step)
+    slope: dict[str, Any] = {}
+    if velocity:
+        try:
+            slope = thrust_slope_check(logs, fit_list, params, opt.rate_hz)
+        except QuadrotorInputError as err:
+            notes.append(f"thrust slope check: {err}")
     result = QuadrotorIdResult(params, free + list(drag), est, prior, [w for _, w in fit_w], [w for _, w in val_w],
-                               command_hz, not_ident, drag=drag, notes=notes, thrust_band=band)
+                               command_hz, not_ident, drag=drag, notes=notes, thrust_band=band, thrust_slope=slope)
     if not est.converged:
         notes.append(f"not converged within {opt.max_iter} iterations: the estimates are the last accepted iterate")
     result.ratios = _ratios(est, params)

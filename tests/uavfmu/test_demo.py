@@ -41,6 +41,12 @@ def test_demo_pipeline(tmp_path: Path, capsys) -> None:
     assert drag["value"] == pytest.approx(0.25, rel=0.25)
     for name in ("Jx_kg_m2", "Jy_kg_m2"):
         assert abs(dyn["estimates"][name]["value"] / 0.007 - 1) < 0.10, dyn["estimates"][name]
+    # that -9 % is the map's slope, which the stick flight's vertical specific force shows (scale about 1.13): the
+    # inertias' intervals carry it and cover the truth (the data's bound alone, +-7.6 %, missed it)
+    assert dyn["thrust_slope"]["shown"] and dyn["thrust_slope"]["scale"] > 1.05
+    for name in ("Jx_kg_m2", "Jy_kg_m2"):
+        e = dyn["estimates"][name]
+        assert e["value"] + 1.96 * e["std_data"] < 0.007 <= e["ci95"][1] and e["ci95"][0] < e["value"], e
     assert "share_outside" in dyn["thrust_map_band"]
     # vertical drag through the regression's flexible thrust: the demo flew kd_z = 0.25 (the FMU default) with a
     # thrust map the identified one cannot follow in shape (the scaled map alone gave 0.52)

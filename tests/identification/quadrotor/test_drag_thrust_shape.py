@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import math
 
 import numpy as np
 import pytest
@@ -102,3 +103,51 @@ def test_vertical_drag_alone_is_the_identification_s_regression(flight):
                                                            if n != "vel_down_m_s"})
     with pytest.raises(q.QuadrotorInputError, match="velocity"):
         q.vertical_drag(no_velocity, params, opt)
+
+
+def _scaled_map(truth: QuadrotorParams, factor: float) -> QuadrotorParams:
+    """The truth's map with every consequent times ``factor``: its thrust, and so its slope, ``factor`` times the
+    truth's at every command."""
+    amap = truth.thrust_map
+    cons = tuple(tuple(factor * c for c in row) for row in amap.consequents)
+    return dataclasses.replace(truth, thrust_map=dataclasses.replace(amap, consequents=cons))
+
+
+def test_thrust_slope_check_sees_a_map_whose_slope_is_off_and_not_the_right_one(flight):
+    """The flight's vertical specific force takes the model's thrust changes at scale ``1 / factor`` when the map
+    is ``factor`` times the truth's (only changes count: one constant per log), and at 1 through the truth's map;
+    the check calls the first shown, the second not."""
+    w = _windows(flight)
+    right = q.thrust_slope_check([flight.log], w, flight.truth, 250.0)
+    low = q.thrust_slope_check([flight.log], w, _scaled_map(flight.truth, 0.9), 250.0)
+    print(f"right map: {right['scale']:.4f} +- {right['std']:.4f}; map x 0.9: {low['scale']:.4f} +- {low['std']:.4f}")
+    assert not right["shown"] and abs(right["z"]) < q.SLOPE_SHOWN_Z and "relative_sd" not in right
+    assert abs(right["scale"] - 1.0) <= 3.0 * right["std"] < 0.1
+    assert low["shown"] and low["z"] > q.SLOPE_SHOWN_Z
+    assert abs(low["scale"] - 1.0 / 0.9) <= 3.0 * low["std"], low
+    assert low["relative_sd"] >= abs(low["scale"] - 1.0)
+    assert "inherit" in low["text"] and "inherit" not in right["text"]
+
+
+def test_inertias_through_a_map_whose_slope_is_off_carry_it_in_their_intervals(flight):
+    """Through a map 0.9 times the truth's the body rates give roll and pitch inertias 0.9 times the truth's, far
+    outside the data's own bound; the slope check adds the slope's error to their intervals, which then cover the
+    truth, and says so in the estimates, the metrics and the summary. The replay covariance of the parameter file
+    keeps the data's (the rates rest on the moment over the inertia, which the fit fixes)."""
+    opt = q.QuadrotorOptions(segments=[Segment(b.start_s, b.end_s, b.axis) for b in flight.blocks])
+    res = q.identify_quadrotor(flight.log, _scaled_map(flight.truth, 0.9), opt)
+    est = res.estimates()
+    assert res.thrust_slope["shown"]
+    for n in q.SLOPE_PARAMS:
+        e, truth = est[n], getattr(flight.truth, n)
+        assert abs(e["value"] / truth - 0.9) < 0.02, (n, e)  # the inertia takes the slope one for one
+        assert abs(e["value"] - truth) > 3.0 * e["std_data"], (n, e)  # the data's bound alone misses it
+        lo, hi = e["ci95"]
+        assert lo <= truth <= hi, (n, e)
+        assert e["std"] == pytest.approx(np.hypot(e["std_data"], e["std_thrust_slope"]))
+        assert "thrust map's slope" in e["determined_by"]
+    assert "std_thrust_slope" not in est["Jz_kg_m2"] and "std_thrust_slope" not in est["tau_motor_s"]
+    assert res.as_dict()["thrust_slope"]["shown"] and "thrust slope check" in res.summary()
+    unc = q.parameter_file(res, None, ["replica"])["uncertainty"]
+    i = unc["names"].index("Jx_kg_m2")
+    assert math.sqrt(unc["covariance"][i][i]) == pytest.approx(est["Jx_kg_m2"]["std_data"])

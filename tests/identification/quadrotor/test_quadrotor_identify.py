@@ -54,6 +54,9 @@ def test_replica_bounds_hold_the_error_and_are_tight(replica, identified):
     ratio = {r.name: r for r in identified.ratios}["(b/k)/Jz"]
     true_ratio = truth.b_drag_N_m_s2 / truth.k_thrust_N_s2 / truth.Jz_kg_m2
     assert abs(ratio.value - true_ratio) <= 3.0 * ratio.std < 0.05 * ratio.value
+    # through the truth's map the flight shows no slope error: the data's bound stands alone
+    assert identified.thrust_slope and not identified.thrust_slope["shown"]
+    assert not any("std_thrust_slope" in e for e in est.values())
     small = identified.small_sample_bounds()
     assert {"Jx_kg_m2", "Jy_kg_m2"} <= set(small)
     for n, b in small.items():
