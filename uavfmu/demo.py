@@ -245,15 +245,20 @@ def identify_dynamics(merged: dict[str, Any], work: Path, flight: Any = None) ->
     estimates are written into ``merged["quadrotor"]`` (the FMU rebuilt from it is validated on the held-out
     demo flight) unless persistence beats them on the held-out windows. ``flight``: the stick flight
     (:func:`stick_flight`, flown here when None)."""
+    from fmu_models.common.params import read_json, uncertainty_of
     from fmu_models.quadrotor.params import QuadrotorParams
     from identification.quadrotor import identify as q
 
     start = QuadrotorParams.from_dict(merged["quadrotor"]) if "quadrotor" in merged else QuadrotorParams()
+    thrust_file = work / "quadrotor_identified.json"  # identify thrust's map and its covariance, when written
+    base = read_json(thrust_file) if "quadrotor" in merged and thrust_file.exists() else None
+    unc = uncertainty_of(base, str(thrust_file)) if base and "uncertainty" in base else None
     flight = flight if flight is not None else stick_flight()
     truth = flight.truth
-    res = q.identify_quadrotor(flight.log, start, q.QuadrotorOptions(segments=stick_segments(flight)))
+    res = q.identify_quadrotor(flight.log, start, q.QuadrotorOptions(segments=stick_segments(flight)),
+                               map_uncertainty=unc)
     out = work / "quadrotor_dynamics.json"
-    q.write_results(res, out, out.with_suffix(".metrics.json"), None, ["demo identification flight"])
+    q.write_results(res, out, out.with_suffix(".metrics.json"), base, ["demo identification flight"])
     if res.exit_code == q.EXIT_OK:
         # the internal step too: identify quadrotor shortens it when the motors are faster than it can follow
         merged["quadrotor"] = {**merged.get("quadrotor", {}),
@@ -261,7 +266,7 @@ def identify_dynamics(merged: dict[str, Any], work: Path, flight: Any = None) ->
     truth_of = dataclasses.asdict(truth)
     return {"exit_code": res.exit_code, "estimates": res.estimates(), "held_out": res.held_out,
             "truth": {n: truth_of[n] for n in res.free}, "written": res.exit_code == q.EXIT_OK,
-            "thrust_band": res.thrust_band, "thrust_slope": res.thrust_slope}
+            "thrust_band": res.thrust_band, "thrust_slope": res.thrust_slope, "map_slope": res.map_slope}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -346,8 +351,9 @@ def run_demo(args: DemoOptions) -> DemoResult:
                   f"({'covered' if covers else 'MISSED'})   {e['determined_by'].split(' (')[0]}")
         if d.get("thrust_band"):
             print("\n".join("  " + line for line in d["thrust_band"]["text"].splitlines()))
-        if d.get("thrust_slope"):
-            print("  " + d["thrust_slope"]["text"])
+        for key in ("thrust_slope", "map_slope"):
+            if d.get(key):
+                print("  " + d[key]["text"])
         if missed:
             print(f"  the 95 % intervals of {', '.join(missed)} miss the truth the demo flew: they carry the data's "
                   "noise and the slope error this flight shows (thrust slope check), not the rest of the error of "

@@ -27,10 +27,11 @@ from typing import Any
 import numpy as np
 
 from fmu_models.common.model import init_function
+from fmu_models.common.params import Uncertainty
 from fmu_models.quadrotor.constants import MOTOR_LAG_SETTLE_TAUS, N_MOTORS
 from fmu_models.quadrotor.model import QuadrotorModel
 from fmu_models.quadrotor.params import QuadrotorParams
-from fmu_models.quadrotor.thrust import command, constants_of, motor_out_of_band
+from fmu_models.quadrotor.thrust import command, consequent_parameters, constants_of, motor_out_of_band, motor_thrust
 from fmu_models.signals.names import OUTPUT_TO_LOG
 from identification.common.metrics import skill_interval
 from identification.estimation.least_squares import hac_least_squares
@@ -162,6 +163,21 @@ class QuadrotorIdResult:
     failures: list[str] = field(default_factory=list)
     #: :func:`thrust_slope_check` on the fit windows with the estimates (empty without velocity or a fit)
     thrust_slope: dict[str, Any] = field(default_factory=dict)
+    #: :func:`map_slope_share` of the start file's thrust-map covariance (empty without one)
+    map_slope: dict[str, Any] = field(default_factory=dict)
+
+    def slope_share(self) -> tuple[float, str]:
+        """The relative 1-sigma error of the thrust map's slope that the inertias of :data:`SLOPE_PARAMS` carry
+        beside the data's bound, and what it is: where this flight shows the slope off, the thrust slope check's
+        (it measures the whole error there) or the start file's map covariance's, whichever is larger; else the
+        map covariance's; else none (0)."""
+        cov = self.map_slope.get("relative_sd", 0.0)
+        cov_why = f"the thrust map's slope ({100 * cov:.1f} % from the start file's covariance of its consequents)"
+        if self.thrust_slope.get("shown") and self.thrust_slope["relative_sd"] >= cov:
+            return self.thrust_slope["relative_sd"], (
+                f"the thrust map's slope (off by {100 * (self.thrust_slope['scale'] - 1):+.1f} % on this flight's "
+                "vertical specific force)")
+        return (cov, cov_why) if cov > 0.0 else (0.0, "")
 
     @property
     def losing_outputs(self) -> list[str]:
@@ -183,15 +199,14 @@ class QuadrotorIdResult:
         est = self.estimate
         if est is not None:
             std, dom = est.std, est.dominance()
-            slope = self.thrust_slope if self.thrust_slope.get("shown") else {}
+            rel, why = self.slope_share()
             for i, n in enumerate(est.names[:est.n_global]):
                 v, sd = float(est.values[i]), float(std[i])
                 out[n] = {"value": v, "std": sd, "determined_by": _determined(n, dom[i])}
-                if slope and n in SLOPE_PARAMS:  # the map's slope error, which the data's bound does not carry
-                    share = abs(v) * slope["relative_sd"]
+                if rel > 0.0 and n in SLOPE_PARAMS:  # the map's slope error, which the data's bound does not carry
+                    share = abs(v) * rel
                     out[n].update(std=math.hypot(sd, share), std_data=sd, std_thrust_slope=share)
-                    out[n]["determined_by"] += (f" + the thrust map's slope (off by {slope['scale'] - 1:+.1%} on "
-                                                "this flight's vertical specific force)")
+                    out[n]["determined_by"] += f" + {why}"
                 out[n]["ci95"] = [v - 1.96 * out[n]["std"], v + 1.96 * out[n]["std"]]
         for n, d in self.drag.items():
             out[n] = {**d, "ci95": [d["value"] - 1.96 * d["std"], d["value"] + 1.96 * d["std"]],
@@ -223,7 +238,8 @@ class QuadrotorIdResult:
             "held_out_segments": [str(s) for s in self.held_out_segments],
             "held_out_vs_persistence": self.held_out, "losing_outputs": self.losing_outputs,
             "estimate": self.estimate.as_dict() if self.estimate is not None else None,
-            "thrust_map_band": self.thrust_band, "thrust_slope": self.thrust_slope, "notes": self.notes,
+            "thrust_map_band": self.thrust_band, "thrust_slope": self.thrust_slope,
+            "thrust_map_slope_covariance": self.map_slope, "notes": self.notes,
             "failures": self.failures,
             "exit_code": self.exit_code,
         }
@@ -235,6 +251,8 @@ class QuadrotorIdResult:
             lines.append(self.thrust_band["text"])
         if self.thrust_slope:
             lines.append(self.thrust_slope["text"])
+        if self.map_slope:
+            lines.append(self.map_slope["text"])
         lines.append(f"{'parameter':<16} {'estimate':>11} {'95 % interval':>25}  determined by")
         for n, e in self.estimates().items():
             lo, hi = e["ci95"]
@@ -315,9 +333,9 @@ def thrust_band_coverage(logs: Sequence[FlightLog], windows: Sequence[tuple[int,
         warning = (f"the thrust map was fitted on a narrower PWM range ({lo_us:.0f}-{hi_us:.0f} us per motor) than "
                    f"the motors use in the fit windows ({p_lo:.0f}-{p_hi:.0f} us, {100 * share:.1f} % of the samples "
                    "outside): there the map is extrapolated, and Jx, Jy (through the arm's moment effectiveness "
-                   "l dT/dPWM) and the motor lag inherit the error of its slope (their intervals carry it only where "
-                   "this flight's vertical specific force shows it: the thrust slope check); identify the map on a "
-                   "flight whose per-motor commands span this range")
+                   "l dT/dPWM) and the motor lag inherit the error of its slope (Jx and Jy carry it where the start "
+                   "file's map covariance or this flight's vertical specific force gives it: the thrust slope lines); "
+                   "identify the map on a flight whose per-motor commands span this range")
         text += "\nwarning: " + warning
     return {"band_pwm_us": [lo_us, hi_us], "flown_pwm_us": [p_lo, p_hi], "share_outside": share,
             "share_below": below, "share_above": above, "warning": warning, "text": text}
@@ -349,14 +367,75 @@ def thrust_slope_check(logs: Sequence[FlightLog], windows: Sequence[tuple[int, q
                        f"in this flight's vertical specific force, {abs(z):.1f} std from 1 (shown past "
                        f"{SLOPE_SHOWN_Z:g}): the map's slope is off where the inertias are identified, and {names} "
                        f"(moment l dT/dPWM over the inertia) inherit it: their intervals carry a relative "
-                       f"{out['relative_sd']:.3f} (1-sigma) beside the data's bound; the replay covariance in the "
-                       "parameter file keeps the data's, since the rates rest on l dT/dPWM over the inertia, which "
-                       "the fit fixes")
+                       f"{out['relative_sd']:.3f} (1-sigma) beside the data's bound; the parameter file's replay "
+                       "covariance does not take it, since the rates rest on l dT/dPWM over the inertia, which the "
+                       "fit fixes")
     else:
         out["text"] = (f"thrust slope check: the map's thrust changes take a scale of {s:.3f} +- {sd:.3f} (1-sigma) "
                        f"in this flight's vertical specific force, {abs(z):.1f} std from 1: no slope error shown "
                        f"(past {SLOPE_SHOWN_Z:g}); {names} carry the data's bound")
     return out
+
+
+def map_slope_share(logs: Sequence[FlightLog], windows: Sequence[tuple[int, qseg.Segment]], params: QuadrotorParams,
+                    uncertainty: Uncertainty | None) -> dict[str, Any]:
+    """How uncertain the thrust map's slope is where the inertias are identified, from the start file's covariance
+    of the map's consequents (``identify thrust`` writes it): the slope is the least-squares slope of the per-motor
+    thrust on the PWM over the motors' samples above idle in ``windows`` (what the moments of the rate fit see),
+    linear in the consequents, so its variance is ``g' C g`` with ``g`` its gradient over them (by differences).
+    Returns ``relative_sd`` (the slope's relative 1-sigma, which the inertias of :data:`SLOPE_PARAMS` inherit one
+    for one), ``slope_N_us``, the consequents' ``names`` and ``gradient`` (for the joint covariance the parameter
+    file carries) and ``text``; empty when ``uncertainty`` holds none of the map's consequents or the windows no
+    motor sample above idle."""
+    amap = params.thrust_map
+    names = [name for name, _, _ in consequent_parameters(amap)]
+    if uncertainty is None or not set(names) & set(uncertainty.names):
+        return {}
+    pwm, volt = [], []
+    for k, w in windows:
+        log = logs[k]
+        t = log.signal("motor_1_pwm_us").t_s
+        t = t[(t >= w.t0_s) & (t < w.t1_s)]
+        if len(t):
+            u = _inputs(log, params, t)
+            pwm.append(u[:, :N_MOTORS].ravel())
+            volt.append(np.repeat(u[:, N_MOTORS], N_MOTORS))
+    p, v = (np.concatenate(x) if x else np.zeros(0) for x in (pwm, volt))
+    above = p > params.pwm_idle_us
+    p, v = p[above], v[above]
+    if p.size < 2 or float(np.ptp(p)) <= 0.0:
+        return {}
+    c = constants_of(params)
+    dp = p - p.mean()
+    width = len(amap.consequents[0])
+    flat = [x for row in amap.consequents for x in row]
+
+    def slope(theta: list[float]) -> float:
+        cons = tuple(tuple(theta[r * width:(r + 1) * width]) for r in range(len(amap.consequents)))
+        thrust = np.asarray(motor_thrust(dataclasses.replace(amap, consequents=cons), p, v, c, N_MOTORS), float)
+        return float(np.dot(thrust - thrust.mean(), dp) / np.dot(dp, dp))
+
+    s0 = slope(flat)
+    grad = np.zeros(len(flat))
+    for i, x in enumerate(flat):
+        h = 1e-3 * max(abs(x), 1e-6)
+        grad[i] = (slope([*flat[:i], x + h, *flat[i + 1:]]) - s0) / h
+    idx = {n: i for i, n in enumerate(uncertainty.names)}
+    cov = np.asarray(uncertainty.covariance, float)
+    sel = [(k, idx[n]) for k, n in enumerate(names) if n in idx]
+    g = np.array([grad[k] for k, _ in sel])
+    var = float(g @ cov[np.ix_([j for _, j in sel], [j for _, j in sel])] @ g)
+    if not (s0 > 0.0 and math.isfinite(var)):
+        return {}
+    rel = math.sqrt(max(var, 0.0)) / s0
+    missing = [n for n in names if n not in idx]
+    return {"relative_sd": rel, "slope_N_us": s0, "names": [names[k] for k, _ in sel], "gradient": g.tolist(),
+            "text": (f"thrust map slope: {1e3 * s0:.4g} mN/us over the fit windows' motor commands, {100 * rel:.1f} "
+                     f"% (1-sigma) from the start file's covariance of the map's consequents"
+                     + (f" ({', '.join(missing)} not in it: held exact)" if missing else "")
+                     + f"; {', '.join(SLOPE_PARAMS)} inherit it (moment l dT/dPWM over the inertia): in their "
+                     "intervals (the thrust slope check's instead where it shows a larger error) and, correlated "
+                     "with the map, in the parameter file's covariance")}
 
 
 def _determined(name: str, dominance: str) -> str:
@@ -500,9 +579,11 @@ def _velocity_logged(log: FlightLog) -> bool:
 
 
 def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorParams,
-                       opt: QuadrotorOptions | None = None) -> QuadrotorIdResult:
+                       opt: QuadrotorOptions | None = None, map_uncertainty: Uncertainty | None = None
+                       ) -> QuadrotorIdResult:
     """Identify the quadrotor of ``logs`` (one vehicle); raises ``QuadrotorInputError``, ``LogError`` or
-    ``SegmentError`` before a solve, ``EstimationError`` when the solve itself fails."""
+    ``SegmentError`` before a solve, ``EstimationError`` when the solve itself fails. ``map_uncertainty``: the
+    start file's ``uncertainty`` (``identify thrust``'s covariance of the map, :func:`map_slope_share`)."""
     opt = opt or QuadrotorOptions()
     bad = opt.problems()
     if bad:
@@ -603,7 +684,8 @@ def identify_quadrotor(logs: FlightLog | Sequence[FlightLog], init: QuadrotorPar
         except QuadrotorInputError as err:
             notes.append(f"thrust slope check: {err}")
     result = QuadrotorIdResult(params, free + list(drag), est, prior, [w for _, w in fit_w], [w for _, w in val_w],
-                               command_hz, not_ident, drag=drag, notes=notes, thrust_band=band, thrust_slope=slope)
+                               command_hz, not_ident, drag=drag, notes=notes, thrust_band=band, thrust_slope=slope,
+                               map_slope=map_slope_share(logs, fit_w, params, map_uncertainty))
     if not est.converged:
         notes.append(f"not converged within {opt.max_iter} iterations: the estimates are the last accepted iterate")
     result.ratios = _ratios(est, params)
@@ -893,7 +975,7 @@ def parameter_file(result: QuadrotorIdResult, base: dict[str, Any] | None, log_n
         big[len(keep):, len(keep):] = cov
         names = [unc["names"][i] for i in keep] + names
         mean = [float(unc["mean"][i]) for i in keep] + mean
-        cov = big
+        cov = _with_map_slope(big, names, mean, result.map_slope)
     out: dict[str, Any] = {"quadrotor": result.params.to_dict(), "_identification": {
         "method": "output error (identification.estimation.oem) on body rates and specific force",
         "logs": list(log_names), "free": result.free, "not_identifiable": result.not_identifiable,
@@ -902,7 +984,31 @@ def parameter_file(result: QuadrotorIdResult, base: dict[str, Any] | None, log_n
     if names:
         out["uncertainty"] = {"names": names, "mean": mean, "covariance": np.asarray(cov).tolist(),
                               "note": "identify quadrotor: printed covariance of its estimates (and the thrust "
-                                      "map's, from the start file)"}
+                                      "map's, from the start file, with the roll and pitch inertias moving with "
+                                      "its slope)"}
+    return out
+
+
+def _with_map_slope(cov: np.ndarray, names: list[str], mean: list[float], share: dict[str, Any]) -> np.ndarray:
+    """``cov`` with the inertias of :data:`SLOPE_PARAMS` moving with the thrust map's consequents: an inertia
+    identified through the map is ``J (1 + ds / s)`` for a slope error ``ds = g' d(theta)``, so it gets
+    ``cov(J, theta) = J C g / s`` and ``cov(J_i, J_j) += J_i J_j g' C g / s^2``. A Monte Carlo draw of the map
+    then carries its inertia with it, and the moment over the inertia, which the rates fixed, stays as
+    identified (drawn apart, the map's slope spread would widen every replayed rate)."""
+    if not share or not share.get("names"):
+        return cov
+    idx = {n: i for i, n in enumerate(names)}
+    th = [idx[n] for n in share["names"] if n in idx]
+    js = [idx[n] for n in SLOPE_PARAMS if n in idx]
+    if len(th) != len(share["names"]) or not js:
+        return cov
+    g = np.asarray(share["gradient"], float) / share["slope_N_us"]  # relative slope per consequent
+    cg = cov[np.ix_(th, th)] @ g
+    out = cov.copy()
+    for a in js:
+        out[a, th] = out[th, a] = mean[a] * cg
+        for b in js:
+            out[a, b] += mean[a] * mean[b] * float(g @ cg)
     return out
 
 

@@ -47,6 +47,11 @@ def test_demo_pipeline(tmp_path: Path, capsys) -> None:
     for name in ("Jx_kg_m2", "Jy_kg_m2"):
         e = dyn["estimates"][name]
         assert e["value"] + 1.96 * e["std_data"] < 0.007 <= e["ci95"][1] and e["ci95"][0] < e["value"], e
+    # the dynamics file carries identify thrust's map covariance, with the inertias moving with the map's slope
+    unc = json.loads((work / "quadrotor_dynamics.json").read_text())["uncertainty"]
+    cons = [i for i, n in enumerate(unc["names"]) if n.startswith("anfis_cons_")]
+    assert cons and dyn["thrust_map_slope_covariance"]["relative_sd"] > 0.0
+    assert any(unc["covariance"][unc["names"].index("Jx_kg_m2")][i] != 0.0 for i in cons)
     assert "share_outside" in dyn["thrust_map_band"]
     # vertical drag through the regression's flexible thrust: the demo flew kd_z = 0.25 (the FMU default) with a
     # thrust map the identified one cannot follow in shape (the scaled map alone gave 0.52)

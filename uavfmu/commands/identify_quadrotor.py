@@ -43,7 +43,9 @@ def _positive(lo: float, hi: float):  # type: ignore[no-untyped-def]
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", nargs="+", type=Path, help="flight logs of one quadrotor (.ulg, .bin, .csv)")
-    parser.add_argument("--params", type=Path, help="start parameter file (thrust map from identify thrust)")
+    parser.add_argument("--params", type=Path, help="start parameter file (thrust map from identify thrust; its "
+                                                     "covariance of the map, when there, goes into Jx's and Jy's "
+                                                     "intervals)")
     parser.add_argument("--out", type=Path, required=True, help="parameter file to write")
     parser.add_argument("--metrics", type=Path, help="metrics JSON (default: OUT with .metrics.json)")
     parser.add_argument("--segments", help="fit and held-out segments t0:t1,... [s from log start]")
@@ -63,7 +65,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from fmu_models.common.errors import ParameterError
-    from fmu_models.common.params import read_json
+    from fmu_models.common.params import read_json, uncertainty_of
     from fmu_models.quadrotor.params import QuadrotorParams
     from identification.estimation.oem import EstimationError
     from identification.logs.readers import read_log
@@ -77,8 +79,10 @@ def run(args: argparse.Namespace) -> int:
                                  segments=parse_windows(args.segments) if args.segments else None,
                                  blocks=args.blocks, motor_mass_kg=args.motor_mass_kg,
                                  battery_mass_kg=args.battery_mass_kg, force=args.force)
+        # the map's covariance (identify thrust writes it): the inertias inherit the map's slope error
+        unc = uncertainty_of(base, str(args.params)) if base and "uncertainty" in base else None
         logs = [read_log(p) for p in args.log]
-        result = q.identify_quadrotor(logs, init, opt)
+        result = q.identify_quadrotor(logs, init, opt, map_uncertainty=unc)
     except EstimationError as err:
         print(f"uavfmu identify quadrotor: estimation failed, nothing written: {err}", file=sys.stderr)
         return q.EXIT_FAILED

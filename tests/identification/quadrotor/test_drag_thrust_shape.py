@@ -15,9 +15,10 @@ import math
 import numpy as np
 import pytest
 
+from fmu_models.common.params import Uncertainty
 from fmu_models.quadrotor.anfis import AnfisMap
 from fmu_models.quadrotor.params import QuadrotorParams
-from fmu_models.quadrotor.thrust import command, constants_of, motor_thrust
+from fmu_models.quadrotor.thrust import command, consequent_parameters, constants_of, motor_thrust
 from identification.flights.quadrotor_replica import fly_replica, planned_blocks
 from identification.quadrotor import identify as q
 from identification.quadrotor.segments import Segment
@@ -151,3 +152,64 @@ def test_inertias_through_a_map_whose_slope_is_off_carry_it_in_their_intervals(f
     unc = q.parameter_file(res, None, ["replica"])["uncertainty"]
     i = unc["names"].index("Jx_kg_m2")
     assert math.sqrt(unc["covariance"][i][i]) == pytest.approx(est["Jx_kg_m2"]["std_data"])
+
+
+def _map_uncertainty(params: QuadrotorParams, rel: float) -> Uncertainty:
+    """A covariance of ``params``' map consequents that scales the whole map by a factor of std ``rel``."""
+    cons = consequent_parameters(params.thrust_map)
+    theta = np.array([v for _, _, v in cons])
+    return Uncertainty(names=[n for n, _, _ in cons], mean=theta.tolist(),
+                       covariance=(rel ** 2 * np.outer(theta, theta)).tolist())
+
+
+def test_map_slope_share_is_the_slope_spread_of_the_map_covariance(flight):
+    """The slope is linear in the consequents: a covariance that scales the whole map by a factor of std 3 %
+    scales the slope by the same, for the published (summed-PWM) map and a feature map alike; one consequent's
+    variance gives its own gradient's share; a file without the map's consequents gives none."""
+    w = _windows(flight)
+    for params in (flight.truth, _smooth_map(flight.truth)):
+        got = q.map_slope_share([flight.log], w, params, _map_uncertainty(params, 0.03))
+        assert got["relative_sd"] == pytest.approx(0.03, rel=1e-4), got["relative_sd"]
+        cons = consequent_parameters(params.thrust_map)
+        one = Uncertainty(names=[cons[0][0]], mean=[cons[0][2]], covariance=[[(0.1 * cons[0][2]) ** 2]])
+        alone = q.map_slope_share([flight.log], w, params, one)
+        assert alone["names"] == [cons[0][0]] and "held exact" in alone["text"]
+        assert alone["relative_sd"] == pytest.approx(abs(alone["gradient"][0]) * 0.1 * abs(cons[0][2])
+                                                     / alone["slope_N_us"])
+    other = Uncertainty(names=["Jx_kg_m2"], mean=[0.007], covariance=[[1e-8]])
+    assert q.map_slope_share([flight.log], w, flight.truth, other) == {}
+    assert q.map_slope_share([flight.log], w, flight.truth, None) == {}
+
+
+def test_inertias_carry_the_map_covariance_and_move_with_the_map_in_the_parameter_file(flight):
+    """Through the truth's map with a covariance of 3 % on its scale (the check shows nothing there): the roll and
+    pitch inertias' intervals carry 3 % beside the data's bound; the parameter file correlates them with the map's
+    consequents so that a draw of the map carries its inertia, and the moment over the inertia, which the rates
+    fixed, keeps the data's spread alone."""
+    opt = q.QuadrotorOptions(segments=[Segment(b.start_s, b.end_s, b.axis) for b in flight.blocks])
+    unc = _map_uncertainty(flight.truth, 0.03)
+    res = q.identify_quadrotor(flight.log, flight.truth, opt, map_uncertainty=unc)
+    assert not res.thrust_slope["shown"] and res.map_slope["relative_sd"] == pytest.approx(0.03, rel=1e-4)
+    est = res.estimates()
+    for n in q.SLOPE_PARAMS:
+        e = est[n]
+        assert e["std_thrust_slope"] == pytest.approx(0.03 * e["value"], rel=1e-4)
+        assert e["std"] == pytest.approx(math.hypot(e["std_data"], 0.03 * e["value"]), rel=1e-4)
+        assert "covariance of its consequents" in e["determined_by"]
+        assert e["ci95"][0] <= getattr(flight.truth, n) <= e["ci95"][1]
+    assert "std_thrust_slope" not in est["Jz_kg_m2"]
+    file = q.parameter_file(res, {"quadrotor": flight.truth.to_dict(), "uncertainty": unc.model_dump()},
+                            ["replica"])
+    u = Uncertainty(**file["uncertainty"])  # a valid covariance (symmetric, positive semi-definite)
+    names, cov = u.names, np.asarray(u.covariance)
+    i = names.index("Jx_kg_m2")
+    th = [names.index(n) for n in res.map_slope["names"]]
+    theta = np.asarray(u.mean)[th]
+    jx = est["Jx_kg_m2"]["value"]
+    assert cov[i, th] == pytest.approx(jx * 0.03 ** 2 * theta, rel=1e-3)
+    assert math.sqrt(cov[i, i]) == pytest.approx(est["Jx_kg_m2"]["std"], rel=1e-6)
+    # the relative moment effectiveness, slope / Jx: the map's part cancels, the data's is left
+    v = np.zeros(len(names))
+    v[th] = np.asarray(res.map_slope["gradient"]) / res.map_slope["slope_N_us"]
+    v[i] = -1.0 / jx
+    assert math.sqrt(float(v @ cov @ v)) == pytest.approx(est["Jx_kg_m2"]["std_data"] / jx, rel=1e-3)
