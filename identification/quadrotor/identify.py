@@ -343,8 +343,9 @@ def thrust_band_coverage(logs: Sequence[FlightLog], windows: Sequence[tuple[int,
 
 def thrust_slope_check(logs: Sequence[FlightLog], windows: Sequence[tuple[int, qseg.Segment]],
                        params: QuadrotorParams, rate_hz: float) -> dict[str, Any]:
-    """Whether the flight's vertical specific force shows the thrust map's slope off, where the inertias are
-    identified. The scale ``s`` of the model's total thrust (``params``: the map and the fitted motor lag) in the
+    """Whether the flight's vertical specific force shows the thrust map's slope off over the commands the motors
+    ran (``windows``: the drag regression's, all airborne time but the held-out windows, which hold the inertias'
+    fit windows). The scale ``s`` of the model's total thrust (``params``: the map and the fitted motor lag) in the
     drag regression with that thrust as its only thrust regressor (:func:`drag_equation_error`, one constant per
     log: only the thrust's changes count, so ``s`` is the map's slope over the flown commands, 1 when the map is
     right) and its 1-sigma (Newey-West); ``z = (s - 1) / sd``; ``shown`` when ``|z|`` exceeds
