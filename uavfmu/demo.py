@@ -375,6 +375,7 @@ def run_demo(args: DemoOptions) -> DemoResult:
         est = found["aero"]["estimate"]["parameters"]
         print("roll derivatives identified from the fixed-wing log (output error, paper 001; the other coefficients "
               "held at the values the demo flew, known here: no consider covariance)")
+        small = found["aero"]["estimate"].get("small_sample_bound") or []
         for name in ROLL_FREE.split(","):
             e = est[name]
             err = abs(e["value"] - getattr(truth, name))
@@ -382,6 +383,13 @@ def run_demo(args: DemoOptions) -> DemoResult:
             print(f"  {name:<16} {e['value']:10.4f} +- {e['std']:.4f} ({how})   "
                   f"truth {getattr(truth, name):8.4f}; 95 % half-width {1.96 * e['std']:.4f} = "
                   f"{1.96 * e['std'] / max(err, 1e-12):.1f} x the error {err:.4f}")
+            if name in small and e.get("segment_scatter_ratio"):
+                print(f"    small-sample bound: the segments' scatter has {e['segment_scatter_ratio']:.1f}x the "
+                      "variance the coloured bound explains, so the bound is the bootstrap over them with Student's "
+                      "factor at "
+                      f"{e['bootstrap_dof']:.1f} degrees of freedom (about "
+                      f"{found['aero']['estimate']['segments_to_tighten']} segments would tighten it)")
+        print("  (one draw: a right 95 % interval's half-width exceeds 3x its error in about half of all flights)")
         theil = found["aero"]["metrics"]["validation"]["roll_rad"]["theil_u"]
         rm = found["aero"]["baselines_validation"]["roll_rad"]["rmse"]
         print(f"  {'held-out roll angle Theil U':<36} {theil:10.4f}")

@@ -27,6 +27,11 @@ def test_demo_pipeline(tmp_path: Path, capsys) -> None:
     # the recorded flight used the Aerosonde's C_ell_p = -0.51 and C_ell_delta_a = 0.17
     assert aero["C_ell_p"]["value"] == pytest.approx(-0.51, rel=0.05)
     assert aero["C_ell_delta_a"]["value"] == pytest.approx(0.17, rel=0.05)
+    # a small-sample bound is named as such in the console, with the segments that would tighten it
+    est = json.loads((work / "fixed_wing_identified.metrics.json").read_text())["estimate"]
+    for name in est["small_sample_bound"]:
+        assert f"segments' scatter has {aero[name]['segment_scatter_ratio']:.1f}x" in out
+    assert out.count(f"about {est['segments_to_tighten']} segments would tighten it") == len(est["small_sample_bound"])
     # the quadrotor's inertia and motor lag, identified from the stick-excitation flight, go into the rebuilt FMU
     dyn = json.loads((work / "quadrotor_dynamics.metrics.json").read_text())
     assert {"Jx_kg_m2", "Jy_kg_m2", "tau_motor_s"} <= set(dyn["free"])
