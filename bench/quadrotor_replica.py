@@ -186,14 +186,19 @@ def main(argv: list[str] | None = None) -> int:
     if args.pool:
         rows: dict[str, list[tuple[float, float, float]]] = {n: [] for n in CHECKED}
         misses: list[str] = []
+        slope_z: list[float] = []  # runs saved before the thrust slope check have none
         for path in args.pool:
             try:
                 got = json.loads(path.read_text())
                 for n in CHECKED:
                     rows[n] += [tuple(map(float, r)) for r in got["rows"][n]]
                 misses += [f"{path.name}: {m}" for m in got["misses"]]
+                slope_z += [float(z) for z in got.get("slope_z", [])]
             except (OSError, ValueError, KeyError, TypeError) as err:
                 ap.error(f"--pool {path}: not a --save file of this bench ({err})")
+        if slope_z:
+            print(f"thrust slope check: shown in {sum(abs(z) > q.SLOPE_SHOWN_Z for z in slope_z)} of {len(slope_z)} "
+                  f"draws with it recorded (|z| > {q.SLOPE_SHOWN_Z:g})")
         return summarise(rows, misses, f"{len(rows[CHECKED[0]])} draws of {len(args.pool)} runs pooled")
     if not 1 <= args.draws <= 200:
         ap.error("--draws must lie in 1..200")

@@ -48,3 +48,12 @@ def test_a_file_that_is_not_a_saved_run_is_named(tmp_path: Path, capsys) -> None
     with pytest.raises(SystemExit) as stop:
         bench.main(["--pool", str(bad)])
     assert stop.value.code == 2 and f"--pool {bad}: not a --save file" in capsys.readouterr().err
+
+
+def test_pooled_runs_count_the_thrust_slope_checks_shown(tmp_path: Path, capsys) -> None:
+    rng = np.random.default_rng(5)
+    files = [_save(tmp_path / f"run{k}.json", rng, 40, 1.0) for k in range(2)]
+    got = json.loads(files[0].read_text())
+    files[0].write_text(json.dumps({**got, "slope_z": [0.5, -3.2, 1.1] + [0.0] * 37}))
+    bench.main(["--pool", *map(str, files)])
+    assert "shown in 1 of 40 draws with it recorded" in capsys.readouterr().out
