@@ -25,7 +25,7 @@ log, fit and held-out, left out in turn (``identify aero`` on the others, the se
 discrepancy learned and calibrated on the other segments' out-of-sample replays: ten identifications.
 
     .venv/bin/python bench/prediction_bands.py [--draws N] [--only erle,px4,wing,wing-each] [--no-parameter-spread]
-        [--forms auto|unscaled] [--weight auto|1] [--per-set] [--start-velocity force|logged]
+        [--forms auto|unscaled] [--weight auto|1|0] [--per-set] [--start-velocity force|logged]
     # exit 1 on a miss
 
 Heavy (minutes; tens of minutes on a loaded 2-core machine): every fold builds an FMU and runs N Monte Carlo
@@ -323,14 +323,16 @@ def main() -> int:
                          "or both (all)")
     ap.add_argument("--forms", choices=("auto", "unscaled"), default="auto",
                     help="a study: the band forms chosen on learning replays left out (auto), or unscaled only")
-    ap.add_argument("--weight", choices=("auto", "1"), default="auto",
-                    help="a study: the parameter weight chosen on learning replays left out (auto), or always 1")
+    ap.add_argument("--weight", choices=("auto", "1", "0"), default="auto",
+                    help="a study: the parameter weight chosen on learning replays left out (auto), or always 1 "
+                         "(the draws in every band), or always 0 (the discrepancy alone)")
     ap.add_argument("--per-set", action="store_true", help="also each held-out set's own figures per signal")
     ap.add_argument("--start-velocity", choices=("force", "logged"), default="force",
                     help="fixed wing: the replay windows' start body velocity from the specific force (default) or "
                          "the GPS as logged (validate --start-velocity)")
     args = ap.parse_args()
-    study = {"scaled": args.forms == "auto", "weights": (1.0, 0.0) if args.weight == "auto" else (1.0,)}
+    study = {"scaled": args.forms == "auto",
+             "weights": {"auto": (1.0, 0.0), "1": (1.0,), "0": (0.0,)}[args.weight]}
     if not all(p.exists() for p in [*ERLE, *(p for p, _ in PX4), WING]):
         print(f"bench/prediction_bands.py: needs {DATA} (../shared/data beside the checkout)")
         return 2
