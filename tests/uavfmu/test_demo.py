@@ -65,6 +65,8 @@ def test_demo_pipeline(tmp_path: Path, capsys) -> None:
     # the demo's motors have no lag: an estimate the data cannot tell from none is written as none, and the FMU
     # keeps its 1 ms internal step (not a step cut to half of a 0.1 ms bound value)
     assert (ident["quadrotor"]["tau_motor_s"], ident["quadrotor"]["step_internal_s"]) == (0.0, 0.001)
+    # ... and no Monte Carlo draw brings a lag back: it is not in the covariance
+    assert "tau_motor_s" not in unc["names"] and "Jx_kg_m2" in unc["names"]
     results = json.loads((work / "report" / "results.json").read_text())
     # scored on held-out flights (other references, excitation and noise), never on the identification logs
     assert [Path(r["log"]).name for r in results] == ["quadrotor_flight_held_out.bin", "fixed_wing_flight_held_out.bin"]
