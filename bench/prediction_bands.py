@@ -14,7 +14,8 @@ Beside each pooled coverage, its one-sided 95 % bounds over the replay windows o
 (``mc_bands.coverage_bounds``, what ``validate --mc`` decides a finding with): where the target's end lies inside
 them, the windows cannot tell the coverage from the target (the target is still judged on the point figure).
 Per fold it prints the form each signal's band took (scale basis, sign, parameter weight, band factor), and with
-``--per-set`` each held-out set's own coverage, width and RMSE per signal (where a pooled figure comes from).
+``--per-set`` each held-out set's own coverage, width, RMSE and mean residual (logged - FMU) per signal
+(where a pooled figure comes from).
 
 The shared fixed-wing excitation log has no second flight: ``identify aero`` on it (the timeline's fit and
 held-out segments, every default) writes the estimate and its covariance, the fixed-wing FMU is built from it,
@@ -99,7 +100,7 @@ class Pool:
 
         if self.per_set:
             print(f"    {'this set':<18} {'samples':>8} {'coverage':>9} {'mean width':>11} {'RMSE':>9} "
-                  f"{'width/RMSE':>10} {'pers. RMSE':>10}")
+                  f"{'width/RMSE':>10} {'pers. RMSE':>10} {'mean resid':>10}")
         for m in res.maps:  # type: ignore[attr-defined]
             y, mod = res.measured[m.fmu], res.model[m.fmu]  # type: ignore[attr-defined]
             lo, hi = res.bands.lo[m.fmu], res.bands.hi[m.fmu]  # type: ignore[attr-defined]
@@ -123,7 +124,8 @@ class Pool:
                 w, rmse = float(np.minimum(width, 2 * math.pi if m.wrap else np.inf).mean()), math.sqrt(float(
                     np.mean(e * e)))
                 print(f"    {k:<18} {e.size:>8} {cov:>9.1%} {w:>11.4g} {rmse:>9.4g} "
-                      f"{w / rmse if rmse > 0 else math.inf:>10.2f} {math.sqrt(float(np.mean(ep * ep))):>10.4g}")
+                      f"{w / rmse if rmse > 0 else math.inf:>10.2f} {math.sqrt(float(np.mean(ep * ep))):>10.4g} "
+                      f"{float(np.mean(e)):>+10.4g}")
             self.gated[k] = m.gate
             self.kept.setdefault(k, []).append((e, horizons_s(res)[ok]))  # type: ignore[arg-type]
             sets = self.windows.setdefault(k, [])

@@ -295,6 +295,18 @@ def thrust_band_pwm_us(params: QuadrotorParams) -> tuple[float, float]:
     return lo / N_MOTORS, hi / N_MOTORS
 
 
+def _window_inputs(logs: Sequence[FlightLog], windows: Sequence[tuple[int, qseg.Segment]],
+                   params: QuadrotorParams) -> list[np.ndarray]:
+    """Per window with motor commands, the model inputs (:func:`_inputs`) at its logged command samples."""
+    out = []
+    for k, w in windows:
+        t = logs[k].signal("motor_1_pwm_us").t_s
+        t = t[(t >= w.t0_s) & (t < w.t1_s)]
+        if len(t):
+            out.append(_inputs(logs[k], params, t))
+    return out
+
+
 def thrust_band_coverage(logs: Sequence[FlightLog], windows: Sequence[tuple[int, qseg.Segment]],
                          params: QuadrotorParams) -> dict[str, Any]:
     """Where the motors ran in ``windows`` against the thrust map's trained band: the band (per-motor PWM at the
@@ -306,13 +318,7 @@ def thrust_band_coverage(logs: Sequence[FlightLog], windows: Sequence[tuple[int,
     c = constants_of(params)
     lo_us, hi_us = thrust_band_pwm_us(params)
     pwm, out = [], []
-    for k, w in windows:
-        log = logs[k]
-        t = log.signal("motor_1_pwm_us").t_s
-        t = t[(t >= w.t0_s) & (t < w.t1_s)]
-        if not len(t):
-            continue
-        u = _inputs(log, params, t)
+    for u in _window_inputs(logs, windows, params):
         p = u[:, :N_MOTORS]
         pwm.append(p[p > params.pwm_idle_us])
         out.append(np.asarray(motor_out_of_band(params.thrust_map, p, u[:, N_MOTORS:], c, N_MOTORS),
@@ -393,14 +399,9 @@ def map_slope_share(logs: Sequence[FlightLog], windows: Sequence[tuple[int, qseg
     if uncertainty is None or not set(names) & set(uncertainty.names):
         return {}
     pwm, volt = [], []
-    for k, w in windows:
-        log = logs[k]
-        t = log.signal("motor_1_pwm_us").t_s
-        t = t[(t >= w.t0_s) & (t < w.t1_s)]
-        if len(t):
-            u = _inputs(log, params, t)
-            pwm.append(u[:, :N_MOTORS].ravel())
-            volt.append(np.repeat(u[:, N_MOTORS], N_MOTORS))
+    for u in _window_inputs(logs, windows, params):
+        pwm.append(u[:, :N_MOTORS].ravel())
+        volt.append(np.repeat(u[:, N_MOTORS], N_MOTORS))
     p, v = (np.concatenate(x) if x else np.zeros(0) for x in (pwm, volt))
     above = p > params.pwm_idle_us
     p, v = p[above], v[above]
