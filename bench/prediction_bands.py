@@ -175,12 +175,14 @@ class Pool:
 
 def chosen(disc: object) -> str:
     """Per signal the band form a fold learned: the scale basis (``none``: unscaled), ``signed`` where the sign is
-    kept, the parameter weight and the band factor."""
+    kept, ``offset`` and its value where the band is centred on the restart's offset, the parameter weight and the
+    band factor."""
     out = []
     for k, v in disc.signals.items():  # type: ignore[attr-defined]
         scale = v.scale_by if v.scale_floor is not None else "none"
         weight = 1.0 if v.parameter_weight is None else v.parameter_weight
-        out.append(f"{k} {scale}{'' if v.symmetric else ' signed'} w{weight:g} f{v.band_factor or 1.0:.2f}")
+        offset = "" if v.offset is None else f" offset {v.offset:+.3g}"
+        out.append(f"{k} {scale}{'' if v.symmetric else ' signed'}{offset} w{weight:g} f{v.band_factor or 1.0:.2f}")
     return "    forms: " + ", ".join(out)
 
 

@@ -336,6 +336,11 @@ class SignalDiscrepancy(Schema):
     #: the quantiles are of the residuals with both signs (a band centred on the FMU); False: of the residuals as
     #: they are, kept where their sign carries from one learning replay to another (informative, not read)
     symmetric: bool = True
+    #: the centre of a symmetric band, in the quantiles' unit: the residuals' median at the window's restart from the
+    #: logged state (the first horizon bin), where the model's dynamics have not yet erred, so a bias the FMU does
+    #: not have (an airspeed sensor's calibration). Kept where it carries from one learning replay to another; the
+    #: quantiles already include it (informative, not read). None: centred on the FMU
+    offset: float | None = Field(None, allow_inf_nan=False)
     #: ``validate --mc``: the band (the parameter draws convolved with this discrepancy) is stretched by this
     #: about its per-sample median, chosen on the learning replays so that it covers its nominal level there (the
     #: parameter spread is otherwise counted twice: the residuals learned already carry the parameters' error).

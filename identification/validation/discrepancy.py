@@ -31,6 +31,14 @@ from one flight to the next (the x body rate's residual, 5-95 %, is -1.79..+6.51
 thrust; on the Erle flights the thrust's sign does carry between two of them, and an always-symmetric band was
 4.23x its RMSE wide (docs/validation.md#prediction-bands).
 
+**Centred on a bias where one carries**: a symmetric band is centred on the residuals' median at the restart
+(:func:`restart_offset`, the first horizon bin, where the model's dynamics have not yet erred: a sensor's
+calibration the FMU does not have) where, each learning replay left out in turn, that band scores better than the
+band centred on the FMU on every replay left out and on more of their windows than chance gives. One number per
+signal, read where no drift is: on the fixed-wing excitation log the logged airspeed is 0.25 % above the FMU's from
+the restart on (ArduPilot's SITL pitot ratio 1.99 read with ``ARSPD_RATIO`` 2.0), and a band centred on the FMU had
+to straddle that offset.
+
 The residuals are against the logged, noisy signal, so they carry the sensor noise too: a signal with a
 discrepancy gets no second white-noise term in the Monte Carlo. The scale and the quantile lookup are
 ``fmu_models.common.params.discrepancy_scale`` / ``discrepancy_quantile``, shared with the HIL record's band.
@@ -147,12 +155,14 @@ def _edges(h: np.ndarray, span_s: float) -> np.ndarray:
 
 
 def _fit(results: Sequence[ReplayResult], name: str, form: SignalDiscrepancy, window_s: float,
-         signed: bool = False) -> tuple[SignalDiscrepancy, float] | None:
+         signed: bool = False, offset: bool = False) -> tuple[SignalDiscrepancy, float] | None:
     """The quantile table of signal ``name`` in the form of ``form`` (its scale basis and floor; its quantiles
     are ignored) and the mean width of its 90 % band over the learning samples (None: too few samples). The
-    residuals enter with both signs (the band symmetric about the FMU) unless ``signed``. A scaled table holds
-    its scale at the ``SCALE_HELD_AT`` quantile of the learning residuals' scales (``scale_max``), learning too."""
-    form = form.model_copy(update={"scale_max": None})
+    residuals enter with both signs (the band symmetric about the FMU) unless ``signed``; with ``offset`` (and not
+    ``signed``) symmetric about the residuals' median at the restart (:func:`restart_offset`) instead. A scaled
+    table holds its scale at the ``SCALE_HELD_AT`` quantile of the learning residuals' scales (``scale_max``),
+    learning too."""
+    form = form.model_copy(update={"scale_max": None, "offset": None})
     hs, es, ss = [], [], []
     for res in results:
         scale = scale_of(res, name, form)
@@ -169,6 +179,8 @@ def _fit(results: Sequence[ReplayResult], name: str, form: SignalDiscrepancy, wi
         sc = np.minimum(sc, held)  # as discrepancy_scale holds it wherever the table is used
     r = err / sc
     edges = _edges(h, window_s if window_s > 0 else float(h.max()))
+    centre = restart_offset(r, h, edges) if offset and not signed else 0.0
+    r = r - centre
     rows, counts, width = [], [], 0.0
     i5, i95 = LEVELS.index(0.05), LEVELS.index(0.95)
     for a, b in itertools.pairwise(edges):
@@ -177,12 +189,22 @@ def _fit(results: Sequence[ReplayResult], name: str, form: SignalDiscrepancy, wi
         both = r[sel] if signed else np.concatenate([r[sel], -r[sel]])
         q = [float(v) for v in np.quantile(both, LEVELS)] if sel.any() else [0.0] * len(LEVELS)
         if not signed:
-            q = [0.5 * (v - w) for v, w in zip(q, q[::-1], strict=True)]  # exactly antisymmetric (rounding)
+            q = [0.5 * (v - w) + centre for v, w in zip(q, q[::-1], strict=True)]  # antisymmetric about it
         rows.append(q)
         width += float(np.sum((q[i95] - q[i5]) * sc[sel]))
     table = form.model_copy(update={"horizon_edges_s": [float(e) for e in edges], "quantiles": rows,
-                                    "samples": counts, "symmetric": not signed, "scale_max": held})
+                                    "samples": counts, "symmetric": not signed, "scale_max": held,
+                                    "offset": centre if offset and not signed else None})
     return table, width / r.size
+
+
+def restart_offset(r: np.ndarray, h: np.ndarray, edges: np.ndarray) -> float:
+    """The median of the (scaled) residuals ``r`` in the first horizon bin of ``edges`` (``h`` [s] since the
+    window's restart from the logged state): at the restart the model's own dynamics have had no time to err, so
+    what is left there is a bias the FMU does not have, e.g. an airspeed sensor's calibration (ArduPilot's SITL
+    simulates its pitot with ``SIM_ARSPD_RATIO`` 1.99 and reads it with ``ARSPD_RATIO`` 2.0: 0.25 % high)."""
+    first = r[h < edges[1]]
+    return float(np.median(first)) if first.size else 0.0
 
 
 def band_on(table: SignalDiscrepancy, res: ReplayResult, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -244,12 +266,12 @@ def refit(results: Sequence[ReplayResult], name: str, like: SignalDiscrepancy,
           window_s: float) -> SignalDiscrepancy | None:
     """Signal ``name``'s quantile table learned anew on ``results`` in the form of ``like`` (scale basis, floor,
     sign; its other fields kept); None with too few samples."""
-    fit = _fit(results, name, like, window_s, signed=not like.symmetric)
+    fit = _fit(results, name, like, window_s, signed=not like.symmetric, offset=like.offset is not None)
     return None if fit is None else fit[0]
 
 
 def held_out_score(results: Sequence[ReplayResult], name: str, form: SignalDiscrepancy, window_s: float,
-                   signed: bool) -> tuple[list[float], np.ndarray]:
+                   signed: bool, offset: bool = False) -> tuple[list[float], np.ndarray]:
     """Each replay of ``results`` scored by the 90 % band of ``form`` learned on the others: per replay the mean
     interval score (:func:`interval_score`), and per replay window (all replays' windows in order) its mean
     interval score (NaN where the window has no scored sample); ``([], empty)`` with fewer than two replays or too
@@ -259,7 +281,8 @@ def held_out_score(results: Sequence[ReplayResult], name: str, form: SignalDiscr
         return none
     out, windows = [], []
     for i, res in enumerate(results):
-        fit = _fit([x for j, x in enumerate(results) if j != i], name, form, window_s, signed=signed)
+        fit = _fit([x for j, x in enumerate(results) if j != i], name, form, window_s, signed=signed,
+                   offset=offset)
         if fit is None:
             return none
         per_sample = interval_scores(residuals(res, name), *band_on(fit[0], res, name))
@@ -272,6 +295,20 @@ def held_out_score(results: Sequence[ReplayResult], name: str, form: SignalDiscr
         summed = np.bincount(idx, weights=per_sample[ok], minlength=len(res.windows))
         windows.append(np.where(count > 0, summed / np.maximum(count, 1), math.nan))
     return out, np.concatenate(windows) if windows else np.zeros(0)
+
+
+def offset_carries(results: Sequence[ReplayResult], name: str, form: SignalDiscrepancy, window_s: float) -> bool:
+    """Whether the residual's offset at the restart (:func:`restart_offset`) carries from replay to replay: each
+    learning replay left out in turn, the band centred on the others' offset scores better (interval score) than
+    the band centred on the FMU on every replay left out and on more of their windows than chance gives
+    (:func:`scale_carries`). Never with one replay. One number per signal, read where the dynamics have not yet
+    erred: a bias, not the drift a signed band would fit (whose sign does not carry from flight to flight)."""
+    if len(results) < 2:
+        return False
+    shifted, shifted_windows = held_out_score(results, name, form, window_s, False, offset=True)
+    centred, centred_windows = held_out_score(results, name, form, window_s, False)
+    return bool(shifted) and len(shifted) == len(centred) and all(
+        a < b for a, b in zip(shifted, centred, strict=True)) and scale_carries(shifted_windows, centred_windows, 1)
 
 
 def scale_carries(scaled: np.ndarray, unscaled: np.ndarray, forms: int) -> bool:
@@ -318,9 +355,10 @@ def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "",
         scored = []
         for form in forms:
             signed = sign_carries(results, m.fmu, form, window_s)
-            fit = _fit(results, m.fmu, form, window_s, signed)
+            offset = not signed and offset_carries(results, m.fmu, form, window_s)
+            fit = _fit(results, m.fmu, form, window_s, signed, offset)
             if fit is not None:
-                scored.append((held_out_score(results, m.fmu, form, window_s, signed), fit[1], fit[0]))
+                scored.append((held_out_score(results, m.fmu, form, window_s, signed, offset), fit[1], fit[0]))
         if scored and len(results) >= 2 and scored[0][2].scale_floor is None and scored[0][0][0]:
             (base, base_windows), tried = scored[0][0], len(scored) - 1  # the unscaled form's, replay by replay
             better = [f for f in scored[1:] if len(f[0][0]) == len(base) and all(
@@ -373,6 +411,7 @@ class DiscrepancyResult:
             out.append(f"  {name:<18} 5-95 % of {what}: [{first[i5]:+.3g}, {first[i95]:+.3g}] at "
                        f"{s.horizon_edges_s[0]:g}-{s.horizon_edges_s[1]:.2g} s, [{last[i5]:+.3g}, {last[i95]:+.3g}] at "
                        f"{s.horizon_edges_s[-2]:.2g}-{s.horizon_edges_s[-1]:.2g} s ({sum(s.samples)} samples)"
+                       + (f"; centred on the restart's offset {s.offset:+.3g}" if s.offset is not None else "")
                        + (f"; band factor {s.band_factor:.3g}" if s.band_factor is not None else "")
                        + ("; the discrepancy alone (parameter draws left out)" if s.parameter_weight == 0.0 else ""))
         if self.written:

@@ -450,3 +450,33 @@ def test_the_sign_is_kept_only_where_it_carries_from_one_learning_replay_to_anot
     opposite = learn([drifting(53, 1.0), drifting(54, -1.0)], ["a", "b"]).signals["roll_rad"]
     assert opposite.symmetric
     assert learn([drifting(55, 1.0)], ["a"]).signals["roll_rad"].symmetric
+
+
+def test_a_bias_seen_at_the_restart_centres_the_band_where_it_carries_from_replay_to_replay() -> None:
+    """A sensor bias (logged - FMU already 0.5 at the restart, where the dynamics have not yet erred) in both
+    learning replays, whose drifts go opposite ways (so no signed band carries): the band is centred on the bias,
+    symmetric about it, as wide as it would be without the bias, and covers a third replay at its level; biases of
+    opposite signs, or a single replay: centred on the FMU."""
+    def biased(seed: int, bias: float, drift: float, n_windows: int = 100) -> SimpleNamespace:
+        res, _ = _replay(seed, sigma_per_s=0.5, n_windows=n_windows)
+        res.measured["roll_rad"] = drift * np.abs(res.measured["roll_rad"]) + bias
+        return res
+
+    disc = learn([biased(61, 0.5, 1.0), biased(62, 0.5, -1.0)], ["a", "b"])
+    s = disc.signals["roll_rad"]
+    assert s.symmetric and s.offset == pytest.approx(0.5, abs=0.02)
+    i5, i50, i95 = LEVELS.index(0.05), LEVELS.index(0.5), LEVELS.index(0.95)
+    for row in s.quantiles:
+        assert row[i50] == pytest.approx(s.offset) and row[i95] - s.offset == pytest.approx(s.offset - row[i5])
+    unbiased = learn([biased(61, 0.0, 1.0), biased(62, 0.0, -1.0)], ["a", "b"]).signals["roll_rad"]
+    assert unbiased.symmetric and unbiased.offset is None
+    assert s.quantiles[-1][i95] - s.quantiles[-1][i5] == pytest.approx(
+        unbiased.quantiles[-1][i95] - unbiased.quantiles[-1][i5], rel=0.1)  # the bias no longer widens it
+    third = biased(63, 0.5, 1.0, n_windows=200)
+    third.measured["roll_rad"] = 0.5 + (third.measured["roll_rad"] - 0.5) * np.sign(np.sin(np.arange(
+        third.t_s.size)))  # drift of either sign
+    lo, hi = _band(disc, third)
+    r = third.measured["roll_rad"]
+    assert 0.87 <= float(np.mean((r >= lo) & (r <= hi))) <= 0.93
+    assert learn([biased(64, 0.5, 1.0), biased(65, -0.5, -1.0)], ["a", "b"]).signals["roll_rad"].offset is None
+    assert learn([biased(66, 0.5, 1.0)], ["a"]).signals["roll_rad"].offset is None
