@@ -326,7 +326,9 @@ def scale_carries(scaled: np.ndarray, unscaled: np.ndarray, forms: int) -> bool:
 def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "",
           scaled: bool = True) -> Discrepancy:
     """The discrepancy of the replays ``results`` (same FMU, same options), pooled per signal and horizon bin.
-    Per signal the form is unscaled, or scaled by the departure, the magnitude or the slope (:func:`scale_of`).
+    Per signal the form is unscaled, or scaled by the departure, the magnitude or the slope (:func:`scale_of`);
+    each form's band keeps the residual's sign where it carries (:func:`sign_carries`), else is centred on the
+    offset at the restart where that carries (:func:`offset_carries`), else on the FMU.
     With two replays or more, each left out in turn, a scaled form is kept only where its band scores better
     than the unscaled one (mean interval score, :func:`held_out_score`) on every replay left out and on more of
     their replay windows than chance gives (:func:`scale_carries`: the fourteen 2 s windows of two 12 s segments, as
@@ -372,7 +374,8 @@ def learn(results: Sequence[ReplayResult], logs: Sequence[str], note: str = "",
     return Discrepancy(levels=list(LEVELS), signals=signals, window_s=window_s, rate_hz=rate_hz,
                        start_velocity=first.options.get("start_velocity"),
                        logs=[str(x) for x in logs], note=note or (
-                           "empirical quantiles of logged - FMU (with both signs where symmetric) per horizon bin, "
+                           "empirical quantiles of logged - FMU (with both signs about the offset at the restart, "
+                           "else 0, where symmetric) per horizon bin, "
                            "where scale_floor is given "
                            "divided by (|FMU - FMU at the window start| or |FMU|, per scale_by, + scale_floor) "
                            "(identification.validation.discrepancy); learned from replays of the listed logs"))
