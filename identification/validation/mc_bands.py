@@ -454,6 +454,8 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
                             if discrepancy else {},
                             "parameter_weight": {k: discrepancy.signals[k].parameter_weight for k in learned}
                             if discrepancy else {},
+                            "offset": {k: _offset_words(discrepancy.signals[k], units.get(k)) for k in learned
+                                       if discrepancy.signals[k].offset is not None} if discrepancy else {},
                             "same_windows": discrepancy is None or (
                                 discrepancy.window_s == res.options.get("window_s")
                                 and discrepancy.rate_hz == res.options.get("rate_hz")),
@@ -464,6 +466,14 @@ def monte_carlo(job: ValidationJob, unc: Uncertainty, res: ReplayResult, log: Fl
                                       "the learned discrepancy (carries the sensor noise)") if learned
                             else "parameters + restart-state noise + sensor noise"}}
     return Bands(lo, hi, cov, info, bounds)
+
+
+def _offset_words(s: Any, unit: str | None) -> str:
+    """A band's centre off the FMU (``SignalDiscrepancy.offset``) in words: in the signal's unit, or in its
+    scale's where the table is scaled."""
+    if s.scale_floor is None:
+        return f"{s.offset:+.3g}" + (f" {unit}" if unit else "")
+    return f"{s.offset:+.3g} x ({s.scale_by} + {s.scale_floor:.3g})"
 
 
 #: the band factor searched between these (a ratio of band widths)

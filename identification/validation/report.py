@@ -157,6 +157,10 @@ def _band_note(res: ReplayResult) -> str:
     if alone:
         parts += (f"; on {', '.join(alone)} the discrepancy alone (the parameter draws' spread did not follow the "
                   "error on learning replays left out)")
+    offsets = (info.get("discrepancy") or {}).get("offset") or {}
+    if offsets:
+        parts += ("; centred off the FMU on " + ", ".join(f"{k} ({v})" for k, v in offsets.items())
+                  + " (logged - FMU at the restarts of every learning replay: a bias the FMU does not have)")
     text = (f"Bands: {info['draws_run']} of {info['draws']} Monte Carlo replays (seed {info['seed']}) with "
             f"{', '.join(info['parameters'])} drawn from the identified covariance, each window's restart state "
             f"with the sensor noise estimated from the log, {parts}. Nominal level 90 % (the 5-95 % band); "

@@ -559,6 +559,11 @@ def _band_lines(r: ValidationResult) -> list[str]:
     if alone:
         out.append(f"  the discrepancy alone on {', '.join(alone)} (the parameter draws' spread widened the band of "
                    "learning replays left out more than it helped: parameter_weight 0)")
+    offsets = disc.get("offset") or {}
+    if offsets:
+        out.append("  band centred off the FMU on " + ", ".join(f"{k} ({v})" for k, v in offsets.items())
+                   + ": logged - FMU at the window restarts of every learning replay, where the model has not yet "
+                   "erred: a bias the FMU does not have (a sensor's calibration, e.g. an airspeed ratio)")
     if disc.get("signals") and not disc.get("same_windows", True):
         out.append(f"  note: the discrepancy was learned with {disc['window_s']:g} s windows at another window length "
                    "or rate than this replay: its horizons do not match (learn it with the same --window-s, --rate-hz)")

@@ -435,6 +435,18 @@ def test_learning_with_parameter_draws_stores_a_factor_that_validate_applies(
     b0, b1 = out0.replay.bands, out.replay.bands
     assert not np.allclose(b0.hi["roll_rad"] - b0.lo["roll_rad"], b1.hi["roll_rad"] - b1.lo["roll_rad"])
     np.testing.assert_array_equal(b0.hi["pitch_rad"], b1.hi["pitch_rad"])  # the other signals as they were
+    # a table centred on a restart offset: the band moves by it (times the table's scale) and every output names it
+    moved = roll.model_copy(update={"offset": 0.01, "quantiles": [[q + 0.01 for q in row] for row in roll.quantiles]})
+    shifted = learned.discrepancy.model_copy(update={"signals": {**learned.discrepancy.signals, "roll_rad": moved}})
+    out2 = validate_mc(job, wrong, 19, seed=3, executor=cluster, discrepancy=shifted)
+    b2, scale = out2.replay.bands, scale_of(out.replay, "roll_rad", roll)
+    ok = np.isfinite(b1.hi["roll_rad"])
+    np.testing.assert_allclose((b2.hi["roll_rad"] - b1.hi["roll_rad"])[ok], (0.01 * scale)[ok], atol=1e-9)
+    np.testing.assert_allclose((b2.lo["roll_rad"] - b1.lo["roll_rad"])[ok], (0.01 * scale)[ok], atol=1e-9)
+    named = "roll_rad (+0.01 rad)" if roll.scale_floor is None else "roll_rad (+0.01 x ("
+    assert any("band centred off the FMU on " + named in line for line in out2.lines()), out2.lines()
+    assert "centred off the FMU on " + named in validation_page(out2.replay)
+    assert not any("centred off the FMU" in line for line in out.lines())
 
 
 def test_the_sign_is_kept_only_where_it_carries_from_one_learning_replay_to_another() -> None:
