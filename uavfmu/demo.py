@@ -36,6 +36,9 @@ from fmu_models.quadrotor.constants import MASS_KG, MOTOR_PWM_INPUTS, N_MOTORS
 REAL_QUAD_LOGS = tuple(("quadrotor", f"arducopter_x_quad_real_{n}.BIN") for n in (218, 104, 105))
 ERLE_MASS_KG = MASS_KG  #: the Erle quadrotor's mass is not logged; the F450 class default (paper 000 Table 1)
 ROLL_FREE = "C_ell_p,C_ell_delta_a"
+#: the file ``identify thrust`` writes in the demo's work folder (the map, its covariance), which ``identify
+#: quadrotor`` starts from
+THRUST_FILE = "quadrotor_identified.json"
 DEFAULT_SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 
 
@@ -170,7 +173,7 @@ def identify(logs: dict[str, list[Path]], work: Path, keep_going: bool = False) 
     if "quadrotor" in logs:
         from identification.thrust.workflow import FlightSpec, ThrustConfig, identify_thrust
 
-        out = work / "quadrotor_identified.json"
+        out = work / THRUST_FILE
         flights = tuple(FlightSpec(Path(p), ERLE_MASS_KG) for p in logs["quadrotor"])
         config = ThrustConfig(flights=flights, out=out, write_losing_model=keep_going)
         thrust = identify_thrust(config)
@@ -250,7 +253,7 @@ def identify_dynamics(merged: dict[str, Any], work: Path, flight: Any = None) ->
     from identification.quadrotor import identify as q
 
     start = QuadrotorParams.from_dict(merged["quadrotor"]) if "quadrotor" in merged else QuadrotorParams()
-    thrust_file = work / "quadrotor_identified.json"  # identify thrust's map and its covariance, when written
+    thrust_file = work / THRUST_FILE  # identify thrust's map and its covariance, when written
     base = read_json(thrust_file) if "quadrotor" in merged and thrust_file.exists() else None
     unc = uncertainty_of(base, str(thrust_file)) if base and "uncertainty" in base else None
     flight = flight if flight is not None else stick_flight()
